@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# Installs everything the build, the tests and the demo need, and nothing twice.
+# Idempotent: a second run checks and exits quickly.
+#   scripts/install-deps.sh            Debian packages + Python virtual environment (.venv)
+#   scripts/install-deps.sh --no-venv  Debian packages only (used by the Docker build stage)
+set -euo pipefail
+
+here=$(cd "$(dirname "$0")/.." && pwd)
+want_venv=1
+[[ "${1:-}" == "--no-venv" ]] && want_venv=0
+
+debian_packages=(
+  build-essential cmake ninja-build pkg-config git ca-certificates
+  libabsl-dev nlohmann-json3-dev libssl-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  libvtk9-dev
+  libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
+  prometheus-cpp-dev
+  python3 python3-venv python3-dev
+)
+
+missing=()
+for p in "${debian_packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if ((${#missing[@]})); then
+  echo "install-deps: installing ${missing[*]}"
+  sudo=""
+  [[ $(id -u) -ne 0 ]] && sudo="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $sudo apt-get update -qq
+  $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+else
+  echo "install-deps: Debian packages present"
+fi
+
+if ((want_venv)); then
+  venv="$here/.venv"
+  stamp="$venv/.requirements.stamp"
+  req="$here/scripts/requirements-dev.txt"
+  if [[ ! -x "$venv/bin/python" ]]; then
+    python3 -m venv "$venv"
+  fi
+  if [[ ! -f "$stamp" ]] || ! cmp -s "$req" "$stamp"; then
+    "$venv/bin/pip" install -q --upgrade pip
+    "$venv/bin/pip" install -q -r "$req"
+    cp "$req" "$stamp"
+  else
+    echo "install-deps: Python environment up to date"
+  fi
+fi

@@ -1,0 +1,388 @@
+#include "server/core/block_relations.h"
+
+#include <algorithm>
+#include <array>
+#include <cassert>
+
+namespace actopo {
+namespace {
+
+// Local vertex orders of the faces of a sorted tuple, as relation.h fixes them.
+constexpr int kTetEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+constexpr int kTetFaces[4][3] = {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}};
+// The vertex of a tetrahedron opposite each face of kTetFaces, and the edge opposite each edge.
+constexpr int kOppositeVertex[4] = {3, 2, 1, 0};
+
+class BlockComputer {
+ public:
+  BlockComputer(const Topology& topology, int32_t b, BlockScratch& scratch)
+      : topo_(topology), b_(b), s_(scratch) {
+    vbegin_ = topo_.block_vertex_begin(b);
+    vend_ = topo_.block_vertex_begin(b + 1);
+  }
+
+  RelationBlock Compute(Relation r) {
+    RelationBlock out;
+    out.relation = r;
+    out.block = b_;
+    const int dim = SourceDimension(r);
+    out.first = topo_.block_begin(dim, b_);
+    out.count = topo_.block_size(dim, b_);
+    switch (r) {
+      case Relation::kVV: VertexNeighbors(out); break;
+      case Relation::kVE: VertexEdges(out); break;
+      case Relation::kVF: VertexTriangles(out); break;
+      case Relation::kVT: VertexStar(out); break;
+      case Relation::kEF: EdgeTriangles(out); break;
+      case Relation::kET: EdgeStar(out); break;
+      case Relation::kFE: TriangleEdges(out); break;
+      case Relation::kFT: TriangleStar(out); break;
+      case Relation::kTE: TetrahedronEdges(out); break;
+      case Relation::kTF: TetrahedronTriangles(out); break;
+      case Relation::kTT: TetrahedronNeighbors(out); break;
+      case Relation::kVL: VertexLink(out); break;
+      case Relation::kEL: EdgeLink(out); break;
+      case Relation::kFL: TriangleLink(out); break;
+      case Relation::kVB: VertexOnBoundary(out); break;
+      case Relation::kEB: EdgeOnBoundary(out); break;
+      case Relation::kEV:
+      case Relation::kFV:
+      case Relation::kTV:
+      case Relation::kFB: assert(false && "static relations are read from the topology"); break;
+    }
+    return out;
+  }
+
+ private:
+  bool Inside(SimplexId v) const { return v >= vbegin_ && v < vend_; }
+  const SimplexId* Tet(SimplexId t) const { return topo_.tetrahedron(t).data(); }
+
+  // Visits the external then the internal tetrahedra of a block: ascending ids.
+  template <class Fn>
+  void ForEachTet(int32_t block, Fn&& fn) const {
+    for (SimplexId t : topo_.external_tetrahedra(block)) fn(t, Tet(t));
+    const SimplexId end = topo_.block_tetrahedron_begin(block + 1);
+    for (SimplexId t = topo_.block_tetrahedron_begin(block); t < end; ++t) fn(t, Tet(t));
+  }
+
+  SimplexId Face(const SimplexId* s, int f) const {
+    return topo_.FindTriangle(s[kTetFaces[f][0]], s[kTetFaces[f][1]], s[kTetFaces[f][2]]);
+  }
+  SimplexId Edge(const SimplexId* s, int e) const {
+    return topo_.FindEdge(s[kTetEdges[e][0]], s[kTetEdges[e][1]]);
+  }
+
+  void BeginPairs() {
+    s_.rows.clear();
+    s_.values.clear();
+  }
+  void Pair(SimplexId row, SimplexId value) {
+    s_.rows.push_back(row);
+    s_.values.push_back(value);
+  }
+  // Turns the (row, value) pairs into CSR, stable per row; `dedupe` sorts each row and drops
+  // repeats (for relations gathered from several tetrahedra).
+  void PairsToCsr(RelationBlock& out, bool dedupe) {
+    const SimplexId n = out.count;
+    out.offsets.assign(size_t(n) + 1, 0);
+    for (SimplexId r : s_.rows) ++out.offsets[r + 1];
+    for (SimplexId i = 0; i < n; ++i) out.offsets[i + 1] += out.offsets[i];
+    s_.tmp.resize(s_.values.size());
+    s_.counts.assign(out.offsets.begin(), out.offsets.end() - 1);
+    for (size_t k = 0; k < s_.rows.size(); ++k) s_.tmp[s_.counts[s_.rows[k]]++] = s_.values[k];
+    if (!dedupe) {
+      out.values.assign(s_.tmp.begin(), s_.tmp.end());
+      return;
+    }
+    SimplexId write = 0;
+    for (SimplexId i = 0; i < n; ++i) {
+      SimplexId* begin = s_.tmp.data() + out.offsets[i];
+      SimplexId* end = s_.tmp.data() + out.offsets[i + 1];
+      std::sort(begin, end);
+      end = std::unique(begin, end);
+      out.offsets[i] = write;
+      for (SimplexId* p = begin; p != end; ++p) s_.tmp[write++] = *p;
+    }
+    out.offsets[n] = write;
+    out.values.assign(s_.tmp.begin(), s_.tmp.begin() + write);
+  }
+
+  void VertexStar(RelationBlock& out) {
+    BeginPairs();
+    ForEachTet(b_, [&](SimplexId t, const SimplexId* s) {
+      for (int k = 0; k < 4; ++k) {
+        if (Inside(s[k])) Pair(s[k] - vbegin_, t);
+      }
+    });
+    PairsToCsr(out, false);
+  }
+
+  void VertexNeighbors(RelationBlock& out) {
+    BeginPairs();
+    ForEachTet(b_, [&](SimplexId, const SimplexId* s) {
+      for (int k = 0; k < 4; ++k) {
+        if (!Inside(s[k])) continue;
+        for (int j = 0; j < 4; ++j) {
+          if (j != k) Pair(s[k] - vbegin_, s[j]);
+        }
+      }
+    });
+    PairsToCsr(out, true);
+  }
+
+  void VertexEdges(RelationBlock& out) {
+    VertexNeighbors(out);
+    // Ascending neighbours give ascending edge ids: edges (w, v) with w < v are numbered by w,
+    // and all of them come before the edges (v, w) starting at v.
+    for (SimplexId i = 0; i < out.count; ++i) {
+      const SimplexId v = vbegin_ + i;
+      for (SimplexId k = out.offsets[i]; k < out.offsets[i + 1]; ++k) {
+        const SimplexId w = out.values[k];
+        out.values[k] = w < v ? topo_.FindEdge(w, v) : topo_.FindEdge(v, w);
+      }
+    }
+  }
+
+  void VertexTriangles(RelationBlock& out) {
+    BeginPairs();
+    ForEachTet(b_, [&](SimplexId, const SimplexId* s) {
+      for (int f = 0; f < 4; ++f) {
+        const int* face = kTetFaces[f];
+        if (!Inside(s[face[0]]) && !Inside(s[face[1]]) && !Inside(s[face[2]])) continue;
+        const SimplexId id = Face(s, f);
+        for (int k = 0; k < 3; ++k) {
+          if (Inside(s[face[k]])) Pair(s[face[k]] - vbegin_, id);
+        }
+      }
+    });
+    PairsToCsr(out, true);
+  }
+
+  void EdgeStar(RelationBlock& out) {
+    BeginPairs();
+    ForEachTet(b_, [&](SimplexId t, const SimplexId* s) {
+      for (int e = 0; e < 6; ++e) {
+        if (Inside(s[kTetEdges[e][0]])) Pair(Edge(s, e) - out.first, t);
+      }
+    });
+    PairsToCsr(out, false);
+  }
+
+  void EdgeTriangles(RelationBlock& out) {
+    BeginPairs();
+    ForEachTet(b_, [&](SimplexId, const SimplexId* s) {
+      // Triangles of the tetrahedron, and for each edge the two triangles that contain it.
+      SimplexId face_id[4] = {-1, -1, -1, -1};
+      for (int e = 0; e < 6; ++e) {
+        if (!Inside(s[kTetEdges[e][0]])) continue;
+        const SimplexId edge = Edge(s, e) - out.first;
+        for (int f = 0; f < 4; ++f) {
+          const int* face = kTetFaces[f];
+          const bool has0 = face[0] == kTetEdges[e][0] || face[1] == kTetEdges[e][0] ||
+                            face[2] == kTetEdges[e][0];
+          const bool has1 = face[0] == kTetEdges[e][1] || face[1] == kTetEdges[e][1] ||
+                            face[2] == kTetEdges[e][1];
+          if (!has0 || !has1) continue;
+          if (face_id[f] < 0) face_id[f] = Face(s, f);
+          Pair(edge, face_id[f]);
+        }
+      }
+    });
+    PairsToCsr(out, true);
+  }
+
+  void TriangleEdges(RelationBlock& out) {
+    out.stride = 3;
+    out.values.resize(size_t(out.count) * 3);
+    for (SimplexId i = 0; i < out.count; ++i) {
+      const auto f = topo_.triangle(out.first + i);
+      out.values[3 * size_t(i)] = topo_.FindEdge(f[0], f[1]);
+      out.values[3 * size_t(i) + 1] = topo_.FindEdge(f[0], f[2]);
+      out.values[3 * size_t(i) + 2] = topo_.FindEdge(f[1], f[2]);
+    }
+  }
+
+  // Pairs (local triangle, tetrahedron) for the triangles owned by the block, ascending tets.
+  void TriangleStarPairs(SimplexId first) {
+    BeginPairs();
+    ForEachTet(b_, [&](SimplexId t, const SimplexId* s) {
+      for (int f = 0; f < 4; ++f) {
+        if (Inside(s[kTetFaces[f][0]])) Pair(Face(s, f) - first, t);
+      }
+    });
+  }
+
+  void TriangleStar(RelationBlock& out) {
+    TriangleStarPairs(out.first);
+    PairsToCsr(out, false);
+  }
+
+  void TetrahedronEdges(RelationBlock& out) {
+    out.stride = 6;
+    out.values.resize(size_t(out.count) * 6);
+    for (SimplexId i = 0; i < out.count; ++i) {
+      const SimplexId* s = Tet(out.first + i);
+      for (int e = 0; e < 6; ++e) out.values[6 * size_t(i) + e] = Edge(s, e);
+    }
+  }
+
+  void TetrahedronTriangles(RelationBlock& out) {
+    out.stride = 4;
+    out.values.resize(size_t(out.count) * 4);
+    for (SimplexId i = 0; i < out.count; ++i) {
+      const SimplexId* s = Tet(out.first + i);
+      for (int f = 0; f < 4; ++f) out.values[4 * size_t(i) + f] = Face(s, f);
+    }
+  }
+
+  void TetrahedronNeighbors(RelationBlock& out) {
+    // Triangles owned by this block: their stars come from the block's own tetrahedra.
+    RelationBlock star;
+    star.first = topo_.block_triangle_begin(b_);
+    star.count = topo_.block_size(2, b_);
+    TriangleStarPairs(star.first);
+    PairsToCsr(star, false);
+
+    // The triangle opposite a tetrahedron's lowest vertex may belong to a later block; collect
+    // those as (owner block, triangle, local tet) requests, answered from the owner's tets below.
+    std::vector<int64_t>& foreign = s_.keys;
+    foreign.clear();
+    BeginPairs();
+    for (SimplexId i = 0; i < out.count; ++i) {
+      const SimplexId t = out.first + i;
+      const SimplexId* s = Tet(t);
+      for (int f = 0; f < 4; ++f) {
+        const SimplexId id = Face(s, f);
+        if (id >= star.first && id < star.first + star.count) {
+          for (SimplexId other : star.row(id - star.first)) {
+            if (other != t) Pair(i, other);
+          }
+        } else {
+          foreign.push_back(int64_t(id) << 32 | i);
+        }
+      }
+    }
+    std::sort(foreign.begin(), foreign.end());
+    for (size_t group = 0; group < foreign.size();) {
+      const int32_t owner = topo_.block_of(2, SimplexId(foreign[group] >> 32));
+      size_t end = group;
+      while (end < foreign.size() && topo_.block_of(2, SimplexId(foreign[end] >> 32)) == owner) {
+        ++end;
+      }
+      AnswerForeignStars(owner, foreign.data() + group, foreign.data() + end, out.first);
+      group = end;
+    }
+    PairsToCsr(out, true);
+  }
+
+  // requests: sorted (triangle << 32 | local tet) whose triangles all belong to block `owner`.
+  void AnswerForeignStars(int32_t owner, const int64_t* begin, const int64_t* end,
+                          SimplexId first_tet) {
+    const SimplexId obegin = topo_.block_vertex_begin(owner);
+    const SimplexId oend = topo_.block_vertex_begin(owner + 1);
+    s_.mark.assign(size_t(oend - obegin), 0);
+    for (const int64_t* r = begin; r != end; ++r) {
+      s_.mark[topo_.triangle(SimplexId(*r >> 32))[0] - obegin] = 1;
+    }
+    ForEachTet(owner, [&](SimplexId t, const SimplexId* s) {
+      for (int f = 0; f < 4; ++f) {
+        const SimplexId low = s[kTetFaces[f][0]];
+        if (low < obegin || low >= oend || !s_.mark[low - obegin]) continue;
+        const int64_t key = int64_t(Face(s, f)) << 32;
+        for (const int64_t* r = std::lower_bound(begin, end, key); r != end && (*r >> 32) == (key >> 32);
+             ++r) {
+          const SimplexId local = SimplexId(*r & 0xffffffff);
+          if (first_tet + local != t) Pair(local, t);
+        }
+      }
+    });
+  }
+
+  void VertexLink(RelationBlock& out) {
+    VertexStar(out);
+    for (SimplexId i = 0; i < out.count; ++i) {
+      const SimplexId v = vbegin_ + i;
+      for (SimplexId k = out.offsets[i]; k < out.offsets[i + 1]; ++k) {
+        const SimplexId* s = Tet(out.values[k]);
+        const int at = int(std::find(s, s + 4, v) - s);
+        out.values[k] = Face(s, kOppositeVertex[at]);  // face f omits vertex kOppositeVertex[f]
+      }
+    }
+  }
+
+  void EdgeLink(RelationBlock& out) {
+    EdgeStar(out);
+    for (SimplexId i = 0; i < out.count; ++i) {
+      const auto edge = topo_.edge(out.first + i);
+      for (SimplexId k = out.offsets[i]; k < out.offsets[i + 1]; ++k) {
+        const SimplexId* s = Tet(out.values[k]);
+        SimplexId other[2];
+        int n = 0;
+        for (int j = 0; j < 4; ++j) {
+          if (s[j] != edge[0] && s[j] != edge[1]) other[n++] = s[j];
+        }
+        out.values[k] = topo_.FindEdge(other[0], other[1]);
+      }
+    }
+  }
+
+  void TriangleLink(RelationBlock& out) {
+    TriangleStar(out);
+    for (SimplexId i = 0; i < out.count; ++i) {
+      const auto f = topo_.triangle(out.first + i);
+      for (SimplexId k = out.offsets[i]; k < out.offsets[i + 1]; ++k) {
+        const SimplexId* s = Tet(out.values[k]);
+        for (int j = 0; j < 4; ++j) {
+          if (s[j] != f[0] && s[j] != f[1] && s[j] != f[2]) out.values[k] = s[j];
+        }
+      }
+    }
+  }
+
+  // A vertex or edge is on the boundary iff it is a face of a boundary triangle.
+  void VertexOnBoundary(RelationBlock& out) {
+    out.stride = 1;
+    out.values.assign(out.count, 0);
+    ForEachTet(b_, [&](SimplexId, const SimplexId* s) {
+      for (int f = 0; f < 4; ++f) {
+        const int* face = kTetFaces[f];
+        if (!Inside(s[face[0]]) && !Inside(s[face[1]]) && !Inside(s[face[2]])) continue;
+        if (!topo_.triangle_on_boundary(Face(s, f))) continue;
+        for (int k = 0; k < 3; ++k) {
+          if (Inside(s[face[k]])) out.values[s[face[k]] - vbegin_] = 1;
+        }
+      }
+    });
+  }
+
+  void EdgeOnBoundary(RelationBlock& out) {
+    out.stride = 1;
+    out.values.assign(out.count, 0);
+    constexpr int kFaceEdges[3][2] = {{0, 1}, {0, 2}, {1, 2}};
+    ForEachTet(b_, [&](SimplexId, const SimplexId* s) {
+      for (int f = 0; f < 4; ++f) {
+        const int* face = kTetFaces[f];
+        if (!Inside(s[face[0]]) && !Inside(s[face[1]])) continue;
+        if (!topo_.triangle_on_boundary(Face(s, f))) continue;
+        for (const auto& fe : kFaceEdges) {
+          const SimplexId a = s[face[fe[0]]], c = s[face[fe[1]]];
+          if (Inside(a)) out.values[topo_.FindEdge(a, c) - out.first] = 1;
+        }
+      }
+    });
+  }
+
+  const Topology& topo_;
+  const int32_t b_;
+  BlockScratch& s_;
+  SimplexId vbegin_ = 0, vend_ = 0;
+};
+
+}  // namespace
+
+RelationBlock ComputeBlockRelation(const Topology& topology, Relation r, int32_t b,
+                                   BlockScratch& scratch) {
+  return BlockComputer(topology, b, scratch).Compute(r);
+}
+
+}  // namespace actopo

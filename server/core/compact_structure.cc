@@ -1,0 +1,128 @@
+#include "server/core/compact_structure.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <utility>
+
+namespace actopo {
+
+CompactStructure::CompactStructure(std::shared_ptr<const Topology> topology,
+                                   const Options& options)
+    : topology_(std::move(topology)) {
+  const int consumers = std::max(options.consumers, 1);
+  capacity_ = static_cast<int>(
+                  std::floor(std::max(options.cache_ratio, 0.0) * topology_->num_blocks() /
+                             consumers)) +
+              1;
+}
+
+AccessStats CompactStructure::stats() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return finished_;
+}
+
+MemoryStats CompactStructure::memory() const {
+  MemoryStats m;
+  m.static_bytes = topology_->bytes().total();
+  m.relation_bytes = bytes_.load();
+  m.relation_peak_bytes = peak_bytes_.load();
+  return m;
+}
+
+CompactStructure::Reader::Reader(CompactStructure* owner)
+    : ReaderBase<Reader>(owner->topology_.get()),
+      owner_(owner),
+      capacity_(owner->capacity_),
+      entry_of_block_(owner->topology_->num_blocks(), -1) {
+  entries_.reserve(capacity_ + kNumRelations);
+}
+
+CompactStructure::Reader::Reader(Reader&& other) noexcept
+    : ReaderBase<Reader>(other.topology_),
+      owner_(std::exchange(other.owner_, nullptr)),
+      capacity_(other.capacity_),
+      entries_(std::move(other.entries_)),
+      entry_of_block_(std::move(other.entry_of_block_)),
+      slots_(other.slots_),
+      next_insert_(other.next_insert_),
+      bytes_(std::exchange(other.bytes_, 0)),
+      scratch_(std::move(other.scratch_)),
+      stats_(std::exchange(other.stats_, {})) {}
+
+CompactStructure::Reader::~Reader() {
+  if (owner_ == nullptr) return;
+  AddBytes(-bytes_);
+  std::lock_guard<std::mutex> lock(owner_->mu_);
+  owner_->finished_ += stats_;
+}
+
+void CompactStructure::Reader::AddBytes(int64_t delta) {
+  bytes_ += delta;
+  const int64_t now = owner_->bytes_.fetch_add(delta, std::memory_order_relaxed) + delta;
+  int64_t peak = owner_->peak_bytes_.load(std::memory_order_relaxed);
+  while (now > peak && !owner_->peak_bytes_.compare_exchange_weak(peak, now)) {
+  }
+}
+
+int CompactStructure::Reader::FindOrInsert(int32_t block) {
+  if (entry_of_block_[block] >= 0) return entry_of_block_[block];
+  int victim = -1;
+  if (static_cast<int>(entries_.size()) >= capacity_) {
+    // Oldest unpinned entry; the cache is small, a scan is cheaper than bookkeeping.
+    for (int i = 0; i < static_cast<int>(entries_.size()); ++i) {
+      const Entry& e = entries_[i];
+      if (e.pins == 0 && (victim < 0 || e.inserted < entries_[victim].inserted)) victim = i;
+    }
+  }
+  if (victim < 0) {
+    entries_.emplace_back();
+    victim = static_cast<int>(entries_.size()) - 1;
+  } else {
+    Entry& old = entries_[victim];
+    int64_t freed = 0;
+    for (auto& rel : old.relations) {
+      if (rel) freed += rel->bytes();
+      rel.reset();
+    }
+    AddBytes(-freed);
+    entry_of_block_[old.block] = -1;
+    ++stats_.evictions;
+  }
+  Entry& e = entries_[victim];
+  e.block = block;
+  e.inserted = next_insert_++;
+  entry_of_block_[block] = victim;
+  return victim;
+}
+
+void CompactStructure::Reader::MoveSlot(Relation r, int32_t block) {
+  Slot& slot = slots_[Index(r)];
+  if (slot.entry >= 0) --entries_[slot.entry].pins;
+  slot = Slot();
+  ++stats_.requests;
+  const int index = FindOrInsert(block);
+  Entry& e = entries_[index];
+  std::unique_ptr<RelationBlock>& rel = e.relations[Index(r)];
+  if (rel) {
+    ++stats_.hits;
+  } else {
+    ++stats_.misses;
+    const auto start = std::chrono::steady_clock::now();
+    rel = std::make_unique<RelationBlock>(ComputeBlockRelation(*topology_, r, block, scratch_));
+    stats_.wait_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
+                          std::chrono::steady_clock::now() - start)
+                          .count();
+    ++stats_.relations_computed;
+    AddBytes(rel->bytes());
+  }
+  ++e.pins;
+  slot.first = rel->first;
+  slot.count = rel->count;
+  slot.offsets = rel->offsets.data();
+  slot.values = rel->values.data();
+  slot.relation = rel.get();
+  slot.entry = index;
+}
+
+}  // namespace actopo

@@ -1,0 +1,72 @@
+#include "server/core/explicit_structure.h"
+
+#include <cstdio>
+#include <cstdlib>
+
+#include "server/core/block_relations.h"
+#include "server/core/parallel.h"
+
+namespace actopo {
+
+void ExplicitStructure::Reader::MissingRelation(Relation r) {
+  std::fprintf(stderr,
+               "actopo: relation %s was not declared when the explicit structure was built\n",
+               std::string(RelationName(r)).c_str());
+  std::abort();
+}
+
+absl::StatusOr<std::unique_ptr<ExplicitStructure>> ExplicitStructure::Build(
+    std::shared_ptr<const Topology> topology, const Options& options) {
+  auto structure = std::unique_ptr<ExplicitStructure>(new ExplicitStructure(topology));
+  structure->relations_ = options.relations;
+  const Topology& topo = *topology;
+  const int threads = options.threads > 0 ? options.threads : DefaultThreads();
+  const int32_t nb = topo.num_blocks();
+  std::vector<BlockScratch> scratch(threads);
+  // One relation at a time: compute every block, then concatenate, so the transient copy is
+  // never more than one relation.
+  for (Relation r : AllRelations()) {
+    if (!options.relations.Contains(r) || IsStatic(r)) continue;
+    std::vector<RelationBlock> blocks(nb);
+    ParallelFor(nb, threads, [&](int64_t b, int thread) {
+      blocks[b] = ComputeBlockRelation(topo, r, static_cast<int32_t>(b), scratch[thread]);
+    });
+    Stored& st = structure->stored_[Index(r)];
+    st.present = true;
+    std::vector<int64_t> value_begin(nb + 1, 0);
+    for (int32_t b = 0; b < nb; ++b) value_begin[b + 1] = value_begin[b] + blocks[b].values.size();
+    if (value_begin[nb] > INT32_MAX) {
+      return absl::ResourceExhaustedError("explicit structure: a relation exceeds 2^31 entries");
+    }
+    st.values.resize(value_begin[nb]);
+    const bool csr = FixedSize(r) == 0;
+    if (csr) st.offsets.resize(size_t(topo.num_simplices(SourceDimension(r))) + 1);
+    ParallelFor(nb, threads, [&](int64_t b, int) {
+      RelationBlock& rb = blocks[b];
+      std::copy(rb.values.begin(), rb.values.end(), st.values.begin() + value_begin[b]);
+      if (csr) {
+        for (SimplexId i = 0; i < rb.count; ++i) {
+          st.offsets[rb.first + i] = static_cast<SimplexId>(value_begin[b] + rb.offsets[i]);
+        }
+      }
+      rb = RelationBlock();
+    });
+    if (csr) st.offsets.back() = static_cast<SimplexId>(value_begin[nb]);
+  }
+  for (Relation r : AllRelations()) {
+    if (IsStatic(r)) structure->stored_[Index(r)].present = true;
+  }
+  return structure;
+}
+
+MemoryStats ExplicitStructure::memory() const {
+  MemoryStats m;
+  m.static_bytes = topology_->bytes().total();
+  for (const Stored& st : stored_) {
+    m.relation_bytes += int64_t(st.offsets.capacity() + st.values.capacity()) * sizeof(SimplexId);
+  }
+  m.relation_peak_bytes = m.relation_bytes;
+  return m;
+}
+
+}  // namespace actopo

@@ -1,0 +1,46 @@
+// A minimal block-parallel loop for preprocessing (partition, encodings, explicit relations).
+//
+//   ParallelFor(num_blocks, threads, [&](int64_t block, int thread) { ... });
+//
+// Items are handed out one at a time through an atomic counter, so uneven blocks balance out.
+// With threads <= 1 the loop runs inline, which keeps small meshes and tests deterministic.
+#ifndef ACTOPO_SERVER_CORE_PARALLEL_H_
+#define ACTOPO_SERVER_CORE_PARALLEL_H_
+
+#include <algorithm>
+#include <atomic>
+#include <cstdint>
+#include <thread>
+#include <vector>
+
+namespace actopo {
+
+// Default worker count for preprocessing: the hardware concurrency, at least 1.
+inline int DefaultThreads() {
+  return std::max(1u, std::thread::hardware_concurrency());
+}
+
+template <class Fn>
+void ParallelFor(int64_t n, int threads, Fn&& fn) {
+  threads = static_cast<int>(std::min<int64_t>(std::max(threads, 1), std::max<int64_t>(n, 1)));
+  if (threads <= 1) {
+    for (int64_t i = 0; i < n; ++i) fn(i, 0);
+    return;
+  }
+  std::atomic<int64_t> next{0};
+  auto work = [&](int thread) {
+    for (int64_t i = next.fetch_add(1, std::memory_order_relaxed); i < n;
+         i = next.fetch_add(1, std::memory_order_relaxed)) {
+      fn(i, thread);
+    }
+  };
+  std::vector<std::thread> pool;
+  pool.reserve(threads - 1);
+  for (int t = 1; t < threads; ++t) pool.emplace_back(work, t);
+  work(0);
+  for (std::thread& t : pool) t.join();
+}
+
+}  // namespace actopo
+
+#endif  // ACTOPO_SERVER_CORE_PARALLEL_H_

@@ -1,0 +1,109 @@
+#include "server/core/partition.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "absl/strings/str_cat.h"
+
+namespace actopo {
+namespace {
+
+struct OctreeBuilder {
+  std::span<const double> points;
+  OctreeOptions options;
+  std::vector<int32_t> order;  // vertex ids, permuted so each node is a contiguous range
+  std::vector<int32_t> block;  // result, by vertex id
+  int32_t next_block = 0;
+
+  void Split(int64_t begin, int64_t end, std::array<double, 3> lo, std::array<double, 3> hi,
+             int depth) {
+    if (begin == end) return;
+    if (end - begin <= options.bucket_capacity || depth >= options.max_depth) {
+      for (int64_t i = begin; i < end; ++i) block[order[i]] = next_block;
+      ++next_block;
+      return;
+    }
+    std::array<double, 3> mid;
+    for (int k = 0; k < 3; ++k) mid[k] = 0.5 * (lo[k] + hi[k]);
+    // Three nested binary partitions give the 8 children in Morton order (z slowest).
+    auto below = [&](int axis) {
+      return [&, axis](int32_t v) { return points[3 * size_t(v) + axis] < mid[axis]; };
+    };
+    int32_t* base = order.data();
+    std::array<int64_t, 9> cut;
+    cut[0] = begin;
+    cut[8] = end;
+    cut[4] = std::partition(base + begin, base + end, below(2)) - base;
+    for (int hz = 0; hz < 2; ++hz) {
+      const int64_t b = cut[4 * hz], e = cut[4 * hz + 4];
+      cut[4 * hz + 2] = std::partition(base + b, base + e, below(1)) - base;
+      for (int hy = 0; hy < 2; ++hy) {
+        const int64_t b2 = cut[4 * hz + 2 * hy], e2 = cut[4 * hz + 2 * hy + 2];
+        cut[4 * hz + 2 * hy + 1] = std::partition(base + b2, base + e2, below(0)) - base;
+      }
+    }
+    for (int child = 0; child < 8; ++child) {
+      std::array<double, 3> clo = lo, chi = hi;
+      for (int k = 0; k < 3; ++k) {
+        if (child >> k & 1) {
+          clo[k] = mid[k];
+        } else {
+          chi[k] = mid[k];
+        }
+      }
+      Split(cut[child], cut[child + 1], clo, chi, depth + 1);
+    }
+  }
+};
+
+}  // namespace
+
+std::vector<int32_t> OctreeBlocks(std::span<const double> points, const OctreeOptions& options) {
+  const int64_t n = static_cast<int64_t>(points.size() / 3);
+  OctreeBuilder builder{points, options, std::vector<int32_t>(n), std::vector<int32_t>(n, 0)};
+  builder.options.bucket_capacity = std::max(builder.options.bucket_capacity, 1);
+  std::iota(builder.order.begin(), builder.order.end(), 0);
+  if (n == 0) return {};
+  std::array<double, 3> lo, hi;
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = hi[k] = points[k];
+  }
+  for (int64_t v = 0; v < n; ++v) {
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], points[3 * v + k]);
+      hi[k] = std::max(hi[k], points[3 * v + k]);
+    }
+  }
+  // A cube around the bounding box keeps octants cubic, as a PR-octree's cells are.
+  double side = 0;
+  for (int k = 0; k < 3; ++k) side = std::max(side, hi[k] - lo[k]);
+  for (int k = 0; k < 3; ++k) hi[k] = lo[k] + side;
+  // Points exactly on the upper faces fall in the upper child ("<" split), which is fine: the
+  // split only needs to be deterministic.
+  builder.Split(0, n, lo, hi, 0);
+  return std::move(builder.block);
+}
+
+absl::StatusOr<std::vector<int32_t>> LabelBlocks(std::span<const double> labels) {
+  std::vector<int64_t> as_int(labels.size());
+  for (size_t v = 0; v < labels.size(); ++v) {
+    const double l = labels[v];
+    if (!std::isfinite(l) || l != std::floor(l) || l < INT32_MIN || l > INT32_MAX) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "block labels: vertex ", v, " has label ", l, ", not a 32-bit integer"));
+    }
+    as_int[v] = static_cast<int64_t>(l);
+  }
+  std::vector<int64_t> distinct = as_int;
+  std::sort(distinct.begin(), distinct.end());
+  distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+  std::vector<int32_t> block(labels.size());
+  for (size_t v = 0; v < labels.size(); ++v) {
+    block[v] = static_cast<int32_t>(
+        std::lower_bound(distinct.begin(), distinct.end(), as_int[v]) - distinct.begin());
+  }
+  return block;
+}
+
+}  // namespace actopo

@@ -1,0 +1,122 @@
+// Every relation of every simplex, for both structures and several block sizes, against the
+// brute-force oracle.
+#include <thread>
+
+#include "gtest/gtest.h"
+#include "server/core/block_relations.h"
+#include "server/core/compact_structure.h"
+#include "server/core/explicit_structure.h"
+#include "server/core/partition.h"
+#include "server/core/testing/oracle.h"
+#include "server/core/testing/relation_checks.h"
+#include "server/core/testing/test_meshes.h"
+
+namespace actopo {
+namespace {
+
+struct Case {
+  std::string name;
+  Mesh mesh;
+};
+
+std::vector<Case> Meshes() {
+  return {{"single_tetrahedron", testing::SingleTetrahedron()},
+          {"lattice", testing::Lattice(6, 5, 5, 42)},
+          {"two_components", testing::TwoComponents()},
+          {"non_manifold", testing::NonManifold()}};
+}
+
+class RelationsTest : public ::testing::TestWithParam<int> {};
+
+TEST_P(RelationsTest, ExplicitMatchesOracle) {
+  const int capacity = GetParam();
+  for (const Case& c : Meshes()) {
+    auto topo = *Topology::Build(c.mesh, OctreeBlocks(c.mesh.points, {.bucket_capacity = capacity}));
+    testing::RelationOracle oracle(*topo);
+    auto structure = ExplicitStructure::Build(topo, {.threads = 2});
+    ASSERT_TRUE(structure.ok()) << structure.status();
+    auto reader = (*structure)->NewReader();
+    EXPECT_EQ(testing::CompareWithOracle(reader, oracle, c.name), 0);
+  }
+}
+
+TEST_P(RelationsTest, CompactMatchesOracle) {
+  const int capacity = GetParam();
+  for (const Case& c : Meshes()) {
+    auto topo = *Topology::Build(c.mesh, OctreeBlocks(c.mesh.points, {.bucket_capacity = capacity}));
+    testing::RelationOracle oracle(*topo);
+    for (double ratio : {0.0, 0.2, 1.0}) {
+      CompactStructure structure(topo, {.cache_ratio = ratio});
+      auto reader = structure.NewReader();
+      const std::string label = c.name + " ratio " + std::to_string(ratio);
+      EXPECT_EQ(testing::CompareWithOracle(reader, oracle, label), 0);
+      testing::CompareRandomAccess(reader, oracle, 7, 300, label);
+      EXPECT_GT(reader.stats().requests, 0);
+      EXPECT_EQ(reader.stats().requests, reader.stats().hits + reader.stats().misses);
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(BlockSizes, RelationsTest, ::testing::Values(1, 7, 100, 1000));
+
+TEST(CompactStructure, CacheIsBoundedAndCounted) {
+  const Mesh m = testing::Lattice(8, 8, 8, 3);
+  auto topo = *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 16}));
+  ASSERT_GE(topo->num_blocks(), 20);
+  CompactStructure structure(topo, {.cache_ratio = 0.2, .consumers = 2});
+  EXPECT_EQ(structure.reader_capacity(), int(0.2 * topo->num_blocks() / 2) + 1);
+  {
+    auto reader = structure.NewReader();
+    int64_t total = 0;
+    for (SimplexId v = 0; v < topo->num_vertices(); ++v) total += reader.vertex_star(v).size();
+    EXPECT_EQ(total, 4 * int64_t(topo->num_tetrahedra()));
+    const AccessStats& s = reader.stats();
+    EXPECT_EQ(s.misses, topo->num_blocks());  // a sequential sweep computes each block once
+    EXPECT_EQ(s.hits, 0);
+    EXPECT_EQ(s.evictions, topo->num_blocks() - structure.reader_capacity());
+    EXPECT_GT(structure.memory().relation_bytes, 0);
+  }
+  // Finished readers hand their counters and memory back.
+  EXPECT_EQ(structure.stats().misses, topo->num_blocks());
+  EXPECT_EQ(structure.memory().relation_bytes, 0);
+  EXPECT_GT(structure.memory().relation_peak_bytes, 0);
+}
+
+TEST(CompactStructure, ConcurrentReadersAgree) {
+  const Mesh m = testing::Lattice(7, 6, 6, 5);
+  auto topo = *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 7}));
+  testing::RelationOracle oracle(*topo);
+  CompactStructure structure(topo, {.cache_ratio = 0.1, .consumers = 3});
+  std::vector<std::thread> threads;
+  for (int c = 0; c < 3; ++c) {
+    threads.emplace_back([&, c] {
+      auto reader = structure.NewReader();
+      testing::CompareRandomAccess(reader, oracle, 100 + c, 200, "consumer " + std::to_string(c));
+    });
+  }
+  for (auto& t : threads) t.join();
+  EXPECT_GT(structure.stats().requests, 0);
+}
+
+TEST(BlockRelations, RowsCoverExactlyTheBlocksSimplices) {
+  const Mesh m = testing::Lattice(5, 5, 5, 8);
+  auto topo = *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 10}));
+  BlockScratch scratch;
+  for (Relation r : AllRelations()) {
+    if (IsStatic(r)) continue;
+    for (int32_t b = 0; b < topo->num_blocks(); ++b) {
+      const RelationBlock rb = ComputeBlockRelation(*topo, r, b, scratch);
+      EXPECT_EQ(rb.first, topo->block_begin(SourceDimension(r), b));
+      EXPECT_EQ(rb.count, topo->block_size(SourceDimension(r), b));
+      EXPECT_EQ(rb.stride, FixedSize(r));
+      if (rb.stride == 0) {
+        EXPECT_EQ(rb.offsets.size(), size_t(rb.count) + 1);
+      } else {
+        EXPECT_EQ(rb.values.size(), size_t(rb.count) * rb.stride);
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace actopo

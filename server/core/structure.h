@@ -1,0 +1,123 @@
+// The interface algorithms are written against: a Reader per consumer thread.
+//
+// The ACTOPO paper (Liu & Iuricich, "A Task-Parallel Approach for Localized Topological Data
+// Structures") and TopoCluster (Liu, Iuricich, Fellegara, De Floriani) compute the relations of a
+// block of vertices on demand; ExplicitTriangulation-like structures compute them all up front.
+// Here every structure hands out Readers with the same named accessors, so an algorithm is a
+// template over the reader type (static dispatch: no virtual call per relation):
+//
+//   template <class Reader>
+//   int64_t CountStars(Reader& reader) {
+//     int64_t n = 0;
+//     for (SimplexId v = 0; v < reader.topology().num_vertices(); ++v)
+//       n += reader.vertex_star(v).size();
+//     return n;
+//   }
+//
+// Lifetime rule: a span returned for relation R stays valid until the same reader is next asked
+// for relation R. Spans of different relations do not invalidate each other, so nested loops
+// over different relations are fine; to keep a row of R while asking R again, copy it. Static
+// relations (edge_vertices, triangle_vertices, tetrahedron_vertices) stay valid forever.
+//
+// Ids are internal (see topology.h); translate at the edges with the topology's permutations.
+#ifndef ACTOPO_SERVER_CORE_STRUCTURE_H_
+#define ACTOPO_SERVER_CORE_STRUCTURE_H_
+
+#include <span>
+
+#include "server/core/mesh.h"
+#include "server/core/relation.h"
+#include "server/core/topology.h"
+
+namespace actopo {
+
+// CRTP base: Derived provides `template <Relation R> std::span<const SimplexId> Lookup(SimplexId)`
+// for the non-static relations.
+template <class Derived>
+class ReaderBase {
+ public:
+  const Topology& topology() const { return *topology_; }
+
+  template <Relation R>
+  std::span<const SimplexId> get(SimplexId s) {
+    if constexpr (R == Relation::kEV) {
+      return topology_->edge(s);
+    } else if constexpr (R == Relation::kFV) {
+      return topology_->triangle(s);
+    } else if constexpr (R == Relation::kTV) {
+      return topology_->tetrahedron(s);
+    } else if constexpr (R == Relation::kFB) {
+      return {&kFlags[topology_->triangle_on_boundary(s) ? 1 : 0], 1};
+    } else {
+      return static_cast<Derived*>(this)->template Lookup<R>(s);
+    }
+  }
+  // Run-time relation (the service path); algorithms use the named accessors.
+  std::span<const SimplexId> get(Relation r, SimplexId s);
+
+  std::span<const SimplexId> vertex_neighbors(SimplexId v) { return get<Relation::kVV>(v); }
+  std::span<const SimplexId> vertex_edges(SimplexId v) { return get<Relation::kVE>(v); }
+  std::span<const SimplexId> vertex_triangles(SimplexId v) { return get<Relation::kVF>(v); }
+  std::span<const SimplexId> vertex_star(SimplexId v) { return get<Relation::kVT>(v); }
+  std::span<const SimplexId> vertex_link(SimplexId v) { return get<Relation::kVL>(v); }
+  bool vertex_on_boundary(SimplexId v) { return get<Relation::kVB>(v)[0] != 0; }
+
+  std::span<const SimplexId, 2> edge_vertices(SimplexId e) const { return topology_->edge(e); }
+  std::span<const SimplexId> edge_triangles(SimplexId e) { return get<Relation::kEF>(e); }
+  std::span<const SimplexId> edge_star(SimplexId e) { return get<Relation::kET>(e); }
+  std::span<const SimplexId> edge_link(SimplexId e) { return get<Relation::kEL>(e); }
+  bool edge_on_boundary(SimplexId e) { return get<Relation::kEB>(e)[0] != 0; }
+
+  std::span<const SimplexId, 3> triangle_vertices(SimplexId f) const {
+    return topology_->triangle(f);
+  }
+  std::span<const SimplexId> triangle_edges(SimplexId f) { return get<Relation::kFE>(f); }
+  std::span<const SimplexId> triangle_star(SimplexId f) { return get<Relation::kFT>(f); }
+  std::span<const SimplexId> triangle_link(SimplexId f) { return get<Relation::kFL>(f); }
+  bool triangle_on_boundary(SimplexId f) const { return topology_->triangle_on_boundary(f); }
+
+  std::span<const SimplexId, 4> tetrahedron_vertices(SimplexId t) const {
+    return topology_->tetrahedron(t);
+  }
+  std::span<const SimplexId> tetrahedron_edges(SimplexId t) { return get<Relation::kTE>(t); }
+  std::span<const SimplexId> tetrahedron_triangles(SimplexId t) { return get<Relation::kTF>(t); }
+  std::span<const SimplexId> tetrahedron_neighbors(SimplexId t) { return get<Relation::kTT>(t); }
+
+ protected:
+  explicit ReaderBase(const Topology* topology) : topology_(topology) {}
+  const Topology* topology_;
+
+ private:
+  static constexpr SimplexId kFlags[2] = {0, 1};
+};
+
+template <class Derived>
+std::span<const SimplexId> ReaderBase<Derived>::get(Relation r, SimplexId s) {
+  switch (r) {
+    case Relation::kVV: return get<Relation::kVV>(s);
+    case Relation::kVE: return get<Relation::kVE>(s);
+    case Relation::kVF: return get<Relation::kVF>(s);
+    case Relation::kVT: return get<Relation::kVT>(s);
+    case Relation::kEV: return get<Relation::kEV>(s);
+    case Relation::kEF: return get<Relation::kEF>(s);
+    case Relation::kET: return get<Relation::kET>(s);
+    case Relation::kFV: return get<Relation::kFV>(s);
+    case Relation::kFE: return get<Relation::kFE>(s);
+    case Relation::kFT: return get<Relation::kFT>(s);
+    case Relation::kTV: return get<Relation::kTV>(s);
+    case Relation::kTE: return get<Relation::kTE>(s);
+    case Relation::kTF: return get<Relation::kTF>(s);
+    case Relation::kTT: return get<Relation::kTT>(s);
+    case Relation::kVL: return get<Relation::kVL>(s);
+    case Relation::kEL: return get<Relation::kEL>(s);
+    case Relation::kFL: return get<Relation::kFL>(s);
+    case Relation::kVB: return get<Relation::kVB>(s);
+    case Relation::kEB: return get<Relation::kEB>(s);
+    case Relation::kFB: return get<Relation::kFB>(s);
+  }
+  return {};
+}
+
+}  // namespace actopo
+
+#endif  // ACTOPO_SERVER_CORE_STRUCTURE_H_

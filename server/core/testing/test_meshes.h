@@ -1,0 +1,28 @@
+// Small meshes for core tests, built without VTK.
+#ifndef ACTOPO_SERVER_CORE_TESTING_TEST_MESHES_H_
+#define ACTOPO_SERVER_CORE_TESTING_TEST_MESHES_H_
+
+#include <cstdint>
+
+#include "server/core/mesh.h"
+
+namespace actopo::testing {
+
+// One tetrahedron, field "height".
+Mesh SingleTetrahedron();
+
+// An nx * ny * nz lattice, each cube split into 6 tetrahedra (Freudenthal), field "height" (a
+// bumpy function with several extrema) and "z". With shuffle_seed != 0 vertex and tetrahedron ids
+// are shuffled, so input order and block order differ.
+Mesh Lattice(int nx, int ny, int nz, uint64_t shuffle_seed = 0);
+
+// Two lattices far apart in one mesh: two components, each with its own boundary.
+Mesh TwoComponents();
+
+// Non-manifold on purpose: a triangle shared by three tetrahedra, two tetrahedra touching at a
+// single vertex and two touching along a single edge.
+Mesh NonManifold();
+
+}  // namespace actopo::testing
+
+#endif  // ACTOPO_SERVER_CORE_TESTING_TEST_MESHES_H_

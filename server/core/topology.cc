@@ -1,0 +1,293 @@
+#include "server/core/topology.h"
+
+#include <algorithm>
+#include <array>
+
+#include "absl/strings/str_cat.h"
+#include "server/core/parallel.h"
+
+namespace actopo {
+namespace {
+
+template <class T>
+int64_t VectorBytes(const std::vector<T>& v) {
+  return static_cast<int64_t>(v.capacity() * sizeof(T));
+}
+
+// Edges and triangles owned by one block (lowest vertex inside it), sorted and unique, with the
+// number of tetrahedra around each triangle (1 = boundary).
+struct BlockFaces {
+  std::vector<uint64_t> edges;  // (a << 32) | b
+  std::vector<std::array<SimplexId, 3>> triangles;
+  std::vector<uint8_t> triangle_boundary;
+};
+
+// Offsets of per-item counts: out[0] = 0, out[i + 1] = out[i] + counts[i].
+template <class T>
+std::vector<T> PrefixSum(const std::vector<T>& counts) {
+  std::vector<T> out(counts.size() + 1, 0);
+  for (size_t i = 0; i < counts.size(); ++i) out[i + 1] = out[i] + counts[i];
+  return out;
+}
+
+}  // namespace
+
+SimplexId Topology::num_simplices(int dimension) const {
+  switch (dimension) {
+    case 0: return num_vertices();
+    case 1: return num_edges();
+    case 2: return num_triangles();
+    default: return num_tetrahedra();
+  }
+}
+
+int32_t Topology::block_of(int dimension, SimplexId s) const {
+  switch (dimension) {
+    case 0: return vertex_block_[s];
+    case 1: return vertex_block_[edge_vertices_[2 * size_t(s)]];
+    case 2: return vertex_block_[triangle_vertices_[3 * size_t(s)]];
+    default: return vertex_block_[tet_vertices_[4 * size_t(s)]];
+  }
+}
+
+SimplexId Topology::block_begin(int dimension, int32_t b) const {
+  switch (dimension) {
+    case 0: return block_vertex_begin_[b];
+    case 1: return block_edge_begin(b);
+    case 2: return block_triangle_begin(b);
+    default: return block_tet_begin_[b];
+  }
+}
+
+SimplexId Topology::FindEdge(SimplexId a, SimplexId b) const {
+  // Edges starting at a are few (tens) and sorted by their second vertex.
+  SimplexId lo = vertex_edge_begin_[a], hi = vertex_edge_begin_[a + 1];
+  while (lo < hi) {
+    const SimplexId mid = lo + (hi - lo) / 2;
+    if (edge_vertices_[2 * size_t(mid) + 1] < b) {
+      lo = mid + 1;
+    } else {
+      hi = mid;
+    }
+  }
+  return lo < vertex_edge_begin_[a + 1] && edge_vertices_[2 * size_t(lo) + 1] == b ? lo : -1;
+}
+
+SimplexId Topology::FindTriangle(SimplexId a, SimplexId b, SimplexId c) const {
+  SimplexId lo = vertex_triangle_begin_[a], hi = vertex_triangle_begin_[a + 1];
+  const SimplexId end = hi;
+  while (lo < hi) {
+    const SimplexId mid = lo + (hi - lo) / 2;
+    const SimplexId* t = &triangle_vertices_[3 * size_t(mid)];
+    if (t[1] < b || (t[1] == b && t[2] < c)) {
+      lo = mid + 1;
+    } else {
+      hi = mid;
+    }
+  }
+  if (lo == end) return -1;
+  const SimplexId* t = &triangle_vertices_[3 * size_t(lo)];
+  return t[1] == b && t[2] == c ? lo : -1;
+}
+
+TopologyBytes Topology::bytes() const {
+  TopologyBytes b;
+  b.vertices = VectorBytes(vertex_block_) + VectorBytes(vertex_input_id_) +
+               VectorBytes(vertex_internal_id_);
+  b.edges = VectorBytes(edge_vertices_) + VectorBytes(vertex_edge_begin_);
+  b.triangles = VectorBytes(triangle_vertices_) + VectorBytes(vertex_triangle_begin_) +
+                VectorBytes(triangle_boundary_);
+  b.tetrahedra = VectorBytes(tet_vertices_) + VectorBytes(tet_input_id_) +
+                 VectorBytes(tet_internal_id_);
+  b.blocks = VectorBytes(block_vertex_begin_) + VectorBytes(block_tet_begin_) +
+             VectorBytes(external_offsets_) + VectorBytes(external_tets_) +
+             VectorBytes(block_neighbor_offsets_) + VectorBytes(block_neighbors_);
+  return b;
+}
+
+absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
+    const Mesh& mesh, std::span<const int32_t> vertex_block, const TopologyOptions& options) {
+  const SimplexId nv = mesh.num_vertices();
+  const SimplexId nt = mesh.num_tetrahedra();
+  const int threads = options.threads > 0 ? options.threads : DefaultThreads();
+  if (vertex_block.size() != static_cast<size_t>(nv)) {
+    return absl::InvalidArgumentError(absl::StrCat("blocks: ", vertex_block.size(),
+                                                   " block ids for ", nv, " vertices"));
+  }
+  int32_t num_blocks = 0;
+  for (SimplexId v = 0; v < nv; ++v) {
+    if (vertex_block[v] < 0 || vertex_block[v] >= nv) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("blocks: vertex ", v, " has block id ", vertex_block[v]));
+    }
+    num_blocks = std::max(num_blocks, vertex_block[v] + 1);
+  }
+
+  auto topo = std::shared_ptr<Topology>(new Topology());
+  Topology& t = *topo;
+  t.num_vertices_ = nv;
+  t.num_blocks_ = num_blocks;
+
+  // Vertices: stable counting sort by block.
+  std::vector<SimplexId> block_count(num_blocks, 0);
+  for (SimplexId v = 0; v < nv; ++v) ++block_count[vertex_block[v]];
+  for (int32_t b = 0; b < num_blocks; ++b) {
+    if (block_count[b] == 0) {
+      return absl::InvalidArgumentError(absl::StrCat("blocks: block ", b, " has no vertex"));
+    }
+  }
+  t.block_vertex_begin_ = PrefixSum(block_count);
+  t.vertex_input_id_.resize(nv);
+  t.vertex_internal_id_.resize(nv);
+  t.vertex_block_.resize(nv);
+  {
+    std::vector<SimplexId> cursor(t.block_vertex_begin_.begin(), t.block_vertex_begin_.end() - 1);
+    for (SimplexId v = 0; v < nv; ++v) {
+      const SimplexId id = cursor[vertex_block[v]]++;
+      t.vertex_internal_id_[v] = id;
+      t.vertex_input_id_[id] = v;
+      t.vertex_block_[id] = vertex_block[v];
+    }
+  }
+
+  // Tetrahedra: sorted internal tuples, stable counting sort by the block of the lowest vertex.
+  {
+    std::vector<SimplexId> sorted(4 * size_t(nt));
+    std::fill(block_count.begin(), block_count.end(), 0);
+    for (SimplexId i = 0; i < nt; ++i) {
+      SimplexId* s = &sorted[4 * size_t(i)];
+      for (int k = 0; k < 4; ++k) s[k] = t.vertex_internal_id_[mesh.tetrahedra[4 * size_t(i) + k]];
+      std::sort(s, s + 4);
+      ++block_count[t.vertex_block_[s[0]]];
+    }
+    t.block_tet_begin_ = PrefixSum(block_count);
+    std::vector<SimplexId> cursor(t.block_tet_begin_.begin(), t.block_tet_begin_.end() - 1);
+    t.tet_vertices_.resize(4 * size_t(nt));
+    t.tet_input_id_.resize(nt);
+    t.tet_internal_id_.resize(nt);
+    for (SimplexId i = 0; i < nt; ++i) {
+      const SimplexId* s = &sorted[4 * size_t(i)];
+      const SimplexId id = cursor[t.vertex_block_[s[0]]]++;
+      std::copy(s, s + 4, &t.tet_vertices_[4 * size_t(id)]);
+      t.tet_input_id_[id] = i;
+      t.tet_internal_id_[i] = id;
+    }
+  }
+
+  // External tetrahedra: a tetrahedron is external to every later block holding one of its
+  // vertices. Its sorted vertices have non-decreasing blocks, so distinct blocks are adjacent.
+  {
+    auto for_each_external_block = [&](SimplexId tet, auto&& fn) {
+      const SimplexId* s = &t.tet_vertices_[4 * size_t(tet)];
+      int32_t last = t.vertex_block_[s[0]];
+      for (int k = 1; k < 4; ++k) {
+        const int32_t b = t.vertex_block_[s[k]];
+        if (b != last) {
+          fn(b);
+          last = b;
+        }
+      }
+    };
+    std::fill(block_count.begin(), block_count.end(), 0);
+    for (SimplexId i = 0; i < nt; ++i) for_each_external_block(i, [&](int32_t b) { ++block_count[b]; });
+    t.external_offsets_ = PrefixSum(block_count);
+    t.external_tets_.resize(t.external_offsets_.back());
+    std::vector<SimplexId> cursor(t.external_offsets_.begin(), t.external_offsets_.end() - 1);
+    for (SimplexId i = 0; i < nt; ++i) {
+      for_each_external_block(i, [&](int32_t b) { t.external_tets_[cursor[b]++] = i; });
+    }
+  }
+
+  // Edges, triangles and boundary flags, block-parallel, then concatenated in block order.
+  std::vector<BlockFaces> faces(num_blocks);
+  std::vector<std::vector<int32_t>> neighbors(num_blocks);
+  ParallelFor(num_blocks, threads, [&](int64_t block, int) {
+    const int32_t b = static_cast<int32_t>(block);
+    const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
+    BlockFaces& out = faces[b];
+    std::vector<int32_t>& adjacent = neighbors[b];
+    auto visit = [&](SimplexId tet) {
+      const SimplexId* s = &t.tet_vertices_[4 * size_t(tet)];
+      for (int i = 0; i < 4; ++i) {
+        const int32_t vb = t.vertex_block_[s[i]];
+        if (vb != b) adjacent.push_back(vb);
+        if (s[i] < vbegin || s[i] >= vend) continue;
+        for (int j = i + 1; j < 4; ++j) {
+          out.edges.push_back(uint64_t(uint32_t(s[i])) << 32 | uint32_t(s[j]));
+          for (int k = j + 1; k < 4; ++k) out.triangles.push_back({s[i], s[j], s[k]});
+        }
+      }
+    };
+    for (SimplexId tet : t.external_tetrahedra(b)) visit(tet);
+    for (SimplexId tet = t.block_tet_begin_[b]; tet < t.block_tet_begin_[b + 1]; ++tet) visit(tet);
+
+    std::sort(out.edges.begin(), out.edges.end());
+    out.edges.erase(std::unique(out.edges.begin(), out.edges.end()), out.edges.end());
+    out.edges.shrink_to_fit();
+    std::sort(out.triangles.begin(), out.triangles.end());
+    // Every tetrahedron around a triangle of this block contains its lowest vertex, so it was
+    // visited: the run length is the exact number of incident tetrahedra.
+    size_t write = 0;
+    for (size_t read = 0; read < out.triangles.size();) {
+      size_t run = read + 1;
+      while (run < out.triangles.size() && out.triangles[run] == out.triangles[read]) ++run;
+      out.triangles[write++] = out.triangles[read];
+      out.triangle_boundary.push_back(run - read == 1);
+      read = run;
+    }
+    out.triangles.resize(write);
+    out.triangles.shrink_to_fit();
+    std::sort(adjacent.begin(), adjacent.end());
+    adjacent.erase(std::unique(adjacent.begin(), adjacent.end()), adjacent.end());
+    adjacent.shrink_to_fit();
+  });
+
+  size_t num_edges = 0, num_triangles = 0;
+  for (const BlockFaces& f : faces) {
+    num_edges += f.edges.size();
+    num_triangles += f.triangles.size();
+  }
+  if (num_edges > INT32_MAX || num_triangles > INT32_MAX) {
+    return absl::ResourceExhaustedError(absl::StrCat(
+        "mesh: ", num_triangles, " triangles exceed the 32-bit simplex id range"));
+  }
+  t.edge_vertices_.resize(2 * num_edges);
+  t.triangle_vertices_.resize(3 * num_triangles);
+  t.triangle_boundary_.resize(num_triangles);
+  t.vertex_edge_begin_.assign(nv + 1, 0);
+  t.vertex_triangle_begin_.assign(nv + 1, 0);
+  {
+    size_t e = 0, f = 0;
+    for (BlockFaces& bf : faces) {
+      for (uint64_t key : bf.edges) {
+        const SimplexId a = SimplexId(key >> 32);
+        t.edge_vertices_[2 * e] = a;
+        t.edge_vertices_[2 * e + 1] = SimplexId(key & 0xffffffffu);
+        ++t.vertex_edge_begin_[a + 1];
+        ++e;
+      }
+      for (size_t i = 0; i < bf.triangles.size(); ++i) {
+        std::copy(bf.triangles[i].begin(), bf.triangles[i].end(), &t.triangle_vertices_[3 * f]);
+        t.triangle_boundary_[f] = bf.triangle_boundary[i];
+        ++t.vertex_triangle_begin_[bf.triangles[i][0] + 1];
+        ++f;
+      }
+      bf = BlockFaces();  // release as we go: keeps the peak near one copy
+    }
+    for (SimplexId v = 0; v < nv; ++v) {
+      t.vertex_edge_begin_[v + 1] += t.vertex_edge_begin_[v];
+      t.vertex_triangle_begin_[v + 1] += t.vertex_triangle_begin_[v];
+    }
+  }
+
+  t.block_neighbor_offsets_.assign(num_blocks + 1, 0);
+  for (int32_t b = 0; b < num_blocks; ++b) {
+    t.block_neighbor_offsets_[b + 1] =
+        t.block_neighbor_offsets_[b] + static_cast<int32_t>(neighbors[b].size());
+  }
+  t.block_neighbors_.reserve(t.block_neighbor_offsets_.back());
+  for (const auto& n : neighbors) t.block_neighbors_.insert(t.block_neighbors_.end(), n.begin(), n.end());
+  return topo;
+}
+
+}  // namespace actopo

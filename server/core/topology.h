@@ -1,0 +1,141 @@
+// The static encoding of a partitioned tetrahedral mesh, built once and shared read-only by every
+// structure and session on the mesh.
+//
+// This is the part of the localized data structure that is never recomputed: the blocks (vertex
+// clusters, TopoCluster's "clusters"), the sorted edge and triangle lists, each block's internal
+// and external tetrahedra, block adjacency and boundary-triangle flags. Everything a block needs
+// to compute any relation of its internal simplices on its own is here; the relations themselves
+// are computed by block_relations.h.
+//
+//   ASSIGN_OR_RETURN(auto topology, Topology::Build(mesh, OctreeBlocks(mesh.points, {})));
+//   SimplexId e = topology->FindEdge(u, v);   // internal ids, -1 if absent
+//
+// Ids. Vertices are renumbered so each block is a contiguous range (block order, then input id);
+// tetrahedra are grouped by the block of their lowest vertex (then input id). A simplex belongs to
+// the block of its lowest vertex. Edges and triangles are numbered in lexicographic order of their
+// sorted vertex tuples; because blocks are vertex ranges in order, that numbering is also "by
+// block, then lexicographic inside the block". Both permutations are kept so results can be
+// reported in input ids.
+#ifndef ACTOPO_SERVER_CORE_TOPOLOGY_H_
+#define ACTOPO_SERVER_CORE_TOPOLOGY_H_
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "server/core/mesh.h"
+
+namespace actopo {
+
+struct TopologyOptions {
+  int threads = 0;  // 0: DefaultThreads()
+};
+
+// Bytes of each part of the static encoding.
+struct TopologyBytes {
+  int64_t vertices = 0;     // block of each vertex, both vertex permutations
+  int64_t edges = 0;        // edge list and per-vertex first-edge index
+  int64_t triangles = 0;    // triangle list, per-vertex first-triangle index, boundary flags
+  int64_t tetrahedra = 0;   // tetrahedron list and both permutations
+  int64_t blocks = 0;       // interval arrays, external tetrahedra, block adjacency
+  int64_t total() const { return vertices + edges + triangles + tetrahedra + blocks; }
+};
+
+class Topology {
+ public:
+  // `vertex_block` gives the block of each input vertex (dense ids 0..B-1, e.g. OctreeBlocks).
+  // The mesh must be valid (ValidateMesh).
+  static absl::StatusOr<std::shared_ptr<const Topology>> Build(
+      const Mesh& mesh, std::span<const int32_t> vertex_block, const TopologyOptions& options = {});
+
+  SimplexId num_vertices() const { return num_vertices_; }
+  SimplexId num_edges() const { return static_cast<SimplexId>(edge_vertices_.size() / 2); }
+  SimplexId num_triangles() const { return static_cast<SimplexId>(triangle_vertices_.size() / 3); }
+  SimplexId num_tetrahedra() const { return static_cast<SimplexId>(tet_vertices_.size() / 4); }
+  int32_t num_blocks() const { return num_blocks_; }
+  SimplexId num_simplices(int dimension) const;
+
+  // Sorted vertex tuples (internal ids).
+  std::span<const SimplexId, 2> edge(SimplexId e) const {
+    return std::span<const SimplexId, 2>(&edge_vertices_[2 * size_t(e)], 2);
+  }
+  std::span<const SimplexId, 3> triangle(SimplexId f) const {
+    return std::span<const SimplexId, 3>(&triangle_vertices_[3 * size_t(f)], 3);
+  }
+  std::span<const SimplexId, 4> tetrahedron(SimplexId t) const {
+    return std::span<const SimplexId, 4>(&tet_vertices_[4 * size_t(t)], 4);
+  }
+  bool triangle_on_boundary(SimplexId f) const { return triangle_boundary_[f] != 0; }
+
+  // Tuple -> id; the internal vertex ids must be sorted ascending. -1 if no such simplex.
+  SimplexId FindEdge(SimplexId a, SimplexId b) const;
+  SimplexId FindTriangle(SimplexId a, SimplexId b, SimplexId c) const;
+
+  // Block of a simplex: the block of its lowest vertex.
+  int32_t vertex_block(SimplexId v) const { return vertex_block_[v]; }
+  int32_t block_of(int dimension, SimplexId s) const;
+
+  // Internal simplices of block b: [begin(b), begin(b + 1)).
+  SimplexId block_vertex_begin(int32_t b) const { return block_vertex_begin_[b]; }
+  SimplexId block_edge_begin(int32_t b) const { return vertex_edge_begin_[block_vertex_begin_[b]]; }
+  SimplexId block_triangle_begin(int32_t b) const {
+    return vertex_triangle_begin_[block_vertex_begin_[b]];
+  }
+  SimplexId block_tetrahedron_begin(int32_t b) const { return block_tet_begin_[b]; }
+  SimplexId block_begin(int dimension, int32_t b) const;
+  SimplexId block_size(int dimension, int32_t b) const {
+    return block_begin(dimension, b + 1) - block_begin(dimension, b);
+  }
+  // Edges (resp. triangles) whose lowest vertex is v: [first(v), first(v + 1)).
+  SimplexId vertex_first_edge(SimplexId v) const { return vertex_edge_begin_[v]; }
+  SimplexId vertex_first_triangle(SimplexId v) const { return vertex_triangle_begin_[v]; }
+
+  // Tetrahedra whose lowest vertex lies in an earlier block but which have a vertex in b,
+  // ascending. All of them have smaller ids than b's internal tetrahedra.
+  std::span<const SimplexId> external_tetrahedra(int32_t b) const {
+    return {external_tets_.data() + external_offsets_[b],
+            external_tets_.data() + external_offsets_[b + 1]};
+  }
+  // Blocks sharing a tetrahedron with b, ascending, b excluded.
+  std::span<const int32_t> block_neighbors(int32_t b) const {
+    return {block_neighbors_.data() + block_neighbor_offsets_[b],
+            block_neighbors_.data() + block_neighbor_offsets_[b + 1]};
+  }
+
+  // Permutations between internal and input ids.
+  SimplexId vertex_input_id(SimplexId v) const { return vertex_input_id_[v]; }
+  SimplexId vertex_internal_id(SimplexId input) const { return vertex_internal_id_[input]; }
+  SimplexId tetrahedron_input_id(SimplexId t) const { return tet_input_id_[t]; }
+  SimplexId tetrahedron_internal_id(SimplexId input) const { return tet_internal_id_[input]; }
+  std::span<const SimplexId> vertex_input_ids() const { return vertex_input_id_; }
+  std::span<const SimplexId> tetrahedron_input_ids() const { return tet_input_id_; }
+
+  TopologyBytes bytes() const;
+
+ private:
+  Topology() = default;
+
+  SimplexId num_vertices_ = 0;
+  int32_t num_blocks_ = 0;
+  std::vector<int32_t> vertex_block_;             // by internal vertex
+  std::vector<SimplexId> block_vertex_begin_;     // B + 1
+  std::vector<SimplexId> block_tet_begin_;        // B + 1
+  std::vector<SimplexId> edge_vertices_;          // 2 per edge, sorted
+  std::vector<SimplexId> vertex_edge_begin_;      // V + 1
+  std::vector<SimplexId> triangle_vertices_;      // 3 per triangle, sorted
+  std::vector<SimplexId> vertex_triangle_begin_;  // V + 1
+  std::vector<uint8_t> triangle_boundary_;        // 1 per triangle
+  std::vector<SimplexId> tet_vertices_;           // 4 per tetrahedron, sorted
+  std::vector<SimplexId> external_offsets_;       // B + 1
+  std::vector<SimplexId> external_tets_;
+  std::vector<int32_t> block_neighbor_offsets_;   // B + 1
+  std::vector<int32_t> block_neighbors_;
+  std::vector<SimplexId> vertex_input_id_, vertex_internal_id_;
+  std::vector<SimplexId> tet_input_id_, tet_internal_id_;
+};
+
+}  // namespace actopo
+
+#endif  // ACTOPO_SERVER_CORE_TOPOLOGY_H_

@@ -1,0 +1,136 @@
+#include "server/core/topology.h"
+
+#include <algorithm>
+#include <set>
+
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "server/core/partition.h"
+#include "server/core/testing/oracle.h"
+#include "server/core/testing/test_meshes.h"
+
+namespace actopo {
+namespace {
+
+std::shared_ptr<const Topology> BuildOrDie(const Mesh& m, int capacity, int threads = 2) {
+  auto t = Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = capacity}),
+                           {.threads = threads});
+  EXPECT_TRUE(t.ok()) << t.status();
+  return *t;
+}
+
+TEST(Topology, PermutationsAndBlockOrder) {
+  const Mesh m = testing::Lattice(6, 5, 4, 99);
+  for (int capacity : {1, 7, 100}) {
+    auto topo = BuildOrDie(m, capacity);
+    const SimplexId nv = topo->num_vertices();
+    ASSERT_EQ(nv, m.num_vertices());
+    for (SimplexId v = 0; v < nv; ++v) {
+      EXPECT_EQ(topo->vertex_internal_id(topo->vertex_input_id(v)), v);
+      const int32_t b = topo->vertex_block(v);
+      EXPECT_GE(v, topo->block_vertex_begin(b));
+      EXPECT_LT(v, topo->block_vertex_begin(b + 1));
+    }
+    for (SimplexId t = 0; t < topo->num_tetrahedra(); ++t) {
+      const SimplexId input = topo->tetrahedron_input_id(t);
+      EXPECT_EQ(topo->tetrahedron_internal_id(input), t);
+      std::vector<SimplexId> expected;
+      for (int k = 0; k < 4; ++k) {
+        expected.push_back(topo->vertex_internal_id(m.tetrahedra[4 * size_t(input) + k]));
+      }
+      std::sort(expected.begin(), expected.end());
+      const auto got = topo->tetrahedron(t);
+      EXPECT_TRUE(std::equal(got.begin(), got.end(), expected.begin())) << "tet " << t;
+      // Grouped by the block of the lowest vertex, in block order.
+      const int32_t b = topo->block_of(3, t);
+      EXPECT_GE(t, topo->block_tetrahedron_begin(b));
+      EXPECT_LT(t, topo->block_tetrahedron_begin(b + 1));
+      if (t > 0) {
+        EXPECT_LE(topo->block_of(3, t - 1), b);
+      }
+    }
+  }
+}
+
+TEST(Topology, EdgesTrianglesAndBoundaryMatchOracle) {
+  for (const Mesh& m : {testing::Lattice(5, 4, 4, 1), testing::NonManifold(),
+                        testing::TwoComponents(), testing::SingleTetrahedron()}) {
+    for (int capacity : {1, 7, 1000}) {
+      auto topo = BuildOrDie(m, capacity);
+      testing::RelationOracle oracle(*topo);
+      ASSERT_EQ(topo->num_edges(), SimplexId(oracle.edges().size()));
+      ASSERT_EQ(topo->num_triangles(), SimplexId(oracle.triangles().size()));
+      for (SimplexId e = 0; e < topo->num_edges(); ++e) {
+        EXPECT_EQ(topo->edge(e)[0], oracle.edges()[e][0]);
+        EXPECT_EQ(topo->edge(e)[1], oracle.edges()[e][1]);
+        EXPECT_EQ(topo->FindEdge(oracle.edges()[e][0], oracle.edges()[e][1]), e);
+        EXPECT_EQ(topo->block_of(1, e), topo->vertex_block(oracle.edges()[e][0]));
+      }
+      for (SimplexId f = 0; f < topo->num_triangles(); ++f) {
+        const auto& tri = oracle.triangles()[f];
+        EXPECT_EQ(topo->FindTriangle(tri[0], tri[1], tri[2]), f);
+        EXPECT_EQ(topo->triangle_on_boundary(f),
+                  oracle.rows(Relation::kFB)[f][0] == 1) << "triangle " << f;
+      }
+      for (int32_t b = 0; b < topo->num_blocks(); ++b) {
+        for (int dim = 0; dim < 4; ++dim) {
+          for (SimplexId s = topo->block_begin(dim, b); s < topo->block_begin(dim, b + 1); ++s) {
+            EXPECT_EQ(topo->block_of(dim, s), b);
+          }
+        }
+      }
+    }
+  }
+}
+
+TEST(Topology, FindRejectsAbsentSimplices) {
+  auto topo = BuildOrDie(testing::NonManifold(), 3);
+  // Vertices 0 and 9 are in different components.
+  const SimplexId a = topo->vertex_internal_id(0), b = topo->vertex_internal_id(9);
+  EXPECT_EQ(topo->FindEdge(std::min(a, b), std::max(a, b)), -1);
+  const SimplexId c = topo->vertex_internal_id(13);
+  std::array<SimplexId, 3> t = {a, b, c};
+  std::sort(t.begin(), t.end());
+  EXPECT_EQ(topo->FindTriangle(t[0], t[1], t[2]), -1);
+}
+
+TEST(Topology, ExternalTetrahedraAndBlockAdjacency) {
+  const Mesh m = testing::Lattice(7, 6, 5, 4);
+  auto topo = BuildOrDie(m, 9);
+  std::vector<std::set<int32_t>> adjacency(topo->num_blocks());
+  std::vector<std::vector<SimplexId>> external(topo->num_blocks());
+  for (SimplexId t = 0; t < topo->num_tetrahedra(); ++t) {
+    std::set<int32_t> blocks;
+    for (SimplexId v : topo->tetrahedron(t)) blocks.insert(topo->vertex_block(v));
+    for (int32_t b : blocks) {
+      if (b != topo->block_of(3, t)) external[b].push_back(t);
+      for (int32_t c : blocks)
+        if (c != b) adjacency[b].insert(c);
+    }
+  }
+  for (int32_t b = 0; b < topo->num_blocks(); ++b) {
+    const auto ext = topo->external_tetrahedra(b);
+    EXPECT_EQ(std::vector<SimplexId>(ext.begin(), ext.end()), external[b]) << "block " << b;
+    for (SimplexId t : ext) EXPECT_LT(t, topo->block_tetrahedron_begin(b));
+    const auto adj = topo->block_neighbors(b);
+    EXPECT_EQ(std::vector<int32_t>(adj.begin(), adj.end()),
+              std::vector<int32_t>(adjacency[b].begin(), adjacency[b].end()));
+  }
+  const TopologyBytes bytes = topo->bytes();
+  EXPECT_GT(bytes.edges, 0);
+  EXPECT_EQ(bytes.total(), bytes.vertices + bytes.edges + bytes.triangles + bytes.tetrahedra +
+                               bytes.blocks);
+}
+
+TEST(Topology, RejectsBadBlockArrays) {
+  const Mesh m = testing::SingleTetrahedron();
+  const std::vector<int32_t> short_blocks = {0, 0};
+  EXPECT_THAT(Topology::Build(m, short_blocks).status().message(),
+              ::testing::HasSubstr("2 block ids for 4 vertices"));
+  const std::vector<int32_t> gap = {0, 2, 2, 0};
+  EXPECT_THAT(Topology::Build(m, gap).status().message(),
+              ::testing::HasSubstr("block 1 has no vertex"));
+}
+
+}  // namespace
+}  // namespace actopo
