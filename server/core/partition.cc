@@ -106,4 +106,21 @@ absl::StatusOr<std::vector<int32_t>> LabelBlocks(std::span<const double> labels)
   return block;
 }
 
+absl::StatusOr<std::vector<int32_t>> ComputeBlocks(const Mesh& mesh,
+                                                   const PartitionOptions& options) {
+  if (options.block_label_field.empty()) {
+    if (options.bucket_capacity < 1) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("block size: ", options.bucket_capacity, " must be at least 1"));
+    }
+    return OctreeBlocks(mesh.points, {.bucket_capacity = options.bucket_capacity});
+  }
+  const PointField* labels = mesh.FindField(options.block_label_field);
+  if (labels == nullptr) {
+    return absl::NotFoundError(absl::StrCat("block labels: point field '",
+                                            options.block_label_field, "' not found"));
+  }
+  return LabelBlocks(labels->values);
+}
+
 }  // namespace actopo

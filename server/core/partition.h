@@ -13,7 +13,10 @@
 #include <span>
 #include <vector>
 
+#include <string>
+
 #include "absl/status/statusor.h"
+#include "server/core/mesh.h"
 
 namespace actopo {
 
@@ -31,6 +34,16 @@ std::vector<int32_t> OctreeBlocks(std::span<const double> points, const OctreeOp
 // Blocks from a per-vertex label array (any integers; e.g. a "BlockLabel" point field). Labels
 // are renumbered densely in ascending label order. Fails on non-integral or out-of-int32 labels.
 absl::StatusOr<std::vector<int32_t>> LabelBlocks(std::span<const double> labels);
+
+// How a mesh is split into blocks: by the octree, or by a block-label point field when named.
+struct PartitionOptions {
+  int32_t bucket_capacity = 1000;
+  std::string block_label_field;  // empty: octree
+};
+
+// The block of each input vertex for `mesh` under `options`.
+absl::StatusOr<std::vector<int32_t>> ComputeBlocks(const Mesh& mesh,
+                                                   const PartitionOptions& options);
 
 }  // namespace actopo
 

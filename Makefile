@@ -1,0 +1,57 @@
+# The two set-up commands: `make demo` and `make test`. Everything else is a step of those.
+JOBS ?= 2
+BUILD ?= build
+CMAKE_FLAGS ?= -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo
+DATA_DIR ?= $(abspath ../shared/data)
+DEMO_SAMPLE ?= jittered:40
+
+.PHONY: all deps build test test-unit test-asan test-tsan demo bench clean
+
+all: build
+
+deps:
+	bash scripts/install-deps.sh
+
+$(BUILD)/build.ninja: | deps
+	cmake -S . -B $(BUILD) $(CMAKE_FLAGS)
+
+build: deps $(BUILD)/build.ninja
+	cmake --build $(BUILD) -j $(JOBS)
+
+# Unit and fidelity tests, then the core and algorithm tests again under ASan+UBSan and TSan.
+test: test-unit test-asan test-tsan
+	@echo "make test: all suites passed"
+
+test-unit: build
+	ACTOPO_DATA_DIR=$(DATA_DIR) ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)
+
+# Sanitizer builds cover server/core and server/algorithms only (no VTK, no gRPC) to stay fast.
+build-asan/build.ninja: | deps
+	cmake -S . -B build-asan $(CMAKE_FLAGS) -DACTOPO_SANITIZE=address -DACTOPO_CORE_ONLY=ON
+build-tsan/build.ninja: | deps
+	cmake -S . -B build-tsan $(CMAKE_FLAGS) -DACTOPO_SANITIZE=thread -DACTOPO_CORE_ONLY=ON
+
+test-asan: deps build-asan/build.ninja
+	cmake --build build-asan -j $(JOBS)
+	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
+	  ctest --test-dir build-asan --output-on-failure -j $(JOBS)
+
+# TSan needs a low-entropy address space on recent kernels; setarch -R runs without ASLR.
+test-tsan: deps build-tsan/build.ninja
+	cmake --build build-tsan -j $(JOBS)
+	TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1" \
+	  setarch $$(uname -m) -R ctest --test-dir build-tsan --output-on-failure -j $(JOBS)
+
+# Until the service lands: the in-process benchmark on a built-in sample, both structures.
+demo: build
+	@for s in explicit compact; do \
+	  echo "== actopo-bench --sample $(DEMO_SAMPLE) --algorithm topo-relations --structure $$s"; \
+	  $(BUILD)/server/cmd/actopo-bench --sample $(DEMO_SAMPLE) --algorithm topo-relations \
+	    --structure $$s || exit 1; \
+	done
+
+bench: build
+	bash bench/run_foundation.sh
+
+clean:
+	rm -rf build build-asan build-tsan

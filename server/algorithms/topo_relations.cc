@@ -1,0 +1,100 @@
+#include "server/algorithms/topo_relations.h"
+
+#include <cstdio>
+#include <mutex>
+
+#include "server/core/compact_structure.h"
+#include "server/core/explicit_structure.h"
+
+namespace actopo {
+namespace {
+
+using R = Relation;
+constexpr std::array<Relation, kNumRelations> kSweeps = {
+    R::kVT, R::kEV, R::kET, R::kFV, R::kFT, R::kTV, R::kVE, R::kVF, R::kEF, R::kFE,
+    R::kTE, R::kTF, R::kVV, R::kTT, R::kVL, R::kEL, R::kFL, R::kVB, R::kEB, R::kFB};
+
+// splitmix64's finaliser: a cheap, well-mixing 64-bit hash.
+inline uint64_t Mix(uint64_t x) {
+  x ^= x >> 30;
+  x *= 0xbf58476d1ce4e5b9ULL;
+  x ^= x >> 27;
+  x *= 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+
+struct Partial {
+  std::array<int64_t, kNumRelations> totals{};
+  uint64_t checksum = 0;
+};
+
+template <Relation Rel, class Reader>
+void SweepBlock(Reader& reader, int32_t block, Partial& out) {
+  const Topology& topo = reader.topology();
+  constexpr int dim = SourceDimension(Rel);
+  const SimplexId end = topo.block_begin(dim, block + 1);
+  int64_t total = 0;
+  uint64_t checksum = 0;
+  for (SimplexId s = topo.block_begin(dim, block); s < end; ++s) {
+    const auto row = reader.template get<Rel>(s);
+    uint64_t h = uint64_t(Index(Rel)) << 56 ^ uint64_t(s);
+    for (SimplexId x : row) h = (h ^ uint64_t(x)) * 0x100000001b3ULL;  // order-sensitive
+    checksum += Mix(h ^ row.size());
+    total += static_cast<int64_t>(row.size());
+  }
+  out.totals[Index(Rel)] += total;
+  out.checksum += checksum;
+}
+
+template <class Reader, size_t... I>
+void SweepBlockDispatch(Relation r, Reader& reader, int32_t block, Partial& out,
+                        std::index_sequence<I...>) {
+  // One compile-time instantiation per relation; selected once per (sweep, block).
+  ((r == static_cast<Relation>(I) ? SweepBlock<static_cast<Relation>(I)>(reader, block, out)
+                                  : void()),
+   ...);
+}
+
+}  // namespace
+
+std::string TopoRelationsResult::checksum_hex() const {
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(checksum));
+  return buf;
+}
+
+std::span<const Relation> TopoRelationsSweeps() { return kSweeps; }
+
+RelationSet TopoRelationsDeclared() { return RelationSet::All(); }
+
+template <class Structure>
+absl::StatusOr<TopoRelationsResult> RunTopoRelations(Structure& structure,
+                                                     const RunContext& context) {
+  const Topology& topo = structure.topology();
+  std::mutex mu;
+  TopoRelationsResult result;
+  const absl::Status status = RunOnConsumers(
+      context, topo, int64_t(kSweeps.size()) * topo.num_blocks(),
+      [&](int, BlockRange range, WorkTracker& tracker) {
+        auto reader = structure.NewReader();
+        Partial partial;
+        for (Relation r : kSweeps) {
+          for (int32_t b = range.begin; b < range.end; ++b) {
+            SweepBlockDispatch(r, reader, b, partial, std::make_index_sequence<kNumRelations>());
+            if (!tracker.Done()) return;
+          }
+        }
+        std::lock_guard<std::mutex> lock(mu);
+        for (int i = 0; i < kNumRelations; ++i) result.totals[i] += partial.totals[i];
+        result.checksum += partial.checksum;
+      });
+  if (!status.ok()) return status;
+  return result;
+}
+
+template absl::StatusOr<TopoRelationsResult> RunTopoRelations(ExplicitStructure&,
+                                                              const RunContext&);
+template absl::StatusOr<TopoRelationsResult> RunTopoRelations(CompactStructure&,
+                                                              const RunContext&);
+
+}  // namespace actopo

@@ -1,0 +1,46 @@
+// topo-relations: the relation-sweep profiling workload (SEMANTICS.md).
+//
+// Sweeps over all simplices of one dimension in increasing id, reading every element of one
+// relation: VT, EV, ET, FV, FT, TV, VE, VF, EF, FE, TE, TF, then VV, TT, the links and the
+// boundary predicates. Reports the total size of each relation and a checksum of what was read,
+// so the work cannot be optimised away and results can be compared across structures.
+//
+//   ExplicitStructure::Build(topology, {.relations = TopoRelationsDeclared()});
+//   ASSIGN_OR_RETURN(TopoRelationsResult r, RunTopoRelations(*structure, {.consumers = 2}));
+#ifndef ACTOPO_SERVER_ALGORITHMS_TOPO_RELATIONS_H_
+#define ACTOPO_SERVER_ALGORITHMS_TOPO_RELATIONS_H_
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "server/algorithms/consumers.h"
+#include "server/core/relation.h"
+
+namespace actopo {
+
+struct TopoRelationsResult {
+  // Sum over all simplices of the relation's size, indexed by Index(Relation).
+  std::array<int64_t, kNumRelations> totals{};
+  // Order-independent across consumers (a sum of per-simplex hashes), but it hashes internal
+  // ids, so it depends on the partition (block size) as well as on the mesh.
+  uint64_t checksum = 0;
+
+  std::string checksum_hex() const;
+};
+
+// The sweep order.
+std::span<const Relation> TopoRelationsSweeps();
+// Everything the sweeps read that a structure stores: all relations.
+RelationSet TopoRelationsDeclared();
+
+// Runs on any structure with NewReader(); defined for ExplicitStructure and CompactStructure.
+template <class Structure>
+absl::StatusOr<TopoRelationsResult> RunTopoRelations(Structure& structure,
+                                                     const RunContext& context);
+
+}  // namespace actopo
+
+#endif  // ACTOPO_SERVER_ALGORITHMS_TOPO_RELATIONS_H_

@@ -1,0 +1,100 @@
+#include "server/algorithms/topo_relations.h"
+
+#include <atomic>
+
+#include "gtest/gtest.h"
+#include "server/core/compact_structure.h"
+#include "server/core/explicit_structure.h"
+#include "server/core/partition.h"
+#include "server/core/testing/oracle.h"
+#include "server/core/testing/test_meshes.h"
+
+namespace actopo {
+namespace {
+
+std::shared_ptr<const Topology> Build(const Mesh& m, int capacity) {
+  return *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = capacity}));
+}
+
+TopoRelationsResult RunExplicit(std::shared_ptr<const Topology> topo, int consumers) {
+  auto structure = *ExplicitStructure::Build(topo, {.relations = TopoRelationsDeclared()});
+  return *RunTopoRelations(*structure, {.consumers = consumers});
+}
+
+TEST(TopoRelations, TotalsMatchOracleAndIdentities) {
+  const Mesh m = testing::Lattice(7, 6, 5, 21);
+  auto topo = Build(m, 20);
+  testing::RelationOracle oracle(*topo);
+  const TopoRelationsResult r = RunExplicit(topo, 1);
+  for (Relation rel : AllRelations()) {
+    int64_t expected = 0;
+    for (const auto& row : oracle.rows(rel)) expected += row.size();
+    EXPECT_EQ(r.totals[Index(rel)], expected) << RelationName(rel);
+  }
+  const int64_t V = topo->num_vertices(), E = topo->num_edges(), F = topo->num_triangles(),
+                T = topo->num_tetrahedra();
+  const int64_t Fb = 2 * F - 4 * T;
+  auto total = [&](Relation rel) { return r.totals[Index(rel)]; };
+  EXPECT_EQ(V - E + F - T, 1);
+  EXPECT_EQ(total(Relation::kVT), 4 * T);
+  EXPECT_EQ(total(Relation::kVE), 2 * E);
+  EXPECT_EQ(total(Relation::kVV), 2 * E);
+  EXPECT_EQ(total(Relation::kVF), 3 * F);
+  EXPECT_EQ(total(Relation::kET), 6 * T);
+  EXPECT_EQ(total(Relation::kEF), 3 * F);
+  EXPECT_EQ(total(Relation::kFT), 4 * T);
+  EXPECT_EQ(total(Relation::kTT), 2 * (F - Fb));
+  EXPECT_EQ(total(Relation::kVL), 4 * T);
+  EXPECT_EQ(total(Relation::kFB), F);
+}
+
+TEST(TopoRelations, IdenticalAcrossStructuresConsumersAndCacheSizes) {
+  for (const Mesh& m : {testing::Lattice(8, 7, 6, 2), testing::NonManifold(),
+                        testing::TwoComponents()}) {
+    auto topo = Build(m, 13);
+    const TopoRelationsResult reference = RunExplicit(topo, 1);
+    EXPECT_NE(reference.checksum, 0u);
+    for (int consumers : {1, 2, 3}) {
+      const TopoRelationsResult e = RunExplicit(topo, consumers);
+      EXPECT_EQ(e.totals, reference.totals);
+      EXPECT_EQ(e.checksum, reference.checksum) << "explicit, consumers " << consumers;
+      for (double ratio : {0.0, 0.2, 1.0}) {
+        CompactStructure compact(topo, {.cache_ratio = ratio, .consumers = consumers});
+        const TopoRelationsResult c = *RunTopoRelations(compact, {.consumers = consumers});
+        EXPECT_EQ(c.totals, reference.totals);
+        EXPECT_EQ(c.checksum, reference.checksum)
+            << "compact, consumers " << consumers << ", ratio " << ratio;
+      }
+    }
+  }
+}
+
+TEST(TopoRelations, ChecksumSeesDifferentMeshes) {
+  const TopoRelationsResult a = RunExplicit(Build(testing::Lattice(5, 5, 5), 1000), 1);
+  const TopoRelationsResult b = RunExplicit(Build(testing::Lattice(5, 5, 6), 1000), 1);
+  EXPECT_NE(a.checksum, b.checksum);
+}
+
+TEST(TopoRelations, ReportsProgressAndStopsWhenCancelled) {
+  auto topo = Build(testing::Lattice(9, 9, 9, 4), 10);
+  CompactStructure compact(topo, {});
+  std::vector<double> seen;
+  RunContext context{.progress = [&](double f) { seen.push_back(f); }};
+  ASSERT_TRUE(RunTopoRelations(compact, context).ok());
+  ASSERT_FALSE(seen.empty());
+  EXPECT_TRUE(std::is_sorted(seen.begin(), seen.end()));
+  EXPECT_DOUBLE_EQ(seen.back(), 1.0);
+
+  std::atomic<bool> cancel{false};
+  int calls = 0;
+  RunContext cancelling{.consumers = 2,
+                        .progress = [&](double) {
+                          if (++calls == 3) cancel = true;
+                        },
+                        .cancel = &cancel};
+  const auto cancelled = RunTopoRelations(compact, cancelling);
+  EXPECT_EQ(cancelled.status().code(), absl::StatusCode::kCancelled);
+}
+
+}  // namespace
+}  // namespace actopo

@@ -1,0 +1,256 @@
+// actopo-bench: loads a mesh, partitions it, builds a structure and runs one algorithm
+// in-process (no gRPC), then prints times, memory, access statistics and the result.
+//
+//   actopo-bench --mesh ../shared/data/fertility_tet.vtu --algorithm topo-relations \
+//       --structure compact --json
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <optional>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "nlohmann/json.hpp"
+#include "server/algorithms/topo_relations.h"
+#include "server/cmd/flags.h"
+#include "server/core/compact_structure.h"
+#include "server/core/explicit_structure.h"
+#include "server/core/partition.h"
+#include "server/core/process_memory.h"
+#include "server/core/status_macros.h"
+#include "server/core/topology.h"
+#include "server/io/samples.h"
+#include "server/io/vtk_reader.h"
+
+namespace actopo {
+namespace {
+
+using Json = nlohmann::ordered_json;
+using Clock = std::chrono::steady_clock;
+
+struct BenchOptions {
+  std::string mesh;
+  std::string sample;
+  std::string scalar;
+  std::string algorithm = "topo-relations";
+  std::string structure = "compact";
+  int consumers = 1;
+  double buffer_ratio = 0.2;
+  int block_size = 1000;
+  std::string block_labels;
+  int threads = 0;
+  bool json = false;
+};
+
+double Seconds(Clock::time_point since) {
+  return std::chrono::duration<double>(Clock::now() - since).count();
+}
+
+absl::Status Validate(const BenchOptions& o) {
+  if (o.mesh.empty() == o.sample.empty()) {
+    return absl::InvalidArgumentError("give exactly one of --mesh PATH or --sample NAME");
+  }
+  if (o.algorithm != "topo-relations") {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--algorithm: unknown algorithm '", o.algorithm, "'; available: topo-relations"));
+  }
+  if (o.structure != "explicit" && o.structure != "compact") {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--structure: unknown structure '", o.structure, "'; available: explicit, compact"));
+  }
+  if (o.consumers < 1 || o.consumers > 256) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--consumers: ", o.consumers, " is outside [1, 256]"));
+  }
+  if (!(o.buffer_ratio >= 0.0 && o.buffer_ratio <= 1.0)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--buffer-ratio: ", o.buffer_ratio, " is outside [0, 1]"));
+  }
+  if (o.block_size < 1) {
+    return absl::InvalidArgumentError(absl::StrCat("--block-size: ", o.block_size,
+                                                   " must be at least 1"));
+  }
+  return absl::OkStatus();
+}
+
+Json TopoRelationsJson(const TopoRelationsResult& r) {
+  Json totals = Json::object();
+  for (Relation rel : TopoRelationsSweeps()) totals[std::string(RelationName(rel))] = r.totals[Index(rel)];
+  return {{"relation_totals", totals}, {"checksum", r.checksum_hex()}};
+}
+
+struct RunOutput {
+  double preprocess_s = 0, run_s = 0;
+  AccessStats access;
+  MemoryStats memory;
+  Json result;
+};
+
+template <class Structure>
+absl::StatusOr<RunOutput> RunAlgorithm(Structure& structure, const BenchOptions& o,
+                                       const RunContext& context) {
+  RunOutput out;
+  const auto start = Clock::now();
+  ASSIGN_OR_RETURN(TopoRelationsResult r, RunTopoRelations(structure, context));
+  out.run_s = Seconds(start);
+  out.result = TopoRelationsJson(r);
+  return out;
+}
+
+absl::StatusOr<Json> Run(const BenchOptions& o) {
+  RETURN_IF_ERROR(Validate(o));
+  const auto total_start = Clock::now();
+
+  auto start = Clock::now();
+  ASSIGN_OR_RETURN(Mesh mesh, o.mesh.empty() ? io::MakeSample(o.sample) : io::ReadMesh(o.mesh));
+  RETURN_IF_ERROR(ValidateMesh(mesh));
+  std::string scalar_name;
+  if (!o.scalar.empty()) {
+    ASSIGN_OR_RETURN(int field, SelectScalarField(mesh, o.scalar, o.block_labels));
+    scalar_name = mesh.point_fields[field].name;
+  }
+  const double load_s = Seconds(start);
+
+  start = Clock::now();
+  ASSIGN_OR_RETURN(std::vector<int32_t> blocks,
+                   ComputeBlocks(mesh, {.bucket_capacity = o.block_size,
+                                        .block_label_field = o.block_labels}));
+  ASSIGN_OR_RETURN(std::shared_ptr<const Topology> topology,
+                   Topology::Build(mesh, blocks, {.threads = o.threads}));
+  const double partition_s = Seconds(start);
+  // The mesh's points and fields are not needed by topo-relations; free them so peak RSS
+  // reflects the structures (the service keeps them for output).
+  mesh = Mesh();
+  blocks = {};
+
+  const RelationSet declared = TopoRelationsDeclared();
+  RunContext context{.consumers = o.consumers};
+  RunOutput out;
+  if (o.structure == "explicit") {
+    start = Clock::now();
+    ASSIGN_OR_RETURN(auto structure,
+                     ExplicitStructure::Build(topology, {.relations = declared, .threads = o.threads}));
+    const double preprocess_s = Seconds(start);
+    ASSIGN_OR_RETURN(out, RunAlgorithm(*structure, o, context));
+    out.preprocess_s = preprocess_s;
+    out.memory = structure->memory();
+  } else {
+    CompactStructure structure(topology,
+                               {.cache_ratio = o.buffer_ratio, .consumers = o.consumers});
+    ASSIGN_OR_RETURN(out, RunAlgorithm(structure, o, context));
+    out.access = structure.stats();
+    out.memory = structure.memory();
+  }
+
+  const TopologyBytes static_bytes = topology->bytes();
+  Json j;
+  j["mesh"] = {{"source", o.mesh.empty() ? "sample:" + o.sample : o.mesh},
+               {"vertices", topology->num_vertices()},
+               {"edges", topology->num_edges()},
+               {"triangles", topology->num_triangles()},
+               {"tetrahedra", topology->num_tetrahedra()},
+               {"blocks", topology->num_blocks()}};
+  j["structure"] = o.structure;
+  j["algorithm"] = o.algorithm;
+  j["config"] = {{"consumers", o.consumers},
+                 {"buffer_ratio", o.buffer_ratio},
+                 {"block_size", o.block_labels.empty() ? Json(o.block_size) : Json(nullptr)},
+                 {"block_labels", o.block_labels.empty() ? Json(nullptr) : Json(o.block_labels)},
+                 {"scalar", scalar_name.empty() ? Json(nullptr) : Json(scalar_name)},
+                 {"preprocess_threads", o.threads > 0 ? o.threads : DefaultThreads()}};
+  j["times_s"] = {{"load", load_s},
+                  {"partition", partition_s},
+                  {"preprocess", out.preprocess_s},
+                  {"run", out.run_s},
+                  {"total", Seconds(total_start)}};
+  j["engine"] = {{"wait_s", out.access.wait_ns * 1e-9},
+                 {"requests", out.access.requests},
+                 {"hits", out.access.hits},
+                 {"misses", out.access.misses},
+                 {"evictions", out.access.evictions},
+                 {"blocks_computed", out.access.relations_computed}};
+  j["memory"] = {{"peak_rss_bytes", PeakRssBytes()},
+                 {"structure_bytes", out.memory.static_bytes + (o.structure == "explicit"
+                                                                    ? out.memory.relation_bytes
+                                                                    : 0)},
+                 {"static_bytes", out.memory.static_bytes},
+                 {"static_breakdown_bytes",
+                  {{"vertices", static_bytes.vertices},
+                   {"edges", static_bytes.edges},
+                   {"triangles", static_bytes.triangles},
+                   {"tetrahedra", static_bytes.tetrahedra},
+                   {"blocks", static_bytes.blocks}}},
+                 {"buffer_peak_bytes",
+                  o.structure == "explicit" ? 0 : out.memory.relation_peak_bytes}};
+  j["result"] = out.result;
+  return j;
+}
+
+void PrintHuman(const Json& j) {
+  const Json& m = j["mesh"];
+  std::printf("mesh       %s: %lld vertices, %lld edges, %lld triangles, %lld tetrahedra, %lld blocks\n",
+              m["source"].get<std::string>().c_str(), m["vertices"].get<long long>(),
+              m["edges"].get<long long>(), m["triangles"].get<long long>(),
+              m["tetrahedra"].get<long long>(), m["blocks"].get<long long>());
+  std::printf("run        %s on %s, %d consumer(s)\n", j["algorithm"].get<std::string>().c_str(),
+              j["structure"].get<std::string>().c_str(), j["config"]["consumers"].get<int>());
+  const Json& t = j["times_s"];
+  std::printf("times (s)  load %.3f  partition %.3f  preprocess %.3f  run %.3f  total %.3f\n",
+              t["load"].get<double>(), t["partition"].get<double>(), t["preprocess"].get<double>(),
+              t["run"].get<double>(), t["total"].get<double>());
+  const Json& e = j["engine"];
+  std::printf("access     requests %lld  hits %lld  misses %lld  evictions %lld  wait %.3f s\n",
+              e["requests"].get<long long>(), e["hits"].get<long long>(),
+              e["misses"].get<long long>(), e["evictions"].get<long long>(),
+              e["wait_s"].get<double>());
+  const Json& mem = j["memory"];
+  std::printf("memory     peak RSS %.1f MiB  structure %.1f MiB  buffer peak %.1f MiB\n",
+              mem["peak_rss_bytes"].get<double>() / 1048576.0,
+              mem["structure_bytes"].get<double>() / 1048576.0,
+              mem["buffer_peak_bytes"].get<double>() / 1048576.0);
+  std::printf("result     %s\n", j["result"].dump().c_str());
+}
+
+}  // namespace
+}  // namespace actopo
+
+int main(int argc, char** argv) {
+  actopo::BenchOptions o;
+  actopo::FlagParser flags("actopo-bench",
+                           "runs one algorithm in-process on a mesh and reports times, memory, "
+                           "access statistics and the result");
+  flags.Add("mesh", &o.mesh, "mesh file (.vtu, legacy .vtk unstructured grid, .vti)");
+  flags.Add("sample", &o.sample,
+            "built-in sample instead of a file: " +
+                absl::StrJoin(actopo::io::SampleNames(), "; "));
+  flags.Add("scalar", &o.scalar, "point scalar field (default: first floating-point field)");
+  flags.Add("algorithm", &o.algorithm, "topo-relations");
+  flags.Add("structure", &o.structure, "explicit or compact");
+  flags.Add("consumers", &o.consumers, "consumer threads running the algorithm");
+  flags.Add("buffer-ratio", &o.buffer_ratio,
+            "cache/buffer capacity as a fraction of the blocks (compact)");
+  flags.Add("block-size", &o.block_size, "octree bucket capacity: max vertices per block");
+  flags.Add("block-labels", &o.block_labels,
+            "partition by this integer point field instead of the octree");
+  flags.Add("threads", &o.threads, "preprocessing threads (0: all cores)");
+  flags.Add("json", &o.json, "print one JSON object");
+  if (absl::Status s = flags.Parse(argc, argv); !s.ok()) {
+    std::cerr << "actopo-bench: " << s.message() << "\n";
+    return 2;
+  }
+  if (flags.help_requested()) {
+    std::cout << flags.Usage();
+    return 0;
+  }
+  const absl::StatusOr<actopo::Json> result = actopo::Run(o);
+  if (!result.ok()) {
+    std::cerr << "actopo-bench: " << result.status().message() << "\n";
+    return 1;
+  }
+  if (o.json) {
+    std::cout << result->dump(1) << "\n";
+  } else {
+    actopo::PrintHuman(*result);
+  }
+  return 0;
+}
