@@ -1,7 +1,7 @@
 // actopo-bench: loads a mesh, partitions it, builds a structure and runs one algorithm
 // in-process (no gRPC), then prints times, memory, access statistics and the result.
 //
-//   actopo-bench --mesh ../shared/data/fertility_tet.vtu --algorithm topo-relations \
+//   actopo-bench --mesh ../shared/data/fertility_tet.vtu --algorithm topo-relations
 //       --structure compact --json
 #include <chrono>
 #include <cstdio>
@@ -15,6 +15,7 @@
 #include "server/cmd/flags.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
+#include "server/core/parallel.h"
 #include "server/core/partition.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
@@ -87,8 +88,7 @@ struct RunOutput {
 };
 
 template <class Structure>
-absl::StatusOr<RunOutput> RunAlgorithm(Structure& structure, const BenchOptions& o,
-                                       const RunContext& context) {
+absl::StatusOr<RunOutput> RunAlgorithm(Structure& structure, const RunContext& context) {
   RunOutput out;
   const auto start = Clock::now();
   ASSIGN_OR_RETURN(TopoRelationsResult r, RunTopoRelations(structure, context));
@@ -131,13 +131,13 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
     ASSIGN_OR_RETURN(auto structure,
                      ExplicitStructure::Build(topology, {.relations = declared, .threads = o.threads}));
     const double preprocess_s = Seconds(start);
-    ASSIGN_OR_RETURN(out, RunAlgorithm(*structure, o, context));
+    ASSIGN_OR_RETURN(out, RunAlgorithm(*structure, context));
     out.preprocess_s = preprocess_s;
     out.memory = structure->memory();
   } else {
     CompactStructure structure(topology,
                                {.cache_ratio = o.buffer_ratio, .consumers = o.consumers});
-    ASSIGN_OR_RETURN(out, RunAlgorithm(structure, o, context));
+    ASSIGN_OR_RETURN(out, RunAlgorithm(structure, context));
     out.access = structure.stats();
     out.memory = structure.memory();
   }

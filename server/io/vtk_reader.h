@@ -1,0 +1,32 @@
+// Reads tetrahedral meshes from VTK files into an actopo::Mesh.
+//
+// Supported inputs, chosen by extension (case-insensitive):
+//   .vtu  VTK XML unstructured grid;
+//   .vtk  legacy VTK unstructured grid (ASCII or binary);
+//   .vti  VTK XML image data, split into tetrahedra by VTK's vtkDataSetTriangleFilter, which is
+//         ParaView's Tetrahedralize (5 tetrahedra per voxel), so ids match what ParaView shows.
+// Only tetrahedral cells are accepted. Every 1-component point array becomes a PointField;
+// vector and tensor arrays are skipped. The result has passed actopo::ValidateMesh.
+//
+//   ASSIGN_OR_RETURN(actopo::Mesh mesh, actopo::io::ReadMesh("/data/fertility_tet.vtu"));
+//
+// Errors: NotFound when the file does not exist; InvalidArgument for an unsupported extension, a
+// file VTK cannot read, non-tetrahedral cells or an invalid mesh. Messages start with the path.
+#ifndef ACTOPO_SERVER_IO_VTK_READER_H_
+#define ACTOPO_SERVER_IO_VTK_READER_H_
+
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "server/core/mesh.h"
+
+namespace actopo::io {
+
+// Reserved for reader settings (none yet); a struct so that adding one breaks no caller.
+struct ReadOptions {};
+
+absl::StatusOr<Mesh> ReadMesh(const std::string& path, const ReadOptions& options = {});
+
+}  // namespace actopo::io
+
+#endif  // ACTOPO_SERVER_IO_VTK_READER_H_
