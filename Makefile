@@ -2,7 +2,8 @@
 JOBS ?= 2
 BUILD ?= build
 CMAKE_FLAGS ?= -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo
-DATA_DIR ?= $(abspath ../shared/data)
+# The shared test meshes: beside the checkout, else where this workplace keeps them.
+DATA_DIR ?= $(firstword $(wildcard $(abspath ../shared/data) /work/shared/data) $(abspath ../shared/data))
 DEMO_SAMPLE ?= jittered:40
 
 .PHONY: all deps build test test-unit test-asan test-tsan demo bench clean
