@@ -117,30 +117,58 @@ class BlockComputer {
     PairsToCsr(out, false);
   }
 
-  void VertexNeighbors(RelationBlock& out) {
+  // Vertex relations split each row in two. Simplices whose lowest vertex is v are a contiguous
+  // id range starting at v (edges (v, w), triangles (v, a, b)), sorted, with ids above those of
+  // every simplex that has a lower vertex. Only the "lower" part, where v is not the lowest
+  // vertex, is gathered from the tetrahedra; rows are then lower part + upper range.
+  template <class Upper>
+  void AppendUpperRanges(RelationBlock& out, Upper&& upper) {
+    // out holds the lower parts as CSR; rebuild in s_.values with the upper ranges appended.
+    s_.values.clear();
+    SimplexId begin = 0;
+    for (SimplexId i = 0; i < out.count; ++i) {
+      const SimplexId end = out.offsets[i + 1];
+      s_.values.insert(s_.values.end(), out.values.begin() + begin, out.values.begin() + end);
+      begin = end;
+      upper(vbegin_ + i, s_.values);
+      out.offsets[i + 1] = static_cast<SimplexId>(s_.values.size());
+    }
+    out.values.assign(s_.values.begin(), s_.values.end());
+  }
+
+  void LowerNeighbors(RelationBlock& out) {
     BeginPairs();
     ForEachTet(b_, [&](SimplexId, const SimplexId* s) {
-      for (int k = 0; k < 4; ++k) {
+      for (int k = 1; k < 4; ++k) {
         if (!Inside(s[k])) continue;
-        for (int j = 0; j < 4; ++j) {
-          if (j != k) Pair(s[k] - vbegin_, s[j]);
-        }
+        for (int j = 0; j < k; ++j) Pair(s[k] - vbegin_, s[j]);
       }
     });
     PairsToCsr(out, true);
   }
 
+  void VertexNeighbors(RelationBlock& out) {
+    LowerNeighbors(out);
+    AppendUpperRanges(out, [&](SimplexId v, std::vector<SimplexId>& row) {
+      for (SimplexId e = topo_.vertex_first_edge(v); e < topo_.vertex_first_edge(v + 1); ++e) {
+        row.push_back(topo_.edge(e)[1]);
+      }
+    });
+  }
+
   void VertexEdges(RelationBlock& out) {
-    VertexNeighbors(out);
-    // Ascending neighbours give ascending edge ids: edges (w, v) with w < v are numbered by w,
-    // and all of them come before the edges (v, w) starting at v.
+    LowerNeighbors(out);
+    // Edges (u, v) with u < v are numbered by u, so ascending u gives ascending ids.
     for (SimplexId i = 0; i < out.count; ++i) {
-      const SimplexId v = vbegin_ + i;
       for (SimplexId k = out.offsets[i]; k < out.offsets[i + 1]; ++k) {
-        const SimplexId w = out.values[k];
-        out.values[k] = w < v ? topo_.FindEdge(w, v) : topo_.FindEdge(v, w);
+        out.values[k] = topo_.FindEdge(out.values[k], vbegin_ + i);
       }
     }
+    AppendUpperRanges(out, [&](SimplexId v, std::vector<SimplexId>& row) {
+      for (SimplexId e = topo_.vertex_first_edge(v); e < topo_.vertex_first_edge(v + 1); ++e) {
+        row.push_back(e);
+      }
+    });
   }
 
   void VertexTriangles(RelationBlock& out) {
@@ -148,14 +176,19 @@ class BlockComputer {
     ForEachTet(b_, [&](SimplexId, const SimplexId* s) {
       for (int f = 0; f < 4; ++f) {
         const int* face = kTetFaces[f];
-        if (!Inside(s[face[0]]) && !Inside(s[face[1]]) && !Inside(s[face[2]])) continue;
+        if (!Inside(s[face[1]]) && !Inside(s[face[2]])) continue;
         const SimplexId id = Face(s, f);
-        for (int k = 0; k < 3; ++k) {
-          if (Inside(s[face[k]])) Pair(s[face[k]] - vbegin_, id);
-        }
+        if (Inside(s[face[1]])) Pair(s[face[1]] - vbegin_, id);
+        if (Inside(s[face[2]])) Pair(s[face[2]] - vbegin_, id);
       }
     });
     PairsToCsr(out, true);
+    AppendUpperRanges(out, [&](SimplexId v, std::vector<SimplexId>& row) {
+      for (SimplexId f = topo_.vertex_first_triangle(v); f < topo_.vertex_first_triangle(v + 1);
+           ++f) {
+        row.push_back(f);
+      }
+    });
   }
 
   void EdgeStar(RelationBlock& out) {
@@ -169,26 +202,52 @@ class BlockComputer {
   }
 
   void EdgeTriangles(RelationBlock& out) {
+    // As for vertices: the triangles (a, b, c) with c > b of edge (a, b) are a contiguous, sorted
+    // run at the end of the row; only the others, (c, a, b) and (a, c, b), are looked up.
     BeginPairs();
     ForEachTet(b_, [&](SimplexId, const SimplexId* s) {
-      // Triangles of the tetrahedron, and for each edge the two triangles that contain it.
-      SimplexId face_id[4] = {-1, -1, -1, -1};
+      SimplexId face_id[4] = {-1, -1, -1, -1};  // looked up once per tetrahedron
       for (int e = 0; e < 6; ++e) {
-        if (!Inside(s[kTetEdges[e][0]])) continue;
-        const SimplexId edge = Edge(s, e) - out.first;
-        for (int f = 0; f < 4; ++f) {
-          const int* face = kTetFaces[f];
-          const bool has0 = face[0] == kTetEdges[e][0] || face[1] == kTetEdges[e][0] ||
-                            face[2] == kTetEdges[e][0];
-          const bool has1 = face[0] == kTetEdges[e][1] || face[1] == kTetEdges[e][1] ||
-                            face[2] == kTetEdges[e][1];
-          if (!has0 || !has1) continue;
+        const int i = kTetEdges[e][0], j = kTetEdges[e][1];
+        if (!Inside(s[i])) continue;
+        SimplexId edge = -1;
+        for (int k = 0; k < j; ++k) {  // k > j: the upper run, added below
+          if (k == i) continue;
+          if (edge < 0) edge = Edge(s, e) - out.first;
+          const int f = 3 - (6 - i - j - k);  // face f of kTetFaces omits vertex 3 - f
           if (face_id[f] < 0) face_id[f] = Face(s, f);
           Pair(edge, face_id[f]);
         }
       }
     });
     PairsToCsr(out, true);
+    s_.values.clear();
+    SimplexId begin = 0;
+    for (SimplexId i = 0; i < out.count; ++i) {
+      const SimplexId end = out.offsets[i + 1];
+      s_.values.insert(s_.values.end(), out.values.begin() + begin, out.values.begin() + end);
+      begin = end;
+      const auto edge = topo_.edge(out.first + i);
+      SimplexId f = FirstTriangleWith(edge[0], edge[1]);
+      const SimplexId last = topo_.vertex_first_triangle(edge[0] + 1);
+      for (; f < last && topo_.triangle(f)[1] == edge[1]; ++f) s_.values.push_back(f);
+      out.offsets[i + 1] = static_cast<SimplexId>(s_.values.size());
+    }
+    out.values.assign(s_.values.begin(), s_.values.end());
+  }
+
+  // First triangle (a, b, *) in a's sorted run (or the first after where it would be).
+  SimplexId FirstTriangleWith(SimplexId a, SimplexId b) const {
+    SimplexId lo = topo_.vertex_first_triangle(a), hi = topo_.vertex_first_triangle(a + 1);
+    while (lo < hi) {
+      const SimplexId mid = lo + (hi - lo) / 2;
+      if (topo_.triangle(mid)[1] < b) {
+        lo = mid + 1;
+      } else {
+        hi = mid;
+      }
+    }
+    return lo;
   }
 
   void TriangleEdges(RelationBlock& out) {
