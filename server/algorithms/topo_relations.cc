@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <mutex>
 
+#include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
 
@@ -95,6 +96,8 @@ absl::StatusOr<TopoRelationsResult> RunTopoRelations(Structure& structure,
 template absl::StatusOr<TopoRelationsResult> RunTopoRelations(ExplicitStructure&,
                                                               const RunContext&);
 template absl::StatusOr<TopoRelationsResult> RunTopoRelations(CompactStructure&,
+                                                              const RunContext&);
+template absl::StatusOr<TopoRelationsResult> RunTopoRelations(ActopoStructure&,
                                                               const RunContext&);
 
 }  // namespace actopo

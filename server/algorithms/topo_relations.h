@@ -36,7 +36,8 @@ std::span<const Relation> TopoRelationsSweeps();
 // Everything the sweeps read that a structure stores: all relations.
 RelationSet TopoRelationsDeclared();
 
-// Runs on any structure with NewReader(); defined for ExplicitStructure and CompactStructure.
+// Runs on any structure with NewReader(); defined for the explicit, compact and actopo
+// structures. The actopo engine's `auto` mode uses linear prefetch of the requested relation.
 template <class Structure>
 absl::StatusOr<TopoRelationsResult> RunTopoRelations(Structure& structure,
                                                      const RunContext& context);

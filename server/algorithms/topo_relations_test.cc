@@ -3,6 +3,7 @@
 #include <atomic>
 
 #include "gtest/gtest.h"
+#include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
@@ -94,6 +95,58 @@ TEST(TopoRelations, ReportsProgressAndStopsWhenCancelled) {
                         .cancel = &cancel};
   const auto cancelled = RunTopoRelations(compact, cancelling);
   EXPECT_EQ(cancelled.status().code(), absl::StatusCode::kCancelled);
+}
+
+}  // namespace
+}  // namespace actopo
+
+namespace actopo {
+namespace {
+
+TEST(TopoRelations, ActopoMatchesExplicitInEveryMode) {
+  auto topo = Build(testing::Lattice(7, 6, 6, 6), 11);
+  const TopoRelationsResult reference = RunExplicit(topo, 1);
+  for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
+    for (Precompute q : {Precompute::kRequested, Precompute::kDeclared}) {
+      for (int producers : {1, 2, 4}) {
+        for (int consumers : {1, 2}) {
+          for (double ratio : {0.01, 0.2, 1.0}) {
+            auto structure = *ActopoStructure::Create(topo, {.consumers = consumers,
+                                                             .producers = producers,
+                                                             .buffer_ratio = ratio,
+                                                             .prefetch = p,
+                                                             .precompute = q});
+            const TopoRelationsResult r = *RunTopoRelations(*structure, {.consumers = consumers});
+            EXPECT_EQ(r.totals, reference.totals);
+            EXPECT_EQ(r.checksum, reference.checksum)
+                << PrefetchName(p) << " " << PrecomputeName(q) << " P=" << producers
+                << " C=" << consumers << " ratio=" << ratio;
+            // Bounded buffer: no pin may leak, else blocks could never be evicted.
+            for (const EngineStats& s : structure->consumer_stats()) {
+              EXPECT_LE(s.buffer_peak_blocks,
+                        structure->buffer_capacity_blocks() + 1 + kNumRelations);
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
+TEST(TopoRelations, CancelStopsActopoRun) {
+  auto topo = Build(testing::Lattice(10, 10, 10, 3), 8);
+  auto structure = *ActopoStructure::Create(topo, {.consumers = 2, .producers = 2});
+  std::atomic<bool> cancel{false};
+  int calls = 0;
+  RunContext context{.consumers = 2,
+                     .progress = [&](double) {
+                       if (++calls == 2) {
+                         cancel = true;
+                         structure->Shutdown();  // what a session does on cancellation
+                       }
+                     },
+                     .cancel = &cancel};
+  EXPECT_EQ(RunTopoRelations(*structure, context).status().code(), absl::StatusCode::kCancelled);
 }
 
 }  // namespace

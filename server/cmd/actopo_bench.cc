@@ -13,6 +13,7 @@
 #include "nlohmann/json.hpp"
 #include "server/algorithms/topo_relations.h"
 #include "server/cmd/flags.h"
+#include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/parallel.h"
@@ -36,6 +37,9 @@ struct BenchOptions {
   std::string algorithm = "topo-relations";
   std::string structure = "compact";
   int consumers = 1;
+  int producers = 2;
+  std::string prefetch = "auto";
+  std::string precompute = "auto";
   double buffer_ratio = 0.2;
   int block_size = 1000;
   std::string block_labels;
@@ -55,9 +59,19 @@ absl::Status Validate(const BenchOptions& o) {
     return absl::InvalidArgumentError(absl::StrCat(
         "--algorithm: unknown algorithm '", o.algorithm, "'; available: topo-relations"));
   }
-  if (o.structure != "explicit" && o.structure != "compact") {
+  if (o.structure != "explicit" && o.structure != "compact" && o.structure != "actopo") {
+    return absl::InvalidArgumentError(absl::StrCat("--structure: unknown structure '",
+                                                   o.structure,
+                                                   "'; available: explicit, compact, actopo"));
+  }
+  if (o.prefetch != "auto" && o.prefetch != "linear" && o.prefetch != "spatial" &&
+      o.prefetch != "adaptive") {
     return absl::InvalidArgumentError(absl::StrCat(
-        "--structure: unknown structure '", o.structure, "'; available: explicit, compact"));
+        "--prefetch: unknown mode '", o.prefetch, "'; available: auto, linear, spatial, adaptive"));
+  }
+  if (o.precompute != "auto" && o.precompute != "requested" && o.precompute != "declared") {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--precompute: unknown scope '", o.precompute, "'; available: auto, requested, declared"));
   }
   if (o.consumers < 1 || o.consumers > 256) {
     return absl::InvalidArgumentError(
@@ -82,6 +96,7 @@ Json TopoRelationsJson(const TopoRelationsResult& r) {
 
 struct RunOutput {
   double preprocess_s = 0, run_s = 0;
+  Json engine_detail = Json::object();  // actopo only
   AccessStats access;
   MemoryStats memory;
   Json result;
@@ -95,6 +110,21 @@ absl::StatusOr<RunOutput> RunAlgorithm(Structure& structure, const RunContext& c
   out.run_s = Seconds(start);
   out.result = TopoRelationsJson(r);
   return out;
+}
+
+// The engine's `auto` choices per algorithm (DESIGN.md): topo-relations sweeps blocks in order
+// and reads one relation per sweep.
+ActopoStructure::Options EngineOptions(const BenchOptions& o, RelationSet declared) {
+  ActopoStructure::Options e{.consumers = o.consumers,
+                             .producers = o.producers,
+                             .buffer_ratio = o.buffer_ratio,
+                             .prefetch = Prefetch::kLinear,
+                             .precompute = Precompute::kRequested,
+                             .declared = declared};
+  if (o.prefetch == "spatial") e.prefetch = Prefetch::kSpatial;
+  if (o.prefetch == "adaptive") e.prefetch = Prefetch::kAdaptive;
+  if (o.precompute == "declared") e.precompute = Precompute::kDeclared;
+  return e;
 }
 
 absl::StatusOr<Json> Run(const BenchOptions& o) {
@@ -134,6 +164,35 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
     ASSIGN_OR_RETURN(out, RunAlgorithm(*structure, context));
     out.preprocess_s = preprocess_s;
     out.memory = structure->memory();
+  } else if (o.structure == "actopo") {
+    const ActopoStructure::Options engine = EngineOptions(o, declared);
+    start = Clock::now();
+    ASSIGN_OR_RETURN(auto structure, ActopoStructure::Create(topology, engine));
+    const double preprocess_s = Seconds(start);
+    ASSIGN_OR_RETURN(out, RunAlgorithm(*structure, context));
+    out.preprocess_s = preprocess_s;
+    const EngineStats stats = structure->stats();
+    out.access = stats.access;
+    out.memory = structure->memory();
+    out.engine_detail = {{"producers", engine.producers},
+                         {"prefetch", std::string(PrefetchName(engine.prefetch))},
+                         {"precompute", std::string(PrecomputeName(engine.precompute))},
+                         {"buffer_capacity_blocks", structure->buffer_capacity_blocks()},
+                         {"leader_relations", stats.leader_relations},
+                         {"worker_relations", stats.worker_relations},
+                         {"consumer_relations", stats.consumer_relations},
+                         {"duplicates_avoided", stats.duplicates_avoided},
+                         {"blocks_inserted", stats.blocks_inserted},
+                         {"producer_busy_s", stats.producer_busy_ns * 1e-9}};
+    Json per_consumer = Json::array();
+    for (const EngineStats& c : structure->consumer_stats()) {
+      per_consumer.push_back({{"wait_s", c.access.wait_ns * 1e-9},
+                              {"requests", c.access.requests},
+                              {"hits", c.access.hits},
+                              {"misses", c.access.misses},
+                              {"buffer_peak_bytes", c.buffer_peak_bytes}});
+    }
+    out.engine_detail["consumers"] = per_consumer;
   } else {
     CompactStructure structure(topology,
                                {.cache_ratio = o.buffer_ratio, .consumers = o.consumers});
@@ -153,6 +212,9 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
   j["structure"] = o.structure;
   j["algorithm"] = o.algorithm;
   j["config"] = {{"consumers", o.consumers},
+                 {"producers", o.structure == "actopo" ? Json(o.producers) : Json(nullptr)},
+                 {"prefetch", o.structure == "actopo" ? Json(o.prefetch) : Json(nullptr)},
+                 {"precompute", o.structure == "actopo" ? Json(o.precompute) : Json(nullptr)},
                  {"buffer_ratio", o.buffer_ratio},
                  {"block_size", o.block_labels.empty() ? Json(o.block_size) : Json(nullptr)},
                  {"block_labels", o.block_labels.empty() ? Json(nullptr) : Json(o.block_labels)},
@@ -169,6 +231,7 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
                  {"misses", out.access.misses},
                  {"evictions", out.access.evictions},
                  {"blocks_computed", out.access.relations_computed}};
+  for (auto& [key, value] : out.engine_detail.items()) j["engine"][key] = value;
   j["memory"] = {{"peak_rss_bytes", PeakRssBytes()},
                  {"structure_bytes", out.memory.static_bytes + (o.structure == "explicit"
                                                                     ? out.memory.relation_bytes
@@ -225,10 +288,15 @@ int main(int argc, char** argv) {
                 absl::StrJoin(actopo::io::SampleNames(), "; "));
   flags.Add("scalar", &o.scalar, "point scalar field (default: first floating-point field)");
   flags.Add("algorithm", &o.algorithm, "topo-relations");
-  flags.Add("structure", &o.structure, "explicit or compact");
+  flags.Add("structure", &o.structure, "explicit, compact or actopo");
   flags.Add("consumers", &o.consumers, "consumer threads running the algorithm");
+  flags.Add("producers", &o.producers, "actopo: producers per consumer (1 leader + workers)");
   flags.Add("buffer-ratio", &o.buffer_ratio,
-            "cache/buffer capacity as a fraction of the blocks (compact)");
+            "compact cache / actopo buffer capacity as a fraction of the blocks, over all "
+            "consumers");
+  flags.Add("prefetch", &o.prefetch,
+            "actopo: auto (per algorithm), linear, spatial or adaptive");
+  flags.Add("precompute", &o.precompute, "actopo: auto (per algorithm), requested or declared");
   flags.Add("block-size", &o.block_size, "octree bucket capacity: max vertices per block");
   flags.Add("block-labels", &o.block_labels,
             "partition by this integer point field instead of the octree");

@@ -126,6 +126,8 @@ EngineStats& EngineStats::operator+=(const EngineStats& o) {
   producer_busy_ns += o.producer_busy_ns;
   buffer_bytes += o.buffer_bytes;
   buffer_peak_bytes += o.buffer_peak_bytes;
+  buffer_blocks += o.buffer_blocks;
+  buffer_peak_blocks += o.buffer_peak_blocks;
   return *this;
 }
 
@@ -223,6 +225,8 @@ class ActopoStructure::Consumer {
     s.producer_busy_ns = busy_ns_.Get();
     s.buffer_bytes = bytes_.Get();
     s.buffer_peak_bytes = peak_bytes_.Get();
+    s.buffer_blocks = resident_blocks_.Get();
+    s.buffer_peak_blocks = peak_blocks_.Get();
     return s;
   }
 
@@ -262,7 +266,7 @@ class ActopoStructure::Consumer {
     while (true) {
       leader_cv_.wait(lock, [&] {
         return stop_ || request_seq_ > seen_request || hint_seq_ > seen_hint ||
-               (options_.producers == 1 && next_task_ < tasks_.size());
+               next_task_ < tasks_.size();
       });
       if (stop_) return;
       if (request_seq_ > seen_request) {
@@ -292,6 +296,7 @@ class ActopoStructure::Consumer {
 
   // Leader, mu_ held: answer the consumer's miss.
   void Serve(std::unique_lock<std::mutex>& lock, const Task& request) {
+    if (served_seq_ >= request_seq_) return;  // a producer's Publish() already handed it over
     Cell& c = cell(request.block, request.relation);
     switch (c.state.load()) {
       case kReady:
@@ -345,7 +350,11 @@ class ActopoStructure::Consumer {
       block_inserted_[task.block] = int64_t(resident_.size());
       resident_.push_back(task.block);
       blocks_inserted_.Add(1);
+      if (int64_t(resident_.size()) > peak_blocks_.Get()) {
+        peak_blocks_.value.store(int64_t(resident_.size()), std::memory_order_relaxed);
+      }
       if (int(resident_.size()) > capacity_) Evict(task.block);
+      resident_blocks_.value.store(int64_t(resident_.size()), std::memory_order_relaxed);
     }
     if (served_seq_ < request_seq_ && request_.block == task.block &&
         request_.relation == task.relation) {
@@ -480,7 +489,7 @@ class ActopoStructure::Consumer {
 
   Counter requests_, hits_, misses_, wait_ns_, evictions_;
   Counter leader_relations_, worker_relations_, consumer_relations_, duplicates_avoided_;
-  Counter blocks_inserted_, busy_ns_, bytes_, peak_bytes_;
+  Counter blocks_inserted_, busy_ns_, bytes_, peak_bytes_, resident_blocks_, peak_blocks_;
 };
 
 ActopoStructure::ActopoStructure(std::shared_ptr<const Topology> topology,

@@ -12,7 +12,9 @@
 // Per consumer: its own buffer of floor(buffer_ratio * blocks / consumers) + 1 blocks and its own
 // P producers. The leader serves the consumer's misses at once, then re-targets the workers to
 // the neighbourhood of the missed block; workers compute (block, relation) pairs speculatively.
-// With P = 1 the leader also prefetches while no request is pending.
+// While no request is pending the leader prefetches too (one task at a time, so a new request
+// waits at most one block computation): when the consumer reads faster than one producer
+// computes, which is the common case, an idle leader would waste a core.
 //
 // What this implementation guarantees beyond the reference code:
 // - each (block, relation) has a state (absent, computing, ready): nothing is computed twice at
@@ -73,6 +75,8 @@ struct EngineStats {
   int64_t producer_busy_ns = 0;     // time producers spent computing
   int64_t buffer_bytes = 0;         // now
   int64_t buffer_peak_bytes = 0;
+  int64_t buffer_blocks = 0;        // resident blocks now
+  int64_t buffer_peak_blocks = 0;   // at most capacity + 1 + blocks pinned by the consumer
 
   EngineStats& operator+=(const EngineStats& o);
 };

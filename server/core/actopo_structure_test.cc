@@ -74,9 +74,14 @@ TEST(ActopoStructure, EveryConfigurationMatchesOracle) {
       }
       for (auto& t : threads) t.join();
       EXPECT_EQ(mismatches.load(), 0) << Label(c);
-      const EngineStats s = structure->stats();
-      EXPECT_EQ(s.access.requests, s.access.hits + s.access.misses) << Label(c);
-      EXPECT_EQ(s.consumer_relations, 0) << Label(c);
+      for (const EngineStats& s : structure->consumer_stats()) {
+        EXPECT_EQ(s.access.requests, s.access.hits + s.access.misses) << Label(c);
+        EXPECT_EQ(s.consumer_relations, 0) << Label(c);
+        // The buffer holds at most its capacity, plus the block just inserted, plus blocks
+        // the consumer pins (one per relation slot).
+        EXPECT_LE(s.buffer_peak_blocks,
+                  structure->buffer_capacity_blocks() + 1 + kNumRelations) << Label(c);
+      }
     }
   }
 }
@@ -103,6 +108,9 @@ TEST(ActopoStructure, OneBlockBufferManyProducers) {
     const EngineStats s = structure->stats();
     EXPECT_GT(s.access.evictions, 0);
     EXPECT_GT(s.worker_relations, 0);
+    for (const EngineStats& c : structure->consumer_stats()) {
+      EXPECT_LE(c.buffer_peak_blocks, 2 + kNumRelations);
+    }
   }
 }
 
