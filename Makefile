@@ -52,7 +52,7 @@ demo: build
 	done
 
 bench: build
-	bash bench/run_foundation.sh
+	bash bench/compare_structures.sh
 
 clean:
 	rm -rf build build-asan build-tsan
