@@ -11,7 +11,11 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "nlohmann/json.hpp"
+#include "server/algorithms/critical_points.h"
+#include "server/algorithms/discrete_gradient.h"
+#include "server/algorithms/registry.h"
 #include "server/algorithms/topo_relations.h"
+#include "server/algorithms/vertex_order.h"
 #include "server/cmd/flags.h"
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
@@ -43,6 +47,7 @@ struct BenchOptions {
   double buffer_ratio = 0.2;
   int block_size = 1000;
   std::string block_labels;
+  std::string boundary_rule = "ttk";
   int threads = 0;
   bool json = false;
 };
@@ -55,9 +60,9 @@ absl::Status Validate(const BenchOptions& o) {
   if (o.mesh.empty() == o.sample.empty()) {
     return absl::InvalidArgumentError("give exactly one of --mesh PATH or --sample NAME");
   }
-  if (o.algorithm != "topo-relations") {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "--algorithm: unknown algorithm '", o.algorithm, "'; available: topo-relations"));
+  if (o.boundary_rule != "ttk" && o.boundary_rule != "none") {
+    return absl::InvalidArgumentError(absl::StrCat("--boundary-rule: unknown rule '",
+                                                   o.boundary_rule, "'; available: ttk, none"));
   }
   if (o.structure != "explicit" && o.structure != "compact" && o.structure != "actopo") {
     return absl::InvalidArgumentError(absl::StrCat("--structure: unknown structure '",
@@ -102,42 +107,90 @@ struct RunOutput {
   Json result;
 };
 
+struct AlgorithmInput {
+  Algorithm algorithm;
+  std::vector<SimplexId> order;  // empty for topo-relations
+  CriticalPointsOptions critical_points;
+};
+
+Json CriticalPointsJson(const CriticalPointsResult& r) {
+  const auto count = [&](CriticalType t) { return r.counts[int(t)]; };
+  return {{"counts",
+           {{"minimum", count(CriticalType::kMinimum)},
+            {"saddle1", count(CriticalType::kSaddle1)},
+            {"saddle2", count(CriticalType::kSaddle2)},
+            {"degenerate", count(CriticalType::kDegenerate)},
+            {"maximum", count(CriticalType::kMaximum)}}},
+          {"vertices_sha256", r.VerticesDigest()}};
+}
+
+Json DiscreteGradientJson(const DiscreteGradientResult& r, const Topology& topology) {
+  return {{"critical_cells", r.critical_cells},
+          {"pairs_count", r.pairs},
+          {"critical_cells_sha256", r.CriticalCellsDigest(topology)},
+          {"pairs_sha256", r.PairsDigest(topology)}};
+}
+
 template <class Structure>
-absl::StatusOr<RunOutput> RunAlgorithm(Structure& structure, const RunContext& context) {
+absl::StatusOr<RunOutput> RunAlgorithm(Structure& structure, const AlgorithmInput& in,
+                                       const RunContext& context) {
   RunOutput out;
   const auto start = Clock::now();
-  ASSIGN_OR_RETURN(TopoRelationsResult r, RunTopoRelations(structure, context));
-  out.run_s = Seconds(start);
-  out.result = TopoRelationsJson(r);
+  switch (in.algorithm) {
+    case Algorithm::kTopoRelations: {
+      ASSIGN_OR_RETURN(TopoRelationsResult r, RunTopoRelations(structure, context));
+      out.run_s = Seconds(start);
+      out.result = TopoRelationsJson(r);
+      break;
+    }
+    case Algorithm::kCriticalPoints: {
+      ASSIGN_OR_RETURN(CriticalPointsResult r,
+                       RunCriticalPoints(structure, in.order, in.critical_points, context));
+      out.run_s = Seconds(start);
+      out.result = CriticalPointsJson(r);
+      break;
+    }
+    case Algorithm::kDiscreteGradient: {
+      ASSIGN_OR_RETURN(DiscreteGradientResult r,
+                       RunDiscreteGradient(structure, in.order, context));
+      out.run_s = Seconds(start);
+      out.result = DiscreteGradientJson(r, structure.topology());
+      break;
+    }
+  }
   return out;
 }
 
-// The engine's `auto` choices per algorithm (DESIGN.md): topo-relations sweeps blocks in order
-// and reads one relation per sweep.
-ActopoStructure::Options EngineOptions(const BenchOptions& o, RelationSet declared) {
+// Flags over the algorithm's `auto` choices (registry.h).
+ActopoStructure::Options EngineOptions(const BenchOptions& o, Algorithm algorithm) {
   ActopoStructure::Options e{.consumers = o.consumers,
                              .producers = o.producers,
                              .buffer_ratio = o.buffer_ratio,
-                             .prefetch = Prefetch::kLinear,
-                             .precompute = Precompute::kRequested,
-                             .declared = declared};
+                             .prefetch = DefaultPrefetch(algorithm),
+                             .precompute = DefaultPrecompute(algorithm),
+                             .declared = DeclaredRelations(algorithm)};
+  if (o.prefetch == "linear") e.prefetch = Prefetch::kLinear;
   if (o.prefetch == "spatial") e.prefetch = Prefetch::kSpatial;
   if (o.prefetch == "adaptive") e.prefetch = Prefetch::kAdaptive;
+  if (o.precompute == "requested") e.precompute = Precompute::kRequested;
   if (o.precompute == "declared") e.precompute = Precompute::kDeclared;
   return e;
 }
 
 absl::StatusOr<Json> Run(const BenchOptions& o) {
   RETURN_IF_ERROR(Validate(o));
+  ASSIGN_OR_RETURN(const Algorithm algorithm, ParseAlgorithm(o.algorithm));
   const auto total_start = Clock::now();
 
   auto start = Clock::now();
   ASSIGN_OR_RETURN(Mesh mesh, o.mesh.empty() ? io::MakeSample(o.sample) : io::ReadMesh(o.mesh));
   RETURN_IF_ERROR(ValidateMesh(mesh));
   std::string scalar_name;
-  if (!o.scalar.empty()) {
+  std::vector<double> scalars;
+  if (!o.scalar.empty() || NeedsScalar(algorithm)) {
     ASSIGN_OR_RETURN(int field, SelectScalarField(mesh, o.scalar, o.block_labels));
     scalar_name = mesh.point_fields[field].name;
+    scalars = std::move(mesh.point_fields[field].values);
   }
   const double load_s = Seconds(start);
 
@@ -148,12 +201,20 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
   ASSIGN_OR_RETURN(std::shared_ptr<const Topology> topology,
                    Topology::Build(mesh, blocks, {.threads = o.threads}));
   const double partition_s = Seconds(start);
-  // The mesh's points and fields are not needed by topo-relations; free them so peak RSS
-  // reflects the structures (the service keeps them for output).
+  // Points and other fields are not needed by the algorithms; free them so peak RSS reflects
+  // the structures (the service keeps them for output).
   mesh = Mesh();
   blocks = {};
 
-  const RelationSet declared = TopoRelationsDeclared();
+  // The vertex order is the algorithms' preconditioning, like TTK's offsets: in `preprocess`.
+  start = Clock::now();
+  AlgorithmInput input{.algorithm = algorithm,
+                       .critical_points = {.boundary_rule = o.boundary_rule == "none"
+                                                                ? BoundaryRule::kNone
+                                                                : BoundaryRule::kTtk}};
+  if (!scalars.empty()) input.order = VertexOrder(*topology, scalars);
+  const double order_s = Seconds(start);
+  const RelationSet declared = DeclaredRelations(algorithm);
   RunContext context{.consumers = o.consumers};
   RunOutput out;
   if (o.structure == "explicit") {
@@ -161,15 +222,15 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
     ASSIGN_OR_RETURN(auto structure,
                      ExplicitStructure::Build(topology, {.relations = declared, .threads = o.threads}));
     const double preprocess_s = Seconds(start);
-    ASSIGN_OR_RETURN(out, RunAlgorithm(*structure, context));
+    ASSIGN_OR_RETURN(out, RunAlgorithm(*structure, input, context));
     out.preprocess_s = preprocess_s;
     out.memory = structure->memory();
   } else if (o.structure == "actopo") {
-    const ActopoStructure::Options engine = EngineOptions(o, declared);
+    const ActopoStructure::Options engine = EngineOptions(o, algorithm);
     start = Clock::now();
     ASSIGN_OR_RETURN(auto structure, ActopoStructure::Create(topology, engine));
     const double preprocess_s = Seconds(start);
-    ASSIGN_OR_RETURN(out, RunAlgorithm(*structure, context));
+    ASSIGN_OR_RETURN(out, RunAlgorithm(*structure, input, context));
     out.preprocess_s = preprocess_s;
     const EngineStats stats = structure->stats();
     out.access = stats.access;
@@ -196,7 +257,7 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
   } else {
     CompactStructure structure(topology,
                                {.cache_ratio = o.buffer_ratio, .consumers = o.consumers});
-    ASSIGN_OR_RETURN(out, RunAlgorithm(structure, context));
+    ASSIGN_OR_RETURN(out, RunAlgorithm(structure, input, context));
     out.access = structure.stats();
     out.memory = structure.memory();
   }
@@ -210,7 +271,7 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
                {"tetrahedra", topology->num_tetrahedra()},
                {"blocks", topology->num_blocks()}};
   j["structure"] = o.structure;
-  j["algorithm"] = o.algorithm;
+  j["algorithm"] = std::string(AlgorithmName(algorithm));
   j["config"] = {{"consumers", o.consumers},
                  {"producers", o.structure == "actopo" ? Json(o.producers) : Json(nullptr)},
                  {"prefetch", o.structure == "actopo" ? Json(o.prefetch) : Json(nullptr)},
@@ -219,10 +280,12 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
                  {"block_size", o.block_labels.empty() ? Json(o.block_size) : Json(nullptr)},
                  {"block_labels", o.block_labels.empty() ? Json(nullptr) : Json(o.block_labels)},
                  {"scalar", scalar_name.empty() ? Json(nullptr) : Json(scalar_name)},
+                 {"boundary_rule", algorithm == Algorithm::kCriticalPoints
+                                       ? Json(o.boundary_rule) : Json(nullptr)},
                  {"preprocess_threads", o.threads > 0 ? o.threads : DefaultThreads()}};
   j["times_s"] = {{"load", load_s},
                   {"partition", partition_s},
-                  {"preprocess", out.preprocess_s},
+                  {"preprocess", order_s + out.preprocess_s},
                   {"run", out.run_s},
                   {"total", Seconds(total_start)}};
   j["engine"] = {{"wait_s", out.access.wait_ns * 1e-9},
@@ -287,7 +350,9 @@ int main(int argc, char** argv) {
             "built-in sample instead of a file: " +
                 absl::StrJoin(actopo::io::SampleNames(), "; "));
   flags.Add("scalar", &o.scalar, "point scalar field (default: first floating-point field)");
-  flags.Add("algorithm", &o.algorithm, "topo-relations");
+  flags.Add("algorithm", &o.algorithm, "topo-relations, critical-points or discrete-gradient");
+  flags.Add("boundary-rule", &o.boundary_rule,
+            "critical-points: ttk (TTK >= 1.1 boundary saddles) or none");
   flags.Add("structure", &o.structure, "explicit, compact or actopo");
   flags.Add("consumers", &o.consumers, "consumer threads running the algorithm");
   flags.Add("producers", &o.producers, "actopo: producers per consumer (1 leader + workers)");

@@ -1,0 +1,262 @@
+#include "server/algorithms/discrete_gradient.h"
+
+#include <algorithm>
+#include <queue>
+
+#include "absl/strings/str_cat.h"
+#include "server/algorithms/digest.h"
+#include "server/core/actopo_structure.h"
+#include "server/core/compact_structure.h"
+#include "server/core/explicit_structure.h"
+
+namespace actopo {
+namespace {
+
+// A cell of a vertex x's lower star. `key` holds the orders of its vertices other than x,
+// descending, padded with -1: cells compare by key, across dimensions too.
+struct StarCell {
+  int dim;
+  SimplexId id;
+  std::array<SimplexId, 3> key;
+  std::array<uint8_t, 3> faces;  // indices in the lower star of its faces that contain x
+  bool paired;
+};
+
+class LowerStarPairing {
+ public:
+  explicit LowerStarPairing(GradientField& gradient) : gradient_(gradient) {}
+
+  template <class Reader>
+  void Process(Reader& reader, SimplexId x, std::span<const SimplexId> order) {
+    Build(reader, x, order);
+    auto& edges = star_[1];
+    if (edges.empty()) return;  // a minimum
+    size_t delta = 0;
+    for (size_t i = 1; i < edges.size(); ++i) {
+      if (edges[i].key[0] < edges[delta].key[0]) delta = i;
+    }
+    Pair(star_[0][0], edges[delta]);
+    for (size_t i = 0; i < edges.size(); ++i) {
+      if (i != delta) zero_.push({1, int(i), edges[i].key});
+    }
+    PushCofacets(1, int(delta));
+    while (!one_.empty() || !zero_.empty()) {
+      while (!one_.empty()) {
+        const Ref alpha = one_.top();
+        one_.pop();
+        int face = -1;
+        const int unpaired = UnpairedFaces(alpha, face);
+        if (unpaired == 0) {
+          zero_.push(alpha);
+        } else {
+          Pair(star_[alpha.dim - 1][face], Get(alpha));
+          PushCofacets(alpha.dim, alpha.index);
+          PushCofacets(alpha.dim - 1, face);
+        }
+      }
+      while (!zero_.empty() && Get(zero_.top()).paired) zero_.pop();
+      if (!zero_.empty()) {
+        const Ref gamma = zero_.top();
+        zero_.pop();
+        Get(gamma).paired = true;  // critical
+        PushCofacets(gamma.dim, gamma.index);
+      }
+    }
+  }
+
+ private:
+  struct Ref {
+    int dim;
+    int index;
+    std::array<SimplexId, 3> key;
+  };
+  struct Greater {
+    bool operator()(const Ref& a, const Ref& b) const { return a.key > b.key; }
+  };
+  using MinQueue = std::priority_queue<Ref, std::vector<Ref>, Greater>;
+
+  StarCell& Get(const Ref& r) { return star_[r.dim][r.index]; }
+
+  template <class Reader>
+  void Build(Reader& reader, SimplexId x, std::span<const SimplexId> order) {
+    for (auto& s : star_) s.clear();
+    const SimplexId ox = order[x];
+    star_[0].push_back({0, x, {-1, -1, -1}, {}, false});
+    for (SimplexId e : reader.vertex_edges(x)) {
+      const auto ev = reader.edge_vertices(e);
+      const SimplexId y = ev[0] == x ? ev[1] : ev[0];
+      if (order[y] < ox) star_[1].push_back({1, e, {order[y], -1, -1}, {}, false});
+    }
+    if (star_[1].size() < 2) return;
+    for (SimplexId f : reader.vertex_triangles(x)) {
+      std::array<SimplexId, 3> key{-1, -1, -1};
+      int n = 0;
+      for (SimplexId w : reader.triangle_vertices(f)) {
+        if (w != x) key[n++] = order[w];
+      }
+      if (key[0] < key[1]) std::swap(key[0], key[1]);
+      if (key[0] > ox) continue;
+      StarCell cell{2, f, key, {}, false};
+      int k = 0;
+      for (size_t j = 0; j < star_[1].size(); ++j) {
+        if (star_[1][j].key[0] == key[0] || star_[1][j].key[0] == key[1]) cell.faces[k++] = j;
+      }
+      star_[2].push_back(cell);
+    }
+    if (star_[2].size() < 3) return;
+    for (SimplexId t : reader.vertex_star(x)) {
+      std::array<SimplexId, 3> key{};
+      int n = 0;
+      for (SimplexId w : reader.tetrahedron_vertices(t)) {
+        if (w != x) key[n++] = order[w];
+      }
+      std::sort(key.rbegin(), key.rend());
+      if (key[0] > ox) continue;
+      StarCell cell{3, t, key, {}, false};
+      int k = 0;
+      for (size_t j = 0; j < star_[2].size(); ++j) {
+        const auto& fk = star_[2][j].key;
+        if ((fk[0] == key[0] && (fk[1] == key[1] || fk[1] == key[2])) ||
+            (fk[0] == key[1] && fk[1] == key[2])) {
+          cell.faces[k++] = j;
+        }
+      }
+      star_[3].push_back(cell);
+    }
+  }
+
+  // Unpaired faces of a 2- or 3-cell inside the lower star; `face` gets the last one found.
+  int UnpairedFaces(const Ref& r, int& face) {
+    const StarCell& c = Get(r);
+    const int n = c.dim == 2 ? 2 : 3;
+    int count = 0;
+    for (int i = 0; i < n; ++i) {
+      if (!star_[c.dim - 1][c.faces[i]].paired) {
+        ++count;
+        face = c.faces[i];
+      }
+    }
+    return count;
+  }
+
+  // Pushes the cofacets of cell (dim, index) with exactly one unpaired face.
+  void PushCofacets(int dim, int index) {
+    if (dim != 1 && dim != 2) return;
+    const int nfaces = dim == 1 ? 2 : 3;
+    auto& cofacets = star_[dim + 1];
+    for (size_t j = 0; j < cofacets.size(); ++j) {
+      const StarCell& beta = cofacets[j];
+      bool contains = false;
+      for (int i = 0; i < nfaces; ++i) contains |= beta.faces[i] == index;
+      if (!contains) continue;
+      int face;
+      const Ref ref{dim + 1, int(j), beta.key};
+      if (UnpairedFaces(ref, face) == 1) one_.push(ref);
+    }
+  }
+
+  void Pair(StarCell& alpha, StarCell& beta) {
+    gradient_.up[alpha.dim][alpha.id] = beta.id;
+    gradient_.down[beta.dim][beta.id] = alpha.id;
+    alpha.paired = true;
+    beta.paired = true;
+  }
+
+  GradientField& gradient_;
+  std::array<std::vector<StarCell>, 4> star_;
+  MinQueue zero_, one_;
+};
+
+}  // namespace
+
+std::vector<SimplexId> CellInputVertices(const Topology& topology, int d, SimplexId c) {
+  std::vector<SimplexId> v;
+  switch (d) {
+    case 0: v = {c}; break;
+    case 1: v.assign(topology.edge(c).begin(), topology.edge(c).end()); break;
+    case 2: v.assign(topology.triangle(c).begin(), topology.triangle(c).end()); break;
+    default: v.assign(topology.tetrahedron(c).begin(), topology.tetrahedron(c).end()); break;
+  }
+  for (SimplexId& x : v) x = topology.vertex_input_id(x);
+  std::sort(v.begin(), v.end());
+  return v;
+}
+
+std::string DiscreteGradientResult::CriticalCellsDigest(const Topology& topology) const {
+  LineDigest lines;
+  std::string line;
+  for (int d = 0; d < 4; ++d) {
+    for (SimplexId c = 0; c < topology.num_simplices(d); ++c) {
+      if (!gradient.IsCritical(d, c)) continue;
+      line = absl::StrCat(d, " ");
+      LineDigest::AppendIds(line, CellInputVertices(topology, d, c));
+      lines.Add(line);
+    }
+  }
+  return lines.Sorted();
+}
+
+std::string DiscreteGradientResult::PairsDigest(const Topology& topology) const {
+  LineDigest lines;
+  std::string line;
+  for (int d = 0; d < 3; ++d) {
+    for (SimplexId c = 0; c < topology.num_simplices(d); ++c) {
+      const SimplexId higher = gradient.up[d][c];
+      if (higher < 0) continue;
+      line = absl::StrCat(d, " ");
+      LineDigest::AppendIds(line, CellInputVertices(topology, d, c));
+      line.push_back(' ');
+      LineDigest::AppendIds(line, CellInputVertices(topology, d + 1, higher));
+      lines.Add(line);
+    }
+  }
+  return lines.Sorted();
+}
+
+RelationSet DiscreteGradientDeclared() {
+  return {Relation::kVE, Relation::kVF, Relation::kVT};
+}
+
+template <class Structure>
+absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,
+                                                           std::span<const SimplexId> order,
+                                                           const RunContext& context) {
+  const Topology& topo = structure.topology();
+  DiscreteGradientResult result;
+  GradientField& g = result.gradient;
+  for (int d = 0; d < 3; ++d) g.up[d].assign(topo.num_simplices(d), -1);
+  for (int d = 1; d < 4; ++d) g.down[d].assign(topo.num_simplices(d), -1);
+  // Every cell lies in the lower star of exactly one vertex (its highest), so consumers on
+  // different blocks write disjoint entries.
+  const absl::Status status = RunOnConsumers(
+      context, topo, topo.num_blocks(), [&](int, BlockRange range, WorkTracker& tracker) {
+        auto reader = structure.NewReader();
+        LowerStarPairing pairing(g);
+        for (int32_t b = range.begin; b < range.end; ++b) {
+          for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
+            pairing.Process(reader, v, order);
+          }
+          if (!tracker.Done()) return;
+        }
+      });
+  if (!status.ok()) return status;
+  for (int d = 0; d < 4; ++d) {
+    for (SimplexId c = 0; c < topo.num_simplices(d); ++c) {
+      result.critical_cells[d] += g.IsCritical(d, c);
+      if (d < 3) result.pairs[d] += g.up[d][c] >= 0;
+    }
+  }
+  return result;
+}
+
+template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(ExplicitStructure&,
+                                                                    std::span<const SimplexId>,
+                                                                    const RunContext&);
+template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(CompactStructure&,
+                                                                    std::span<const SimplexId>,
+                                                                    const RunContext&);
+template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(ActopoStructure&,
+                                                                    std::span<const SimplexId>,
+                                                                    const RunContext&);
+
+}  // namespace actopo

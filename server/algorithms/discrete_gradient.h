@@ -1,0 +1,60 @@
+// discrete-gradient: TTK's DiscreteGradient in 3D, lower-star pairing (Robins, Wood, Sheppard,
+// "Theory and algorithms for constructing discrete Morse complexes from grayscale digital
+// images"), with TTK's exact cell comparator so the pairs equal TTK's (SEMANTICS.md).
+//
+//   ASSIGN_OR_RETURN(DiscreteGradientResult g,
+//                    RunDiscreteGradient(*structure, order, {.consumers = 2}));
+//   g.gradient.IsCritical(1, e);            // internal ids
+//   std::string digest = g.PairsDigest(*topology);
+#ifndef ACTOPO_SERVER_ALGORITHMS_DISCRETE_GRADIENT_H_
+#define ACTOPO_SERVER_ALGORITHMS_DISCRETE_GRADIENT_H_
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "server/algorithms/consumers.h"
+#include "server/core/relation.h"
+#include "server/core/topology.h"
+
+namespace actopo {
+
+// The gradient as pairings, in internal ids: up[d][c] is the (d+1)-cell paired with d-cell c,
+// down[d][c] the (d-1)-cell paired with d-cell c, -1 when none.
+struct GradientField {
+  std::array<std::vector<SimplexId>, 4> up;    // d = 0, 1, 2 used
+  std::array<std::vector<SimplexId>, 4> down;  // d = 1, 2, 3 used
+
+  bool IsCritical(int d, SimplexId c) const {
+    return (d == 3 || up[d][c] < 0) && (d == 0 || down[d][c] < 0);
+  }
+};
+
+struct DiscreteGradientResult {
+  GradientField gradient;
+  std::array<int64_t, 4> critical_cells{};  // per dimension
+  std::array<int64_t, 3> pairs{};           // (0,1), (1,2), (2,3)
+
+  // "<d> <ids>\n" per critical cell, input vertex ids ascending, lines in byte order.
+  std::string CriticalCellsDigest(const Topology& topology) const;
+  // "<d> <lower ids> <higher ids>\n" per pair, lines in byte order.
+  std::string PairsDigest(const Topology& topology) const;
+};
+
+// Input vertex ids of a cell, ascending.
+std::vector<SimplexId> CellInputVertices(const Topology& topology, int d, SimplexId c);
+
+// VE, VF and VT: the lower star of every vertex.
+RelationSet DiscreteGradientDeclared();
+
+template <class Structure>
+absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,
+                                                           std::span<const SimplexId> order,
+                                                           const RunContext& context);
+
+}  // namespace actopo
+
+#endif  // ACTOPO_SERVER_ALGORITHMS_DISCRETE_GRADIENT_H_

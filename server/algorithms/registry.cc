@@ -1,0 +1,63 @@
+#include "server/algorithms/registry.h"
+
+#include <array>
+#include <string>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "server/algorithms/critical_points.h"
+#include "server/algorithms/discrete_gradient.h"
+#include "server/algorithms/topo_relations.h"
+
+namespace actopo {
+namespace {
+
+constexpr std::array<Algorithm, 3> kAll = {Algorithm::kTopoRelations, Algorithm::kCriticalPoints,
+                                           Algorithm::kDiscreteGradient};
+
+}  // namespace
+
+std::string_view AlgorithmName(Algorithm a) {
+  switch (a) {
+    case Algorithm::kTopoRelations: return "topo-relations";
+    case Algorithm::kCriticalPoints: return "critical-points";
+    case Algorithm::kDiscreteGradient: return "discrete-gradient";
+  }
+  return "?";
+}
+
+absl::StatusOr<Algorithm> ParseAlgorithm(std::string_view name) {
+  std::string dashed(name);
+  for (char& c : dashed) {
+    if (c == '_') c = '-';
+  }
+  std::vector<std::string> names;
+  for (Algorithm a : kAll) {
+    if (AlgorithmName(a) == dashed) return a;
+    names.emplace_back(AlgorithmName(a));
+  }
+  return absl::InvalidArgumentError(absl::StrCat("algorithm: unknown algorithm '",
+                                                 std::string(name), "'; available: ",
+                                                 absl::StrJoin(names, ", ")));
+}
+
+std::span<const Algorithm> AllAlgorithms() { return kAll; }
+
+RelationSet DeclaredRelations(Algorithm a) {
+  switch (a) {
+    case Algorithm::kTopoRelations: return TopoRelationsDeclared();
+    case Algorithm::kCriticalPoints: return CriticalPointsDeclared();
+    case Algorithm::kDiscreteGradient: return DiscreteGradientDeclared();
+  }
+  return {};
+}
+
+bool NeedsScalar(Algorithm a) { return a != Algorithm::kTopoRelations; }
+
+Prefetch DefaultPrefetch(Algorithm) { return Prefetch::kLinear; }
+
+Precompute DefaultPrecompute(Algorithm a) {
+  return a == Algorithm::kTopoRelations ? Precompute::kRequested : Precompute::kDeclared;
+}
+
+}  // namespace actopo

@@ -1,0 +1,40 @@
+// The algorithms the service and actopo-bench run, by name, with what the engine needs to know
+// about each: its declared relations and its best prefetch mode (the `auto` choices).
+//
+//   ASSIGN_OR_RETURN(Algorithm a, ParseAlgorithm("critical-points"));
+//   RelationSet needs = DeclaredRelations(a);
+#ifndef ACTOPO_SERVER_ALGORITHMS_REGISTRY_H_
+#define ACTOPO_SERVER_ALGORITHMS_REGISTRY_H_
+
+#include <span>
+#include <string_view>
+
+#include "absl/status/statusor.h"
+#include "server/core/actopo_structure.h"
+#include "server/core/relation.h"
+
+namespace actopo {
+
+enum class Algorithm : uint8_t {
+  kTopoRelations,
+  kCriticalPoints,
+  kDiscreteGradient,
+};
+
+std::string_view AlgorithmName(Algorithm a);  // "critical-points"
+// Accepts "critical-points" and "critical_points"; the error lists the algorithms.
+absl::StatusOr<Algorithm> ParseAlgorithm(std::string_view name);
+std::span<const Algorithm> AllAlgorithms();
+
+RelationSet DeclaredRelations(Algorithm a);
+// Whether the algorithm reads a scalar field.
+bool NeedsScalar(Algorithm a);
+
+// The paper's best engine modes per algorithm: topo-relations linear + requested, critical
+// points and discrete gradient linear + declared.
+Prefetch DefaultPrefetch(Algorithm a);
+Precompute DefaultPrecompute(Algorithm a);
+
+}  // namespace actopo
+
+#endif  // ACTOPO_SERVER_ALGORITHMS_REGISTRY_H_
