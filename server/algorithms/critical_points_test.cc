@@ -1,0 +1,144 @@
+#include "server/algorithms/critical_points.h"
+
+#include <cmath>
+
+#include "gtest/gtest.h"
+#include "server/algorithms/discrete_gradient.h"
+#include "server/algorithms/testing/gradient_checks.h"
+#include "server/algorithms/vertex_order.h"
+#include "server/core/actopo_structure.h"
+#include "server/core/compact_structure.h"
+#include "server/core/explicit_structure.h"
+#include "server/core/partition.h"
+#include "server/core/testing/test_meshes.h"
+
+namespace actopo {
+namespace {
+
+std::shared_ptr<const Topology> Build(const Mesh& m, int capacity) {
+  return *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = capacity}));
+}
+
+// A field with many exact ties, to exercise the (scalar, id) tie-break.
+std::vector<double> Quantised(const Mesh& m) {
+  std::vector<double> q = m.point_fields[0].values;
+  for (double& x : q) x = std::round(x * 2) / 2;
+  return q;
+}
+
+struct Fixture {
+  std::shared_ptr<const Topology> topo;
+  std::vector<SimplexId> order;
+};
+
+std::vector<Fixture> Fixtures() {
+  std::vector<Fixture> out;
+  const Mesh lattice = testing::Lattice(9, 8, 7, 12);
+  const Mesh two = testing::TwoComponents();
+  for (const auto& [mesh, scalars] :
+       {std::pair{lattice, lattice.point_fields[0].values}, std::pair{lattice, Quantised(lattice)},
+        std::pair{two, two.point_fields[0].values}}) {
+    auto topo = Build(mesh, 17);
+    out.push_back({topo, VertexOrder(*topo, scalars)});
+  }
+  return out;
+}
+
+TEST(VertexOrder, BreaksTiesByInputId) {
+  const Mesh m = testing::Lattice(3, 3, 3, 5);
+  auto topo = Build(m, 4);
+  const std::vector<double> flat(m.num_vertices(), 1.0);
+  const std::vector<SimplexId> order = VertexOrder(*topo, flat);
+  for (SimplexId input = 0; input < m.num_vertices(); ++input) {
+    EXPECT_EQ(order[topo->vertex_internal_id(input)], input);
+  }
+}
+
+TEST(CriticalPoints, IdenticalOnEveryStructureAndMode) {
+  for (const Fixture& f : Fixtures()) {
+    auto explicit_structure = *ExplicitStructure::Build(f.topo, {.relations = CriticalPointsDeclared()});
+    const CriticalPointsResult reference =
+        *RunCriticalPoints(*explicit_structure, f.order, {}, {});
+    ASSERT_FALSE(reference.points.empty());
+    const std::string digest = reference.VerticesDigest();
+    for (int consumers : {1, 2}) {
+      EXPECT_EQ(RunCriticalPoints(*explicit_structure, f.order, {}, {.consumers = consumers})
+                    ->VerticesDigest(),
+                digest);
+      CompactStructure compact(f.topo, {.cache_ratio = 0.1, .consumers = consumers});
+      EXPECT_EQ(RunCriticalPoints(compact, f.order, {}, {.consumers = consumers})->VerticesDigest(),
+                digest);
+      for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
+        for (Precompute q : {Precompute::kRequested, Precompute::kDeclared}) {
+          auto actopo = *ActopoStructure::Create(
+              f.topo, {.consumers = consumers, .producers = 2, .buffer_ratio = 0.1,
+                       .prefetch = p, .precompute = q, .declared = CriticalPointsDeclared()});
+          EXPECT_EQ(RunCriticalPoints(*actopo, f.order, {}, {.consumers = consumers})
+                        ->VerticesDigest(),
+                    digest)
+              << PrefetchName(p) << " " << PrecomputeName(q) << " C=" << consumers;
+        }
+      }
+    }
+  }
+}
+
+TEST(CriticalPoints, BoundaryRuleOnlyAddsBoundarySaddles) {
+  for (const Fixture& f : Fixtures()) {
+    auto s = *ExplicitStructure::Build(f.topo, {.relations = CriticalPointsDeclared()});
+    const auto ttk = *RunCriticalPoints(*s, f.order, {}, {});
+    const auto none = *RunCriticalPoints(*s, f.order, {.boundary_rule = BoundaryRule::kNone}, {});
+    // Extrema and interior points agree; with the rule, extra saddles all lie on the boundary.
+    EXPECT_EQ(ttk.counts[int(CriticalType::kMinimum)], none.counts[int(CriticalType::kMinimum)]);
+    EXPECT_EQ(ttk.counts[int(CriticalType::kMaximum)], none.counts[int(CriticalType::kMaximum)]);
+    size_t j = 0;
+    for (const CriticalPoint& p : ttk.points) {
+      if (j < none.points.size() && none.points[j].vertex == p.vertex) {
+        EXPECT_EQ(none.points[j].type, p.type);
+        ++j;
+      } else {
+        EXPECT_TRUE(p.on_boundary) << "vertex " << p.vertex;
+        EXPECT_TRUE(p.type == CriticalType::kSaddle1 || p.type == CriticalType::kSaddle2);
+      }
+    }
+    EXPECT_EQ(j, none.points.size());
+  }
+}
+
+TEST(CriticalPoints, MinimaAgreeWithTheGradient) {
+  for (const Fixture& f : Fixtures()) {
+    auto s = *ExplicitStructure::Build(f.topo, {});
+    const auto points = *RunCriticalPoints(*s, f.order, {.boundary_rule = BoundaryRule::kNone}, {});
+    const auto gradient = *RunDiscreteGradient(*s, f.order, {});
+    EXPECT_EQ(points.counts[int(CriticalType::kMinimum)], gradient.critical_cells[0]);
+  }
+}
+
+TEST(DiscreteGradient, ValidAndIdenticalOnEveryStructureAndMode) {
+  for (const Fixture& f : Fixtures()) {
+    auto explicit_structure = *ExplicitStructure::Build(f.topo, {});
+    const DiscreteGradientResult reference = *RunDiscreteGradient(*explicit_structure, f.order, {});
+    testing::ExpectValidGradient(reference, *explicit_structure);
+    const std::string pairs = reference.PairsDigest(*f.topo);
+    const std::string critical = reference.CriticalCellsDigest(*f.topo);
+    auto check = [&](const DiscreteGradientResult& r, const std::string& label) {
+      EXPECT_EQ(r.critical_cells, reference.critical_cells) << label;
+      EXPECT_EQ(r.PairsDigest(*f.topo), pairs) << label;
+      EXPECT_EQ(r.CriticalCellsDigest(*f.topo), critical) << label;
+    };
+    for (int consumers : {1, 2}) {
+      CompactStructure compact(f.topo, {.cache_ratio = 0.1, .consumers = consumers});
+      check(*RunDiscreteGradient(compact, f.order, {.consumers = consumers}), "compact");
+      for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
+        auto actopo = *ActopoStructure::Create(
+            f.topo, {.consumers = consumers, .producers = 3, .buffer_ratio = 0.05, .prefetch = p,
+                     .precompute = Precompute::kDeclared, .declared = DiscreteGradientDeclared()});
+        check(*RunDiscreteGradient(*actopo, f.order, {.consumers = consumers}),
+              std::string(PrefetchName(p)));
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace actopo
