@@ -7,13 +7,14 @@
 #include "absl/strings/str_join.h"
 #include "server/algorithms/critical_points.h"
 #include "server/algorithms/discrete_gradient.h"
+#include "server/algorithms/morse_smale.h"
 #include "server/algorithms/topo_relations.h"
 
 namespace actopo {
 namespace {
 
-constexpr std::array<Algorithm, 3> kAll = {Algorithm::kTopoRelations, Algorithm::kCriticalPoints,
-                                           Algorithm::kDiscreteGradient};
+constexpr std::array<Algorithm, 4> kAll = {Algorithm::kTopoRelations, Algorithm::kCriticalPoints,
+                                           Algorithm::kDiscreteGradient, Algorithm::kMorseSmale};
 
 }  // namespace
 
@@ -22,6 +23,7 @@ std::string_view AlgorithmName(Algorithm a) {
     case Algorithm::kTopoRelations: return "topo-relations";
     case Algorithm::kCriticalPoints: return "critical-points";
     case Algorithm::kDiscreteGradient: return "discrete-gradient";
+    case Algorithm::kMorseSmale: return "morse-smale";
   }
   return "?";
 }
@@ -48,16 +50,20 @@ RelationSet DeclaredRelations(Algorithm a) {
     case Algorithm::kTopoRelations: return TopoRelationsDeclared();
     case Algorithm::kCriticalPoints: return CriticalPointsDeclared();
     case Algorithm::kDiscreteGradient: return DiscreteGradientDeclared();
+    case Algorithm::kMorseSmale: return MorseSmaleDeclared();
   }
   return {};
 }
 
 bool NeedsScalar(Algorithm a) { return a != Algorithm::kTopoRelations; }
 
-Prefetch DefaultPrefetch(Algorithm) { return Prefetch::kLinear; }
+Prefetch DefaultPrefetch(Algorithm a) {
+  return a == Algorithm::kMorseSmale ? Prefetch::kSpatial : Prefetch::kLinear;
+}
 
 Precompute DefaultPrecompute(Algorithm a) {
-  return a == Algorithm::kTopoRelations ? Precompute::kRequested : Precompute::kDeclared;
+  return a == Algorithm::kTopoRelations || a == Algorithm::kMorseSmale ? Precompute::kRequested
+                                                                       : Precompute::kDeclared;
 }
 
 }  // namespace actopo

@@ -19,6 +19,7 @@ enum class Algorithm : uint8_t {
   kTopoRelations,
   kCriticalPoints,
   kDiscreteGradient,
+  kMorseSmale,
 };
 
 std::string_view AlgorithmName(Algorithm a);  // "critical-points"
@@ -31,7 +32,7 @@ RelationSet DeclaredRelations(Algorithm a);
 bool NeedsScalar(Algorithm a);
 
 // The paper's best engine modes per algorithm: topo-relations linear + requested, critical
-// points and discrete gradient linear + declared.
+// points and discrete gradient linear + declared, Morse-Smale spatial + requested.
 Prefetch DefaultPrefetch(Algorithm a);
 Precompute DefaultPrecompute(Algorithm a);
 

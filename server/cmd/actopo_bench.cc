@@ -13,6 +13,7 @@
 #include "nlohmann/json.hpp"
 #include "server/algorithms/critical_points.h"
 #include "server/algorithms/discrete_gradient.h"
+#include "server/algorithms/morse_smale.h"
 #include "server/algorithms/registry.h"
 #include "server/algorithms/topo_relations.h"
 #include "server/algorithms/vertex_order.h"
@@ -110,6 +111,7 @@ struct RunOutput {
 struct AlgorithmInput {
   Algorithm algorithm;
   std::vector<SimplexId> order;  // empty for topo-relations
+  std::vector<SimplexId> input_tetrahedra;  // morse-smale: TTK's triangle numbering
   CriticalPointsOptions critical_points;
 };
 
@@ -129,6 +131,34 @@ Json DiscreteGradientJson(const DiscreteGradientResult& r, const Topology& topol
           {"pairs_count", r.pairs},
           {"critical_cells_sha256", r.CriticalCellsDigest(topology)},
           {"pairs_sha256", r.PairsDigest(topology)}};
+}
+
+Json MorseSmaleJson(const MorseSmaleResult& r) {
+  auto unlabelled = [](const std::vector<SimplexId>& labels) {
+    return std::count(labels.begin(), labels.end(), -1);
+  };
+  int64_t minima = 0, maxima = 0;
+  for (int64_t s : r.minimum_sizes) minima += s;
+  for (int64_t s : r.maximum_sizes) maxima += s;
+  return {{"critical_cells", r.gradient.critical_cells},
+          {"separatrices",
+           {{"descending", r.CountSeparatrices(SeparatrixType::kDescending)},
+            {"ascending", r.CountSeparatrices(SeparatrixType::kAscending)},
+            {"saddle_connectors", r.CountSeparatrices(SeparatrixType::kSaddleConnector)},
+            {"segments", r.Segments()}}},
+          {"regions",
+           {{"descending", MorseSmaleResult::Regions(r.descending)},
+            {"ascending", MorseSmaleResult::Regions(r.ascending)},
+            {"morse_smale", MorseSmaleResult::Regions(r.morse_smale)}}},
+          {"manifold_size_sum", {{"minima", minima}, {"maxima", maxima}}},
+          {"unlabelled_vertices",
+           {{"descending", unlabelled(r.descending)},
+            {"ascending", unlabelled(r.ascending)},
+            {"morse_smale", unlabelled(r.morse_smale)}}},
+          {"segmentation_sha256",
+           {{"descending", MorseSmaleResult::SegmentationDigest(r.descending)},
+            {"ascending", MorseSmaleResult::SegmentationDigest(r.ascending)},
+            {"morse_smale", MorseSmaleResult::SegmentationDigest(r.morse_smale)}}}};
 }
 
 template <class Structure>
@@ -155,6 +185,13 @@ absl::StatusOr<RunOutput> RunAlgorithm(Structure& structure, const AlgorithmInpu
                        RunDiscreteGradient(structure, in.order, context));
       out.run_s = Seconds(start);
       out.result = DiscreteGradientJson(r, structure.topology());
+      break;
+    }
+    case Algorithm::kMorseSmale: {
+      ASSIGN_OR_RETURN(MorseSmaleResult r,
+                       RunMorseSmale(structure, in.order, in.input_tetrahedra, context));
+      out.run_s = Seconds(start);
+      out.result = MorseSmaleJson(r);
       break;
     }
   }
@@ -201,6 +238,8 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
   ASSIGN_OR_RETURN(std::shared_ptr<const Topology> topology,
                    Topology::Build(mesh, blocks, {.threads = o.threads}));
   const double partition_s = Seconds(start);
+  std::vector<SimplexId> input_tetrahedra;
+  if (algorithm == Algorithm::kMorseSmale) input_tetrahedra = std::move(mesh.tetrahedra);
   // Points and other fields are not needed by the algorithms; free them so peak RSS reflects
   // the structures (the service keeps them for output).
   mesh = Mesh();
@@ -213,6 +252,7 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
                                                                 ? BoundaryRule::kNone
                                                                 : BoundaryRule::kTtk}};
   if (!scalars.empty()) input.order = VertexOrder(*topology, scalars);
+  input.input_tetrahedra = std::move(input_tetrahedra);
   const double order_s = Seconds(start);
   const RelationSet declared = DeclaredRelations(algorithm);
   RunContext context{.consumers = o.consumers};
@@ -350,7 +390,8 @@ int main(int argc, char** argv) {
             "built-in sample instead of a file: " +
                 absl::StrJoin(actopo::io::SampleNames(), "; "));
   flags.Add("scalar", &o.scalar, "point scalar field (default: first floating-point field)");
-  flags.Add("algorithm", &o.algorithm, "topo-relations, critical-points or discrete-gradient");
+  flags.Add("algorithm", &o.algorithm,
+            "topo-relations, critical-points, discrete-gradient or morse-smale");
   flags.Add("boundary-rule", &o.boundary_rule,
             "critical-points: ttk (TTK >= 1.1 boundary saddles) or none");
   flags.Add("structure", &o.structure, "explicit, compact or actopo");

@@ -1,0 +1,73 @@
+// morse-smale: TTK's MorseSmaleComplex in 3D with its defaults (SEMANTICS.md): critical points,
+// descending and ascending 1-separatrices, saddle connectors and the descending, ascending and
+// Morse-Smale segmentations; no 2-separatrices, no simplification.
+//
+//   ASSIGN_OR_RETURN(MorseSmaleResult ms,
+//                    RunMorseSmale(*structure, order, mesh.tetrahedra, {.consumers = 2}));
+//   ms.descending[v];   // DescendingManifold of input vertex v
+//
+// Where TTK's traversal order decides (the first other tetrahedron of a triangle's star, the
+// last wall triangle around an edge), the choice follows TTK's explicit triangulation order,
+// computed from input ids, so results do not depend on the partition or the structure.
+#ifndef ACTOPO_SERVER_ALGORITHMS_MORSE_SMALE_H_
+#define ACTOPO_SERVER_ALGORITHMS_MORSE_SMALE_H_
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "server/algorithms/consumers.h"
+#include "server/algorithms/discrete_gradient.h"
+#include "server/core/relation.h"
+
+namespace actopo {
+
+// TTK's SeparatrixType codes.
+enum class SeparatrixType : int8_t { kDescending = 0, kSaddleConnector = 1, kAscending = 2 };
+
+struct Cell {
+  int8_t dim;
+  SimplexId id;  // internal id
+};
+
+struct Separatrix {
+  SeparatrixType type;
+  Cell source;             // the saddle (1-saddle for connectors)
+  Cell destination;        // the extremum (2-saddle for connectors)
+  std::vector<Cell> cells; // the V-path, source first
+};
+
+struct MorseSmaleResult {
+  DiscreteGradientResult gradient;
+  std::vector<Separatrix> separatrices;  // descending, then ascending, then saddle connectors
+  // Per input vertex: DescendingManifold, AscendingManifold, MorseSmaleManifold.
+  std::vector<SimplexId> descending, ascending, morse_smale;
+  // ManifoldSize of each minimum (ascending vertex id) and maximum (ascending tetrahedron id).
+  std::vector<int64_t> minimum_sizes, maximum_sizes;
+
+  int64_t CountSeparatrices(SeparatrixType type) const;
+  int64_t Segments() const;  // polyline segments over all separatrices
+  // Distinct values of a per-vertex array (-1 included when present).
+  static int64_t Regions(std::span<const SimplexId> labels);
+  // "<vertex id> <label>\n" per vertex, ascending id.
+  static std::string SegmentationDigest(std::span<const SimplexId> labels);
+};
+
+// The gradient's lower stars (VE, VF, VT), triangle stars for ascending paths (FT), triangle
+// edges and edge triangles for the descending walls of saddle connectors (FE, EF).
+RelationSet MorseSmaleDeclared();
+
+// `input_tetrahedra`: the mesh's tetrahedra as given (4 input vertex ids each), which fix TTK's
+// triangle numbering. The gradient runs on all consumers; the rest on the first.
+template <class Structure>
+absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
+                                               std::span<const SimplexId> order,
+                                               std::span<const SimplexId> input_tetrahedra,
+                                               const RunContext& context);
+
+}  // namespace actopo
+
+#endif  // ACTOPO_SERVER_ALGORITHMS_MORSE_SMALE_H_
