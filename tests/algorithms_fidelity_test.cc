@@ -6,6 +6,7 @@
 #include "nlohmann/json.hpp"
 #include "server/algorithms/critical_points.h"
 #include "server/algorithms/discrete_gradient.h"
+#include "server/algorithms/morse_smale.h"
 #include "server/algorithms/testing/gradient_checks.h"
 #include "server/algorithms/vertex_order.h"
 #include "server/core/actopo_structure.h"
@@ -39,6 +40,7 @@ std::vector<Case> Cases() {
 struct Loaded {
   std::shared_ptr<const Topology> topology;
   std::vector<SimplexId> order;
+  std::vector<SimplexId> tetrahedra;  // as in the file
 };
 
 Loaded Load(const std::string& file, const std::string& field) {
@@ -46,7 +48,7 @@ Loaded Load(const std::string& file, const std::string& field) {
   EXPECT_TRUE(mesh.ok()) << mesh.status();
   const int f = *SelectScalarField(*mesh, field);
   auto topo = *Topology::Build(*mesh, OctreeBlocks(mesh->points, {.bucket_capacity = 1000}));
-  return {topo, VertexOrder(*topo, mesh->point_fields[f].values)};
+  return {topo, VertexOrder(*topo, mesh->point_fields[f].values), mesh->tetrahedra};
 }
 
 class MatchesTtk : public io::testing::DataTest {};
@@ -85,6 +87,43 @@ TEST_F(MatchesTtk, CriticalPointsAndDiscreteGradient) {
       EXPECT_EQ(Json(r.pairs), dg["pairs_count"]);
       EXPECT_EQ(r.CriticalCellsDigest(*in.topology), dg["critical_cells_sha256"].get<std::string>());
       EXPECT_EQ(r.PairsDigest(*in.topology), dg["pairs_sha256"].get<std::string>());
+    }
+  }
+}
+
+TEST_F(MatchesTtk, MorseSmale) {
+  const std::vector<Case> cases = Cases();
+  ASSERT_FALSE(cases.empty());
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.file + " / " + c.field);
+    const Loaded in = Load(c.file, c.field);
+    const Json& ms = c.expected["morse_smale"];
+    auto explicit_structure = *ExplicitStructure::Build(in.topology, {});
+    auto actopo = *ActopoStructure::Create(
+        in.topology, {.consumers = 2, .producers = 2, .prefetch = Prefetch::kSpatial});
+    CompactStructure compact(in.topology, {.cache_ratio = 0.1});
+    for (const MorseSmaleResult& r :
+         {*RunMorseSmale(*explicit_structure, in.order, in.tetrahedra, {}),
+          *RunMorseSmale(*actopo, in.order, in.tetrahedra, {.consumers = 2}),
+          *RunMorseSmale(compact, in.order, in.tetrahedra, {})}) {
+      EXPECT_EQ(Json(r.gradient.critical_cells), ms["critical_cells"]);
+      EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kDescending),
+                ms["separatrices"]["descending"].get<int64_t>());
+      EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kAscending),
+                ms["separatrices"]["ascending"].get<int64_t>());
+      EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kSaddleConnector),
+                ms["separatrices"]["saddle_connectors"].get<int64_t>());
+      EXPECT_EQ(r.Segments(), ms["separatrices"]["segments"].get<int64_t>());
+      EXPECT_EQ(MorseSmaleResult::Regions(r.descending), ms["regions"]["descending"].get<int64_t>());
+      EXPECT_EQ(MorseSmaleResult::Regions(r.ascending), ms["regions"]["ascending"].get<int64_t>());
+      EXPECT_EQ(MorseSmaleResult::Regions(r.morse_smale),
+                ms["regions"]["morse_smale"].get<int64_t>());
+      EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.descending),
+                ms["segmentation_sha256"]["descending"].get<std::string>());
+      EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.ascending),
+                ms["segmentation_sha256"]["ascending"].get<std::string>());
+      EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.morse_smale),
+                ms["segmentation_sha256"]["morse_smale"].get<std::string>());
     }
   }
 }

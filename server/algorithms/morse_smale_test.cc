@@ -1,0 +1,129 @@
+#include "server/algorithms/morse_smale.h"
+
+#include <set>
+
+#include "gtest/gtest.h"
+#include "server/algorithms/vertex_order.h"
+#include "server/core/actopo_structure.h"
+#include "server/core/compact_structure.h"
+#include "server/core/explicit_structure.h"
+#include "server/core/partition.h"
+#include "server/core/testing/test_meshes.h"
+
+namespace actopo {
+namespace {
+
+struct Input {
+  Mesh mesh;
+  std::shared_ptr<const Topology> topo;
+  std::vector<SimplexId> order;
+};
+
+Input Make(Mesh mesh, int block_size) {
+  auto topo = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = block_size}));
+  auto order = VertexOrder(*topo, mesh.point_fields[0].values);
+  return {std::move(mesh), topo, std::move(order)};
+}
+
+void ExpectInvariants(const MorseSmaleResult& r, const Topology& topo) {
+  const SimplexId nv = topo.num_vertices();
+  // Two descending separatrices per 1-saddle, each from the saddle to a minimum.
+  EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kDescending), 2 * r.gradient.critical_cells[1]);
+  // At most two ascending separatrices per 2-saddle in a manifold mesh.
+  EXPECT_LE(r.CountSeparatrices(SeparatrixType::kAscending), 2 * r.gradient.critical_cells[2]);
+  for (const Separatrix& s : r.separatrices) {
+    ASSERT_FALSE(s.cells.empty());
+    EXPECT_EQ(s.cells.front().dim, s.source.dim);
+    EXPECT_EQ(s.cells.back().id, s.destination.id);
+    if (s.type == SeparatrixType::kDescending) {
+      EXPECT_EQ(s.destination.dim, 0);
+      EXPECT_TRUE(r.gradient.gradient.IsCritical(0, s.destination.id));
+    }
+    if (s.type == SeparatrixType::kAscending) {
+      EXPECT_EQ(s.destination.dim, 3);
+      EXPECT_TRUE(r.gradient.gradient.IsCritical(3, s.destination.id));
+    }
+    for (size_t i = 1; i < s.cells.size(); ++i) {  // consecutive cells are faces of each other
+      EXPECT_EQ(std::abs(s.cells[i].dim - s.cells[i - 1].dim), 1);
+    }
+  }
+  // Every vertex in exactly one descending region; the minima's manifolds cover the mesh.
+  ASSERT_EQ(r.descending.size(), size_t(nv));
+  int64_t covered = 0;
+  for (int64_t size : r.minimum_sizes) covered += size;
+  EXPECT_EQ(covered, nv);
+  EXPECT_EQ(int64_t(r.minimum_sizes.size()), r.gradient.critical_cells[0]);
+  EXPECT_EQ(MorseSmaleResult::Regions(r.descending), r.gradient.critical_cells[0]);
+  for (SimplexId l : r.descending) {
+    EXPECT_GE(l, 0);
+    EXPECT_LT(l, r.gradient.critical_cells[0]);
+  }
+  for (SimplexId l : r.ascending) EXPECT_LT(l, r.gradient.critical_cells[3]);
+  // Morse-Smale labels are dense 0..R-1.
+  const int64_t regions = MorseSmaleResult::Regions(r.morse_smale);
+  for (SimplexId l : r.morse_smale) {
+    EXPECT_GE(l, 0);
+    EXPECT_LT(l, regions);
+  }
+}
+
+TEST(MorseSmale, InvariantsAndStructureIndependence) {
+  for (Input in : {Make(testing::Lattice(10, 9, 8, 31), 23), Make(testing::TwoComponents(), 9)}) {
+    auto explicit_structure = *ExplicitStructure::Build(in.topo, {});
+    const MorseSmaleResult reference =
+        *RunMorseSmale(*explicit_structure, in.order, in.mesh.tetrahedra, {});
+    ExpectInvariants(reference, *in.topo);
+    EXPECT_GT(reference.gradient.critical_cells[1], 0);  // the field has saddles to trace
+    const auto digests = [](const MorseSmaleResult& r) {
+      return std::vector<std::string>{MorseSmaleResult::SegmentationDigest(r.descending),
+                                      MorseSmaleResult::SegmentationDigest(r.ascending),
+                                      MorseSmaleResult::SegmentationDigest(r.morse_smale),
+                                      std::to_string(r.separatrices.size()),
+                                      std::to_string(r.Segments())};
+    };
+    const auto expected = digests(reference);
+    CompactStructure compact(in.topo, {.cache_ratio = 0.05});
+    EXPECT_EQ(digests(*RunMorseSmale(compact, in.order, in.mesh.tetrahedra, {})), expected);
+    for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
+      auto actopo = *ActopoStructure::Create(in.topo, {.consumers = 2, .producers = 2,
+                                                       .buffer_ratio = 0.05, .prefetch = p,
+                                                       .declared = MorseSmaleDeclared()});
+      EXPECT_EQ(digests(*RunMorseSmale(*actopo, in.order, in.mesh.tetrahedra, {.consumers = 2})),
+                expected)
+          << PrefetchName(p);
+    }
+  }
+}
+
+TEST(MorseSmale, DoesNotDependOnTheBlockSize) {
+  const Mesh mesh = testing::Lattice(8, 8, 8, 77);
+  std::set<std::string> seen;
+  for (int block_size : {1, 7, 100, 1000}) {
+    Input in = Make(mesh, block_size);
+    auto s = *ExplicitStructure::Build(in.topo, {});
+    const MorseSmaleResult r = *RunMorseSmale(*s, in.order, in.mesh.tetrahedra, {});
+    seen.insert(MorseSmaleResult::SegmentationDigest(r.morse_smale) + " " +
+                std::to_string(r.CountSeparatrices(SeparatrixType::kSaddleConnector)) + " " +
+                std::to_string(r.Segments()));
+  }
+  EXPECT_EQ(seen.size(), 1u);
+}
+
+TEST(MorseSmale, RejectsMismatchedTetrahedra) {
+  Input in = Make(testing::SingleTetrahedron(), 10);
+  auto s = *ExplicitStructure::Build(in.topo, {});
+  const std::vector<SimplexId> wrong = {0, 1, 2};
+  EXPECT_EQ(RunMorseSmale(*s, in.order, wrong, {}).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+TEST(MorseSmale, StopsWhenCancelled) {
+  Input in = Make(testing::Lattice(9, 9, 9, 2), 20);
+  auto s = *ExplicitStructure::Build(in.topo, {});
+  std::atomic<bool> cancel{true};
+  EXPECT_EQ(RunMorseSmale(*s, in.order, in.mesh.tetrahedra, {.cancel = &cancel}).status().code(),
+            absl::StatusCode::kCancelled);
+}
+
+}  // namespace
+}  // namespace actopo
