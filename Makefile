@@ -25,6 +25,7 @@ test: test-unit test-asan test-tsan
 
 test-unit: build
 	ACTOPO_DATA_DIR=$(DATA_DIR) ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)
+	ACTOPO_BUILD=$(abspath $(BUILD)) .venv/bin/python -m pytest -q tests
 
 # Sanitizer builds cover server/core and server/algorithms only (no VTK, no gRPC) to stay fast.
 build-asan/build.ninja: | deps

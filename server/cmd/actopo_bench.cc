@@ -18,6 +18,7 @@
 #include "server/algorithms/topo_relations.h"
 #include "server/algorithms/vertex_order.h"
 #include "server/cmd/flags.h"
+#include "server/cmd/result_files.h"
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
@@ -49,6 +50,7 @@ struct BenchOptions {
   int block_size = 1000;
   std::string block_labels;
   std::string boundary_rule = "ttk";
+  std::string output;
   int threads = 0;
   bool json = false;
 };
@@ -102,6 +104,7 @@ Json TopoRelationsJson(const TopoRelationsResult& r) {
 
 struct RunOutput {
   double preprocess_s = 0, run_s = 0;
+  std::vector<std::string> files;  // written with --output
   Json engine_detail = Json::object();  // actopo only
   AccessStats access;
   MemoryStats memory;
@@ -161,9 +164,20 @@ Json MorseSmaleJson(const MorseSmaleResult& r) {
             {"morse_smale", MorseSmaleResult::SegmentationDigest(r.morse_smale)}}}};
 }
 
+// Boundary flags of every vertex, for the files' IsOnBoundary arrays.
+std::vector<uint8_t> VertexBoundary(std::shared_ptr<const Topology> topology) {
+  CompactStructure structure(std::move(topology), {});
+  auto reader = structure.NewReader();
+  std::vector<uint8_t> out(reader.topology().num_vertices());
+  for (SimplexId v = 0; v < SimplexId(out.size()); ++v) out[v] = reader.vertex_on_boundary(v);
+  return out;
+}
+
+// Runs the algorithm; with `files` set (--output), also writes its result files.
 template <class Structure>
 absl::StatusOr<RunOutput> RunAlgorithm(Structure& structure, const AlgorithmInput& in,
-                                       const RunContext& context) {
+                                       const RunContext& context, const BenchOptions& o,
+                                       const ResultContext* files) {
   RunOutput out;
   const auto start = Clock::now();
   switch (in.algorithm) {
@@ -178,6 +192,9 @@ absl::StatusOr<RunOutput> RunAlgorithm(Structure& structure, const AlgorithmInpu
                        RunCriticalPoints(structure, in.order, in.critical_points, context));
       out.run_s = Seconds(start);
       out.result = CriticalPointsJson(r);
+      if (files) {
+        ASSIGN_OR_RETURN(out.files, WriteCriticalPointsFiles(o.output, *files, r));
+      }
       break;
     }
     case Algorithm::kDiscreteGradient: {
@@ -185,6 +202,9 @@ absl::StatusOr<RunOutput> RunAlgorithm(Structure& structure, const AlgorithmInpu
                        RunDiscreteGradient(structure, in.order, context));
       out.run_s = Seconds(start);
       out.result = DiscreteGradientJson(r, structure.topology());
+      if (files) {
+        ASSIGN_OR_RETURN(out.files, WriteDiscreteGradientFiles(o.output, *files, r));
+      }
       break;
     }
     case Algorithm::kMorseSmale: {
@@ -192,6 +212,9 @@ absl::StatusOr<RunOutput> RunAlgorithm(Structure& structure, const AlgorithmInpu
                        RunMorseSmale(structure, in.order, in.input_tetrahedra, context));
       out.run_s = Seconds(start);
       out.result = MorseSmaleJson(r);
+      if (files) {
+        ASSIGN_OR_RETURN(out.files, WriteMorseSmaleFiles(o.output, *files, r));
+      }
       break;
     }
   }
@@ -227,7 +250,7 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
   if (!o.scalar.empty() || NeedsScalar(algorithm)) {
     ASSIGN_OR_RETURN(int field, SelectScalarField(mesh, o.scalar, o.block_labels));
     scalar_name = mesh.point_fields[field].name;
-    scalars = std::move(mesh.point_fields[field].values);
+    scalars = mesh.point_fields[field].values;
   }
   const double load_s = Seconds(start);
 
@@ -239,10 +262,15 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
                    Topology::Build(mesh, blocks, {.threads = o.threads}));
   const double partition_s = Seconds(start);
   std::vector<SimplexId> input_tetrahedra;
-  if (algorithm == Algorithm::kMorseSmale) input_tetrahedra = std::move(mesh.tetrahedra);
-  // Points and other fields are not needed by the algorithms; free them so peak RSS reflects
-  // the structures (the service keeps them for output).
-  mesh = Mesh();
+  if (algorithm == Algorithm::kMorseSmale) input_tetrahedra = mesh.tetrahedra;
+  // Without --output the points and other fields are not needed: free them so peak RSS
+  // reflects the structures.
+  std::optional<ResultContext> files;
+  if (o.output.empty()) {
+    mesh = Mesh();
+  } else {
+    files.emplace(ResultContext{mesh, *topology, scalar_name, scalars, VertexBoundary(topology)});
+  }
   blocks = {};
 
   // The vertex order is the algorithms' preconditioning, like TTK's offsets: in `preprocess`.
@@ -262,7 +290,7 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
     ASSIGN_OR_RETURN(auto structure,
                      ExplicitStructure::Build(topology, {.relations = declared, .threads = o.threads}));
     const double preprocess_s = Seconds(start);
-    ASSIGN_OR_RETURN(out, RunAlgorithm(*structure, input, context));
+    ASSIGN_OR_RETURN(out, RunAlgorithm(*structure, input, context, o, files ? &*files : nullptr));
     out.preprocess_s = preprocess_s;
     out.memory = structure->memory();
   } else if (o.structure == "actopo") {
@@ -270,7 +298,7 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
     start = Clock::now();
     ASSIGN_OR_RETURN(auto structure, ActopoStructure::Create(topology, engine));
     const double preprocess_s = Seconds(start);
-    ASSIGN_OR_RETURN(out, RunAlgorithm(*structure, input, context));
+    ASSIGN_OR_RETURN(out, RunAlgorithm(*structure, input, context, o, files ? &*files : nullptr));
     out.preprocess_s = preprocess_s;
     const EngineStats stats = structure->stats();
     out.access = stats.access;
@@ -297,7 +325,7 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
   } else {
     CompactStructure structure(topology,
                                {.cache_ratio = o.buffer_ratio, .consumers = o.consumers});
-    ASSIGN_OR_RETURN(out, RunAlgorithm(structure, input, context));
+    ASSIGN_OR_RETURN(out, RunAlgorithm(structure, input, context, o, files ? &*files : nullptr));
     out.access = structure.stats();
     out.memory = structure.memory();
   }
@@ -349,6 +377,7 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
                  {"buffer_peak_bytes",
                   o.structure == "explicit" ? 0 : out.memory.relation_peak_bytes}};
   j["result"] = out.result;
+  if (!out.files.empty()) j["files"] = out.files;
   return j;
 }
 
@@ -375,6 +404,9 @@ void PrintHuman(const Json& j) {
               mem["structure_bytes"].get<double>() / 1048576.0,
               mem["buffer_peak_bytes"].get<double>() / 1048576.0);
   std::printf("result     %s\n", j["result"].dump().c_str());
+  if (j.contains("files")) {
+    for (const auto& f : j["files"]) std::printf("wrote      %s\n", f.get<std::string>().c_str());
+  }
 }
 
 }  // namespace
@@ -407,6 +439,8 @@ int main(int argc, char** argv) {
   flags.Add("block-labels", &o.block_labels,
             "partition by this integer point field instead of the octree");
   flags.Add("threads", &o.threads, "preprocessing threads (0: all cores)");
+  flags.Add("output", &o.output,
+            "write the result for ParaView as PREFIX_*.vtp / PREFIX_segmentation.vtu");
   flags.Add("json", &o.json, "print one JSON object");
   if (absl::Status s = flags.Parse(argc, argv); !s.ok()) {
     std::cerr << "actopo-bench: " << s.message() << "\n";

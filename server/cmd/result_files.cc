@@ -1,0 +1,164 @@
+#include "server/cmd/result_files.h"
+
+#include <algorithm>
+
+#include "server/core/status_macros.h"
+#include "server/io/vtk_writer.h"
+
+namespace actopo {
+namespace {
+
+using io::NamedArray;
+using io::PolyData;
+
+// Barycentre of a cell given by internal ids, appended to `points`.
+void AppendBarycentre(const ResultContext& c, int dim, SimplexId id, std::vector<double>& points) {
+  const std::vector<SimplexId> vertices = CellInputVertices(c.topology, dim, id);
+  double p[3] = {0, 0, 0};
+  for (SimplexId v : vertices) {
+    for (int k = 0; k < 3; ++k) p[k] += c.mesh.points[3 * size_t(v) + k];
+  }
+  for (int k = 0; k < 3; ++k) points.push_back(p[k] / vertices.size());
+}
+
+// The cell's highest vertex in the vertex order (TTK's "greater vertex"), as an input id.
+SimplexId HighestVertex(const ResultContext& c, int dim, SimplexId id) {
+  const std::vector<SimplexId> vertices = CellInputVertices(c.topology, dim, id);
+  return *std::max_element(vertices.begin(), vertices.end(), [&](SimplexId a, SimplexId b) {
+    return c.scalars[a] < c.scalars[b] || (c.scalars[a] == c.scalars[b] && a < b);
+  });
+}
+
+// TTK reports cells by id: vertices and tetrahedra in input ids; edges and triangles in this
+// service's numbering (sorted vertex tuples identify them unambiguously).
+SimplexId ReportedId(const ResultContext& c, int dim, SimplexId id) {
+  if (dim == 0) return c.topology.vertex_input_id(id);
+  if (dim == 3) return c.topology.tetrahedron_input_id(id);
+  return id;
+}
+
+// Critical cells as points with CellDimension, CellId, ttkVertexScalarField, the scalar and
+// IsOnBoundary (of the highest vertex, as TTK).
+PolyData CriticalCellPoints(const ResultContext& c, const std::vector<Cell>& cells,
+                            std::vector<int32_t>* manifold_size) {
+  PolyData out;
+  std::vector<int8_t> dims, boundary;
+  std::vector<int32_t> ids, highest;
+  std::vector<double> scalar;
+  for (const Cell& cell : cells) {
+    AppendBarycentre(c, cell.dim, cell.id, out.points);
+    const SimplexId top = HighestVertex(c, cell.dim, cell.id);
+    dims.push_back(cell.dim);
+    ids.push_back(ReportedId(c, cell.dim, cell.id));
+    highest.push_back(top);
+    scalar.push_back(c.scalars[top]);
+    boundary.push_back(c.vertex_on_boundary[c.topology.vertex_internal_id(top)]);
+  }
+  out.point_arrays = {{"CellDimension", std::move(dims)},
+                      {"CellId", std::move(ids)},
+                      {"ttkVertexScalarField", std::move(highest)},
+                      {c.scalar_name, std::move(scalar)},
+                      {"IsOnBoundary", std::move(boundary)}};
+  if (manifold_size != nullptr) out.point_arrays.push_back({"ManifoldSize", *manifold_size});
+  return out;
+}
+
+std::vector<Cell> CriticalCells(const Topology& topology, const GradientField& g) {
+  std::vector<Cell> cells;
+  for (int d = 0; d < 4; ++d) {
+    for (SimplexId id = 0; id < topology.num_simplices(d); ++id) {
+      if (g.IsCritical(d, id)) cells.push_back({int8_t(d), id});
+    }
+  }
+  return cells;
+}
+
+}  // namespace
+
+absl::StatusOr<std::vector<std::string>> WriteCriticalPointsFiles(
+    const std::string& prefix, const ResultContext& c, const CriticalPointsResult& r) {
+  PolyData out;
+  std::vector<int8_t> type, boundary;
+  std::vector<int32_t> id;
+  std::vector<double> scalar;
+  for (const CriticalPoint& p : r.points) {
+    for (int k = 0; k < 3; ++k) out.points.push_back(c.mesh.points[3 * size_t(p.vertex) + k]);
+    type.push_back(int8_t(p.type));
+    boundary.push_back(p.on_boundary);
+    id.push_back(p.vertex);
+    scalar.push_back(c.scalars[p.vertex]);
+  }
+  out.point_arrays = {{"CriticalType", std::move(type)},
+                      {"IsOnBoundary", std::move(boundary)},
+                      {c.scalar_name, std::move(scalar)},
+                      {"ttkVertexScalarField", std::move(id)}};
+  const std::string path = prefix + "_critical_points.vtp";
+  RETURN_IF_ERROR(io::WritePolyData(path, out));
+  return std::vector<std::string>{path};
+}
+
+absl::StatusOr<std::vector<std::string>> WriteDiscreteGradientFiles(
+    const std::string& prefix, const ResultContext& c, const DiscreteGradientResult& r) {
+  const std::string path = prefix + "_critical_cells.vtp";
+  RETURN_IF_ERROR(io::WritePolyData(
+      path, CriticalCellPoints(c, CriticalCells(c.topology, r.gradient), nullptr)));
+  return std::vector<std::string>{path};
+}
+
+absl::StatusOr<std::vector<std::string>> WriteMorseSmaleFiles(
+    const std::string& prefix, const ResultContext& c, const MorseSmaleResult& r) {
+  std::vector<std::string> written;
+  // Critical points with the size of their manifold (minima: descending, maxima: ascending).
+  const std::vector<Cell> cells = CriticalCells(c.topology, r.gradient.gradient);
+  std::vector<int32_t> manifold_size(cells.size(), 0);
+  {
+    std::vector<std::pair<SimplexId, size_t>> minima, maxima;  // (input id, index in cells)
+    for (size_t i = 0; i < cells.size(); ++i) {
+      if (cells[i].dim == 0) minima.push_back({ReportedId(c, 0, cells[i].id), i});
+      if (cells[i].dim == 3) maxima.push_back({ReportedId(c, 3, cells[i].id), i});
+    }
+    std::sort(minima.begin(), minima.end());
+    std::sort(maxima.begin(), maxima.end());
+    for (size_t k = 0; k < minima.size(); ++k) manifold_size[minima[k].second] = r.minimum_sizes[k];
+    for (size_t k = 0; k < maxima.size(); ++k) manifold_size[maxima[k].second] = r.maximum_sizes[k];
+  }
+  std::string path = prefix + "_critical_points.vtp";
+  RETURN_IF_ERROR(io::WritePolyData(path, CriticalCellPoints(c, cells, &manifold_size)));
+  written.push_back(path);
+
+  PolyData seps;
+  seps.line_offsets.push_back(0);
+  std::vector<int32_t> source, destination, separatrix_id;
+  std::vector<int8_t> type;
+  for (size_t i = 0; i < r.separatrices.size(); ++i) {
+    const Separatrix& s = r.separatrices[i];
+    for (const Cell& cell : s.cells) {
+      seps.line_connectivity.push_back(int32_t(seps.points.size() / 3));
+      AppendBarycentre(c, cell.dim, cell.id, seps.points);
+    }
+    seps.line_offsets.push_back(int32_t(seps.line_connectivity.size()));
+    source.push_back(ReportedId(c, s.source.dim, s.source.id));
+    destination.push_back(ReportedId(c, s.destination.dim, s.destination.id));
+    separatrix_id.push_back(int32_t(i));
+    type.push_back(int8_t(s.type));
+  }
+  seps.cell_arrays = {{"SourceId", std::move(source)},
+                      {"DestinationId", std::move(destination)},
+                      {"SeparatrixId", std::move(separatrix_id)},
+                      {"SeparatrixType", std::move(type)}};
+  if (r.separatrices.empty()) seps.line_offsets.clear();
+  path = prefix + "_separatrices.vtp";
+  RETURN_IF_ERROR(io::WritePolyData(path, seps));
+  written.push_back(path);
+
+  const std::vector<NamedArray> manifolds = {
+      {"DescendingManifold", std::vector<int32_t>(r.descending.begin(), r.descending.end())},
+      {"AscendingManifold", std::vector<int32_t>(r.ascending.begin(), r.ascending.end())},
+      {"MorseSmaleManifold", std::vector<int32_t>(r.morse_smale.begin(), r.morse_smale.end())}};
+  path = prefix + "_segmentation.vtu";
+  RETURN_IF_ERROR(io::WriteUnstructuredGrid(path, c.mesh, manifolds));
+  written.push_back(path);
+  return written;
+}
+
+}  // namespace actopo

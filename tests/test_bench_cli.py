@@ -1,0 +1,93 @@
+"""actopo-bench as users call it: the JSON contract of DESIGN.md, identical results across
+structures, output files, and clear errors for bad flags."""
+import json
+import os
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+BENCH = Path(os.environ.get("ACTOPO_BUILD", ROOT / "build")) / "server/cmd/actopo-bench"
+ALGORITHMS = ["topo-relations", "critical-points", "discrete-gradient", "morse-smale"]
+
+
+def bench(*args, check=True):
+    proc = subprocess.run([str(BENCH), *args], capture_output=True, text=True, timeout=300)
+    if check:
+        assert proc.returncode == 0, proc.stderr
+    return proc
+
+
+def run_json(*args):
+    return json.loads(bench(*args, "--json").stdout)
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_same_result_on_every_structure(algorithm):
+    sample = ["--sample", "jittered:12", "--algorithm", algorithm, "--block-size", "100"]
+    results = [run_json(*sample, "--structure", "explicit")]
+    results.append(run_json(*sample, "--structure", "compact", "--consumers", "2"))
+    for prefetch in ["linear", "spatial", "adaptive"]:
+        results.append(run_json(*sample, "--structure", "actopo", "--producers", "2",
+                                "--prefetch", prefetch, "--consumers", "2"))
+    for r in results[1:]:
+        assert r["result"] == results[0]["result"]
+    first = results[0]
+    assert set(first) >= {"mesh", "structure", "algorithm", "config", "times_s", "engine",
+                          "memory", "result"}
+    assert first["mesh"]["tetrahedra"] == 6 * 11 ** 3
+    assert set(first["times_s"]) == {"load", "partition", "preprocess", "run", "total"}
+    assert set(first["engine"]) >= {"wait_s", "requests", "hits", "misses", "evictions",
+                                    "blocks_computed"}
+    assert set(first["memory"]) >= {"peak_rss_bytes", "structure_bytes", "buffer_peak_bytes"}
+    actopo = results[-1]["engine"]
+    assert actopo["requests"] == actopo["hits"] + actopo["misses"]
+    assert len(actopo["consumers"]) == 2
+
+
+def test_result_keys_per_algorithm():
+    r = run_json("--sample", "wavelet:8", "--algorithm", "morse-smale", "--structure", "explicit")
+    assert set(r["result"]) >= {"critical_cells", "separatrices", "regions", "segmentation_sha256"}
+    assert set(r["result"]["separatrices"]) >= {"descending", "ascending", "saddle_connectors"}
+    r = run_json("--sample", "wavelet:8", "--algorithm", "critical-points")
+    assert set(r["result"]["counts"]) == {"minimum", "saddle1", "saddle2", "degenerate", "maximum"}
+    assert len(r["result"]["vertices_sha256"]) == 64
+    r = run_json("--sample", "wavelet:8", "--algorithm", "discrete-gradient")
+    c = r["result"]["critical_cells"]
+    assert c[0] - c[1] + c[2] - c[3] == 1  # a ball
+
+
+def test_output_files(tmp_path):
+    prefix = tmp_path / "ms"
+    r = run_json("--sample", "jittered:10", "--algorithm", "morse-smale", "--output", str(prefix))
+    files = [Path(f) for f in r["files"]]
+    assert [f.name for f in files] == ["ms_critical_points.vtp", "ms_separatrices.vtp",
+                                      "ms_segmentation.vtu"]
+    for f in files:
+        assert f.stat().st_size > 0
+        assert b"VTKFile" in f.read_bytes()[:200]
+    text = (tmp_path / "ms_segmentation.vtu").read_bytes()
+    for name in [b"DescendingManifold", b"AscendingManifold", b"MorseSmaleManifold"]:
+        assert name in text
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--sample", "jittered:5", "--structure", "fancy"], "--structure: unknown structure 'fancy'"),
+    (["--sample", "jittered:5", "--algorithm", "contour-tree"], "unknown algorithm 'contour-tree'"),
+    (["--sample", "jittered:5", "--consumers", "0"], "--consumers: 0 is outside [1, 256]"),
+    (["--sample", "jittered:5", "--buffer-ratio", "2"], "--buffer-ratio: 2 is outside [0, 1]"),
+    (["--sample", "jittered:5", "--prefetch", "psychic"], "--prefetch: unknown mode 'psychic'"),
+    (["--sample", "jittered:5", "--structure", "actopo", "--producers", "0"],
+     "producers: 0 is outside [1, 64]"),
+    (["--sample", "nope:3"], "sample 'nope:3'"),
+    (["--mesh", "/does/not/exist.vtu"], "/does/not/exist.vtu"),
+    (["--sample", "jittered:5", "--scalar", "pressure"], "scalar field 'pressure' not found"),
+    (["--sample", "jittered:5", "--block-size", "0"], "--block-size: 0 must be at least 1"),
+    (["--sample", "jittered:5", "--colour", "red"], "unknown flag --colour"),
+    ([], "give exactly one of --mesh PATH or --sample NAME"),
+])
+def test_errors_name_the_flag_and_value(args, message):
+    proc = bench(*args, check=False)
+    assert proc.returncode != 0
+    assert message in proc.stderr
