@@ -25,15 +25,25 @@ std::string Sha256Hex(std::string_view text);
 class LineDigest {
  public:
   void Add(std::string_view line);
+  // Avoids regrowing (and copying) a large arena when the size is known roughly.
+  void Reserve(size_t lines, size_t bytes) {
+    lines_.reserve(lines);
+    arena_.reserve(bytes);
+  }
   // Appends "<a>,<b>,..." (ids ascending as given) to the line being built; helpers for callers.
   static void AppendIds(std::string& out, std::span<const SimplexId> ids);
-  size_t size() const { return starts_.size(); }
+  size_t size() const { return lines_.size(); }
   std::string InOrder() const;
+  // Sorts on two threads (halves, then a merge): results have tens of millions of lines.
   std::string Sorted();
 
  private:
+  struct Line {
+    uint64_t start;
+    uint32_t length;  // including the "\n"
+  };
   std::string arena_;
-  std::vector<uint64_t> starts_;
+  std::vector<Line> lines_;
 };
 
 }  // namespace actopo

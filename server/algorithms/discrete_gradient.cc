@@ -182,14 +182,34 @@ std::vector<SimplexId> CellInputVertices(const Topology& topology, int d, Simple
   return v;
 }
 
+namespace {
+
+// Appends a cell's input vertex ids, ascending, joined by commas.
+void AppendCell(std::string& line, const Topology& topology, int d, SimplexId c) {
+  std::array<SimplexId, 4> v{};
+  switch (d) {
+    case 0: v[0] = c; break;
+    case 1: std::copy_n(topology.edge(c).begin(), 2, v.begin()); break;
+    case 2: std::copy_n(topology.triangle(c).begin(), 3, v.begin()); break;
+    default: std::copy_n(topology.tetrahedron(c).begin(), 4, v.begin()); break;
+  }
+  for (int i = 0; i <= d; ++i) v[i] = topology.vertex_input_id(v[i]);
+  std::sort(v.begin(), v.begin() + d + 1);
+  LineDigest::AppendIds(line, std::span<const SimplexId>(v.data(), d + 1));
+}
+
+}  // namespace
+
 std::string DiscreteGradientResult::CriticalCellsDigest(const Topology& topology) const {
   LineDigest lines;
+  const int64_t n = critical_cells[0] + critical_cells[1] + critical_cells[2] + critical_cells[3];
+  lines.Reserve(n, 0);
   std::string line;
   for (int d = 0; d < 4; ++d) {
     for (SimplexId c = 0; c < topology.num_simplices(d); ++c) {
       if (!gradient.IsCritical(d, c)) continue;
       line = absl::StrCat(d, " ");
-      LineDigest::AppendIds(line, CellInputVertices(topology, d, c));
+      AppendCell(line, topology, d, c);
       lines.Add(line);
     }
   }
@@ -198,15 +218,17 @@ std::string DiscreteGradientResult::CriticalCellsDigest(const Topology& topology
 
 std::string DiscreteGradientResult::PairsDigest(const Topology& topology) const {
   LineDigest lines;
+  const int64_t n = pairs[0] + pairs[1] + pairs[2];
+  lines.Reserve(n, 0);
   std::string line;
   for (int d = 0; d < 3; ++d) {
     for (SimplexId c = 0; c < topology.num_simplices(d); ++c) {
       const SimplexId higher = gradient.up[d][c];
       if (higher < 0) continue;
       line = absl::StrCat(d, " ");
-      LineDigest::AppendIds(line, CellInputVertices(topology, d, c));
+      AppendCell(line, topology, d, c);
       line.push_back(' ');
-      LineDigest::AppendIds(line, CellInputVertices(topology, d + 1, higher));
+      AppendCell(line, topology, d + 1, higher);
       lines.Add(line);
     }
   }
