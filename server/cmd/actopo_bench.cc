@@ -11,14 +11,9 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "nlohmann/json.hpp"
-#include "server/algorithms/critical_points.h"
-#include "server/algorithms/discrete_gradient.h"
-#include "server/algorithms/morse_smale.h"
 #include "server/algorithms/registry.h"
-#include "server/algorithms/topo_relations.h"
 #include "server/algorithms/vertex_order.h"
 #include "server/cmd/flags.h"
-#include "server/cmd/result_files.h"
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
@@ -29,6 +24,8 @@
 #include "server/core/topology.h"
 #include "server/io/samples.h"
 #include "server/io/vtk_reader.h"
+#include "server/results/result_files.h"
+#include "server/results/run_algorithm.h"
 
 namespace actopo {
 namespace {
@@ -96,12 +93,6 @@ absl::Status Validate(const BenchOptions& o) {
   return absl::OkStatus();
 }
 
-Json TopoRelationsJson(const TopoRelationsResult& r) {
-  Json totals = Json::object();
-  for (Relation rel : TopoRelationsSweeps()) totals[std::string(RelationName(rel))] = r.totals[Index(rel)];
-  return {{"relation_totals", totals}, {"checksum", r.checksum_hex()}};
-}
-
 struct RunOutput {
   double preprocess_s = 0, run_s = 0;
   int64_t peak_rss_after_run = 0;  // before result digests and files, which can be large
@@ -111,59 +102,6 @@ struct RunOutput {
   MemoryStats memory;
   Json result;
 };
-
-struct AlgorithmInput {
-  Algorithm algorithm;
-  std::vector<SimplexId> order;  // empty for topo-relations
-  std::vector<SimplexId> input_tetrahedra;  // morse-smale: TTK's triangle numbering
-  CriticalPointsOptions critical_points;
-};
-
-Json CriticalPointsJson(const CriticalPointsResult& r) {
-  const auto count = [&](CriticalType t) { return r.counts[int(t)]; };
-  return {{"counts",
-           {{"minimum", count(CriticalType::kMinimum)},
-            {"saddle1", count(CriticalType::kSaddle1)},
-            {"saddle2", count(CriticalType::kSaddle2)},
-            {"degenerate", count(CriticalType::kDegenerate)},
-            {"maximum", count(CriticalType::kMaximum)}}},
-          {"vertices_sha256", r.VerticesDigest()}};
-}
-
-Json DiscreteGradientJson(const DiscreteGradientResult& r, const Topology& topology) {
-  return {{"critical_cells", r.critical_cells},
-          {"pairs_count", r.pairs},
-          {"critical_cells_sha256", r.CriticalCellsDigest(topology)},
-          {"pairs_sha256", r.PairsDigest(topology)}};
-}
-
-Json MorseSmaleJson(const MorseSmaleResult& r) {
-  auto unlabelled = [](const std::vector<SimplexId>& labels) {
-    return std::count(labels.begin(), labels.end(), -1);
-  };
-  int64_t minima = 0, maxima = 0;
-  for (int64_t s : r.minimum_sizes) minima += s;
-  for (int64_t s : r.maximum_sizes) maxima += s;
-  return {{"critical_cells", r.gradient.critical_cells},
-          {"separatrices",
-           {{"descending", r.CountSeparatrices(SeparatrixType::kDescending)},
-            {"ascending", r.CountSeparatrices(SeparatrixType::kAscending)},
-            {"saddle_connectors", r.CountSeparatrices(SeparatrixType::kSaddleConnector)},
-            {"segments", r.Segments()}}},
-          {"regions",
-           {{"descending", MorseSmaleResult::Regions(r.descending)},
-            {"ascending", MorseSmaleResult::Regions(r.ascending)},
-            {"morse_smale", MorseSmaleResult::Regions(r.morse_smale)}}},
-          {"manifold_size_sum", {{"minima", minima}, {"maxima", maxima}}},
-          {"unlabelled_vertices",
-           {{"descending", unlabelled(r.descending)},
-            {"ascending", unlabelled(r.ascending)},
-            {"morse_smale", unlabelled(r.morse_smale)}}},
-          {"segmentation_sha256",
-           {{"descending", MorseSmaleResult::SegmentationDigest(r.descending)},
-            {"ascending", MorseSmaleResult::SegmentationDigest(r.ascending)},
-            {"morse_smale", MorseSmaleResult::SegmentationDigest(r.morse_smale)}}}};
-}
 
 // Boundary flags of every vertex, for the files' IsOnBoundary arrays.
 std::vector<uint8_t> VertexBoundary(std::shared_ptr<const Topology> topology) {
@@ -176,52 +114,16 @@ std::vector<uint8_t> VertexBoundary(std::shared_ptr<const Topology> topology) {
 
 // Runs the algorithm; with `files` set (--output), also writes its result files.
 template <class Structure>
-absl::StatusOr<RunOutput> RunAlgorithm(Structure& structure, const AlgorithmInput& in,
-                                       const RunContext& context, const BenchOptions& o,
-                                       const ResultContext* files) {
+absl::StatusOr<RunOutput> RunAndSummarize(Structure& structure, const AlgorithmInput& input,
+                                          const RunContext& context, const BenchOptions& o,
+                                          const ResultContext* files) {
+  ASSIGN_OR_RETURN(AlgorithmOutcome outcome, RunAlgorithm(structure, input, context));
   RunOutput out;
-  const auto start = Clock::now();
-  switch (in.algorithm) {
-    case Algorithm::kTopoRelations: {
-      ASSIGN_OR_RETURN(TopoRelationsResult r, RunTopoRelations(structure, context));
-      out.run_s = Seconds(start);
-      out.peak_rss_after_run = PeakRssBytes();
-      out.result = TopoRelationsJson(r);
-      break;
-    }
-    case Algorithm::kCriticalPoints: {
-      ASSIGN_OR_RETURN(CriticalPointsResult r,
-                       RunCriticalPoints(structure, in.order, in.critical_points, context));
-      out.run_s = Seconds(start);
-      out.peak_rss_after_run = PeakRssBytes();
-      out.result = CriticalPointsJson(r);
-      if (files) {
-        ASSIGN_OR_RETURN(out.files, WriteCriticalPointsFiles(o.output, *files, r));
-      }
-      break;
-    }
-    case Algorithm::kDiscreteGradient: {
-      ASSIGN_OR_RETURN(DiscreteGradientResult r,
-                       RunDiscreteGradient(structure, in.order, context));
-      out.run_s = Seconds(start);
-      out.peak_rss_after_run = PeakRssBytes();
-      out.result = DiscreteGradientJson(r, structure.topology());
-      if (files) {
-        ASSIGN_OR_RETURN(out.files, WriteDiscreteGradientFiles(o.output, *files, r));
-      }
-      break;
-    }
-    case Algorithm::kMorseSmale: {
-      ASSIGN_OR_RETURN(MorseSmaleResult r,
-                       RunMorseSmale(structure, in.order, in.input_tetrahedra, context));
-      out.run_s = Seconds(start);
-      out.peak_rss_after_run = PeakRssBytes();
-      out.result = MorseSmaleJson(r);
-      if (files) {
-        ASSIGN_OR_RETURN(out.files, WriteMorseSmaleFiles(o.output, *files, r));
-      }
-      break;
-    }
+  out.run_s = outcome.run_s;
+  out.peak_rss_after_run = outcome.peak_rss_after_run;
+  out.result = Summarize(outcome.result, structure.topology());
+  if (files != nullptr) {
+    ASSIGN_OR_RETURN(out.files, WriteResultFiles(o.output, *files, outcome.result));
   }
   return out;
 }
@@ -295,7 +197,7 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
     ASSIGN_OR_RETURN(auto structure,
                      ExplicitStructure::Build(topology, {.relations = declared, .threads = o.threads}));
     const double preprocess_s = Seconds(start);
-    ASSIGN_OR_RETURN(out, RunAlgorithm(*structure, input, context, o, files ? &*files : nullptr));
+    ASSIGN_OR_RETURN(out, RunAndSummarize(*structure, input, context, o, files ? &*files : nullptr));
     out.preprocess_s = preprocess_s;
     out.memory = structure->memory();
   } else if (o.structure == "actopo") {
@@ -303,7 +205,7 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
     start = Clock::now();
     ASSIGN_OR_RETURN(auto structure, ActopoStructure::Create(topology, engine));
     const double preprocess_s = Seconds(start);
-    ASSIGN_OR_RETURN(out, RunAlgorithm(*structure, input, context, o, files ? &*files : nullptr));
+    ASSIGN_OR_RETURN(out, RunAndSummarize(*structure, input, context, o, files ? &*files : nullptr));
     out.preprocess_s = preprocess_s;
     const EngineStats stats = structure->stats();
     out.access = stats.access;
@@ -330,7 +232,7 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
   } else {
     CompactStructure structure(topology,
                                {.cache_ratio = o.buffer_ratio, .consumers = o.consumers});
-    ASSIGN_OR_RETURN(out, RunAlgorithm(structure, input, context, o, files ? &*files : nullptr));
+    ASSIGN_OR_RETURN(out, RunAndSummarize(structure, input, context, o, files ? &*files : nullptr));
     out.access = structure.stats();
     out.memory = structure.memory();
   }

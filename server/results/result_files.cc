@@ -1,4 +1,4 @@
-#include "server/cmd/result_files.h"
+#include "server/results/result_files.h"
 
 #include <algorithm>
 
@@ -73,10 +73,7 @@ std::vector<Cell> CriticalCells(const Topology& topology, const GradientField& g
   return cells;
 }
 
-}  // namespace
-
-absl::StatusOr<std::vector<std::string>> WriteCriticalPointsFiles(
-    const std::string& prefix, const ResultContext& c, const CriticalPointsResult& r) {
+PolyData CriticalPointsPolyData(const ResultContext& c, const CriticalPointsResult& r) {
   PolyData out;
   std::vector<int8_t> type, boundary;
   std::vector<int32_t> id;
@@ -88,43 +85,27 @@ absl::StatusOr<std::vector<std::string>> WriteCriticalPointsFiles(
     id.push_back(p.vertex);
     scalar.push_back(c.scalars[p.vertex]);
   }
-  out.point_arrays = {{"CriticalType", std::move(type)},
+  out.point_arrays = {{"ttkVertexScalarField", std::move(id)},
+                      {"CriticalType", std::move(type)},
                       {"IsOnBoundary", std::move(boundary)},
-                      {c.scalar_name, std::move(scalar)},
-                      {"ttkVertexScalarField", std::move(id)}};
-  const std::string path = prefix + "_critical_points.vtp";
-  RETURN_IF_ERROR(io::WritePolyData(path, out));
-  return std::vector<std::string>{path};
+                      {c.scalar_name, std::move(scalar)}};
+  return out;
 }
 
-absl::StatusOr<std::vector<std::string>> WriteDiscreteGradientFiles(
-    const std::string& prefix, const ResultContext& c, const DiscreteGradientResult& r) {
-  const std::string path = prefix + "_critical_cells.vtp";
-  RETURN_IF_ERROR(io::WritePolyData(
-      path, CriticalCellPoints(c, CriticalCells(c.topology, r.gradient), nullptr)));
-  return std::vector<std::string>{path};
-}
-
-absl::StatusOr<std::vector<std::string>> WriteMorseSmaleFiles(
-    const std::string& prefix, const ResultContext& c, const MorseSmaleResult& r) {
-  std::vector<std::string> written;
+void AddMorseSmaleOutputs(const ResultContext& c, const MorseSmaleResult& r, ResultOutputs& out) {
   // Critical points with the size of their manifold (minima: descending, maxima: ascending).
   const std::vector<Cell> cells = CriticalCells(c.topology, r.gradient.gradient);
   std::vector<int32_t> manifold_size(cells.size(), 0);
-  {
-    std::vector<std::pair<SimplexId, size_t>> minima, maxima;  // (input id, index in cells)
-    for (size_t i = 0; i < cells.size(); ++i) {
-      if (cells[i].dim == 0) minima.push_back({ReportedId(c, 0, cells[i].id), i});
-      if (cells[i].dim == 3) maxima.push_back({ReportedId(c, 3, cells[i].id), i});
-    }
-    std::sort(minima.begin(), minima.end());
-    std::sort(maxima.begin(), maxima.end());
-    for (size_t k = 0; k < minima.size(); ++k) manifold_size[minima[k].second] = r.minimum_sizes[k];
-    for (size_t k = 0; k < maxima.size(); ++k) manifold_size[maxima[k].second] = r.maximum_sizes[k];
+  std::vector<std::pair<SimplexId, size_t>> minima, maxima;  // (input id, index in cells)
+  for (size_t i = 0; i < cells.size(); ++i) {
+    if (cells[i].dim == 0) minima.push_back({ReportedId(c, 0, cells[i].id), i});
+    if (cells[i].dim == 3) maxima.push_back({ReportedId(c, 3, cells[i].id), i});
   }
-  std::string path = prefix + "_critical_points.vtp";
-  RETURN_IF_ERROR(io::WritePolyData(path, CriticalCellPoints(c, cells, &manifold_size)));
-  written.push_back(path);
+  std::sort(minima.begin(), minima.end());
+  std::sort(maxima.begin(), maxima.end());
+  for (size_t k = 0; k < minima.size(); ++k) manifold_size[minima[k].second] = r.minimum_sizes[k];
+  for (size_t k = 0; k < maxima.size(); ++k) manifold_size[maxima[k].second] = r.maximum_sizes[k];
+  out.poly_data.push_back({"critical_points", CriticalCellPoints(c, cells, &manifold_size)});
 
   PolyData seps;
   seps.line_offsets.push_back(0);
@@ -147,17 +128,44 @@ absl::StatusOr<std::vector<std::string>> WriteMorseSmaleFiles(
                       {"SeparatrixId", std::move(separatrix_id)},
                       {"SeparatrixType", std::move(type)}};
   if (r.separatrices.empty()) seps.line_offsets.clear();
-  path = prefix + "_separatrices.vtp";
-  RETURN_IF_ERROR(io::WritePolyData(path, seps));
-  written.push_back(path);
+  out.poly_data.push_back({"separatrices", std::move(seps)});
 
-  const std::vector<NamedArray> manifolds = {
+  out.segmentation = {
       {"DescendingManifold", std::vector<int32_t>(r.descending.begin(), r.descending.end())},
       {"AscendingManifold", std::vector<int32_t>(r.ascending.begin(), r.ascending.end())},
       {"MorseSmaleManifold", std::vector<int32_t>(r.morse_smale.begin(), r.morse_smale.end())}};
-  path = prefix + "_segmentation.vtu";
-  RETURN_IF_ERROR(io::WriteUnstructuredGrid(path, c.mesh, manifolds));
-  written.push_back(path);
+}
+
+}  // namespace
+
+ResultOutputs BuildOutputs(const ResultContext& c, const AlgorithmResult& result) {
+  ResultOutputs out;
+  if (const auto* r = std::get_if<CriticalPointsResult>(&result)) {
+    out.poly_data.push_back({"critical_points", CriticalPointsPolyData(c, *r)});
+  } else if (const auto* g = std::get_if<DiscreteGradientResult>(&result)) {
+    out.poly_data.push_back(
+        {"critical_cells", CriticalCellPoints(c, CriticalCells(c.topology, g->gradient), nullptr)});
+  } else if (const auto* m = std::get_if<MorseSmaleResult>(&result)) {
+    AddMorseSmaleOutputs(c, *m, out);
+  }
+  return out;
+}
+
+absl::StatusOr<std::vector<std::string>> WriteResultFiles(const std::string& prefix,
+                                                          const ResultContext& c,
+                                                          const AlgorithmResult& result) {
+  const ResultOutputs outputs = BuildOutputs(c, result);
+  std::vector<std::string> written;
+  for (const auto& [group, poly_data] : outputs.poly_data) {
+    const std::string path = prefix + "_" + group + ".vtp";
+    RETURN_IF_ERROR(io::WritePolyData(path, poly_data));
+    written.push_back(path);
+  }
+  if (!outputs.segmentation.empty()) {
+    const std::string path = prefix + "_segmentation.vtu";
+    RETURN_IF_ERROR(io::WriteUnstructuredGrid(path, c.mesh, outputs.segmentation));
+    written.push_back(path);
+  }
   return written;
 }
 

@@ -1,0 +1,49 @@
+// Algorithm results as arrays and VTK files for ParaView, with TTK's array names:
+//   PREFIX_critical_points.vtp   critical points (critical-points, morse-smale)
+//   PREFIX_critical_cells.vtp    critical cells at their barycentres (discrete-gradient)
+//   PREFIX_separatrices.vtp      1-separatrices as polylines (morse-smale)
+//   PREFIX_segmentation.vtu      the mesh with the three manifold arrays (morse-smale)
+#ifndef ACTOPO_SERVER_RESULTS_RESULT_FILES_H_
+#define ACTOPO_SERVER_RESULTS_RESULT_FILES_H_
+
+#include <span>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "server/core/mesh.h"
+#include "server/core/topology.h"
+#include "server/io/vtk_writer.h"
+#include "server/results/run_algorithm.h"
+
+namespace actopo {
+
+// What every writer needs: the mesh as loaded (points, tetrahedra), the scalar field used and
+// a per-internal-vertex boundary flag.
+struct ResultContext {
+  const Mesh& mesh;
+  const Topology& topology;
+  std::string scalar_name;
+  std::span<const double> scalars;         // by input vertex id
+  std::vector<uint8_t> vertex_on_boundary;  // by internal vertex id
+};
+
+// A result's outputs: poly data by group ("critical_points", "critical_cells",
+// "separatrices") and per-vertex arrays ("segmentation"), with TTK's array names. The service
+// streams them as "<group>/<name>" arrays; WriteResultFiles writes them for ParaView.
+struct ResultOutputs {
+  std::vector<std::pair<std::string, io::PolyData>> poly_data;
+  std::vector<io::NamedArray> segmentation;  // one value per input vertex
+};
+ResultOutputs BuildOutputs(const ResultContext& context, const AlgorithmResult& result);
+
+// Writes PREFIX_<group>.vtp for each poly data group and PREFIX_segmentation.vtu; returns the
+// paths written.
+absl::StatusOr<std::vector<std::string>> WriteResultFiles(const std::string& prefix,
+                                                          const ResultContext& context,
+                                                          const AlgorithmResult& result);
+
+}  // namespace actopo
+
+#endif  // ACTOPO_SERVER_RESULTS_RESULT_FILES_H_

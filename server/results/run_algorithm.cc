@@ -1,0 +1,144 @@
+#include "server/results/run_algorithm.h"
+
+#include <chrono>
+
+#include "absl/strings/str_cat.h"
+#include "server/core/actopo_structure.h"
+#include "server/core/compact_structure.h"
+#include "server/core/explicit_structure.h"
+#include "server/core/process_memory.h"
+#include "server/core/status_macros.h"
+
+namespace actopo {
+namespace {
+
+using Json = nlohmann::ordered_json;
+
+Json TopoRelationsJson(const TopoRelationsResult& r) {
+  Json totals = Json::object();
+  for (Relation rel : TopoRelationsSweeps()) {
+    totals[std::string(RelationName(rel))] = r.totals[Index(rel)];
+  }
+  return {{"relation_totals", totals}, {"checksum", r.checksum_hex()}};
+}
+
+Json CriticalPointsJson(const CriticalPointsResult& r) {
+  const auto count = [&](CriticalType t) { return r.counts[int(t)]; };
+  return {{"counts",
+           {{"minimum", count(CriticalType::kMinimum)},
+            {"saddle1", count(CriticalType::kSaddle1)},
+            {"saddle2", count(CriticalType::kSaddle2)},
+            {"degenerate", count(CriticalType::kDegenerate)},
+            {"maximum", count(CriticalType::kMaximum)}}},
+          {"vertices_sha256", r.VerticesDigest()}};
+}
+
+Json DiscreteGradientJson(const DiscreteGradientResult& r, const Topology& topology) {
+  return {{"critical_cells", r.critical_cells},
+          {"pairs_count", r.pairs},
+          {"critical_cells_sha256", r.CriticalCellsDigest(topology)},
+          {"pairs_sha256", r.PairsDigest(topology)}};
+}
+
+Json MorseSmaleJson(const MorseSmaleResult& r) {
+  auto unlabelled = [](const std::vector<SimplexId>& labels) {
+    return std::count(labels.begin(), labels.end(), -1);
+  };
+  int64_t minima = 0, maxima = 0;
+  for (int64_t s : r.minimum_sizes) minima += s;
+  for (int64_t s : r.maximum_sizes) maxima += s;
+  return {{"critical_cells", r.gradient.critical_cells},
+          {"separatrices",
+           {{"descending", r.CountSeparatrices(SeparatrixType::kDescending)},
+            {"ascending", r.CountSeparatrices(SeparatrixType::kAscending)},
+            {"saddle_connectors", r.CountSeparatrices(SeparatrixType::kSaddleConnector)},
+            {"segments", r.Segments()}}},
+          {"regions",
+           {{"descending", MorseSmaleResult::Regions(r.descending)},
+            {"ascending", MorseSmaleResult::Regions(r.ascending)},
+            {"morse_smale", MorseSmaleResult::Regions(r.morse_smale)}}},
+          {"manifold_size_sum", {{"minima", minima}, {"maxima", maxima}}},
+          {"unlabelled_vertices",
+           {{"descending", unlabelled(r.descending)},
+            {"ascending", unlabelled(r.ascending)},
+            {"morse_smale", unlabelled(r.morse_smale)}}},
+          {"segmentation_sha256",
+           {{"descending", MorseSmaleResult::SegmentationDigest(r.descending)},
+            {"ascending", MorseSmaleResult::SegmentationDigest(r.ascending)},
+            {"morse_smale", MorseSmaleResult::SegmentationDigest(r.morse_smale)}}}};
+}
+
+}  // namespace
+
+absl::Status ApplyParameters(const std::map<std::string, std::string>& parameters,
+                             AlgorithmInput& input) {
+  for (const auto& [name, value] : parameters) {
+    if (name == "boundary_rule" && input.algorithm == Algorithm::kCriticalPoints) {
+      if (value == "ttk") {
+        input.critical_points.boundary_rule = BoundaryRule::kTtk;
+      } else if (value == "none") {
+        input.critical_points.boundary_rule = BoundaryRule::kNone;
+      } else {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "parameters.boundary_rule: unknown value '", value, "'; available: ttk, none"));
+      }
+      continue;
+    }
+    return absl::InvalidArgumentError(absl::StrCat("parameters: unknown parameter '", name,
+                                                   "' for ", std::string(AlgorithmName(input.algorithm))));
+  }
+  return absl::OkStatus();
+}
+
+template <class Structure>
+absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const AlgorithmInput& in,
+                                              const RunContext& context) {
+  const auto start = std::chrono::steady_clock::now();
+  AlgorithmOutcome out;
+  switch (in.algorithm) {
+    case Algorithm::kTopoRelations: {
+      ASSIGN_OR_RETURN(out.result, RunTopoRelations(structure, context));
+      break;
+    }
+    case Algorithm::kCriticalPoints: {
+      ASSIGN_OR_RETURN(out.result,
+                       RunCriticalPoints(structure, in.order, in.critical_points, context));
+      break;
+    }
+    case Algorithm::kDiscreteGradient: {
+      ASSIGN_OR_RETURN(out.result, RunDiscreteGradient(structure, in.order, context));
+      break;
+    }
+    case Algorithm::kMorseSmale: {
+      ASSIGN_OR_RETURN(out.result,
+                       RunMorseSmale(structure, in.order, in.input_tetrahedra, context));
+      break;
+    }
+  }
+  out.run_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  out.peak_rss_after_run = PeakRssBytes();
+  return out;
+}
+
+template absl::StatusOr<AlgorithmOutcome> RunAlgorithm(ExplicitStructure&, const AlgorithmInput&,
+                                                       const RunContext&);
+template absl::StatusOr<AlgorithmOutcome> RunAlgorithm(CompactStructure&, const AlgorithmInput&,
+                                                       const RunContext&);
+template absl::StatusOr<AlgorithmOutcome> RunAlgorithm(ActopoStructure&, const AlgorithmInput&,
+                                                       const RunContext&);
+
+Json Summarize(const AlgorithmResult& result, const Topology& topology) {
+  return std::visit(
+      [&](const auto& r) -> Json {
+        using T = std::decay_t<decltype(r)>;
+        if constexpr (std::is_same_v<T, TopoRelationsResult>) return TopoRelationsJson(r);
+        if constexpr (std::is_same_v<T, CriticalPointsResult>) return CriticalPointsJson(r);
+        if constexpr (std::is_same_v<T, DiscreteGradientResult>) {
+          return DiscreteGradientJson(r, topology);
+        }
+        if constexpr (std::is_same_v<T, MorseSmaleResult>) return MorseSmaleJson(r);
+      },
+      result);
+}
+
+}  // namespace actopo

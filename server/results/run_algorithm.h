@@ -1,0 +1,57 @@
+// Runs any algorithm on any structure, and summarises its result as the JSON object that
+// actopo-bench prints and the service returns (DESIGN.md "Command-line contracts").
+//
+//   AlgorithmInput input{.algorithm = Algorithm::kMorseSmale, .order = ..., ...};
+//   ASSIGN_OR_RETURN(AlgorithmOutcome outcome, RunAlgorithm(*structure, input, context));
+//   nlohmann::ordered_json result = Summarize(outcome, *topology);
+#ifndef ACTOPO_SERVER_RESULTS_RUN_ALGORITHM_H_
+#define ACTOPO_SERVER_RESULTS_RUN_ALGORITHM_H_
+
+#include <map>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "nlohmann/json.hpp"
+#include "server/algorithms/consumers.h"
+#include "server/algorithms/critical_points.h"
+#include "server/algorithms/discrete_gradient.h"
+#include "server/algorithms/morse_smale.h"
+#include "server/algorithms/registry.h"
+#include "server/algorithms/topo_relations.h"
+
+namespace actopo {
+
+struct AlgorithmInput {
+  Algorithm algorithm = Algorithm::kTopoRelations;
+  std::vector<SimplexId> order;             // VertexOrder(); empty for topo-relations
+  std::vector<SimplexId> input_tetrahedra;  // the mesh's tetrahedra as given (morse-smale)
+  CriticalPointsOptions critical_points;
+};
+
+// Algorithm parameters by name, as the service receives them: "boundary_rule" = "ttk" | "none"
+// (critical-points). Unknown names and values are errors naming them.
+absl::Status ApplyParameters(const std::map<std::string, std::string>& parameters,
+                             AlgorithmInput& input);
+
+using AlgorithmResult = std::variant<TopoRelationsResult, CriticalPointsResult,
+                                     DiscreteGradientResult, MorseSmaleResult>;
+
+struct AlgorithmOutcome {
+  AlgorithmResult result;
+  double run_s = 0;
+  int64_t peak_rss_after_run = 0;  // before summaries, which can be large
+};
+
+// Defined for the explicit, compact and actopo structures.
+template <class Structure>
+absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const AlgorithmInput& input,
+                                              const RunContext& context);
+
+// actopo-bench's "result" object.
+nlohmann::ordered_json Summarize(const AlgorithmResult& result, const Topology& topology);
+
+}  // namespace actopo
+
+#endif  // ACTOPO_SERVER_RESULTS_RUN_ALGORITHM_H_
