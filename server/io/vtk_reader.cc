@@ -2,6 +2,7 @@
 
 #include <vtkDataSetTriangleFilter.h>
 #include <vtkNew.h>
+#include <vtkVersion.h>
 #include <vtkUnstructuredGrid.h>
 #include <vtkUnstructuredGridReader.h>
 #include <vtkXMLImageDataReader.h>
@@ -127,5 +128,7 @@ absl::StatusOr<Mesh> ReadMesh(const std::string& path, const ReadOptions& /*opti
   if (extension == ".vtk") return ReadLegacyUnstructuredGrid(path);
   return ReadXmlImageData(path);
 }
+
+std::string VtkVersion() { return vtkVersion::GetVTKVersion(); }
 
 }  // namespace actopo::io

@@ -25,6 +25,9 @@ namespace actopo::io {
 // Reserved for reader settings (none yet); a struct so that adding one breaks no caller.
 struct ReadOptions {};
 
+// The VTK library version, e.g. "9.1.0" (for server info).
+std::string VtkVersion();
+
 absl::StatusOr<Mesh> ReadMesh(const std::string& path, const ReadOptions& options = {});
 
 }  // namespace actopo::io

@@ -1,0 +1,353 @@
+"""The blocking client: Client, Session and Job."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from typing import Any
+
+import grpc
+import numpy as np
+
+from actopo import _convert, _requests
+from actopo._channel import (DEFAULT_TIMEOUT, MESH_TIMEOUT, TlsArg, metadata, resolve_target,
+                             sync_channel)
+from actopo._errors import error_for_number, translate, translated
+from actopo._mesh import MeshLike, mesh_arrays
+from actopo._progress import ProgressArg, make_progress
+from actopo._proto import pb, pb_grpc
+from actopo._requests import MeshRef, SimplexArg
+from actopo._results import Assembler, JobResult
+from actopo._types import (MeshInfo, RelationBatch, ServerInfo, SessionInfo, SessionStats,
+                           SimplexRelation, StreamItem)
+from actopo._upload import requests as upload_requests
+
+_UNSET: Any = object()
+
+
+class Client:
+    """A connection to an actopo-server.
+
+    Args:
+        target: "HOST:PORT"; defaults to $ACTOPO_SERVER.
+        token: a bearer token sent with every call (``authorization`` metadata).
+        tls: False for plaintext, True for TLS with the system's roots, or your own
+            ``grpc.ChannelCredentials``.
+        timeout: deadline in seconds of quick calls; loading, uploading and opening sessions get
+            600 s, jobs none (Ctrl-C cancels them). None: no deadlines at all.
+        options: extra gRPC channel options, e.g. ``[("grpc.max_receive_message_length", n)]``.
+
+    Example::
+
+        import actopo
+
+        with actopo.Client("127.0.0.1:50051") as client:
+            mesh = client.load_mesh("fertility_tet.vtu")
+            with client.open_session(mesh, scalar="eigenfunction4") as session:
+                result = session.run("morse-smale", progress=True)
+            print(result.summary["critical_cells"], result.stats.run_seconds)
+    """
+
+    def __init__(self, target: str | None = None, *, token: str | None = None,
+                 tls: TlsArg = False, timeout: float | None = DEFAULT_TIMEOUT,
+                 options: Sequence[tuple[str, Any]] = ()) -> None:
+        self.target = resolve_target(target)
+        self._channel = sync_channel(self.target, tls, options)
+        self._stub = pb_grpc.TopologyServiceStub(self._channel)
+        self._metadata = metadata(token)
+        self._timeout = timeout
+        self._mesh_timeout = MESH_TIMEOUT if timeout is not None else None
+        self._max_batch: int | None = None
+
+    def __enter__(self) -> Client:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Closes the channel (sessions stay open on the server until closed or idle)."""
+        self._channel.close()
+
+    def __repr__(self) -> str:
+        return f"actopo.Client({self.target!r})"
+
+    def _call(self, method: str, request: Any, *, timeout: Any = _UNSET,
+              mesh: bool = False) -> Any:
+        with translated(mesh=mesh):
+            return getattr(self._stub, method)(
+                request, timeout=self._timeout if timeout is _UNSET else timeout,
+                metadata=self._metadata)
+
+    # Server.
+
+    def server_info(self) -> ServerInfo:
+        """Versions, algorithms, relations, samples and limits of the server.
+
+        >>> client.server_info().algorithms  # doctest: +SKIP
+        ['topo-relations', 'critical-points', 'discrete-gradient', 'morse-smale']
+        """
+        info = _convert.server_info(self._call("GetServerInfo", pb.GetServerInfoRequest()))
+        self._max_batch = info.limits.max_batch_size or _requests.DEFAULT_BATCH
+        return info
+
+    def _batch_size(self) -> int:
+        if self._max_batch is None:
+            self.server_info()
+        return self._max_batch or _requests.DEFAULT_BATCH
+
+    # Meshes.
+
+    def load_mesh(self, path: str, *, block_size: int = 0,
+                  block_label_field: str = "") -> MeshInfo:
+        """Loads a file under the server's data directory ("sample:NAME" loads a sample).
+
+        block_size: octree bucket capacity (max vertices per block; 0: the server's 1000);
+        block_label_field: partition by this integer point field instead.
+        """
+        request = _requests.load(path, block_size, block_label_field)
+        response = self._call("LoadMesh", request, timeout=self._mesh_timeout, mesh=True)
+        return _convert.mesh_info(response.mesh)
+
+    def sample(self, name: str, *, block_size: int = 0) -> MeshInfo:
+        """Loads a built-in sample, e.g. "wavelet:64" or "jittered:100"."""
+        return self.load_mesh(f"sample:{name}", block_size=block_size)
+
+    def upload_mesh(self, mesh: MeshLike, *, name: str | None = None, block_size: int = 0,
+                    block_label_field: str = "") -> MeshInfo:
+        """Uploads a local mesh.
+
+        `mesh`: a pyvista.UnstructuredGrid, a meshio.Mesh, a file path (read with pyvista or
+        meshio), or ``(points, tetrahedra)`` / ``(points, tetrahedra, {name: values})`` numpy
+        arrays. Only tetrahedra are accepted: anything else raises InvalidMeshError before a
+        byte is sent. Scalar point fields travel along; vector fields are left out.
+
+        >>> import numpy as np
+        >>> points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+        >>> info = client.upload_mesh((points, [[0, 1, 2, 3]], {"h": points[:, 2]}))  # doctest: +SKIP
+        """
+        arrays = mesh_arrays(mesh, name)
+        partition = _requests.partition(block_size, block_label_field)
+        with translated(mesh=True):
+            response = self._stub.UploadMesh(upload_requests(arrays, partition),
+                                             timeout=self._mesh_timeout,
+                                             metadata=self._metadata)
+        return _convert.mesh_info(response.mesh)
+
+    def list_meshes(self) -> list[MeshInfo]:
+        """The meshes loaded on the server."""
+        response = self._call("ListMeshes", pb.ListMeshesRequest())
+        return [_convert.mesh_info(m) for m in response.meshes]
+
+    def get_mesh(self, mesh: MeshRef) -> MeshInfo:
+        """Describes one mesh (by MeshInfo or id)."""
+        request = pb.GetMeshRequest(mesh_id=_requests.mesh_id(mesh))
+        return _convert.mesh_info(self._call("GetMesh", request).mesh)
+
+    def delete_mesh(self, mesh: MeshRef) -> None:
+        """Deletes a mesh; the server frees it once no session uses it."""
+        self._call("DeleteMesh", pb.DeleteMeshRequest(mesh_id=_requests.mesh_id(mesh)))
+
+    # Sessions.
+
+    def open_session(self, mesh: MeshRef, *, scalar: str | None = None,
+                     structure: str = "actopo", consumers: int = 0, producers: int = 0,
+                     buffer_ratio: float = 0.0, prefetch: str = "auto",
+                     precompute: str = "auto") -> Session:
+        """Opens a session: a structure ("explicit", "compact" or "actopo") on a mesh and a
+        scalar field (default: the mesh's first floating-point field). 0 means the server's
+        default (1 consumer, 2 producers per consumer, buffer ratio 0.2); prefetch "auto",
+        "linear", "spatial" or "adaptive"; precompute "auto", "requested" or "declared".
+        Use it as a context manager to close it."""
+        request = _requests.open_session(mesh, scalar, structure, consumers, producers,
+                                         buffer_ratio, prefetch, precompute)
+        response = self._call("OpenSession", request, timeout=self._mesh_timeout)
+        return Session(self, _convert.session_info(response.session))
+
+    def session(self, session_id: str) -> Session:
+        """A handle on an open session by id (e.g. one opened by the CLI)."""
+        return Session(self, self.get_session(session_id))
+
+    def get_session(self, session_id: str) -> SessionInfo:
+        """Describes one session."""
+        request = pb.GetSessionRequest(session_id=_requests.session_id(session_id))
+        return _convert.session_info(self._call("GetSession", request).session)
+
+    def list_sessions(self) -> list[SessionInfo]:
+        """The open sessions."""
+        response = self._call("ListSessions", pb.ListSessionsRequest())
+        return [_convert.session_info(s) for s in response.sessions]
+
+    def close_session(self, session_id: str) -> None:
+        """Closes a session by id, cancelling its running job."""
+        request = pb.CloseSessionRequest(session_id=_requests.session_id(session_id))
+        self._call("CloseSession", request)
+
+    def cancel_job(self, job_id: str) -> None:
+        """Cancels a running job by id."""
+        self._call("CancelJob", pb.CancelJobRequest(job_id=job_id))
+
+
+class Session:
+    """A structure on a mesh and a scalar field; relation queries and jobs run on it.
+
+    Example::
+
+        with client.open_session(mesh, structure="compact") as session:
+            offsets, values = session.relation("vertex_edges", [0, 1, 2])
+            print(session.stats().engine.hit_rate)
+    """
+
+    def __init__(self, client: Client, info: SessionInfo) -> None:
+        self._client = client
+        self.info = info
+        self.session_id = info.session_id
+
+    def __enter__(self) -> Session:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return (f"actopo.Session({self.session_id!r}, mesh={self.info.mesh_id!r}, "
+                f"structure={self.info.structure!r})")
+
+    def close(self) -> None:
+        """Closes the session on the server (idempotent)."""
+        if self.session_id:
+            session_id, self.session_id = self.session_id, ""
+            self._client.close_session(session_id)
+
+    def describe(self) -> SessionInfo:
+        """The session as the server sees it now (running job, last use)."""
+        self.info = self._client.get_session(self._id())
+        return self.info
+
+    def _id(self) -> str:
+        if not self.session_id:
+            raise ValueError("the session is closed")
+        return self.session_id
+
+    def relation(self, name: str, ids: Any) -> RelationBatch:
+        """A relation of many simplices, as CSR numpy arrays ``(offsets, values)``.
+
+        `name`: e.g. "vertex_edges", "edge_triangles", "tetrahedron_neighbors", "vertex_link";
+        `ids`: simplex ids (vertices and tetrahedra: input ids; edges and triangles: the
+        service's ids), or an (n, k) array of vertex tuples. Large inputs are split into batches
+        of the server's max_batch_size.
+
+        >>> offsets, values = session.relation("vertex_star", [0, 1])  # doctest: +SKIP
+        >>> values[offsets[1]:offsets[2]]  # the tetrahedra around vertex 1  # doctest: +SKIP
+        """
+        requests = _requests.batches(self._id(), name, ids, self._client._batch_size())
+        return _requests.merge([self._client._call("GetRelationBatch", r) for r in requests])
+
+    def query(self, name: str, simplex: SimplexArg, *,
+              include_vertices: bool = False) -> SimplexRelation:
+        """A relation of one simplex, given by id or by its vertices (any order).
+
+        With include_vertices, result edges and triangles come with their vertex tuples.
+
+        >>> session.query("edge_triangles", (0, 5), include_vertices=True)  # doctest: +SKIP
+        """
+        request = _requests.single(self._id(), name, simplex, include_vertices)
+        return _requests.single_result(self._client._call("GetRelation", request))
+
+    def relations_stream(self, name: str, simplices: Iterable[SimplexArg], *,
+                         raise_errors: bool = False) -> Iterator[StreamItem]:
+        """Streams one relation over many simplices (StreamRelations), yielding a StreamItem
+        per simplex as answers arrive. A bad simplex gets its own error and the stream goes
+        on, unless raise_errors. `simplices` may be a lazy iterable."""
+        call = self._client._stub.StreamRelations(
+            _requests.stream(self._id(), name, simplices), metadata=self._client._metadata)
+        try:
+            for response in call:
+                error = None
+                if response.HasField("error") and response.error.code:
+                    error = error_for_number(response.error.code, response.error.message)
+                    if raise_errors:
+                        raise error
+                yield StreamItem(int(response.request_id),
+                                 np.array(response.ids, dtype=np.int64), error)
+        except grpc.RpcError as e:
+            raise translate(e) from None
+        finally:
+            call.cancel()
+
+    def submit(self, algorithm: str, *, parameters: Mapping[str, Any] | None = None,
+               include_arrays: bool = True, timeout: float | None = None) -> Job:
+        """Starts a job and returns once the server accepted it; see run()."""
+        request, name = _requests.run(self._id(), algorithm, parameters, include_arrays)
+        call = self._client._stub.RunJob(request, timeout=timeout,
+                                         metadata=self._client._metadata)
+        return Job(self._client, call, name)
+
+    def run(self, algorithm: str, *, parameters: Mapping[str, Any] | None = None,
+            progress: ProgressArg = False, include_arrays: bool = True,
+            timeout: float | None = None) -> JobResult:
+        """Runs an algorithm and returns its result.
+
+        `algorithm`: "critical-points", "discrete-gradient", "morse-smale" or "topo-relations"
+        ("morse_smale" works too). `parameters`: e.g. ``{"boundary_rule": "none"}``.
+        `progress`: True for a progress bar on stderr, or a callable(fraction).
+        `include_arrays`: False to receive only the summary and statistics.
+        Ctrl-C cancels the job on the server and raises KeyboardInterrupt.
+
+        >>> result = session.run("critical-points", progress=True)  # doctest: +SKIP
+        >>> result.summary["counts"]["maximum"], result.critical_points["CriticalType"]  # doctest: +SKIP
+        """
+        return self.submit(algorithm, parameters=parameters, include_arrays=include_arrays,
+                           timeout=timeout).result(progress=progress)
+
+    def stats(self) -> SessionStats:
+        """Cumulative statistics of the session (diff two snapshots for an interval)."""
+        request = pb.GetSessionStatsRequest(session_id=self._id())
+        return _convert.session_stats(self._client._call("GetSessionStats", request))
+
+
+class Job:
+    """A running job (Session.submit()). ``job_id`` is known as soon as it is created;
+    result() waits for the end; cancel() may be called from any thread."""
+
+    def __init__(self, client: Client, call: Any, algorithm: str) -> None:
+        self._client = client
+        self._call = call
+        self._lock = threading.Lock()
+        self._assembler = Assembler(algorithm)
+        self.algorithm = algorithm
+        try:
+            with translated():
+                for response in call:
+                    self._assembler.feed(response)
+                    if self._assembler.job_id:
+                        break
+        except KeyboardInterrupt:
+            call.cancel()
+            raise
+        self.job_id = self._assembler.job_id
+
+    def __repr__(self) -> str:
+        return f"actopo.Job({self.job_id!r}, {self.algorithm!r})"
+
+    def cancel(self) -> None:
+        """Asks the server to cancel the job (CancelJob); result() then raises
+        CancelledError."""
+        self._client.cancel_job(self.job_id)
+
+    def result(self, progress: ProgressArg = False) -> JobResult:
+        """Waits for the job and returns its result; Ctrl-C cancels it."""
+        with self._lock:
+            bar = make_progress(progress, self.algorithm)
+            try:
+                with translated():
+                    for response in self._call:
+                        fraction = self._assembler.feed(response)
+                        if fraction is not None:
+                            bar.update(fraction)
+                    return self._assembler.result()
+            except KeyboardInterrupt:
+                self._call.cancel()
+                raise
+            finally:
+                bar.close()

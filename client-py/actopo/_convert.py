@@ -1,0 +1,92 @@
+"""Server messages to the public result types."""
+
+from __future__ import annotations
+
+from datetime import datetime, timezone
+from typing import Any
+
+from google.protobuf import json_format
+
+from actopo import _names
+from actopo._arrays import dtype_name
+from actopo._proto import pb
+from actopo._types import (Counter, EngineOptions, EngineStats, FieldInfo, JobStats, MemoryStats,
+                           MeshInfo, ServerInfo, ServerLimits, SessionInfo, SessionStats)
+
+
+def _time(message: Any, name: str) -> datetime | None:
+    if not message.HasField(name):
+        return None
+    stamp = getattr(message, name)
+    return datetime.fromtimestamp(stamp.seconds + stamp.nanos / 1e9, tz=timezone.utc)
+
+
+def _fields(message: Any, cls: type) -> Any:
+    return cls(**{name: getattr(message, name) for name in cls.__dataclass_fields__})
+
+
+def server_info(r: pb.GetServerInfoResponse) -> ServerInfo:
+    return ServerInfo(version=r.version, library_versions=dict(r.library_versions),
+                      algorithms=list(r.algorithms), relations=list(r.relations),
+                      samples=list(r.samples), limits=_fields(r.limits, ServerLimits))
+
+
+def mesh_info(m: pb.MeshInfo) -> MeshInfo:
+    fields = [FieldInfo(name=f.name, dtype=dtype_name(f.dtype), min=f.min, max=f.max)
+              for f in m.fields]
+    return MeshInfo(mesh_id=m.mesh_id, name=m.name, source=m.source, vertices=m.vertices,
+                    edges=m.edges, triangles=m.triangles, tetrahedra=m.tetrahedra,
+                    blocks=m.blocks, block_size=m.block_size, fields=fields, bytes=m.bytes,
+                    sessions=m.sessions, created=_time(m, "created"),
+                    load_seconds=m.load_seconds, partition_seconds=m.partition_seconds)
+
+
+def session_info(s: pb.SessionInfo) -> SessionInfo:
+    e = s.engine
+    engine = EngineOptions(consumers=e.consumers, producers=e.producers,
+                           buffer_ratio=e.buffer_ratio,
+                           prefetch=_names.name_of(_names.PREFETCH, e.prefetch, "auto"),
+                           precompute=_names.name_of(_names.PRECOMPUTE, e.precompute, "auto"))
+    return SessionInfo(session_id=s.session_id, mesh_id=s.mesh_id, scalar_field=s.scalar_field,
+                       structure=_names.name_of(_names.STRUCTURES, s.structure, "actopo"),
+                       engine=engine, created=_time(s, "created"),
+                       last_used=_time(s, "last_used"),
+                       running_job_id=s.running_job_id or None)
+
+
+def engine_stats(e: pb.EngineStats) -> EngineStats:
+    return _fields(e, EngineStats)
+
+
+def memory_stats(m: pb.MemoryStats) -> MemoryStats:
+    return _fields(m, MemoryStats)
+
+
+def session_stats(r: pb.GetSessionStatsResponse) -> SessionStats:
+    return SessionStats(engine=engine_stats(r.engine), memory=memory_stats(r.memory),
+                        relation_queries=_fields(r.relation_queries, Counter),
+                        jobs=_fields(r.jobs, Counter), preprocess_seconds=r.preprocess_seconds)
+
+
+def job_stats(s: pb.JobStats) -> JobStats:
+    return JobStats(run_seconds=s.run_seconds, engine=engine_stats(s.engine),
+                    memory=memory_stats(s.memory))
+
+
+def struct_to_dict(struct: Any) -> dict[str, Any]:
+    """A google.protobuf.Struct as plain Python, integral numbers as int.
+
+    Struct numbers are doubles; the summaries hold counts (exact below 2**53) and hex digests,
+    so ints come back as ints and the object equals actopo-bench's JSON `result`.
+    """
+    return _ints(json_format.MessageToDict(struct))
+
+
+def _ints(value: Any) -> Any:
+    if isinstance(value, float) and value.is_integer() and abs(value) < 2**53:
+        return int(value)
+    if isinstance(value, dict):
+        return {k: _ints(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_ints(v) for v in value]
+    return value

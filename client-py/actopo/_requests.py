@@ -1,0 +1,143 @@
+"""Requests and response merging shared by Client and AsyncClient (no I/O here)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from typing import Any, Union
+
+import numpy as np
+
+from actopo import _names
+from actopo._arrays import little_endian, to_array, to_numpy
+from actopo._errors import InvalidArgumentError
+from actopo._proto import pb
+from actopo._types import MeshInfo, RelationBatch, SessionInfo, SimplexRelation
+
+MeshRef = Union[MeshInfo, str]
+SessionRef = Union[SessionInfo, str]
+SimplexArg = Union[int, Sequence[int], np.ndarray]
+
+DEFAULT_BATCH = 100_000
+
+
+def mesh_id(mesh: MeshRef) -> str:
+    return mesh.mesh_id if isinstance(mesh, MeshInfo) else str(mesh)
+
+
+def session_id(session: Any) -> str:
+    return str(getattr(session, "session_id", session))
+
+
+def partition(block_size: int = 0, block_label_field: str = "") -> pb.PartitionOptions:
+    if block_size < 0:
+        raise InvalidArgumentError(f"block_size: {block_size} is negative")
+    return pb.PartitionOptions(block_size=block_size, block_label_field=block_label_field or "")
+
+
+def load(source: str, block_size: int = 0, block_label_field: str = "") -> pb.LoadMeshRequest:
+    """`source`: a path under the server's data directory, or "sample:NAME"."""
+    options = partition(block_size, block_label_field)
+    if source.startswith("sample:"):
+        return pb.LoadMeshRequest(sample=source[len("sample:"):], partition=options)
+    return pb.LoadMeshRequest(path=source, partition=options)
+
+
+def open_session(mesh: MeshRef, scalar: str | None, structure: str, consumers: int,
+                 producers: int, buffer_ratio: float, prefetch: str,
+                 precompute: str) -> pb.OpenSessionRequest:
+    engine = pb.EngineOptions(consumers=consumers, producers=producers, buffer_ratio=buffer_ratio,
+                              prefetch=_names.lookup(_names.PREFETCH, prefetch, "prefetch"),
+                              precompute=_names.lookup(_names.PRECOMPUTE, precompute,
+                                                       "precompute"))
+    return pb.OpenSessionRequest(
+        mesh_id=mesh_id(mesh), scalar_field=scalar or "",
+        structure=_names.lookup(_names.STRUCTURES, structure, "structure"), engine=engine)
+
+
+def relation(name: str) -> int:
+    return _names.lookup(_names.RELATIONS, name, "relation")
+
+
+def simplex(value: SimplexArg) -> pb.Simplex:
+    """An id (int) or a vertex tuple (sequence of 1 to 4 input vertex ids)."""
+    if isinstance(value, (int, np.integer)):
+        return pb.Simplex(id=int(value))
+    ids = [int(v) for v in np.asarray(value).reshape(-1)]
+    return pb.Simplex(vertices=pb.VertexTuple(ids=ids))
+
+
+def single(session: str, name: str, value: SimplexArg,
+           include_vertices: bool) -> pb.GetRelationRequest:
+    return pb.GetRelationRequest(session_id=session, relation=relation(name),
+                                 simplex=simplex(value), include_vertices=include_vertices)
+
+
+def single_result(r: pb.GetRelationResponse) -> SimplexRelation:
+    ids = np.array(r.ids, dtype=np.int64)
+    vertices = None
+    if len(r.vertices):
+        vertices = np.array(r.vertices, dtype=np.int64).reshape(len(ids), -1)
+    return SimplexRelation(ids, vertices)
+
+
+def batches(session: str, name: str, ids: Any,
+            max_batch: int) -> list[pb.GetRelationBatchRequest]:
+    """GetRelationBatch requests of at most `max_batch` simplices each.
+
+    `ids`: one id, a 1-D sequence of ids, or an (n, k) array of vertex tuples.
+    """
+    code = relation(name)
+    values = np.asarray(ids)
+    if values.ndim == 0:
+        values = values.reshape(1)
+    if values.size and values.dtype.kind not in "iu":
+        raise InvalidArgumentError(f"ids: must be integers, got dtype {values.dtype}")
+    if values.ndim not in (1, 2):
+        raise InvalidArgumentError(f"ids: must be 1-D ids or (n, k) vertex tuples, got shape "
+                                   f"{values.shape}")
+    values = little_endian(values, np.int64)
+    step = max(max_batch, 1)
+    requests = []
+    for start in range(0, max(len(values), 1), step):
+        piece = values[start:start + step]
+        if values.ndim == 1:
+            requests.append(pb.GetRelationBatchRequest(
+                session_id=session, relation=code, ids=to_array(piece, "ids")))
+        else:
+            requests.append(pb.GetRelationBatchRequest(
+                session_id=session, relation=code, vertex_tuples=to_array(piece, "vertex_tuples")))
+    return requests
+
+
+def merge(responses: Sequence[pb.GetRelationBatchResponse]) -> RelationBatch:
+    """One CSR result from consecutive batch responses."""
+    if len(responses) == 1:
+        return RelationBatch(to_numpy(responses[0].offsets).astype(np.int64, copy=False),
+                             to_numpy(responses[0].values).astype(np.int64, copy=False))
+    offsets = [np.zeros(1, dtype=np.int64)]
+    values = []
+    total = 0
+    for r in responses:
+        o = to_numpy(r.offsets).astype(np.int64)
+        offsets.append(o[1:] + total)
+        total += int(o[-1]) if len(o) else 0
+        values.append(to_numpy(r.values).astype(np.int64, copy=False))
+    return RelationBatch(np.concatenate(offsets), np.concatenate(values))
+
+
+def stream(session: str, name: str,
+           simplices: Iterable[SimplexArg]) -> Iterator[pb.StreamRelationsRequest]:
+    """One request per simplex; request_id is the simplex's index in the input."""
+    code = relation(name)
+    for index, value in enumerate(simplices):
+        yield pb.StreamRelationsRequest(request_id=index, session_id=session, relation=code,
+                                        simplex=simplex(value))
+
+
+def run(session: str, algorithm: str, parameters: Mapping[str, Any] | None,
+        include_arrays: bool) -> tuple[pb.RunJobRequest, str]:
+    code = _names.lookup(_names.ALGORITHMS, algorithm, "algorithm")
+    request = pb.RunJobRequest(session_id=session, algorithm=code,
+                               parameters={str(k): str(v) for k, v in (parameters or {}).items()},
+                               include_arrays=include_arrays)
+    return request, _names.name_of(_names.ALGORITHMS, code)

@@ -1,0 +1,139 @@
+"""Job results: the RunJob stream assembled into numpy arrays, the summary and statistics."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from actopo import _convert
+from actopo._arrays import dtype_of
+from actopo._errors import ActopoError
+from actopo._proto import pb
+from actopo._types import JobStats
+
+
+@dataclass
+class JobResult:
+    """The outcome of Session.run().
+
+    Attributes:
+        algorithm: e.g. "morse-smale".
+        job_id: the server's id of the job.
+        summary: the same object as actopo-bench's JSON ``result`` (counts and digests).
+        arrays: result arrays by "<group>/<TTK name>", e.g. "critical_points/CriticalType".
+        stats: timings, engine statistics and memory of the job.
+
+    Groups (see the proto's ResultChunk): ``critical_points`` (critical-points, morse-smale),
+    ``critical_cells`` (discrete-gradient), ``separatrices`` and ``segmentation``
+    (morse-smale). Each group is a dict of TTK array names::
+
+        result.critical_points["CriticalType"]        # int8, one per critical vertex
+        result.segmentation["MorseSmaleManifold"]     # int32, one per vertex
+    """
+
+    algorithm: str
+    job_id: str
+    summary: dict[str, Any]
+    arrays: dict[str, np.ndarray] = field(default_factory=dict)
+    stats: JobStats | None = None
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.arrays[name]
+
+    @property
+    def groups(self) -> list[str]:
+        """The groups present, in arrival order."""
+        return list(dict.fromkeys(k.split("/", 1)[0] for k in self.arrays))
+
+    def group(self, name: str) -> dict[str, np.ndarray]:
+        """The arrays of one group by TTK name ({} when absent)."""
+        prefix = name + "/"
+        return {k[len(prefix):]: v for k, v in self.arrays.items() if k.startswith(prefix)}
+
+    @property
+    def critical_points(self) -> dict[str, np.ndarray]:
+        return self.group("critical_points")
+
+    @property
+    def critical_cells(self) -> dict[str, np.ndarray]:
+        return self.group("critical_cells")
+
+    @property
+    def separatrices(self) -> dict[str, np.ndarray]:
+        return self.group("separatrices")
+
+    @property
+    def segmentation(self) -> dict[str, np.ndarray]:
+        return self.group("segmentation")
+
+    def to_pyvista(self, mesh: Any = None) -> dict[str, Any]:
+        """The result as pyvista datasets, by group (needs the ``pyvista`` extra).
+
+        Critical points and cells become PolyData vertices with their arrays as point data,
+        separatrices PolyData polylines with per-line cell data. The segmentation needs the
+        mesh's geometry, which stays on the server: pass the mesh you uploaded (any form
+        upload_mesh() takes) to get it as an UnstructuredGrid, else it is left out.
+        """
+        from actopo._vtk import to_pyvista
+
+        return to_pyvista(self, mesh)
+
+    def write(self, prefix: str, mesh: Any = None) -> list[str]:
+        """Writes files for ParaView as actopo-bench does (PREFIX_critical_points.vtp, ...).
+
+        Uses pyvista if installed, else meshio (then every file is a .vtu). The segmentation is
+        written only when `mesh` gives the geometry. Returns the paths written.
+        """
+        from actopo._vtk import write_files
+
+        return write_files(self, prefix, mesh)
+
+
+class Assembler:
+    """Feeds on RunJob responses and builds the JobResult (shared by both clients)."""
+
+    def __init__(self, algorithm: str) -> None:
+        self.algorithm = algorithm
+        self.job_id = ""
+        self.summary: dict[str, Any] | None = None
+        self.stats: JobStats | None = None
+        self._buffers: dict[str, tuple[bytearray, np.dtype[Any], tuple[int, ...]]] = {}
+
+    def feed(self, response: pb.RunJobResponse) -> float | None:
+        """Takes one response; returns the progress fraction when it is a progress message."""
+        event = response.WhichOneof("event")
+        if event == "accepted":
+            self.job_id = response.accepted.job_id
+        elif event == "progress":
+            return response.progress.fraction
+        elif event == "chunk":
+            self._chunk(response.chunk)
+        elif event == "summary":
+            self.summary = _convert.struct_to_dict(response.summary.result)
+        elif event == "stats":
+            self.stats = _convert.job_stats(response.stats)
+        return None
+
+    def _chunk(self, chunk: pb.ResultChunk) -> None:
+        a = chunk.array
+        if a.name not in self._buffers:
+            total = chunk.total_bytes or len(a.data)
+            self._buffers[a.name] = (bytearray(total), dtype_of(a.dtype), tuple(a.shape))
+        buffer = self._buffers[a.name][0]
+        end = chunk.offset + len(a.data)
+        if chunk.offset < 0 or end > len(buffer):
+            raise ActopoError(f"result array '{a.name}': piece [{chunk.offset}, {end}) outside "
+                              f"its {len(buffer)} bytes")
+        buffer[chunk.offset:end] = a.data
+
+    def result(self) -> JobResult:
+        if self.summary is None:
+            raise ActopoError(f"job {self.job_id or '?'}: the stream ended without a summary")
+        arrays = {}
+        for name, (buffer, dtype, shape) in self._buffers.items():
+            values = np.frombuffer(buffer, dtype=dtype)
+            arrays[name] = values.reshape(shape) if len(shape) > 1 else values
+        return JobResult(algorithm=self.algorithm, job_id=self.job_id, summary=self.summary,
+                         arrays=arrays, stats=self.stats)

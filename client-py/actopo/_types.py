@@ -1,0 +1,221 @@
+"""The result types: plain frozen dataclasses and named tuples, numpy arrays for bulk data."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from actopo._errors import ActopoError
+
+
+@dataclass(frozen=True)
+class ServerLimits:
+    """Limits the server enforces (0 means unlimited or not reported)."""
+
+    max_meshes: int = 0
+    max_sessions: int = 0
+    max_engine_threads: int = 0
+    memory_budget_bytes: int = 0
+    max_message_bytes: int = 0
+    max_batch_size: int = 0
+    session_idle_timeout_seconds: int = 0
+
+
+@dataclass(frozen=True)
+class ServerInfo:
+    """What a server offers: versions, algorithms, relations, samples and limits."""
+
+    version: str
+    library_versions: dict[str, str]
+    algorithms: list[str]
+    relations: list[str]
+    samples: list[str]
+    limits: ServerLimits
+
+
+@dataclass(frozen=True)
+class FieldInfo:
+    """A point field of a mesh: name, numpy dtype name and value range."""
+
+    name: str
+    dtype: str
+    min: float
+    max: float
+
+
+@dataclass(frozen=True)
+class MeshInfo:
+    """A mesh loaded on the server. Pass it (or its ``mesh_id``) to open_session()."""
+
+    mesh_id: str
+    name: str
+    source: str
+    vertices: int
+    edges: int
+    triangles: int
+    tetrahedra: int
+    blocks: int
+    block_size: int
+    fields: list[FieldInfo]
+    bytes: int
+    sessions: int
+    created: datetime | None
+    load_seconds: float
+    partition_seconds: float
+
+
+@dataclass(frozen=True)
+class EngineOptions:
+    """Engine configuration of a session as the server resolved it."""
+
+    consumers: int
+    producers: int
+    buffer_ratio: float
+    prefetch: str
+    precompute: str
+
+
+@dataclass(frozen=True)
+class SessionInfo:
+    """A session: a structure on a mesh and a scalar field."""
+
+    session_id: str
+    mesh_id: str
+    scalar_field: str
+    structure: str
+    engine: EngineOptions
+    created: datetime | None
+    last_used: datetime | None
+    running_job_id: str | None
+
+
+@dataclass(frozen=True)
+class Counter:
+    """A cumulative counter: events and their total duration. Diff two snapshots for rates."""
+
+    count: int = 0
+    ns: int = 0
+
+    @property
+    def seconds(self) -> float:
+        return self.ns / 1e9
+
+
+@dataclass(frozen=True)
+class EngineStats:
+    """Access statistics of the structure: requests, hits, misses, wait, producers' work."""
+
+    requests: int = 0
+    hits: int = 0
+    misses: int = 0
+    evictions: int = 0
+    wait_ns: int = 0
+    leader_relations: int = 0
+    worker_relations: int = 0
+    consumer_relations: int = 0
+    duplicates_avoided: int = 0
+    producer_busy_ns: int = 0
+    buffer_bytes: int = 0
+    buffer_peak_bytes: int = 0
+
+    @property
+    def wait_seconds(self) -> float:
+        """Time the consumers waited for relations."""
+        return self.wait_ns / 1e9
+
+    @property
+    def hit_rate(self) -> float:
+        """Fraction of block-level requests found ready (1.0 when there were none)."""
+        return self.hits / self.requests if self.requests else 1.0
+
+
+@dataclass(frozen=True)
+class MemoryStats:
+    """Memory of a session, in bytes."""
+
+    static_bytes: int = 0
+    relation_bytes: int = 0
+    relation_peak_bytes: int = 0
+    process_rss_bytes: int = 0
+
+
+@dataclass(frozen=True)
+class SessionStats:
+    """Cumulative statistics of a session (Session.stats())."""
+
+    engine: EngineStats
+    memory: MemoryStats
+    relation_queries: Counter
+    jobs: Counter
+    preprocess_seconds: float
+
+
+@dataclass(frozen=True)
+class JobStats:
+    """Timings and statistics of one job."""
+
+    run_seconds: float
+    engine: EngineStats
+    memory: MemoryStats
+
+
+class RelationBatch(NamedTuple):
+    """A relation of many simplices in CSR form: the values of simplex i are
+    ``values[offsets[i]:offsets[i + 1]]``. Unpacks as ``offsets, values = batch``."""
+
+    offsets: np.ndarray
+    values: np.ndarray
+
+    @property
+    def count(self) -> int:
+        """Number of simplices asked about."""
+        return max(len(self.offsets) - 1, 0)
+
+    def of(self, i: int) -> np.ndarray:
+        """The values of the i-th simplex asked about."""
+        return self.values[self.offsets[i]:self.offsets[i + 1]]
+
+    def split(self) -> list[np.ndarray]:
+        """One array per simplex."""
+        return np.split(self.values, self.offsets[1:-1]) if self.count else []
+
+
+class SimplexRelation(NamedTuple):
+    """A relation of one simplex: result ids and, when asked, the vertices of each result
+    edge or triangle as a (len(ids), k) array."""
+
+    ids: np.ndarray
+    vertices: np.ndarray | None
+
+
+class StreamItem(NamedTuple):
+    """One answer of Session.relations_stream(): the index of the simplex in the input, the
+    result ids, or the error of this item (the stream goes on after an item error)."""
+
+    index: int
+    ids: np.ndarray
+    error: ActopoError | None
+
+
+def plain(value: Any) -> Any:
+    """`value` with dataclasses, named tuples, numpy values and datetimes as JSON types."""
+    if isinstance(value, tuple) and hasattr(value, "_asdict"):
+        return {k: plain(v) for k, v in value._asdict().items()}
+    if hasattr(value, "__dataclass_fields__"):
+        return {k: plain(getattr(value, k)) for k in value.__dataclass_fields__}
+    if isinstance(value, dict):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, datetime):
+        return value.isoformat()
+    if isinstance(value, ActopoError):
+        return str(value)
+    return value

@@ -1,0 +1,118 @@
+"""Results as pyvista datasets and as files for ParaView (pyvista, else meshio)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from actopo._mesh import mesh_arrays
+
+if TYPE_CHECKING:
+    from actopo._results import JobResult
+
+POINT_GROUPS = ("critical_points", "critical_cells")
+
+
+def _lines(group: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """Points, VTK line connectivity [n, i0, .., in-1, ...] and per-line arrays."""
+    points = np.asarray(group.get("Points", np.zeros((0, 3)))).reshape(-1, 3)
+    offsets = np.asarray(group.get("Offsets", np.zeros(1, dtype=np.int64)), dtype=np.int64)
+    cells = []
+    for start, end in zip(offsets[:-1], offsets[1:]):
+        cells.append(np.concatenate([[end - start], np.arange(start, end)]))
+    connectivity = np.concatenate(cells) if cells else np.zeros(0, dtype=np.int64)
+    arrays = {k: v for k, v in group.items() if k not in ("Points", "Offsets")}
+    return points, connectivity, arrays
+
+
+def to_pyvista(result: JobResult, mesh: Any = None) -> dict[str, Any]:
+    try:
+        import pyvista as pv
+    except ImportError:
+        raise ImportError("to_pyvista() needs pyvista: pip install 'actopo[pyvista]'") from None
+    out: dict[str, Any] = {}
+    for name in POINT_GROUPS:
+        group = result.group(name)
+        if group:
+            points = np.asarray(group.pop("Points"), dtype=np.float64).reshape(-1, 3)
+            poly = pv.PolyData(points) if len(points) else pv.PolyData()
+            for key, values in group.items():
+                poly.point_data[key] = values
+            out[name] = poly
+    separatrices = result.group("separatrices")
+    if separatrices:
+        points, connectivity, arrays = _lines(separatrices)
+        poly = pv.PolyData(points, lines=connectivity) if len(connectivity) else pv.PolyData()
+        for key, values in arrays.items():
+            poly.cell_data[key] = values
+        out["separatrices"] = poly
+    segmentation = result.group("segmentation")
+    if segmentation and mesh is not None:
+        if isinstance(mesh, pv.UnstructuredGrid):
+            grid = mesh.copy()
+        else:
+            arrays = mesh_arrays(mesh)
+            grid = pv.UnstructuredGrid({pv.CellType.TETRA: arrays.tetrahedra}, arrays.points)
+            for key, values in arrays.point_data.items():
+                grid.point_data[key] = values
+        for key, values in segmentation.items():
+            grid.point_data[key] = values
+        out["segmentation"] = grid
+    return out
+
+
+def _write_meshio(result: JobResult, prefix: str, mesh: Any) -> list[str]:
+    import meshio
+
+    written = []
+    for name in POINT_GROUPS:
+        group = result.group(name)
+        if group:
+            points = np.asarray(group.pop("Points"), dtype=np.float64).reshape(-1, 3)
+            cells = [("vertex", np.arange(len(points)).reshape(-1, 1))]
+            path = f"{prefix}_{name}.vtu"
+            meshio.Mesh(points, cells, point_data=group).write(path)
+            written.append(path)
+    separatrices = result.group("separatrices")
+    if separatrices:
+        points, _, arrays = _lines(separatrices)
+        offsets = np.asarray(separatrices["Offsets"], dtype=np.int64)
+        segments, owner = [], []
+        for i, (start, end) in enumerate(zip(offsets[:-1], offsets[1:])):
+            ids = np.arange(start, end)
+            segments.append(np.stack([ids[:-1], ids[1:]], axis=1))
+            owner.append(np.full(max(len(ids) - 1, 0), i))
+        lines = np.concatenate(segments) if segments else np.zeros((0, 2), dtype=np.int64)
+        line_owner = np.concatenate(owner) if owner else np.zeros(0, dtype=np.int64)
+        path = f"{prefix}_separatrices.vtu"
+        meshio.Mesh(points, [("line", lines)],
+                    cell_data={k: [np.asarray(v)[line_owner]] for k, v in arrays.items()}
+                    ).write(path)
+        written.append(path)
+    segmentation = result.group("segmentation")
+    if segmentation and mesh is not None:
+        arrays = mesh_arrays(mesh)
+        path = f"{prefix}_segmentation.vtu"
+        meshio.Mesh(arrays.points, [("tetra", arrays.tetrahedra)],
+                    point_data={**arrays.point_data, **segmentation}).write(path)
+        written.append(path)
+    return written
+
+
+def write_files(result: JobResult, prefix: str, mesh: Any = None) -> list[str]:
+    try:
+        import pyvista  # noqa: F401
+    except ImportError:
+        try:
+            import meshio  # noqa: F401
+        except ImportError:
+            raise ImportError("writing result files needs pyvista (.vtp/.vtu) or meshio (.vtu): "
+                              "pip install 'actopo[pyvista]'") from None
+        return _write_meshio(result, prefix, mesh)
+    written = []
+    for name, dataset in to_pyvista(result, mesh).items():
+        path = f"{prefix}_{name}.{'vtu' if name == 'segmentation' else 'vtp'}"
+        dataset.save(path)
+        written.append(path)
+    return written

@@ -1,0 +1,163 @@
+"""Jobs: results equal actopo-bench's, arrays, pyvista and files, progress, cancellation."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import actopo
+
+ALGORITHMS = ["critical-points", "discrete-gradient", "morse-smale"]
+
+
+@pytest.fixture(scope="module")
+def fertility(client):
+    mesh = client.load_mesh("fertility_tet.vtu")
+    yield mesh
+    client.delete_mesh(mesh)
+
+
+@pytest.fixture(scope="module")
+def fertility_session(client, fertility):
+    with client.open_session(fertility, scalar="eigenfunction4", structure="actopo") as s:
+        yield s
+
+
+@pytest.fixture(scope="module")
+def big(client):
+    """A sample whose Morse-Smale complex takes about a second: room to cancel."""
+    mesh = client.sample("jittered:50")
+    yield mesh
+    client.delete_mesh(mesh)
+
+
+def _idle(session, seconds=5.0):
+    deadline = time.monotonic() + seconds
+    while session.describe().running_job_id and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return session.describe().running_job_id is None
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_result_equals_actopo_bench(fertility_session, data_dir, bench, algorithm):
+    result = fertility_session.run(algorithm)
+    assert result.summary == bench(data_dir / "fertility_tet.vtu", algorithm,
+                                   "--scalar", "eigenfunction4")
+    assert result.algorithm == algorithm and result.job_id
+    assert result.stats.run_seconds > 0 and result.stats.engine.requests > 0
+
+
+def test_topo_relations_and_parameters_equal_actopo_bench(client, data_dir, bench):
+    mesh = client.load_mesh("manifoldCheck1_tet.vtu")
+    try:
+        with client.open_session(mesh, structure="explicit") as s:
+            assert s.run("topo_relations").summary == bench(
+                data_dir / "manifoldCheck1_tet.vtu", "topo-relations")
+            none = s.run("critical-points", parameters={"boundary_rule": "none"})
+            assert none.summary == bench(data_dir / "manifoldCheck1_tet.vtu", "critical-points",
+                                         "--boundary-rule", "none")
+    finally:
+        client.delete_mesh(mesh)
+
+
+def test_arrays_agree_with_the_summary(fertility_session, fertility):
+    cp = fertility_session.run("critical-points")
+    types = cp.critical_points["CriticalType"]
+    counts = cp.summary["counts"]
+    assert types.dtype == np.int8
+    assert np.bincount(types, minlength=5).tolist() == [
+        counts["minimum"], counts["saddle1"], counts["saddle2"], counts["maximum"],
+        counts["degenerate"]]
+    assert cp.critical_points["Points"].shape == (len(types), 3)
+    assert cp["critical_points/ttkVertexScalarField"].dtype == np.int32
+    assert "eigenfunction4" in cp.critical_points
+
+    ms = fertility_session.run("morse-smale")
+    assert ms.groups == ["critical_points", "separatrices", "segmentation"]
+    cells = ms.critical_points["CellDimension"]
+    assert np.bincount(cells, minlength=4).tolist() == ms.summary["critical_cells"]
+    seg = ms.segmentation
+    assert {k: v.shape for k, v in seg.items()} == {
+        k: (fertility.vertices,) for k in ("DescendingManifold", "AscendingManifold",
+                                           "MorseSmaleManifold")}
+    assert len(np.unique(seg["DescendingManifold"])) == ms.summary["regions"]["descending"]
+    sep = ms.separatrices
+    offsets = sep["Offsets"]
+    assert offsets[0] == 0 and offsets[-1] == len(sep["Points"])
+    assert len(offsets) - 1 == len(sep["SeparatrixType"]) == len(sep["SourceId"])
+    total = ms.summary["separatrices"]
+    assert len(sep["SeparatrixType"]) == sum(total[k] for k in ("descending", "ascending",
+                                                                 "saddle_connectors"))
+    dg = fertility_session.run("discrete-gradient", include_arrays=False)
+    assert dg.arrays == {} and dg.summary["critical_cells"] == ms.summary["critical_cells"]
+
+
+def test_to_pyvista_and_files(fertility_session, data_dir, tmp_path):
+    pv = pytest.importorskip("pyvista")
+    ms = fertility_session.run("morse-smale")
+    datasets = ms.to_pyvista()
+    assert set(datasets) == {"critical_points", "separatrices"}  # no geometry given
+    assert datasets["critical_points"].n_points == sum(ms.summary["critical_cells"])
+    assert datasets["separatrices"].n_cells == len(ms.separatrices["SeparatrixType"])
+    assert "SeparatrixType" in datasets["separatrices"].cell_data
+    with_mesh = ms.to_pyvista(pv.read(data_dir / "fertility_tet.vtu"))
+    np.testing.assert_array_equal(with_mesh["segmentation"].point_data["MorseSmaleManifold"],
+                                  ms.segmentation["MorseSmaleManifold"])
+    files = ms.write(str(tmp_path / "ms"), data_dir / "fertility_tet.vtu")
+    assert [os.path.basename(f) for f in files] == ["ms_critical_points.vtp",
+                                                    "ms_separatrices.vtp", "ms_segmentation.vtu"]
+    assert pv.read(files[2]).point_data["DescendingManifold"].shape == (14570,)
+
+
+def test_progress_callback_and_bar(fertility_session, capsys):
+    fractions = []
+    fertility_session.run("critical-points", progress=fractions.append, include_arrays=False)
+    assert fractions and fractions == sorted(fractions) and fractions[-1] == pytest.approx(1.0)
+    fertility_session.run("critical-points", progress=True, include_arrays=False)
+
+
+def test_cancel_from_another_thread(client, big):
+    with client.open_session(big, structure="compact") as session:
+        job = session.submit("morse-smale")
+        assert job.job_id and session.describe().running_job_id == job.job_id
+        threading.Timer(0.05, job.cancel).start()
+        with pytest.raises(actopo.CancelledError):
+            job.result()
+        assert _idle(session)
+
+
+def test_ctrl_c_cancels_the_job(client, big):
+    with client.open_session(big, structure="compact") as session:
+        def interrupt(fraction):
+            os.kill(os.getpid(), signal.SIGINT)  # as if the user pressed Ctrl-C now
+
+        started = time.monotonic()
+        with pytest.raises(KeyboardInterrupt):
+            session.run("morse-smale", progress=interrupt)
+        assert _idle(session), "the job still runs on the server after Ctrl-C"
+        assert time.monotonic() - started < 5
+        assert session.run("critical-points", include_arrays=False).summary["counts"]
+
+
+def test_deadline_and_busy_session(client, big):
+    with client.open_session(big, structure="compact") as session:
+        job = session.submit("morse-smale")
+        with pytest.raises(actopo.FailedPreconditionError, match=job.job_id):
+            session.submit("critical-points")
+        job.cancel()
+        with pytest.raises(actopo.CancelledError):
+            job.result()
+        assert _idle(session)
+        with pytest.raises(actopo.DeadlineExceededError):
+            session.run("morse-smale", timeout=0.05)
+        assert _idle(session)
+
+
+def test_cancel_unknown_job(client):
+    with pytest.raises(actopo.NotFoundError):
+        client.cancel_job("job-does-not-exist")

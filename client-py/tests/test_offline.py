@@ -1,0 +1,183 @@
+"""What the client decides alone: mesh checks, the upload stream, error mapping, assembly."""
+
+from __future__ import annotations
+
+import hashlib
+
+import grpc
+import numpy as np
+import pytest
+
+import actopo
+from actopo import _mesh, _names, _requests, _upload
+from actopo._errors import error_for, error_for_number, translate
+from actopo._proto import pb
+from actopo._results import Assembler
+
+POINTS = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], dtype=np.float64)
+TETS = np.array([[0, 1, 2, 3], [1, 2, 3, 4]])
+
+
+def test_tuple_mesh_becomes_little_endian_arrays():
+    mesh = _mesh.mesh_arrays((POINTS.astype(">f8"), TETS.astype(np.uint16),
+                              {"h": POINTS[:, 2], "label": np.arange(5, dtype=np.int8),
+                               "normals": POINTS}), name="two")
+    assert mesh.name == "two"
+    assert mesh.points.dtype == np.dtype("<f8") and mesh.tetrahedra.dtype == np.dtype("<i4")
+    assert list(mesh.point_data) == ["h", "label"]  # vector fields are left out
+    assert mesh.point_data["label"].dtype == np.int64
+    np.testing.assert_array_equal(mesh.tetrahedra, TETS)
+
+
+@pytest.mark.parametrize("arrays,message", [
+    ((POINTS, [[0, 1, 2]]), "found cell types: 1 triangle; hint:"),
+    ((POINTS[:, :2], TETS), "points must have shape (n, 3)"),
+    ((POINTS, [[0, 1, 2, 9]]), "vertex 9, outside [0, 5)"),
+    ((POINTS, np.zeros((0, 4), dtype=int)), "no tetrahedra"),
+    ((POINTS, TETS.astype(float)), "must be integers"),
+    ((POINTS,), "a mesh tuple is"),
+])
+def test_bad_arrays_are_rejected_before_sending(arrays, message):
+    with pytest.raises(actopo.InvalidMeshError, match=None) as e:
+        _mesh.mesh_arrays(arrays)
+    assert message in str(e.value)
+    assert e.value.code is None
+
+
+def test_unknown_objects_are_rejected():
+    with pytest.raises(actopo.InvalidMeshError, match="cannot upload a dict"):
+        _mesh.mesh_arrays({"points": POINTS})
+
+
+def test_triangle_files_are_rejected_with_cell_types_and_hint(data_dir):
+    pytest.importorskip("meshio")
+    import meshio
+
+    mesh = meshio.read(data_dir / "happi_tas_tri.vtu")
+    with pytest.raises(actopo.InvalidMeshError) as e:
+        _mesh.mesh_arrays(mesh, "happi")
+    assert "found cell types: 36290 triangle" in str(e.value)
+    assert "hint:" in str(e.value) and "tetrahedral" in str(e.value)
+
+
+def test_pyvista_non_tetrahedral_grids_are_rejected():
+    pv = pytest.importorskip("pyvista")
+    with pytest.raises(actopo.InvalidMeshError, match="8 voxel; hint: split the cells"):
+        _mesh.mesh_arrays(pv.ImageData(dimensions=(3, 3, 3)))
+    grid = pv.ImageData(dimensions=(3, 3, 3)).triangulate()
+    assert _mesh.mesh_arrays(grid).tetrahedra.shape[1] == 4
+
+
+def test_upload_stream_chunks_and_digest():
+    mesh = _mesh.mesh_arrays((POINTS, TETS, {"h": POINTS[:, 2].astype(np.float32)}))
+    messages = list(_upload.requests(mesh, pb.PartitionOptions(block_size=7), chunk_bytes=50))
+    header = messages[0].header
+    payload = b"".join(m.chunk for m in messages[1:])
+    expected = mesh.points.tobytes() + mesh.tetrahedra.tobytes() + mesh.point_data["h"].tobytes()
+    assert payload == expected
+    assert all(len(m.chunk) == 50 for m in messages[1:-1])
+    assert header.sha256 == hashlib.sha256(expected).hexdigest()
+    assert (header.num_vertices, header.num_tetrahedra) == (5, 2)
+    assert header.points_dtype == pb.DATA_TYPE_FLOAT64
+    assert header.tetrahedra_dtype == pb.DATA_TYPE_INT32
+    assert [(f.name, f.dtype) for f in header.fields] == [("h", pb.DATA_TYPE_FLOAT32)]
+    assert header.partition.block_size == 7
+
+
+@pytest.mark.parametrize("code,cls", [
+    (grpc.StatusCode.INVALID_ARGUMENT, actopo.InvalidArgumentError),
+    (grpc.StatusCode.NOT_FOUND, actopo.NotFoundError),
+    (grpc.StatusCode.RESOURCE_EXHAUSTED, actopo.ResourceExhaustedError),
+    (grpc.StatusCode.OUT_OF_RANGE, actopo.OutOfRangeError),
+    (grpc.StatusCode.FAILED_PRECONDITION, actopo.FailedPreconditionError),
+    (grpc.StatusCode.UNAVAILABLE, actopo.UnavailableError),
+    (grpc.StatusCode.UNAUTHENTICATED, actopo.AuthenticationError),
+    (grpc.StatusCode.CANCELLED, actopo.CancelledError),
+    (grpc.StatusCode.DEADLINE_EXCEEDED, actopo.DeadlineExceededError),
+    (grpc.StatusCode.INTERNAL, actopo.ActopoError),
+])
+def test_every_code_maps_to_one_class(code, cls):
+    class FakeError(grpc.RpcError):
+        def code(self):
+            return code
+
+        def details(self):
+            return "field: bad value"
+
+    error = translate(FakeError())
+    assert type(error) is cls
+    assert error.code == code and error.details == "field: bad value"
+    assert str(error) == f"field: bad value [{code.name}]"
+    assert type(error_for_number(code.value[0], "x")) is cls
+
+
+def test_mesh_calls_turn_invalid_argument_into_invalid_mesh():
+    error = error_for(grpc.StatusCode.INVALID_ARGUMENT, "tetrahedra[3]: vertex 9", mesh=True)
+    assert isinstance(error, actopo.InvalidMeshError)
+    assert isinstance(error, actopo.InvalidArgumentError) and isinstance(error, ValueError)
+
+
+def test_names():
+    assert _names.lookup(_names.RELATIONS, "vertex_edges", "relation") == pb.RELATION_VERTEX_EDGES
+    assert _names.lookup(_names.ALGORITHMS, "morse_smale", "algorithm") == pb.ALGORITHM_MORSE_SMALE
+    assert _names.lookup(_names.PREFETCH, "auto", "prefetch") == pb.PREFETCH_UNSPECIFIED
+    with pytest.raises(actopo.InvalidArgumentError, match="unknown relation 'vv'; available: "
+                       "vertex_neighbors, vertex_edges"):
+        _names.lookup(_names.RELATIONS, "vv", "relation")
+
+
+def test_batches_split_and_merge():
+    requests = _requests.batches("s", "vertex_star", np.arange(5), max_batch=2)
+    assert [len(r.ids.data) // 8 for r in requests] == [2, 2, 1]
+    responses = []
+    for r in requests:
+        n = len(r.ids.data) // 8
+        offsets = np.arange(n + 1, dtype=np.int64) * 2
+        values = np.repeat(np.frombuffer(r.ids.data, dtype="<i8"), 2)
+        responses.append(pb.GetRelationBatchResponse(
+            offsets=pb.Array(dtype=pb.DATA_TYPE_INT64, shape=[n + 1], data=offsets.tobytes()),
+            values=pb.Array(dtype=pb.DATA_TYPE_INT64, shape=[2 * n], data=values.tobytes())))
+    batch = _requests.merge(responses)
+    np.testing.assert_array_equal(batch.offsets, np.arange(6) * 2)
+    np.testing.assert_array_equal(batch.of(3), [3, 3])
+    assert batch.count == 5 and len(batch.split()) == 5
+    tuples = _requests.batches("s", "edge_star", [[0, 1], [1, 2]], max_batch=10)
+    assert list(tuples[0].vertex_tuples.shape) == [2, 2] and not tuples[0].HasField("ids")
+
+
+def test_assembler_joins_pieces_in_any_order():
+    values = np.arange(10, dtype=np.int32)
+    data = values.tobytes()
+    a = Assembler("morse-smale")
+    responses = [
+        pb.RunJobResponse(accepted=pb.JobAccepted(job_id="j1")),
+        pb.RunJobResponse(progress=pb.JobProgress(fraction=0.5)),
+        pb.RunJobResponse(chunk=pb.ResultChunk(
+            array=pb.Array(name="segmentation/AscendingManifold", dtype=pb.DATA_TYPE_INT32,
+                           shape=[10], data=data[20:]), offset=20, total_bytes=40)),
+        pb.RunJobResponse(chunk=pb.ResultChunk(
+            array=pb.Array(name="segmentation/AscendingManifold", dtype=pb.DATA_TYPE_INT32,
+                           shape=[10], data=data[:20]), offset=0, total_bytes=40)),
+    ]
+    summary = pb.RunJobResponse()
+    summary.summary.result.update({"critical_cells": [1, 2, 0, 0], "digest": "ab"})
+    responses.append(summary)
+    fractions = [a.feed(r) for r in responses]
+    assert fractions == [None, 0.5, None, None, None]
+    result = a.result()
+    assert result.job_id == "j1" and result.groups == ["segmentation"]
+    np.testing.assert_array_equal(result.segmentation["AscendingManifold"], values)
+    assert result.summary == {"critical_cells": [1, 2, 0, 0], "digest": "ab"}
+    assert isinstance(result.summary["critical_cells"][0], int)
+
+
+def test_client_needs_a_target(monkeypatch):
+    monkeypatch.delenv("ACTOPO_SERVER", raising=False)
+    with pytest.raises(ValueError, match="ACTOPO_SERVER"):
+        actopo.Client()
+
+
+def test_unreachable_server_is_unavailable():
+    with actopo.Client("127.0.0.1:1", timeout=5) as client:
+        with pytest.raises(actopo.UnavailableError):
+            client.server_info()

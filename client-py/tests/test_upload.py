@@ -1,0 +1,82 @@
+"""Uploads from pyvista, meshio, files and numpy give the same results as the file on the server."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from meshes import lattice
+
+import actopo
+
+
+def _run(client, mesh, algorithm, scalar):
+    try:
+        with client.open_session(mesh, scalar=scalar, structure="actopo") as s:
+            return s.run(algorithm, include_arrays=False).summary
+    finally:
+        client.delete_mesh(mesh)
+
+
+def test_upload_pyvista_grid(client, data_dir, bench):
+    pv = pytest.importorskip("pyvista")
+    grid = pv.read(data_dir / "fertility_tet.vtu")
+    mesh = client.upload_mesh(grid, name="fertility from pyvista")
+    assert (mesh.vertices, mesh.tetrahedra, mesh.source) == (14570, 60948, "upload")
+    assert {f.name for f in mesh.fields} == {"eigenfunction4", "height"}
+    assert _run(client, mesh, "discrete-gradient", "eigenfunction4") == bench(
+        data_dir / "fertility_tet.vtu", "discrete-gradient", "--scalar", "eigenfunction4")
+
+
+def test_upload_meshio_mesh(client, data_dir, bench):
+    meshio = pytest.importorskip("meshio")
+    mesh = client.upload_mesh(meshio.read(data_dir / "manifoldCheck2_tet.vtu"))
+    assert mesh.name == "meshio" and mesh.tetrahedra == 24
+    assert _run(client, mesh, "morse-smale", "height") == bench(
+        data_dir / "manifoldCheck2_tet.vtu", "morse-smale")
+
+
+def test_upload_file_path_and_numpy_arrays(client, data_dir, bench):
+    meshio = pytest.importorskip("meshio")
+    path = data_dir / "manifoldCheck0_tet.vtu"
+    expected = bench(path, "critical-points")
+    mesh = client.upload_mesh(str(path), block_size=10)
+    assert mesh.name == "manifoldCheck0_tet.vtu" and mesh.block_size == 10
+    assert _run(client, mesh, "critical-points", None) == expected
+    m = meshio.read(path)
+    arrays = (m.points, m.cells_dict["tetra"].astype(np.int64), {"height": m.point_data["height"]})
+    assert _run(client, client.upload_mesh(arrays), "critical-points", "height") == expected
+
+
+def test_upload_over_many_chunks(client):
+    points, tets, fields = lattice(40)  # 64000 vertices, ~2.5 MB of arrays
+    mesh = client.upload_mesh((points.astype(np.float32), tets, fields), name="lattice40")
+    assert (mesh.vertices, mesh.tetrahedra) == (64000, 6 * 39**3)
+    client.delete_mesh(mesh)
+
+
+def test_triangle_meshes_are_rejected_on_the_client(client, data_dir):
+    path = data_dir / "happi_tas_tri.vtu"
+    before = len(client.list_meshes())
+    with pytest.raises(actopo.InvalidMeshError) as e:
+        client.upload_mesh(path)
+    assert e.value.code is None
+    assert "36290 triangle" in str(e.value) and "hint:" in str(e.value)
+    assert len(client.list_meshes()) == before
+
+
+def test_bad_uploads_are_rejected_by_the_server(client):
+    points, tets, fields = lattice(3)
+    nan = fields["f"].copy()
+    nan[3] = np.nan
+    mesh = client.upload_mesh((points, tets, {"f": nan}))
+    try:
+        with pytest.raises(actopo.InvalidArgumentError, match="f"):
+            client.open_session(mesh, scalar="f")
+    finally:
+        client.delete_mesh(mesh)
+    repeated = np.vstack([tets, [[0, 0, 1, 2]]])
+    with pytest.raises(actopo.InvalidMeshError, match="repeats vertex 0") as e:
+        client.upload_mesh((points, repeated))
+    assert e.value.code is not None
+    with pytest.raises(actopo.InvalidMeshError, match="non-finite"):
+        client.upload_mesh((np.where(points == points[2], np.nan, points), tets))

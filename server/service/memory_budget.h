@@ -1,0 +1,59 @@
+// The server's memory budget: meshes and sessions reserve their estimated bytes before they
+// allocate, so a request that would not fit gets RESOURCE_EXHAUSTED instead of an OOM kill.
+#ifndef ACTOPO_SERVER_SERVICE_MEMORY_BUDGET_H_
+#define ACTOPO_SERVER_SERVICE_MEMORY_BUDGET_H_
+
+#include <cstdint>
+#include <mutex>
+#include <string>
+
+#include "absl/status/status.h"
+
+namespace actopo::service {
+
+class MemoryBudget {
+ public:
+  explicit MemoryBudget(int64_t limit_bytes) : limit_(limit_bytes) {}
+
+  // Reserves `bytes` for `what` (named in the error), or fails without reserving.
+  absl::Status Reserve(int64_t bytes, const std::string& what);
+  void Release(int64_t bytes);
+  int64_t used() const;
+  int64_t limit() const { return limit_; }
+
+ private:
+  const int64_t limit_;
+  mutable std::mutex mu_;
+  int64_t used_ = 0;
+};
+
+// A reservation released on destruction.
+class Reservation {
+ public:
+  Reservation() = default;
+  Reservation(MemoryBudget* budget, int64_t bytes) : budget_(budget), bytes_(bytes) {}
+  Reservation(Reservation&& o) noexcept : budget_(o.budget_), bytes_(o.bytes_) { o.budget_ = nullptr; }
+  Reservation& operator=(Reservation&& o) noexcept {
+    if (this != &o) {
+      Reset();
+      budget_ = o.budget_;
+      bytes_ = o.bytes_;
+      o.budget_ = nullptr;
+    }
+    return *this;
+  }
+  ~Reservation() { Reset(); }
+  int64_t bytes() const { return budget_ ? bytes_ : 0; }
+
+ private:
+  void Reset() {
+    if (budget_) budget_->Release(bytes_);
+    budget_ = nullptr;
+  }
+  MemoryBudget* budget_ = nullptr;
+  int64_t bytes_ = 0;
+};
+
+}  // namespace actopo::service
+
+#endif  // ACTOPO_SERVER_SERVICE_MEMORY_BUDGET_H_

@@ -1,0 +1,151 @@
+#include "server/service/mesh_registry.h"
+
+#include <chrono>
+#include <filesystem>
+
+#include "absl/strings/str_cat.h"
+#include "server/core/status_macros.h"
+#include "server/io/samples.h"
+#include "server/io/vtk_reader.h"
+#include "server/service/ids.h"
+
+namespace actopo::service {
+namespace {
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+int64_t LoadedMesh::bytes() const {
+  int64_t b = int64_t(mesh.points.capacity() * sizeof(double) +
+                      mesh.tetrahedra.capacity() * sizeof(SimplexId));
+  for (const PointField& f : mesh.point_fields) b += int64_t(f.values.capacity() * sizeof(double));
+  return b + (topology ? topology->bytes().total() : 0);
+}
+
+MeshRegistry::MeshRegistry(MeshRegistryOptions options, MemoryBudget* budget)
+    : options_(std::move(options)), budget_(budget) {}
+
+int64_t MeshRegistry::EstimateBytes(int64_t vertices, int64_t tetrahedra) {
+  // Measured: the static encoding is about 65 bytes per tetrahedron (jittered:96), the mesh
+  // itself 16 + 8 per field per vertex and 16 per tetrahedron; partitioning briefly doubles
+  // the edge and triangle lists. 120 bytes per tetrahedron covers it with a margin.
+  return vertices * 48 + tetrahedra * 120;
+}
+
+absl::Status MeshRegistry::CheckCapacity() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (int(meshes_.size()) >= options_.max_meshes) {
+    return absl::ResourceExhaustedError(absl::StrCat(
+        "meshes: the server holds its maximum of ", options_.max_meshes,
+        " meshes; delete one first (--max-meshes raises the limit)"));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFile(
+    const std::string& path, const PartitionOptions& partition) {
+  RETURN_IF_ERROR(CheckCapacity());
+  namespace fs = std::filesystem;
+  if (path.empty()) return absl::InvalidArgumentError("path: empty");
+  if (options_.data_dir.empty()) {
+    return absl::FailedPreconditionError("path: the server has no data directory (--data-dir)");
+  }
+  std::error_code ec;
+  const fs::path root = fs::weakly_canonical(options_.data_dir, ec);
+  const fs::path full = fs::weakly_canonical(root / fs::path(path), ec);
+  const auto [root_end, _] = std::mismatch(root.begin(), root.end(), full.begin(), full.end());
+  if (ec || fs::path(path).is_absolute() || root_end != root.end()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "path: '", path, "' is outside the server's data directory; give a path relative to it"));
+  }
+  if (!fs::exists(full)) {
+    return absl::NotFoundError(absl::StrCat("path: '", path, "' not found in the data directory"));
+  }
+  // Compressed files expand: refuse before reading what could not fit anyway.
+  const int64_t file_bytes = int64_t(fs::file_size(full, ec));
+  RETURN_IF_ERROR(budget_->Reserve(file_bytes * 4, absl::StrCat("reading '", path, "'")));
+  Reservation reading(budget_, file_bytes * 4);
+  const auto start = std::chrono::steady_clock::now();
+  ASSIGN_OR_RETURN(Mesh mesh, io::ReadMesh(full.string()));
+  return Add(full.filename().string(), "file:" + path, std::move(mesh), SecondsSince(start),
+             partition);
+}
+
+absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadSample(
+    const std::string& name, const PartitionOptions& partition) {
+  RETURN_IF_ERROR(CheckCapacity());
+  const auto start = std::chrono::steady_clock::now();
+  ASSIGN_OR_RETURN(Mesh mesh, io::MakeSample(name));
+  return Add(name, "sample:" + name, std::move(mesh), SecondsSince(start), partition);
+}
+
+absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Add(
+    std::string name, std::string source, Mesh mesh, double load_seconds,
+    const PartitionOptions& partition) {
+  RETURN_IF_ERROR(CheckCapacity());
+  RETURN_IF_ERROR(ValidateMesh(mesh));
+  const int64_t estimate = EstimateBytes(mesh.num_vertices(), mesh.num_tetrahedra());
+  RETURN_IF_ERROR(budget_->Reserve(estimate, absl::StrCat("mesh '", name, "'")));
+  auto loaded = std::make_unique<LoadedMesh>();
+  loaded->reservation = Reservation(budget_, estimate);
+  const auto start = std::chrono::steady_clock::now();
+  PartitionOptions effective = partition;
+  if (effective.bucket_capacity == 0) effective.bucket_capacity = 1000;
+  ASSIGN_OR_RETURN(std::vector<int32_t> blocks, ComputeBlocks(mesh, effective));
+  ASSIGN_OR_RETURN(loaded->topology, Topology::Build(mesh, blocks));
+  loaded->partition_seconds = SecondsSince(start);
+  loaded->id = NewId("mesh");
+  loaded->name = std::move(name);
+  loaded->source = std::move(source);
+  loaded->mesh = std::move(mesh);
+  loaded->block_size = effective.block_label_field.empty() ? effective.bucket_capacity : 0;
+  loaded->created = absl::Now();
+  loaded->load_seconds = load_seconds;
+  return Insert(std::move(loaded));
+}
+
+absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Insert(
+    std::unique_ptr<LoadedMesh> mesh) {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (int(meshes_.size()) >= options_.max_meshes) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("meshes: the server holds its maximum of ", options_.max_meshes, " meshes"));
+  }
+  std::shared_ptr<const LoadedMesh> shared(std::move(mesh));
+  meshes_[shared->id] = shared;
+  return shared;
+}
+
+absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Get(const std::string& id) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = meshes_.find(id);
+  if (it == meshes_.end()) {
+    return absl::NotFoundError(absl::StrCat("mesh_id: no mesh '", id, "' on this server"));
+  }
+  return it->second;
+}
+
+std::vector<std::shared_ptr<const LoadedMesh>> MeshRegistry::List() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  std::vector<std::shared_ptr<const LoadedMesh>> out;
+  for (const auto& [id, mesh] : meshes_) out.push_back(mesh);
+  return out;
+}
+
+absl::Status MeshRegistry::Delete(const std::string& id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (meshes_.erase(id) == 0) {
+    return absl::NotFoundError(absl::StrCat("mesh_id: no mesh '", id, "' on this server"));
+  }
+  return absl::OkStatus();
+}
+
+size_t MeshRegistry::size() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return meshes_.size();
+}
+
+}  // namespace actopo::service

@@ -1,0 +1,80 @@
+// The meshes a server holds: loaded from files under the data directory, built-in samples or
+// uploads; validated and partitioned once, then shared read-only by every session on them.
+//
+//   MeshRegistry registry({.data_dir = "/data", .max_meshes = 16}, &budget);
+//   ASSIGN_OR_RETURN(auto mesh, registry.LoadFile("fertility_tet.vtu", {}));
+//   registry.Delete(mesh->id);   // freed when the last session using it closes
+#ifndef ACTOPO_SERVER_SERVICE_MESH_REGISTRY_H_
+#define ACTOPO_SERVER_SERVICE_MESH_REGISTRY_H_
+
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "absl/time/time.h"
+#include "server/core/mesh.h"
+#include "server/core/partition.h"
+#include "server/core/topology.h"
+#include "server/service/memory_budget.h"
+
+namespace actopo::service {
+
+struct LoadedMesh {
+  std::string id;
+  std::string name;
+  std::string source;  // "file:PATH", "sample:NAME" or "upload"
+  Mesh mesh;           // input ids, as loaded
+  std::shared_ptr<const Topology> topology;
+  int32_t block_size = 0;  // 0 when partitioned by labels
+  absl::Time created;
+  double load_seconds = 0;
+  double partition_seconds = 0;
+  Reservation reservation;  // its share of the memory budget
+
+  int64_t bytes() const;
+};
+
+struct MeshRegistryOptions {
+  std::string data_dir;
+  int max_meshes = 16;
+};
+
+class MeshRegistry {
+ public:
+  MeshRegistry(MeshRegistryOptions options, MemoryBudget* budget);
+
+  // `path` is relative to the data directory; anything resolving outside it is refused.
+  absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadFile(const std::string& path,
+                                                             const PartitionOptions& partition);
+  absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadSample(const std::string& name,
+                                                               const PartitionOptions& partition);
+  // A mesh assembled elsewhere (an upload): validated and partitioned here.
+  absl::StatusOr<std::shared_ptr<const LoadedMesh>> Add(std::string name, std::string source,
+                                                        Mesh mesh, double load_seconds,
+                                                        const PartitionOptions& partition);
+
+  absl::StatusOr<std::shared_ptr<const LoadedMesh>> Get(const std::string& id) const;
+  std::vector<std::shared_ptr<const LoadedMesh>> List() const;
+  absl::Status Delete(const std::string& id);
+  size_t size() const;
+
+  // Bytes a mesh of this size will take with its static encodings (for the budget).
+  static int64_t EstimateBytes(int64_t vertices, int64_t tetrahedra);
+  // Fails early when `count` more meshes would exceed the limit.
+  absl::Status CheckCapacity() const;
+
+ private:
+  absl::StatusOr<std::shared_ptr<const LoadedMesh>> Insert(std::unique_ptr<LoadedMesh> mesh);
+
+  const MeshRegistryOptions options_;
+  MemoryBudget* budget_;
+  mutable std::mutex mu_;
+  std::map<std::string, std::shared_ptr<const LoadedMesh>> meshes_;
+};
+
+}  // namespace actopo::service
+
+#endif  // ACTOPO_SERVER_SERVICE_MESH_REGISTRY_H_

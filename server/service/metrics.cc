@@ -1,0 +1,104 @@
+#include "server/service/metrics.h"
+
+#include <prometheus/counter.h>
+#include <prometheus/exposer.h>
+#include <prometheus/gauge.h>
+#include <prometheus/histogram.h>
+#include <prometheus/registry.h>
+
+#include "absl/strings/str_cat.h"
+
+namespace actopo::service {
+
+struct Metrics::Families {
+  prometheus::Family<prometheus::Counter>* requests;
+  prometheus::Family<prometheus::Histogram>* job_seconds;
+  prometheus::Counter* buffer_hits;
+  prometheus::Counter* buffer_misses;
+  prometheus::Counter* wait_seconds;
+  prometheus::Gauge* meshes;
+  prometheus::Gauge* sessions;
+  prometheus::Gauge* budget_used;
+  prometheus::Gauge* rss;
+  prometheus::Gauge* threads;
+};
+
+absl::StatusOr<std::unique_ptr<Metrics>> Metrics::Create(const std::string& host, int port) {
+  auto m = std::unique_ptr<Metrics>(new Metrics());
+  m->registry_ = std::make_shared<prometheus::Registry>();
+  auto& r = *m->registry_;
+  m->f_ = std::make_unique<Families>();
+  m->f_->requests = &prometheus::BuildCounter()
+                         .Name("actopo_requests_total")
+                         .Help("RPCs answered, by method and gRPC status code")
+                         .Register(r);
+  m->f_->job_seconds = &prometheus::BuildHistogram()
+                            .Name("actopo_job_duration_seconds")
+                            .Help("Algorithm job durations, by algorithm and structure")
+                            .Register(r);
+  m->f_->buffer_hits = &prometheus::BuildCounter()
+                            .Name("actopo_buffer_hits_total")
+                            .Help("Block relation requests found ready, over all jobs")
+                            .Register(r)
+                            .Add({});
+  m->f_->buffer_misses = &prometheus::BuildCounter()
+                              .Name("actopo_buffer_misses_total")
+                              .Help("Block relation requests that waited, over all jobs")
+                              .Register(r)
+                              .Add({});
+  m->f_->wait_seconds = &prometheus::BuildCounter()
+                             .Name("actopo_consumer_wait_seconds_total")
+                             .Help("Time consumers waited for relations, over all jobs")
+                             .Register(r)
+                             .Add({});
+  auto gauge = [&](const char* name, const char* help) {
+    return &prometheus::BuildGauge().Name(name).Help(help).Register(r).Add({});
+  };
+  m->f_->meshes = gauge("actopo_meshes", "Loaded meshes");
+  m->f_->sessions = gauge("actopo_sessions", "Open sessions");
+  m->f_->budget_used = gauge("actopo_memory_budget_used_bytes",
+                             "Bytes reserved by meshes and sessions in the memory budget");
+  m->f_->rss = gauge("actopo_process_resident_bytes", "Resident memory of the server");
+  m->f_->threads = gauge("actopo_engine_threads", "Engine threads reserved");
+  if (port > 0) {
+    try {
+      m->exposer_ = std::make_unique<prometheus::Exposer>(absl::StrCat(host, ":", port));
+    } catch (const std::exception& e) {
+      return absl::UnavailableError(
+          absl::StrCat("metrics port ", port, ": cannot listen (", e.what(), ")"));
+    }
+    m->exposer_->RegisterCollectable(m->registry_);
+    m->port_ = int(m->exposer_->GetListeningPorts().front());
+  }
+  return m;
+}
+
+Metrics::~Metrics() = default;
+
+void Metrics::Request(std::string_view rpc, int grpc_code) {
+  f_->requests->Add({{"rpc", std::string(rpc)}, {"code", std::to_string(grpc_code)}}).Increment();
+}
+
+void Metrics::Job(std::string_view algorithm, std::string_view structure, double seconds,
+                  const EngineStats& engine) {
+  static const prometheus::Histogram::BucketBoundaries kBuckets = {0.01, 0.1, 0.5, 1,  2,
+                                                                   5,    10,  30,  60, 300};
+  f_->job_seconds
+      ->Add({{"algorithm", std::string(algorithm)}, {"structure", std::string(structure)}},
+            kBuckets)
+      .Observe(seconds);
+  f_->buffer_hits->Increment(double(engine.access.hits));
+  f_->buffer_misses->Increment(double(engine.access.misses));
+  f_->wait_seconds->Increment(engine.access.wait_ns * 1e-9);
+}
+
+void Metrics::Gauges(int meshes, int sessions, int64_t budget_used_bytes,
+                     int64_t process_rss_bytes, int engine_threads) {
+  f_->meshes->Set(meshes);
+  f_->sessions->Set(sessions);
+  f_->budget_used->Set(double(budget_used_bytes));
+  f_->rss->Set(double(process_rss_bytes));
+  f_->threads->Set(engine_threads);
+}
+
+}  // namespace actopo::service

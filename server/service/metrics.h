@@ -1,0 +1,44 @@
+// Prometheus metrics of the server, served on their own port (prometheus-cpp). Labels are
+// low-cardinality only: RPC and status code, algorithm, structure; never ids.
+#ifndef ACTOPO_SERVER_SERVICE_METRICS_H_
+#define ACTOPO_SERVER_SERVICE_METRICS_H_
+
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "absl/status/statusor.h"
+#include "server/core/actopo_structure.h"
+
+namespace prometheus {
+class Exposer;
+class Registry;
+}  // namespace prometheus
+
+namespace actopo::service {
+
+class Metrics {
+ public:
+  // port 0: metrics are counted but not served.
+  static absl::StatusOr<std::unique_ptr<Metrics>> Create(const std::string& host, int port);
+  ~Metrics();
+
+  void Request(std::string_view rpc, int grpc_code);
+  void Job(std::string_view algorithm, std::string_view structure, double seconds,
+           const EngineStats& engine);
+  void Gauges(int meshes, int sessions, int64_t budget_used_bytes, int64_t process_rss_bytes,
+              int engine_threads);
+  int port() const { return port_; }
+
+ private:
+  Metrics() = default;
+  struct Families;
+  std::shared_ptr<prometheus::Registry> registry_;
+  std::unique_ptr<prometheus::Exposer> exposer_;
+  std::unique_ptr<Families> f_;
+  int port_ = 0;
+};
+
+}  // namespace actopo::service
+
+#endif  // ACTOPO_SERVER_SERVICE_METRICS_H_

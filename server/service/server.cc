@@ -1,0 +1,120 @@
+#include "server/service/server.h"
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <unistd.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "absl/strings/str_cat.h"
+#include "server/core/status_macros.h"
+#include "server/service/memory_budget.h"
+#include "server/service/mesh_registry.h"
+#include "server/service/metrics.h"
+#include "server/service/service.h"
+#include "server/service/session_manager.h"
+
+namespace actopo::service {
+namespace {
+
+absl::StatusOr<std::string> ReadFile(const std::string& path, const std::string& flag) {
+  std::ifstream in(path);
+  if (!in) return absl::NotFoundError(absl::StrCat(flag, ": cannot read '", path, "'"));
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+int64_t DefaultBudget() {
+  const int64_t pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+  return pages > 0 && page > 0 ? pages * page / 4 * 3 : int64_t(8) << 30;
+}
+
+}  // namespace
+
+struct Server::State {
+  std::unique_ptr<MemoryBudget> budget;
+  std::unique_ptr<Metrics> metrics;
+  std::unique_ptr<MeshRegistry> meshes;
+  std::unique_ptr<SessionManager> sessions;
+  std::unique_ptr<TopologyServiceImpl> service;
+  std::unique_ptr<grpc::Server> server;
+  bool shut_down = false;
+};
+
+Server::Server() : state_(std::make_unique<State>()) {}
+
+Server::~Server() { Shutdown(absl::Seconds(1)); }
+
+absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& o) {
+  auto server = std::unique_ptr<Server>(new Server());
+  State& s = *server->state_;
+  s.budget = std::make_unique<MemoryBudget>(o.memory_budget_bytes > 0 ? o.memory_budget_bytes
+                                                                      : DefaultBudget());
+  ASSIGN_OR_RETURN(s.metrics, Metrics::Create(o.host, o.metrics_port));
+  s.meshes = std::make_unique<MeshRegistry>(
+      MeshRegistryOptions{.data_dir = o.data_dir, .max_meshes = o.max_meshes}, s.budget.get());
+  s.sessions = std::make_unique<SessionManager>(
+      SessionLimits{.max_sessions = o.max_sessions,
+                    .max_engine_threads = o.max_engine_threads,
+                    .idle_timeout = o.session_idle_timeout},
+      s.budget.get());
+  s.service = std::make_unique<TopologyServiceImpl>(
+      s.meshes.get(), s.sessions.get(), s.budget.get(), s.metrics.get(),
+      ServiceLimits{.max_batch_size = o.max_batch_size, .max_message_bytes = o.max_message_bytes},
+      o.token);
+
+  std::shared_ptr<grpc::ServerCredentials> credentials = grpc::InsecureServerCredentials();
+  if (!o.tls_cert_file.empty() || !o.tls_key_file.empty()) {
+    if (o.tls_cert_file.empty() || o.tls_key_file.empty()) {
+      return absl::InvalidArgumentError("--tls-cert and --tls-key go together");
+    }
+    grpc::SslServerCredentialsOptions ssl;
+    ASSIGN_OR_RETURN(std::string cert, ReadFile(o.tls_cert_file, "--tls-cert"));
+    ASSIGN_OR_RETURN(std::string key, ReadFile(o.tls_key_file, "--tls-key"));
+    ssl.pem_key_cert_pairs.push_back({key, cert});
+    credentials = grpc::SslServerCredentials(ssl);
+  }
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder builder;
+  builder.AddListeningPort(absl::StrCat(o.host, ":", o.port), credentials, &server->port_);
+  builder.RegisterService(s.service.get());
+  builder.SetMaxReceiveMessageSize(int(o.max_message_bytes));
+  builder.SetMaxSendMessageSize(int(o.max_message_bytes));
+  s.server = builder.BuildAndStart();
+  if (s.server == nullptr || server->port_ == 0) {
+    return absl::UnavailableError(
+        absl::StrCat("--port: cannot listen on ", o.host, ":", o.port, " (in use?)"));
+  }
+  s.server->GetHealthCheckService()->SetServingStatus(true);
+  s.service->RefreshGauges();
+  return server;
+}
+
+int Server::metrics_port() const { return state_->metrics->port(); }
+
+std::shared_ptr<grpc::Channel> Server::InProcessChannel() {
+  return state_->server->InProcessChannel(grpc::ChannelArguments());
+}
+
+void Server::Drain() {
+  State& s = *state_;
+  if (s.server == nullptr) return;
+  s.server->GetHealthCheckService()->SetServingStatus(false);
+  s.service->Drain();
+}
+
+void Server::Shutdown(absl::Duration grace) {
+  State& s = *state_;
+  if (s.shut_down || s.server == nullptr) return;
+  s.shut_down = true;
+  Drain();
+  s.server->Shutdown(std::chrono::system_clock::now() + absl::ToChronoSeconds(grace));
+  s.server->Wait();
+}
+
+void Server::Wait() { state_->server->Wait(); }
+
+}  // namespace actopo::service

@@ -1,0 +1,116 @@
+// The actopo.v1.TopologyService implementation (gRPC callback API): one reactor per streaming
+// RPC, unary RPCs answered inline.
+#ifndef ACTOPO_SERVER_SERVICE_SERVICE_H_
+#define ACTOPO_SERVER_SERVICE_SERVICE_H_
+
+#include <atomic>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "actopo/v1/topology_service.grpc.pb.h"
+#include "server/service/memory_budget.h"
+#include "server/service/mesh_registry.h"
+#include "server/service/metrics.h"
+#include "server/service/session_manager.h"
+
+namespace actopo::service {
+
+struct ServiceLimits {
+  int max_batch_size = 1 << 20;
+  int64_t max_message_bytes = 64 << 20;
+};
+
+// A running job, for CancelJob.
+struct JobHandle {
+  std::string session_id;
+  std::atomic<bool> cancel{false};
+};
+
+namespace v1 = ::actopo::v1;
+
+class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
+ public:
+  TopologyServiceImpl(MeshRegistry* meshes, SessionManager* sessions, MemoryBudget* budget,
+                      Metrics* metrics, ServiceLimits limits, std::string token);
+
+  // Stop accepting work (UNAVAILABLE) and cancel running jobs; health is set by the server.
+  void Drain();
+  bool draining() const { return draining_.load(); }
+
+
+  grpc::ServerUnaryReactor* GetServerInfo(grpc::CallbackServerContext*,
+                                          const v1::GetServerInfoRequest*,
+                                          v1::GetServerInfoResponse*) override;
+  grpc::ServerUnaryReactor* LoadMesh(grpc::CallbackServerContext*, const v1::LoadMeshRequest*,
+                                     v1::LoadMeshResponse*) override;
+  grpc::ServerReadReactor<v1::UploadMeshRequest>* UploadMesh(grpc::CallbackServerContext*,
+                                                             v1::UploadMeshResponse*) override;
+  grpc::ServerUnaryReactor* ListMeshes(grpc::CallbackServerContext*, const v1::ListMeshesRequest*,
+                                       v1::ListMeshesResponse*) override;
+  grpc::ServerUnaryReactor* GetMesh(grpc::CallbackServerContext*, const v1::GetMeshRequest*,
+                                    v1::GetMeshResponse*) override;
+  grpc::ServerUnaryReactor* DeleteMesh(grpc::CallbackServerContext*, const v1::DeleteMeshRequest*,
+                                       v1::DeleteMeshResponse*) override;
+  grpc::ServerUnaryReactor* OpenSession(grpc::CallbackServerContext*,
+                                        const v1::OpenSessionRequest*,
+                                        v1::OpenSessionResponse*) override;
+  grpc::ServerUnaryReactor* GetSession(grpc::CallbackServerContext*, const v1::GetSessionRequest*,
+                                       v1::GetSessionResponse*) override;
+  grpc::ServerUnaryReactor* ListSessions(grpc::CallbackServerContext*,
+                                         const v1::ListSessionsRequest*,
+                                         v1::ListSessionsResponse*) override;
+  grpc::ServerUnaryReactor* CloseSession(grpc::CallbackServerContext*,
+                                         const v1::CloseSessionRequest*,
+                                         v1::CloseSessionResponse*) override;
+  grpc::ServerUnaryReactor* GetSessionStats(grpc::CallbackServerContext*,
+                                            const v1::GetSessionStatsRequest*,
+                                            v1::GetSessionStatsResponse*) override;
+  grpc::ServerUnaryReactor* GetRelation(grpc::CallbackServerContext*,
+                                        const v1::GetRelationRequest*,
+                                        v1::GetRelationResponse*) override;
+  grpc::ServerUnaryReactor* GetRelationBatch(grpc::CallbackServerContext*,
+                                             const v1::GetRelationBatchRequest*,
+                                             v1::GetRelationBatchResponse*) override;
+  grpc::ServerBidiReactor<v1::StreamRelationsRequest, v1::StreamRelationsResponse>*
+  StreamRelations(grpc::CallbackServerContext*) override;
+  grpc::ServerWriteReactor<v1::RunJobResponse>* RunJob(grpc::CallbackServerContext*,
+                                                       const v1::RunJobRequest*) override;
+  grpc::ServerUnaryReactor* CancelJob(grpc::CallbackServerContext*, const v1::CancelJobRequest*,
+                                      v1::CancelJobResponse*) override;
+
+  // Used by the reactors (service_streams.cc).
+  absl::Status Admit(grpc::CallbackServerContext* context) const;
+  void Count(std::string_view rpc, const absl::Status& status);
+  absl::Status AnswerRelation(const std::string& session_id, v1::Relation relation,
+                              const v1::Simplex& simplex, bool include_vertices,
+                              std::vector<int64_t>& ids, std::vector<int64_t>* vertices);
+  MeshRegistry& meshes() { return *meshes_; }
+  MemoryBudget& budget() { return *budget_; }
+  SessionManager& sessions() { return *sessions_; }
+  Metrics& metrics() { return *metrics_; }
+  const ServiceLimits& limits() const { return limits_; }
+  std::shared_ptr<JobHandle> RegisterJob(const std::string& job_id, const std::string& session);
+  void UnregisterJob(const std::string& job_id);
+  void RefreshGauges();
+
+ private:
+  template <class Fn>
+  grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* context, std::string_view rpc,
+                                  Fn&& fn);
+
+  MeshRegistry* meshes_;
+  SessionManager* sessions_;
+  MemoryBudget* budget_;
+  Metrics* metrics_;
+  const ServiceLimits limits_;
+  const std::string token_;
+  std::atomic<bool> draining_{false};
+  std::mutex jobs_mu_;
+  std::map<std::string, std::shared_ptr<JobHandle>> jobs_;
+};
+
+}  // namespace actopo::service
+
+#endif  // ACTOPO_SERVER_SERVICE_SERVICE_H_

@@ -1,0 +1,465 @@
+// The streaming RPCs of TopologyServiceImpl: one reactor class each.
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <cstring>
+#include <deque>
+#include <thread>
+
+#include "absl/strings/str_cat.h"
+#include "google/protobuf/util/json_util.h"
+#include "server/algorithms/digest.h"
+#include "server/core/status_macros.h"
+#include "server/service/ids.h"
+#include "server/service/service.h"
+#include "server/service/wire.h"
+
+namespace actopo::service {
+namespace {
+
+constexpr size_t kChunkBytes = 1 << 20;
+
+// ---------------------------------------------------------------------------------------------
+// UploadMesh: header, then raw chunks; assembled, checked against the header's counts and
+// SHA-256, converted and handed to the registry.
+class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest> {
+ public:
+  UploadReactor(TopologyServiceImpl* service, grpc::CallbackServerContext* context,
+                v1::UploadMeshResponse* response)
+      : service_(service), response_(response) {
+    const absl::Status admitted = service_->Admit(context);
+    if (!admitted.ok()) {
+      Done(admitted);
+      return;
+    }
+    start_ = std::chrono::steady_clock::now();
+    StartRead(&message_);
+  }
+
+  void OnReadDone(bool ok) override {
+    if (!ok) {  // the client finished sending
+      Done(Complete());
+      return;
+    }
+    const absl::Status s = Consume();
+    if (!s.ok()) {
+      Done(s);
+      return;
+    }
+    StartRead(&message_);
+  }
+
+  void OnDone() override { delete this; }
+
+ private:
+  absl::Status Consume() {
+    if (!have_header_) {
+      if (message_.payload_case() != v1::UploadMeshRequest::kHeader) {
+        return absl::InvalidArgumentError("header: the first message of an upload must be the header");
+      }
+      header_ = message_.header();
+      have_header_ = true;
+      return CheckHeader();
+    }
+    if (message_.payload_case() != v1::UploadMeshRequest::kChunk) {
+      return absl::InvalidArgumentError("chunk: only one header per upload; then send chunks");
+    }
+    if (data_.size() + message_.chunk().size() > expected_) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "chunk: received more than the ", expected_, " bytes the header announced"));
+    }
+    data_.append(message_.chunk());
+    return absl::OkStatus();
+  }
+
+  absl::Status CheckHeader() {
+    const int64_t nv = header_.num_vertices(), nt = header_.num_tetrahedra();
+    if (nv <= 0 || nv > INT32_MAX) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("header.num_vertices: ", nv, " is outside [1, 2^31 - 1]"));
+    }
+    if (nt <= 0 || nt > INT32_MAX) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("header.num_tetrahedra: ", nt, " is outside [1, 2^31 - 1]"));
+    }
+    if (header_.points_dtype() != v1::DATA_TYPE_FLOAT32 &&
+        header_.points_dtype() != v1::DATA_TYPE_FLOAT64) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "header.points_dtype: ", v1::DataType_Name(header_.points_dtype()),
+          " is not FLOAT32 or FLOAT64"));
+    }
+    if (header_.tetrahedra_dtype() != v1::DATA_TYPE_INT32 &&
+        header_.tetrahedra_dtype() != v1::DATA_TYPE_INT64) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "header.tetrahedra_dtype: ", v1::DataType_Name(header_.tetrahedra_dtype()),
+          " is not INT32 or INT64"));
+    }
+    expected_ = size_t(nv) * 3 * DataTypeSize(header_.points_dtype()) +
+                size_t(nt) * 4 * DataTypeSize(header_.tetrahedra_dtype());
+    for (int i = 0; i < header_.fields_size(); ++i) {
+      const v1::UploadField& f = header_.fields(i);
+      if (f.name().empty()) {
+        return absl::InvalidArgumentError(absl::StrCat("header.fields[", i, "].name: empty"));
+      }
+      const v1::DataType t = f.dtype();
+      if (t != v1::DATA_TYPE_FLOAT32 && t != v1::DATA_TYPE_FLOAT64 && t != v1::DATA_TYPE_INT32 &&
+          t != v1::DATA_TYPE_INT64) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "header.fields[", i, "].dtype: ", v1::DataType_Name(t),
+            " is not FLOAT32, FLOAT64, INT32 or INT64"));
+      }
+      expected_ += size_t(nv) * DataTypeSize(t);
+    }
+    if (header_.sha256().size() != 64) {
+      return absl::InvalidArgumentError(
+          "header.sha256: expected 64 lowercase hex digits (SHA-256 of all array bytes)");
+    }
+    RETURN_IF_ERROR(service_->meshes().CheckCapacity());
+    // The raw bytes are held until the mesh is built: reserve them for the upload's duration.
+    RETURN_IF_ERROR(service_->budget().Reserve(int64_t(expected_), "the upload's raw data"));
+    reservation_ = Reservation(&service_->budget(), int64_t(expected_));
+    data_.reserve(expected_);
+    return absl::OkStatus();
+  }
+
+  template <class T>
+  static T Read(const char* p) {
+    T v;
+    std::memcpy(&v, p, sizeof(T));
+    return v;
+  }
+
+  absl::Status Complete() {
+    if (!have_header_) return absl::InvalidArgumentError("header: the upload was empty");
+    if (data_.size() != expected_) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "chunk: the upload ended after ", data_.size(), " of ", expected_,
+          " bytes (truncated)"));
+    }
+    const std::string digest = Sha256Hex(data_);
+    if (digest != header_.sha256()) {
+      return absl::DataLossError(absl::StrCat("header.sha256: the data hashes to ", digest,
+                                              ", not ", header_.sha256(), " (corrupted upload)"));
+    }
+    Mesh mesh;
+    const int64_t nv = header_.num_vertices(), nt = header_.num_tetrahedra();
+    const char* p = data_.data();
+    mesh.points.resize(size_t(nv) * 3);
+    const bool f32 = header_.points_dtype() == v1::DATA_TYPE_FLOAT32;
+    for (size_t i = 0; i < mesh.points.size(); ++i) {
+      mesh.points[i] = f32 ? Read<float>(p + 4 * i) : Read<double>(p + 8 * i);
+    }
+    p += mesh.points.size() * (f32 ? 4 : 8);
+    mesh.tetrahedra.resize(size_t(nt) * 4);
+    const bool i32 = header_.tetrahedra_dtype() == v1::DATA_TYPE_INT32;
+    for (size_t i = 0; i < mesh.tetrahedra.size(); ++i) {
+      const int64_t v = i32 ? Read<int32_t>(p + 4 * i) : Read<int64_t>(p + 8 * i);
+      if (v < 0 || v >= nv) {
+        return absl::OutOfRangeError(absl::StrCat("tetrahedra: tetrahedron ", i / 4,
+                                                  " has vertex id ", v, " outside [0, ", nv,
+                                                  ")"));
+      }
+      mesh.tetrahedra[i] = SimplexId(v);
+    }
+    p += mesh.tetrahedra.size() * (i32 ? 4 : 8);
+    for (const v1::UploadField& f : header_.fields()) {
+      PointField field{f.name(), std::vector<double>(nv)};
+      field.is_integer = f.dtype() == v1::DATA_TYPE_INT32 || f.dtype() == v1::DATA_TYPE_INT64;
+      for (int64_t i = 0; i < nv; ++i) {
+        switch (f.dtype()) {
+          case v1::DATA_TYPE_FLOAT32: field.values[i] = Read<float>(p + 4 * i); break;
+          case v1::DATA_TYPE_FLOAT64: field.values[i] = Read<double>(p + 8 * i); break;
+          case v1::DATA_TYPE_INT32: field.values[i] = Read<int32_t>(p + 4 * i); break;
+          default: field.values[i] = double(Read<int64_t>(p + 8 * i)); break;
+        }
+      }
+      p += size_t(nv) * DataTypeSize(f.dtype());
+      mesh.point_fields.push_back(std::move(field));
+    }
+    data_.clear();
+    data_.shrink_to_fit();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    ASSIGN_OR_RETURN(auto loaded,
+                     service_->meshes().Add(header_.name().empty() ? "upload" : header_.name(),
+                                            "upload", std::move(mesh), seconds,
+                                            FromProto(header_.partition())));
+    Fill(*loaded, 0, response_->mutable_mesh());
+    return absl::OkStatus();
+  }
+
+  void Done(const absl::Status& status) {
+    service_->Count("UploadMesh", status);
+    service_->RefreshGauges();
+    Finish(ToGrpcStatus(status));
+  }
+
+  TopologyServiceImpl* service_;
+  v1::UploadMeshResponse* response_;
+  v1::UploadMeshRequest message_;
+  v1::UploadMeshHeader header_;
+  bool have_header_ = false;
+  size_t expected_ = 0;
+  std::string data_;
+  Reservation reservation_;
+  std::chrono::steady_clock::time_point start_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// StreamRelations: one request in, one response out, errors in band.
+class StreamRelationsReactor final
+    : public grpc::ServerBidiReactor<v1::StreamRelationsRequest, v1::StreamRelationsResponse> {
+ public:
+  StreamRelationsReactor(TopologyServiceImpl* service, grpc::CallbackServerContext* context)
+      : service_(service) {
+    const absl::Status admitted = service_->Admit(context);
+    if (!admitted.ok()) {
+      service_->Count("StreamRelations", admitted);
+      Finish(ToGrpcStatus(admitted));
+      return;
+    }
+    StartRead(&request_);
+  }
+
+  void OnReadDone(bool ok) override {
+    if (!ok) {
+      service_->Count("StreamRelations", absl::OkStatus());
+      Finish(grpc::Status::OK);
+      return;
+    }
+    response_.Clear();
+    response_.set_request_id(request_.request_id());
+    std::vector<int64_t> ids;
+    absl::Status s = service_->draining()
+                         ? absl::UnavailableError("the server is shutting down")
+                         : service_->AnswerRelation(request_.session_id(), request_.relation(),
+                                                    request_.simplex(), false, ids, nullptr);
+    if (s.ok()) {
+      response_.mutable_ids()->Add(ids.begin(), ids.end());
+    } else {
+      response_.mutable_error()->set_code(int(s.code()));
+      response_.mutable_error()->set_message(std::string(s.message()));
+    }
+    StartWrite(&response_);
+  }
+
+  void OnWriteDone(bool ok) override {
+    if (!ok) {
+      Finish(grpc::Status(grpc::StatusCode::CANCELLED, "the client went away"));
+      return;
+    }
+    StartRead(&request_);
+  }
+
+  void OnDone() override { delete this; }
+
+ private:
+  TopologyServiceImpl* service_;
+  v1::StreamRelationsRequest request_;
+  v1::StreamRelationsResponse response_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// RunJob: the algorithm runs on a thread of its own; its events (progress, result arrays,
+// summary, statistics) are queued and written one at a time. Cancelling the call, CancelJob,
+// closing the session or draining the server set the job's cancel flag.
+class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> {
+ public:
+  RunJobReactor(TopologyServiceImpl* service, grpc::CallbackServerContext* context,
+                const v1::RunJobRequest* request)
+      : service_(service) {
+    absl::Status s = service_->Admit(context);
+    if (s.ok()) s = Prepare(*request);
+    if (!s.ok()) {
+      service_->Count("RunJob", s);
+      Finish(ToGrpcStatus(s));
+      return;
+    }
+    v1::RunJobResponse accepted;
+    accepted.mutable_accepted()->set_job_id(job_id_);
+    Push(std::move(accepted));
+    worker_ = std::thread([this] { Run(); });
+  }
+
+  void OnWriteDone(bool ok) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    writing_ = false;
+    if (!ok) {
+      handle_->cancel = true;
+      client_gone_ = true;
+    }
+    WriteNextLocked();
+  }
+
+  void OnCancel() override {
+    if (handle_) handle_->cancel = true;
+  }
+
+  void OnDone() override {
+    if (worker_.joinable()) worker_.join();
+    delete this;
+  }
+
+ private:
+  absl::Status Prepare(const v1::RunJobRequest& request) {
+    ASSIGN_OR_RETURN(session_, service_->sessions().Get(request.session_id()));
+    ASSIGN_OR_RETURN(input_.algorithm, FromProto(request.algorithm()));
+    if (!session_->running_job().empty()) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "session_id: session '", session_->id(), "' is running job '", session_->running_job(),
+          "'; wait for it or cancel it (CancelJob)"));
+    }
+    const AlgorithmInput& base = session_->base_input();
+    input_.order = base.order;
+    if (input_.algorithm == Algorithm::kMorseSmale) input_.input_tetrahedra = base.input_tetrahedra;
+    std::map<std::string, std::string> parameters(request.parameters().begin(),
+                                                  request.parameters().end());
+    RETURN_IF_ERROR(ApplyParameters(parameters, input_));
+    RETURN_IF_ERROR(service_->sessions().ReserveJobThreads(*session_));
+    include_arrays_ = request.include_arrays();
+    job_id_ = NewId("job");
+    handle_ = service_->RegisterJob(job_id_, session_->id());
+    session_->set_running_job(job_id_);
+    return absl::OkStatus();
+  }
+
+  void Run() {
+    RunContext context;
+    context.cancel = &handle_->cancel;
+    context.progress = [this](double fraction) {
+      v1::RunJobResponse progress;
+      progress.mutable_progress()->set_fraction(fraction);
+      Push(std::move(progress));
+    };
+    absl::StatusOr<JobOutcome> outcome = session_->RunJob(input_, context);
+    session_->set_running_job("");
+    service_->UnregisterJob(job_id_);  // before the client can see the end of the stream
+    service_->sessions().ReleaseJobThreads(*session_);
+    absl::Status status = outcome.status();
+    if (status.ok()) status = SendResult(*outcome);
+    service_->Count("RunJob", status);
+    if (status.ok()) {
+      service_->metrics().Job(AlgorithmName(input_.algorithm),
+                              StructureName(session_->options().structure),
+                              outcome->outcome.run_s, outcome->engine);
+    }
+    std::lock_guard<std::mutex> lock(mu_);
+    final_ = ToGrpcStatus(status);
+    WriteNextLocked();
+  }
+
+  absl::Status SendResult(const JobOutcome& job) {
+    if (include_arrays_) {
+      const ResultOutputs outputs = BuildOutputs(session_->result_context(), job.outcome.result);
+      for (const auto& [group, poly] : outputs.poly_data) {
+        v1::Array points;
+        PackPoints(group + "/Points", poly.points, &points);
+        SendArray(points);
+        if (!poly.line_offsets.empty()) {
+          std::vector<int64_t> offsets(poly.line_offsets.begin(), poly.line_offsets.end());
+          v1::Array a;
+          Pack(group + "/Offsets", offsets, &a);
+          SendArray(a);
+        }
+        for (const auto* arrays : {&poly.point_arrays, &poly.cell_arrays}) {
+          for (const io::NamedArray& named : *arrays) {
+            v1::Array a;
+            Pack(group + "/" + named.name, named, &a);
+            SendArray(a);
+          }
+        }
+      }
+      for (const io::NamedArray& named : outputs.segmentation) {
+        v1::Array a;
+        Pack("segmentation/" + named.name, named, &a);
+        SendArray(a);
+      }
+    }
+    v1::RunJobResponse summary;
+    const std::string json = Summarize(job.outcome.result, *session_->mesh().topology).dump();
+    const auto parsed = google::protobuf::util::JsonStringToMessage(
+        json, summary.mutable_summary()->mutable_result());
+    if (!parsed.ok()) return absl::InternalError("summary: " + parsed.ToString());
+    Push(std::move(summary));
+    v1::RunJobResponse stats;
+    stats.mutable_stats()->set_run_seconds(job.outcome.run_s);
+    Fill(job.engine, stats.mutable_stats()->mutable_engine());
+    Fill(job.memory, stats.mutable_stats()->mutable_memory());
+    Push(std::move(stats));
+    return absl::OkStatus();
+  }
+
+  // Arrays larger than a chunk go in pieces.
+  void SendArray(const v1::Array& array) {
+    const std::string& data = array.data();
+    size_t offset = 0;
+    do {
+      v1::RunJobResponse chunk;
+      v1::ResultChunk* c = chunk.mutable_chunk();
+      *c->mutable_array() = array;
+      const size_t n = std::min(kChunkBytes, data.size() - offset);
+      c->mutable_array()->set_data(data.substr(offset, n));
+      c->set_offset(int64_t(offset));
+      c->set_total_bytes(int64_t(data.size()));
+      Push(std::move(chunk));
+      offset += n;
+    } while (offset < data.size());
+  }
+
+  void Push(v1::RunJobResponse message) {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (client_gone_) return;
+    queue_.push_back(std::move(message));
+    WriteNextLocked();
+  }
+
+  // mu_ held: start the next write, or finish once everything is written.
+  void WriteNextLocked() {
+    if (writing_ || finished_) return;
+    if (!queue_.empty() && !client_gone_) {
+      current_ = std::move(queue_.front());
+      queue_.pop_front();
+      writing_ = true;
+      StartWrite(&current_);
+      return;
+    }
+    if (final_) {
+      finished_ = true;
+      Finish(*final_);
+    }
+  }
+
+  TopologyServiceImpl* service_;
+  std::shared_ptr<Session> session_;
+  std::shared_ptr<JobHandle> handle_;
+  std::string job_id_;
+  AlgorithmInput input_;
+  bool include_arrays_ = false;
+  std::thread worker_;
+
+  std::mutex mu_;
+  std::deque<v1::RunJobResponse> queue_;
+  v1::RunJobResponse current_;
+  bool writing_ = false, finished_ = false, client_gone_ = false;
+  std::optional<grpc::Status> final_;
+};
+
+}  // namespace
+
+grpc::ServerReadReactor<v1::UploadMeshRequest>* TopologyServiceImpl::UploadMesh(
+    grpc::CallbackServerContext* context, v1::UploadMeshResponse* response) {
+  return new UploadReactor(this, context, response);
+}
+
+grpc::ServerBidiReactor<v1::StreamRelationsRequest, v1::StreamRelationsResponse>*
+TopologyServiceImpl::StreamRelations(grpc::CallbackServerContext* context) {
+  return new StreamRelationsReactor(this, context);
+}
+
+grpc::ServerWriteReactor<v1::RunJobResponse>* TopologyServiceImpl::RunJob(
+    grpc::CallbackServerContext* context, const v1::RunJobRequest* request) {
+  return new RunJobReactor(this, context, request);
+}
+
+}  // namespace actopo::service

@@ -1,0 +1,456 @@
+// Every RPC against a real server in the test process.
+#include <cstring>
+#include <thread>
+
+#include "google/protobuf/util/json_util.h"
+#include "server/algorithms/digest.h"
+#include "server/algorithms/vertex_order.h"
+#include "server/core/explicit_structure.h"
+#include "server/core/partition.h"
+#include "server/results/run_algorithm.h"
+#include "server/service/testing/service_fixture.h"
+
+namespace actopo::service {
+namespace {
+
+using testing::ServiceTest;
+
+TEST_F(ServiceTest, ServerInfo) {
+  v1::GetServerInfoResponse info;
+  ASSERT_TRUE(stub_->GetServerInfo(Context().get(), {}, &info).ok());
+  EXPECT_EQ(info.algorithms_size(), 4);
+  EXPECT_EQ(info.relations_size(), kNumRelations);
+  EXPECT_EQ(info.relations(0), "vertex_neighbors");
+  EXPECT_FALSE(info.library_versions().at("grpc").empty());
+  EXPECT_GT(info.limits().max_batch_size(), 0);
+}
+
+TEST_F(ServiceTest, MeshLifecycle) {
+  const std::string sample = LoadSample("jittered:5");
+  v1::LoadMeshRequest file;
+  file.set_path("sub/cube.vtu");
+  v1::LoadMeshResponse loaded;
+  ASSERT_TRUE(stub_->LoadMesh(Context().get(), file, &loaded).ok());
+  EXPECT_EQ(loaded.mesh().vertices(), 216);
+  EXPECT_EQ(loaded.mesh().tetrahedra(), 6 * 125);
+  EXPECT_EQ(loaded.mesh().source(), "file:sub/cube.vtu");
+  v1::ListMeshesResponse list;
+  ASSERT_TRUE(stub_->ListMeshes(Context().get(), {}, &list).ok());
+  EXPECT_EQ(list.meshes_size(), 2);
+  v1::GetMeshRequest get;
+  get.set_mesh_id(sample);
+  v1::GetMeshResponse described;
+  ASSERT_TRUE(stub_->GetMesh(Context().get(), get, &described).ok());
+  EXPECT_EQ(described.mesh().vertices(), 125);
+  EXPECT_GT(described.mesh().blocks(), 1);
+  EXPECT_EQ(described.mesh().fields_size(), 2);
+  v1::DeleteMeshRequest del;
+  del.set_mesh_id(sample);
+  v1::DeleteMeshResponse deleted;
+  ASSERT_TRUE(stub_->DeleteMesh(Context().get(), del, &deleted).ok());
+  EXPECT_EQ(stub_->GetMesh(Context().get(), get, &described).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+  EXPECT_EQ(stub_->DeleteMesh(Context().get(), del, &deleted).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+}
+
+TEST_F(ServiceTest, SessionLifecycleAndStats) {
+  const std::string mesh = LoadSample("jittered:6");
+  for (v1::Structure structure :
+       {v1::STRUCTURE_EXPLICIT, v1::STRUCTURE_COMPACT, v1::STRUCTURE_ACTOPO}) {
+    const std::string id = Open(mesh, structure);
+    ASSERT_EQ(id.rfind("session-", 0), 0u);
+    EXPECT_GE(id.size(), 40u);  // 128 random bits
+    v1::GetSessionRequest get;
+    get.set_session_id(id);
+    v1::GetSessionResponse session;
+    ASSERT_TRUE(stub_->GetSession(Context().get(), get, &session).ok());
+    EXPECT_EQ(session.session().scalar_field(), "scalar");
+    EXPECT_EQ(session.session().structure(), structure);
+    v1::GetRelationRequest q;
+    q.set_session_id(id);
+    q.set_relation(v1::RELATION_VERTEX_STAR);
+    q.mutable_simplex()->set_id(7);
+    v1::GetRelationResponse r;
+    ASSERT_TRUE(stub_->GetRelation(Context().get(), q, &r).ok());
+    v1::GetSessionStatsRequest sr;
+    sr.set_session_id(id);
+    v1::GetSessionStatsResponse stats;
+    ASSERT_TRUE(stub_->GetSessionStats(Context().get(), sr, &stats).ok());
+    EXPECT_EQ(stats.relation_queries().count(), 1);
+    EXPECT_GT(stats.memory().static_bytes(), 0);
+    EXPECT_GT(stats.memory().process_rss_bytes(), 0);
+    v1::CloseSessionRequest close;
+    close.set_session_id(id);
+    v1::CloseSessionResponse closed;
+    ASSERT_TRUE(stub_->CloseSession(Context().get(), close, &closed).ok());
+    EXPECT_EQ(stub_->GetSession(Context().get(), get, &session).error_code(),
+              grpc::StatusCode::NOT_FOUND);
+  }
+  v1::ListSessionsResponse list;
+  ASSERT_TRUE(stub_->ListSessions(Context().get(), {}, &list).ok());
+  EXPECT_EQ(list.sessions_size(), 0);
+}
+
+// Relations through the service equal the core's, translated to input ids.
+TEST_F(ServiceTest, RelationsMatchTheCore) {
+  const Mesh mesh = *io::MakeSample("jittered:5");
+  const std::string mesh_id = LoadSample("jittered:5", 50);
+  auto topo = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 50}));
+  auto structure = *ExplicitStructure::Build(topo, {});
+  auto reader = structure->NewReader();
+  for (v1::Structure kind : {v1::STRUCTURE_EXPLICIT, v1::STRUCTURE_COMPACT, v1::STRUCTURE_ACTOPO}) {
+    const std::string session = Open(mesh_id, kind);
+    for (Relation r : AllRelations()) {
+      const int dim = SourceDimension(r);
+      for (SimplexId s = 0; s < topo->num_simplices(dim); s += 7) {
+        v1::GetRelationRequest q;
+        q.set_session_id(session);
+        q.set_relation(static_cast<v1::Relation>(Index(r) + 1));
+        const SimplexId wire = dim == 0 ? topo->vertex_input_id(s)
+                               : dim == 3 ? topo->tetrahedron_input_id(s)
+                                          : s;
+        q.mutable_simplex()->set_id(wire);
+        v1::GetRelationResponse answer;
+        ASSERT_TRUE(stub_->GetRelation(Context().get(), q, &answer).ok());
+        std::vector<int64_t> expected;
+        for (SimplexId x : reader.get(r, s)) {
+          const int t = TargetDimension(r);
+          expected.push_back(t == 0 ? topo->vertex_input_id(x)
+                             : t == 3 ? topo->tetrahedron_input_id(x)
+                                      : x);
+        }
+        ASSERT_EQ(std::vector<int64_t>(answer.ids().begin(), answer.ids().end()), expected)
+            << RelationName(r) << " of " << wire;
+        // The same simplex by its vertices.
+        if (dim > 0) {
+          q.mutable_simplex()->mutable_vertices()->Clear();
+          for (SimplexId v : CellInputVertices(*topo, dim, s)) {
+            q.mutable_simplex()->mutable_vertices()->add_ids(v);
+          }
+          v1::GetRelationResponse by_tuple;
+          ASSERT_TRUE(stub_->GetRelation(Context().get(), q, &by_tuple).ok());
+          EXPECT_EQ(by_tuple.ids_size(), answer.ids_size());
+        }
+      }
+    }
+  }
+}
+
+TEST_F(ServiceTest, BatchEqualsSingles) {
+  const std::string session = Open(LoadSample("jittered:6"), v1::STRUCTURE_ACTOPO);
+  std::vector<int64_t> ids = {0, 5, 17, 42, 100, 215};
+  v1::GetRelationBatchRequest batch;
+  batch.set_session_id(session);
+  batch.set_relation(v1::RELATION_VERTEX_EDGES);
+  batch.mutable_ids()->set_dtype(v1::DATA_TYPE_INT64);
+  batch.mutable_ids()->add_shape(int64_t(ids.size()));
+  batch.mutable_ids()->set_data(std::string(reinterpret_cast<const char*>(ids.data()),
+                                            ids.size() * sizeof(int64_t)));
+  v1::GetRelationBatchResponse response;
+  ASSERT_TRUE(stub_->GetRelationBatch(Context().get(), batch, &response).ok());
+  std::vector<int64_t> offsets(response.offsets().data().size() / 8);
+  std::memcpy(offsets.data(), response.offsets().data().data(), offsets.size() * 8);
+  std::vector<int64_t> values(response.values().data().size() / 8);
+  std::memcpy(values.data(), response.values().data().data(), values.size() * 8);
+  ASSERT_EQ(offsets.size(), ids.size() + 1);
+  for (size_t i = 0; i < ids.size(); ++i) {
+    v1::GetRelationRequest q;
+    q.set_session_id(session);
+    q.set_relation(v1::RELATION_VERTEX_EDGES);
+    q.mutable_simplex()->set_id(ids[i]);
+    v1::GetRelationResponse one;
+    ASSERT_TRUE(stub_->GetRelation(Context().get(), q, &one).ok());
+    EXPECT_EQ(std::vector<int64_t>(values.begin() + offsets[i], values.begin() + offsets[i + 1]),
+              std::vector<int64_t>(one.ids().begin(), one.ids().end()));
+  }
+}
+
+TEST_F(ServiceTest, StreamKeepsGoingAfterBadItems) {
+  const std::string session = Open(LoadSample("jittered:5"), v1::STRUCTURE_COMPACT);
+  auto context = Context();
+  auto stream = stub_->StreamRelations(context.get());
+  const std::vector<int64_t> ids = {3, -1, 4, 99999, 5};
+  for (size_t i = 0; i < ids.size(); ++i) {
+    v1::StreamRelationsRequest q;
+    q.set_request_id(int64_t(100 + i));
+    q.set_session_id(session);
+    q.set_relation(v1::RELATION_VERTEX_NEIGHBORS);
+    q.mutable_simplex()->set_id(ids[i]);
+    ASSERT_TRUE(stream->Write(q));
+    v1::StreamRelationsResponse r;
+    ASSERT_TRUE(stream->Read(&r));
+    EXPECT_EQ(r.request_id(), int64_t(100 + i));
+    if (ids[i] < 0 || ids[i] > 1000) {
+      EXPECT_EQ(r.error().code(), int(grpc::StatusCode::OUT_OF_RANGE));
+      EXPECT_NE(r.error().message().find(std::to_string(ids[i])), std::string::npos);
+    } else {
+      EXPECT_FALSE(r.has_error());
+      EXPECT_GT(r.ids_size(), 0);
+    }
+  }
+  stream->WritesDone();
+  EXPECT_TRUE(stream->Finish().ok());
+}
+
+struct JobRun {
+  grpc::Status status;
+  std::vector<v1::RunJobResponse> messages;
+};
+
+JobRun RunJob(v1::TopologyService::Stub& stub, grpc::ClientContext* context,
+              const v1::RunJobRequest& request) {
+  JobRun run;
+  auto reader = stub.RunJob(context, request);
+  v1::RunJobResponse message;
+  while (reader->Read(&message)) run.messages.push_back(message);
+  run.status = reader->Finish();
+  return run;
+}
+
+TEST_F(ServiceTest, JobsStreamAcceptedProgressArraysSummaryStats) {
+  const Mesh mesh = *io::MakeSample("jittered:8");
+  const std::string mesh_id = LoadSample("jittered:8", 60);
+  auto topo = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 60}));
+  auto reference = *ExplicitStructure::Build(topo, {});
+  AlgorithmInput input;
+  input.order = VertexOrder(*topo, mesh.point_fields[0].values);
+  input.input_tetrahedra = mesh.tetrahedra;
+  for (v1::Structure kind : {v1::STRUCTURE_EXPLICIT, v1::STRUCTURE_COMPACT, v1::STRUCTURE_ACTOPO}) {
+    const std::string session = Open(mesh_id, kind, 2);
+    for (Algorithm a : AllAlgorithms()) {
+      input.algorithm = a;
+      const std::string expected =
+          Summarize(RunAlgorithm(*reference, input, {})->result, *topo).dump();
+      v1::RunJobRequest request;
+      request.set_session_id(session);
+      request.set_algorithm(static_cast<v1::Algorithm>(int(a) + 1));
+      request.set_include_arrays(true);
+      auto context = Context();
+      const JobRun run = RunJob(*stub_, context.get(), request);
+      ASSERT_TRUE(run.status.ok()) << run.status.error_message();
+      ASSERT_GE(run.messages.size(), 3u);
+      EXPECT_TRUE(run.messages.front().has_accepted());
+      EXPECT_TRUE(run.messages.back().has_stats());
+      const v1::RunJobResponse& summary = run.messages[run.messages.size() - 2];
+      ASSERT_TRUE(summary.has_summary());
+      std::string json;
+      ASSERT_TRUE(google::protobuf::util::MessageToJsonString(summary.summary().result(), &json).ok());
+      EXPECT_EQ(nlohmann::json::parse(json), nlohmann::json::parse(expected))
+          << AlgorithmName(a) << " on structure " << int(kind);
+      int progress = 0;
+      std::set<std::string> arrays;
+      for (const auto& m : run.messages) {
+        progress += m.has_progress();
+        if (m.has_chunk()) arrays.insert(m.chunk().array().name());
+      }
+      EXPECT_GT(progress, 0);
+      if (a == Algorithm::kMorseSmale) {
+        for (const char* name : {"critical_points/CellDimension", "critical_points/ManifoldSize",
+                                 "separatrices/Offsets", "separatrices/SeparatrixType",
+                                 "segmentation/MorseSmaleManifold"}) {
+          EXPECT_TRUE(arrays.count(name)) << name;
+        }
+      }
+      if (a == Algorithm::kCriticalPoints) {
+        EXPECT_TRUE(arrays.count("critical_points/CriticalType"));
+      }
+    }
+  }
+}
+
+TEST_F(ServiceTest, CancelJobStopsTheRun) {
+  const std::string session = Open(LoadSample("jittered:60", 500), v1::STRUCTURE_COMPACT);
+  v1::RunJobRequest request;
+  request.set_session_id(session);
+  request.set_algorithm(v1::ALGORITHM_TOPO_RELATIONS);
+  auto context = Context();
+  auto reader = stub_->RunJob(context.get(), request);
+  v1::RunJobResponse accepted;
+  ASSERT_TRUE(reader->Read(&accepted));
+  ASSERT_TRUE(accepted.has_accepted());
+  v1::CancelJobRequest cancel;
+  cancel.set_job_id(accepted.accepted().job_id());
+  v1::CancelJobResponse cancelled;
+  const auto start = std::chrono::steady_clock::now();
+  ASSERT_TRUE(stub_->CancelJob(Context().get(), cancel, &cancelled).ok());
+  v1::RunJobResponse message;
+  while (reader->Read(&message)) {
+  }
+  EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
+  // Generous: this checks the job stops rather than running to the end (about 2 s here).
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
+  EXPECT_EQ(stub_->CancelJob(Context().get(), cancel, &cancelled).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+  // The session is usable again.
+  request.set_algorithm(v1::ALGORITHM_CRITICAL_POINTS);
+  auto again = Context();
+  EXPECT_TRUE(RunJob(*stub_, again.get(), request).status.ok());
+}
+
+TEST_F(ServiceTest, CancellingTheCallCancelsTheJob) {
+  const std::string session = Open(LoadSample("jittered:60", 500), v1::STRUCTURE_ACTOPO);
+  v1::RunJobRequest request;
+  request.set_session_id(session);
+  request.set_algorithm(v1::ALGORITHM_TOPO_RELATIONS);
+  auto context = Context();
+  auto reader = stub_->RunJob(context.get(), request);
+  v1::RunJobResponse accepted;
+  ASSERT_TRUE(reader->Read(&accepted));
+  context->TryCancel();
+  v1::RunJobResponse message;
+  while (reader->Read(&message)) {
+  }
+  EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
+  // The job ends and frees the session for the next one.
+  for (int i = 0; i < 100; ++i) {
+    v1::GetSessionRequest get;
+    get.set_session_id(session);
+    v1::GetSessionResponse s;
+    ASSERT_TRUE(stub_->GetSession(Context().get(), get, &s).ok());
+    if (s.session().running_job_id().empty()) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  request.set_algorithm(v1::ALGORITHM_CRITICAL_POINTS);
+  auto again = Context();
+  EXPECT_TRUE(RunJob(*stub_, again.get(), request).status.ok());
+}
+
+TEST_F(ServiceTest, ConcurrentSessionsOnOneMesh) {
+  const std::string mesh = LoadSample("jittered:12", 100);
+  std::vector<std::string> sessions;
+  for (v1::Structure kind : {v1::STRUCTURE_EXPLICIT, v1::STRUCTURE_COMPACT, v1::STRUCTURE_ACTOPO,
+                             v1::STRUCTURE_ACTOPO}) {
+    sessions.push_back(Open(mesh, kind));
+  }
+  std::vector<std::string> summaries(sessions.size());
+  std::vector<std::thread> threads;
+  for (size_t i = 0; i < sessions.size(); ++i) {
+    threads.emplace_back([&, i] {
+      v1::RunJobRequest request;
+      request.set_session_id(sessions[i]);
+      request.set_algorithm(v1::ALGORITHM_MORSE_SMALE);
+      auto context = Context();
+      const JobRun run = RunJob(*stub_, context.get(), request);
+      EXPECT_TRUE(run.status.ok()) << run.status.error_message();
+      for (const auto& m : run.messages) {
+        if (m.has_summary()) summaries[i] = m.summary().result().DebugString();
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  for (const std::string& s : summaries) EXPECT_EQ(s, summaries[0]);
+  EXPECT_FALSE(summaries[0].empty());
+}
+
+TEST_F(ServiceTest, UploadRoundTrip) {
+  const Mesh mesh = *io::MakeSample("jittered:4");
+  std::string bytes(reinterpret_cast<const char*>(mesh.points.data()),
+                    mesh.points.size() * sizeof(double));
+  bytes.append(reinterpret_cast<const char*>(mesh.tetrahedra.data()),
+               mesh.tetrahedra.size() * sizeof(int32_t));
+  const auto& f = mesh.point_fields[0];
+  bytes.append(reinterpret_cast<const char*>(f.values.data()), f.values.size() * sizeof(double));
+  v1::UploadMeshRequest header;
+  auto* h = header.mutable_header();
+  h->set_name("uploaded");
+  h->set_num_vertices(mesh.num_vertices());
+  h->set_num_tetrahedra(mesh.num_tetrahedra());
+  h->set_points_dtype(v1::DATA_TYPE_FLOAT64);
+  h->set_tetrahedra_dtype(v1::DATA_TYPE_INT32);
+  auto* field = h->add_fields();
+  field->set_name(f.name);
+  field->set_dtype(v1::DATA_TYPE_FLOAT64);
+  h->set_sha256(Sha256Hex(bytes));
+  v1::UploadMeshResponse response;
+  auto context = Context();
+  auto writer = stub_->UploadMesh(context.get(), &response);
+  ASSERT_TRUE(writer->Write(header));
+  for (size_t offset = 0; offset < bytes.size(); offset += 1000) {
+    v1::UploadMeshRequest chunk;
+    chunk.set_chunk(bytes.substr(offset, 1000));
+    ASSERT_TRUE(writer->Write(chunk));
+  }
+  writer->WritesDone();
+  const grpc::Status s = writer->Finish();
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  EXPECT_EQ(response.mesh().vertices(), 64);
+  EXPECT_EQ(response.mesh().tetrahedra(), 162);
+  EXPECT_EQ(response.mesh().source(), "upload");
+  EXPECT_EQ(response.mesh().fields(0).name(), f.name);
+}
+
+TEST_F(ServiceTest, LimitsAreEnforced) {
+  options_.max_sessions = 2;
+  options_.max_meshes = 2;
+  StartServer();
+  const std::string mesh = LoadSample("jittered:5");
+  LoadSample("jittered:4");
+  v1::LoadMeshRequest third;
+  third.set_sample("jittered:3");
+  v1::LoadMeshResponse loaded;
+  EXPECT_EQ(stub_->LoadMesh(Context().get(), third, &loaded).error_code(),
+            grpc::StatusCode::RESOURCE_EXHAUSTED);
+  Open(mesh, v1::STRUCTURE_COMPACT);
+  Open(mesh, v1::STRUCTURE_COMPACT);
+  v1::OpenSessionRequest open;
+  open.set_mesh_id(mesh);
+  v1::OpenSessionResponse opened;
+  const grpc::Status s = stub_->OpenSession(Context().get(), open, &opened);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_NE(s.error_message().find("maximum of 2 sessions"), std::string::npos);
+}
+
+TEST_F(ServiceTest, MemoryBudgetRefusesWhatWouldNotFit) {
+  options_.memory_budget_bytes = int64_t(20) << 20;
+  StartServer();
+  v1::LoadMeshRequest big;
+  big.set_sample("jittered:100");  // about 6M tetrahedra
+  v1::LoadMeshResponse loaded;
+  const grpc::Status s = stub_->LoadMesh(Context().get(), big, &loaded);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_NE(s.error_message().find("memory budget"), std::string::npos);
+  // Small ones still fit; an explicit session on a mesh may not.
+  const std::string mesh = LoadSample("jittered:20");
+  v1::OpenSessionRequest open;
+  open.set_mesh_id(mesh);
+  open.set_structure(v1::STRUCTURE_EXPLICIT);
+  v1::OpenSessionResponse opened;
+  EXPECT_EQ(stub_->OpenSession(Context().get(), open, &opened).error_code(),
+            grpc::StatusCode::RESOURCE_EXHAUSTED);
+}
+
+TEST_F(ServiceTest, TokenIsRequiredWhenSet) {
+  options_.token = "s3cret";
+  StartServer();
+  v1::GetServerInfoResponse info;
+  const grpc::Status denied = stub_->GetServerInfo(Context().get(), {}, &info);
+  EXPECT_EQ(denied.error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  token_ = "wrong";
+  EXPECT_EQ(stub_->GetServerInfo(Context().get(), {}, &info).error_code(),
+            grpc::StatusCode::UNAUTHENTICATED);
+  token_ = "s3cret";
+  EXPECT_TRUE(stub_->GetServerInfo(Context().get(), {}, &info).ok());
+}
+
+TEST_F(ServiceTest, DrainingRefusesNewWorkAndCancelsJobs) {
+  const std::string session = Open(LoadSample("jittered:60", 500), v1::STRUCTURE_COMPACT);
+  v1::RunJobRequest request;
+  request.set_session_id(session);
+  request.set_algorithm(v1::ALGORITHM_TOPO_RELATIONS);
+  auto context = Context();
+  auto reader = stub_->RunJob(context.get(), request);
+  v1::RunJobResponse message;
+  ASSERT_TRUE(reader->Read(&message));
+  server_->Drain();
+  while (reader->Read(&message)) {
+  }
+  EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
+  v1::GetServerInfoResponse info;
+  const grpc::Status s = stub_->GetServerInfo(Context().get(), {}, &info);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::UNAVAILABLE);
+  EXPECT_NE(s.error_message().find("shutting down"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace actopo::service

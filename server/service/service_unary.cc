@@ -1,0 +1,306 @@
+// The unary RPCs of TopologyServiceImpl.
+#include <google/protobuf/stubs/common.h>
+#include <grpcpp/grpcpp.h>
+
+#include "absl/strings/str_cat.h"
+#include "server/core/process_memory.h"
+#include "server/core/status_macros.h"
+#include "server/io/samples.h"
+#include "server/io/vtk_reader.h"
+#include "server/service/service.h"
+#include "server/service/wire.h"
+
+namespace actopo::service {
+
+TopologyServiceImpl::TopologyServiceImpl(MeshRegistry* meshes, SessionManager* sessions,
+                                         MemoryBudget* budget, Metrics* metrics,
+                                         ServiceLimits limits, std::string token)
+    : meshes_(meshes),
+      sessions_(sessions),
+      budget_(budget),
+      metrics_(metrics),
+      limits_(limits),
+      token_(std::move(token)) {}
+
+void TopologyServiceImpl::Drain() {
+  draining_ = true;
+  std::lock_guard<std::mutex> lock(jobs_mu_);
+  for (auto& [id, job] : jobs_) job->cancel = true;
+}
+
+absl::Status TopologyServiceImpl::Admit(grpc::CallbackServerContext* context) const {
+  if (draining_) return absl::UnavailableError("the server is shutting down; retry elsewhere");
+  if (token_.empty()) return absl::OkStatus();
+  const auto& metadata = context->client_metadata();
+  auto it = metadata.find("authorization");
+  if (it == metadata.end() ||
+      std::string_view(it->second.data(), it->second.size()) != "Bearer " + token_) {
+    return absl::UnauthenticatedError(
+        "authorization: missing or wrong bearer token (metadata 'authorization: Bearer TOKEN')");
+  }
+  return absl::OkStatus();
+}
+
+void TopologyServiceImpl::Count(std::string_view rpc, const absl::Status& status) {
+  metrics_->Request(rpc, int(status.code()));
+}
+
+void TopologyServiceImpl::RefreshGauges() {
+  metrics_->Gauges(int(meshes_->size()), int(sessions_->size()), budget_->used(),
+                   CurrentRssBytes(), sessions_->threads_in_use());
+}
+
+template <class Fn>
+grpc::ServerUnaryReactor* TopologyServiceImpl::Unary(grpc::CallbackServerContext* context,
+                                                     std::string_view rpc, Fn&& fn) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  absl::Status status = Admit(context);
+  if (status.ok()) status = fn();
+  Count(rpc, status);
+  RefreshGauges();
+  reactor->Finish(ToGrpcStatus(status));
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* TopologyServiceImpl::GetServerInfo(grpc::CallbackServerContext* c,
+                                                             const v1::GetServerInfoRequest*,
+                                                             v1::GetServerInfoResponse* out) {
+  return Unary(c, "GetServerInfo", [&] {
+    out->set_version("0.1.0");
+    auto& libs = *out->mutable_library_versions();
+    libs["grpc"] = grpc::Version();
+    libs["protobuf"] = google::protobuf::internal::VersionString(GOOGLE_PROTOBUF_VERSION);
+    libs["vtk"] = io::VtkVersion();
+    for (Algorithm a : AllAlgorithms()) out->add_algorithms(std::string(AlgorithmName(a)));
+    for (Relation r : AllRelations()) out->add_relations(std::string(RelationName(r)));
+    for (const std::string& s : io::SampleNames()) out->add_samples(s);
+    v1::ServerLimits* l = out->mutable_limits();
+    l->set_max_batch_size(limits_.max_batch_size);
+    l->set_max_message_bytes(limits_.max_message_bytes);
+    l->set_memory_budget_bytes(budget_->limit());
+    return absl::OkStatus();
+  });
+}
+
+grpc::ServerUnaryReactor* TopologyServiceImpl::LoadMesh(grpc::CallbackServerContext* c,
+                                                        const v1::LoadMeshRequest* in,
+                                                        v1::LoadMeshResponse* out) {
+  return Unary(c, "LoadMesh", [&]() -> absl::Status {
+    const PartitionOptions partition = FromProto(in->partition());
+    absl::StatusOr<std::shared_ptr<const LoadedMesh>> mesh;
+    switch (in->source_case()) {
+      case v1::LoadMeshRequest::kPath: mesh = meshes_->LoadFile(in->path(), partition); break;
+      case v1::LoadMeshRequest::kSample: mesh = meshes_->LoadSample(in->sample(), partition); break;
+      default: return absl::InvalidArgumentError("source: set path or sample");
+    }
+    if (!mesh.ok()) return mesh.status();
+    Fill(**mesh, 0, out->mutable_mesh());
+    return absl::OkStatus();
+  });
+}
+
+grpc::ServerUnaryReactor* TopologyServiceImpl::ListMeshes(grpc::CallbackServerContext* c,
+                                                          const v1::ListMeshesRequest*,
+                                                          v1::ListMeshesResponse* out) {
+  return Unary(c, "ListMeshes", [&] {
+    for (const auto& m : meshes_->List()) {
+      Fill(*m, sessions_->SessionsOnMesh(m->id), out->add_meshes());
+    }
+    return absl::OkStatus();
+  });
+}
+
+grpc::ServerUnaryReactor* TopologyServiceImpl::GetMesh(grpc::CallbackServerContext* c,
+                                                       const v1::GetMeshRequest* in,
+                                                       v1::GetMeshResponse* out) {
+  return Unary(c, "GetMesh", [&]() -> absl::Status {
+    ASSIGN_OR_RETURN(auto mesh, meshes_->Get(in->mesh_id()));
+    Fill(*mesh, sessions_->SessionsOnMesh(mesh->id), out->mutable_mesh());
+    return absl::OkStatus();
+  });
+}
+
+grpc::ServerUnaryReactor* TopologyServiceImpl::DeleteMesh(grpc::CallbackServerContext* c,
+                                                          const v1::DeleteMeshRequest* in,
+                                                          v1::DeleteMeshResponse*) {
+  // Sessions keep their mesh alive: its memory is freed when the last one closes.
+  return Unary(c, "DeleteMesh", [&] { return meshes_->Delete(in->mesh_id()); });
+}
+
+grpc::ServerUnaryReactor* TopologyServiceImpl::OpenSession(grpc::CallbackServerContext* c,
+                                                           const v1::OpenSessionRequest* in,
+                                                           v1::OpenSessionResponse* out) {
+  return Unary(c, "OpenSession", [&]() -> absl::Status {
+    ASSIGN_OR_RETURN(auto mesh, meshes_->Get(in->mesh_id()));
+    ASSIGN_OR_RETURN(SessionOptions options, FromProto(*in));
+    ASSIGN_OR_RETURN(auto session, sessions_->Open(mesh, options));
+    Fill(*session, out->mutable_session());
+    return absl::OkStatus();
+  });
+}
+
+grpc::ServerUnaryReactor* TopologyServiceImpl::GetSession(grpc::CallbackServerContext* c,
+                                                          const v1::GetSessionRequest* in,
+                                                          v1::GetSessionResponse* out) {
+  return Unary(c, "GetSession", [&]() -> absl::Status {
+    ASSIGN_OR_RETURN(auto session, sessions_->Get(in->session_id()));
+    Fill(*session, out->mutable_session());
+    return absl::OkStatus();
+  });
+}
+
+grpc::ServerUnaryReactor* TopologyServiceImpl::ListSessions(grpc::CallbackServerContext* c,
+                                                            const v1::ListSessionsRequest*,
+                                                            v1::ListSessionsResponse* out) {
+  return Unary(c, "ListSessions", [&] {
+    for (const auto& s : sessions_->List()) Fill(*s, out->add_sessions());
+    return absl::OkStatus();
+  });
+}
+
+grpc::ServerUnaryReactor* TopologyServiceImpl::CloseSession(grpc::CallbackServerContext* c,
+                                                            const v1::CloseSessionRequest* in,
+                                                            v1::CloseSessionResponse*) {
+  return Unary(c, "CloseSession", [&]() -> absl::Status {
+    ASSIGN_OR_RETURN(auto session, sessions_->Get(in->session_id()));
+    {
+      // Cancel its running job; the job's stream ends with CANCELLED.
+      std::lock_guard<std::mutex> lock(jobs_mu_);
+      for (auto& [id, job] : jobs_) {
+        if (job->session_id == session->id()) job->cancel = true;
+      }
+    }
+    return sessions_->Close(in->session_id());
+  });
+}
+
+grpc::ServerUnaryReactor* TopologyServiceImpl::GetSessionStats(
+    grpc::CallbackServerContext* c, const v1::GetSessionStatsRequest* in,
+    v1::GetSessionStatsResponse* out) {
+  return Unary(c, "GetSessionStats", [&]() -> absl::Status {
+    ASSIGN_OR_RETURN(auto session, sessions_->Get(in->session_id()));
+    const SessionStats s = session->stats();
+    Fill(s.engine, out->mutable_engine());
+    Fill(s.memory, out->mutable_memory());
+    out->mutable_memory()->set_process_rss_bytes(CurrentRssBytes());
+    out->mutable_relation_queries()->set_count(s.queries);
+    out->mutable_relation_queries()->set_ns(s.query_ns);
+    out->mutable_jobs()->set_count(s.jobs);
+    out->mutable_jobs()->set_ns(s.job_ns);
+    out->set_preprocess_seconds(s.preprocess_seconds);
+    return absl::OkStatus();
+  });
+}
+
+absl::Status TopologyServiceImpl::AnswerRelation(const std::string& session_id,
+                                                 v1::Relation relation,
+                                                 const v1::Simplex& simplex,
+                                                 bool include_vertices, std::vector<int64_t>& ids,
+                                                 std::vector<int64_t>* vertices) {
+  ASSIGN_OR_RETURN(auto session, sessions_->Get(session_id));
+  ASSIGN_OR_RETURN(Relation r, FromProto(relation));
+  const int dim = SourceDimension(r);
+  SimplexId s = -1;
+  switch (simplex.simplex_case()) {
+    case v1::Simplex::kId: {
+      ASSIGN_OR_RETURN(s, session->ResolveId(dim, simplex.id(), "simplex.id"));
+      break;
+    }
+    case v1::Simplex::kVertices: {
+      const auto& v = simplex.vertices().ids();
+      ASSIGN_OR_RETURN(s, session->ResolveVertices(dim, std::span<const int64_t>(v.data(), v.size()),
+                                                   "simplex.vertices"));
+      break;
+    }
+    default: return absl::InvalidArgumentError("simplex: set id or vertices");
+  }
+  return session->Query(r, s, ids, include_vertices ? vertices : nullptr);
+}
+
+grpc::ServerUnaryReactor* TopologyServiceImpl::GetRelation(grpc::CallbackServerContext* c,
+                                                           const v1::GetRelationRequest* in,
+                                                           v1::GetRelationResponse* out) {
+  return Unary(c, "GetRelation", [&]() -> absl::Status {
+    std::vector<int64_t> ids, vertices;
+    RETURN_IF_ERROR(AnswerRelation(in->session_id(), in->relation(), in->simplex(),
+                                   in->include_vertices(), ids, &vertices));
+    out->mutable_ids()->Add(ids.begin(), ids.end());
+    out->mutable_vertices()->Add(vertices.begin(), vertices.end());
+    return absl::OkStatus();
+  });
+}
+
+grpc::ServerUnaryReactor* TopologyServiceImpl::GetRelationBatch(
+    grpc::CallbackServerContext* c, const v1::GetRelationBatchRequest* in,
+    v1::GetRelationBatchResponse* out) {
+  return Unary(c, "GetRelationBatch", [&]() -> absl::Status {
+    ASSIGN_OR_RETURN(auto session, sessions_->Get(in->session_id()));
+    ASSIGN_OR_RETURN(Relation r, FromProto(in->relation()));
+    const int dim = SourceDimension(r);
+    const bool by_tuple = in->has_vertex_tuples();
+    if (by_tuple == in->has_ids()) {
+      return absl::InvalidArgumentError("ids / vertex_tuples: set exactly one of them");
+    }
+    ASSIGN_OR_RETURN(std::vector<int64_t> flat,
+                     UnpackIntegers(by_tuple ? in->vertex_tuples() : in->ids(),
+                                    by_tuple ? "vertex_tuples" : "ids"));
+    const int k = by_tuple ? dim + 1 : 1;
+    if (by_tuple && (in->vertex_tuples().shape_size() != 2 ||
+                     in->vertex_tuples().shape(1) != k)) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "vertex_tuples.shape: must be (n, ", k, ") for ", RelationName(r).data()));
+    }
+    const int64_t n = int64_t(flat.size()) / k;
+    if (n > limits_.max_batch_size) {
+      return absl::ResourceExhaustedError(absl::StrCat(
+          "ids: ", n, " simplices exceed the batch limit of ", limits_.max_batch_size,
+          "; split the batch or use StreamRelations"));
+    }
+    std::vector<int64_t> offsets = {0}, values;
+    offsets.reserve(n + 1);
+    for (int64_t i = 0; i < n; ++i) {
+      const std::string field = absl::StrCat(by_tuple ? "vertex_tuples[" : "ids[", i, "]");
+      absl::StatusOr<SimplexId> s =
+          by_tuple ? session->ResolveVertices(dim, std::span(flat).subspan(i * k, k), field)
+                   : session->ResolveId(dim, flat[i], field);
+      if (!s.ok()) return s.status();
+      RETURN_IF_ERROR(session->Query(r, *s, values, nullptr));
+      offsets.push_back(int64_t(values.size()));
+    }
+    Pack("offsets", offsets, out->mutable_offsets());
+    Pack("values", values, out->mutable_values());
+    return absl::OkStatus();
+  });
+}
+
+grpc::ServerUnaryReactor* TopologyServiceImpl::CancelJob(grpc::CallbackServerContext* c,
+                                                         const v1::CancelJobRequest* in,
+                                                         v1::CancelJobResponse*) {
+  return Unary(c, "CancelJob", [&]() -> absl::Status {
+    std::lock_guard<std::mutex> lock(jobs_mu_);
+    auto it = jobs_.find(in->job_id());
+    if (it == jobs_.end()) {
+      return absl::NotFoundError(
+          absl::StrCat("job_id: no running job '", in->job_id(), "' (finished or never started)"));
+    }
+    it->second->cancel = true;
+    return absl::OkStatus();
+  });
+}
+
+std::shared_ptr<JobHandle> TopologyServiceImpl::RegisterJob(const std::string& job_id,
+                                                            const std::string& session) {
+  auto handle = std::make_shared<JobHandle>();
+  handle->session_id = session;
+  std::lock_guard<std::mutex> lock(jobs_mu_);
+  if (draining_) handle->cancel = true;
+  jobs_[job_id] = handle;
+  return handle;
+}
+
+void TopologyServiceImpl::UnregisterJob(const std::string& job_id) {
+  std::lock_guard<std::mutex> lock(jobs_mu_);
+  jobs_.erase(job_id);
+}
+
+}  // namespace actopo::service

@@ -1,0 +1,340 @@
+#include "server/service/session.h"
+
+#include <algorithm>
+#include <chrono>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "server/algorithms/vertex_order.h"
+#include "server/core/status_macros.h"
+#include "server/service/ids.h"
+
+namespace actopo::service {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+int64_t NanosSince(Clock::time_point start) {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start).count();
+}
+
+constexpr std::string_view kDimensionNames[4] = {"vertex", "edge", "triangle", "tetrahedron"};
+
+// Bytes per tetrahedron of all relations stored (explicit, measured on jittered:96).
+constexpr int64_t kAllRelationsBytesPerTet = 380;
+
+}  // namespace
+
+std::string_view StructureName(StructureKind s) {
+  switch (s) {
+    case StructureKind::kExplicit: return "explicit";
+    case StructureKind::kCompact: return "compact";
+    case StructureKind::kActopo: return "actopo";
+  }
+  return "?";
+}
+
+int64_t Session::EstimateBytes(const LoadedMesh& mesh, const SessionOptions& o) {
+  const int64_t tets = mesh.topology->num_tetrahedra();
+  const int64_t blocks = mesh.topology->num_blocks();
+  const int64_t order = int64_t(mesh.topology->num_vertices()) * 4 + tets * 16;
+  if (o.structure == StructureKind::kExplicit) return order + tets * kAllRelationsBytesPerTet;
+  // Buffers hold about buffer_ratio of all relations, plus one state cell per (block,
+  // relation) per consumer (16 bytes each).
+  const int64_t cells = blocks * kNumRelations * 16 * (o.consumers + 1);
+  return order + int64_t(o.buffer_ratio * tets * kAllRelationsBytesPerTet) + cells;
+}
+
+int Session::query_threads() const {
+  return options_.structure == StructureKind::kActopo ? options_.producers : 0;
+}
+
+int Session::job_threads() const {
+  const int producers = options_.structure == StructureKind::kActopo ? options_.producers : 0;
+  return options_.consumers * (1 + producers);
+}
+
+ActopoStructure::Options Session::EngineOptions(Algorithm algorithm, int consumers) const {
+  return {.consumers = consumers,
+          .producers = options_.producers,
+          .buffer_ratio = options_.buffer_ratio,
+          .prefetch = options_.prefetch.value_or(DefaultPrefetch(algorithm)),
+          .precompute = options_.precompute.value_or(DefaultPrecompute(algorithm)),
+          .declared = DeclaredRelations(algorithm)};
+}
+
+absl::Status Session::Validate(const SessionOptions& options) {
+  if (options.consumers < 1 || options.consumers > 64) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("engine.consumers: ", options.consumers, " is outside [1, 64]"));
+  }
+  if (options.producers < 1 || options.producers > 64) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("engine.producers: ", options.producers, " is outside [1, 64]"));
+  }
+  if (!(options.buffer_ratio >= 0.0 && options.buffer_ratio <= 1.0)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("engine.buffer_ratio: ", options.buffer_ratio, " is outside [0, 1]"));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::unique_ptr<Session>> Session::Open(std::shared_ptr<const LoadedMesh> mesh,
+                                                       const SessionOptions& options,
+                                                       MemoryBudget* budget) {
+  RETURN_IF_ERROR(Validate(options));
+  auto s = std::unique_ptr<Session>(new Session());
+  const Mesh& m = mesh->mesh;
+  ASSIGN_OR_RETURN(int field, SelectScalarField(m, options.scalar_field));
+  s->scalar_name_ = m.point_fields[field].name;
+  const int64_t estimate = EstimateBytes(*mesh, options);
+  RETURN_IF_ERROR(budget->Reserve(
+      estimate, absl::StrCat("a ", std::string(StructureName(options.structure)), " session on mesh '",
+                             mesh->id, "'")));
+  s->reservation_ = Reservation(budget, estimate);
+  s->id_ = NewId("session");
+  s->mesh_ = mesh;
+  s->options_ = options;
+  s->created_ = absl::Now();
+  s->Touch();
+
+  const auto start = Clock::now();
+  s->base_.order = VertexOrder(*mesh->topology, m.point_fields[field].values);
+  s->base_.input_tetrahedra = m.tetrahedra;
+  switch (options.structure) {
+    case StructureKind::kExplicit: {
+      ASSIGN_OR_RETURN(s->explicit_, ExplicitStructure::Build(mesh->topology, {}));
+      break;
+    }
+    case StructureKind::kCompact:
+      s->compact_ = std::make_unique<CompactStructure>(
+          mesh->topology, CompactStructure::Options{.cache_ratio = options.buffer_ratio,
+                                                    .consumers = options.consumers});
+      s->compact_reader_.emplace(s->compact_->NewReader());
+      break;
+    case StructureKind::kActopo: {
+      ActopoStructure::Options query{.consumers = 1,
+                                     .producers = options.producers,
+                                     .buffer_ratio = options.buffer_ratio,
+                                     .prefetch = options.prefetch.value_or(Prefetch::kSpatial),
+                                     .precompute = Precompute::kRequested};
+      ASSIGN_OR_RETURN(s->query_engine_, ActopoStructure::Create(mesh->topology, query));
+      s->actopo_reader_.emplace(s->query_engine_->NewReader());
+      break;
+    }
+  }
+  s->preprocess_seconds_ = std::chrono::duration<double>(Clock::now() - start).count();
+  return s;
+}
+
+Session::~Session() {
+  // Readers before their structures.
+  compact_reader_.reset();
+  actopo_reader_.reset();
+}
+
+absl::Time Session::last_used() const {
+  return absl::FromUnixNanos(last_used_ns_.load(std::memory_order_relaxed));
+}
+
+void Session::Touch() { last_used_ns_.store(absl::GetCurrentTimeNanos(), std::memory_order_relaxed); }
+
+absl::StatusOr<SimplexId> Session::ResolveId(int dimension, int64_t id,
+                                             std::string_view field) const {
+  const Topology& topo = *mesh_->topology;
+  const int64_t n = topo.num_simplices(dimension);
+  if (id < 0 || id >= n) {
+    return absl::OutOfRangeError(absl::StrCat(std::string(field), ": ",
+                                              std::string(kDimensionNames[dimension]), " id ", id,
+                                              " is outside [0, ", n, ")"));
+  }
+  if (dimension == 0) return topo.vertex_internal_id(SimplexId(id));
+  if (dimension == 3) return topo.tetrahedron_internal_id(SimplexId(id));
+  return SimplexId(id);
+}
+
+absl::StatusOr<SimplexId> Session::ResolveVertices(int dimension,
+                                                   std::span<const int64_t> vertices,
+                                                   std::string_view field) {
+  const Topology& topo = *mesh_->topology;
+  if (int(vertices.size()) != dimension + 1) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        std::string(field), ": a ", std::string(kDimensionNames[dimension]), " has ",
+        dimension + 1, " vertices, got ", vertices.size()));
+  }
+  std::array<SimplexId, 4> v{};
+  for (int i = 0; i <= dimension; ++i) {
+    if (vertices[i] < 0 || vertices[i] >= topo.num_vertices()) {
+      return absl::OutOfRangeError(absl::StrCat(std::string(field), ": vertex id ", vertices[i],
+                                                " is outside [0, ", topo.num_vertices(), ")"));
+    }
+    v[i] = topo.vertex_internal_id(SimplexId(vertices[i]));
+  }
+  std::sort(v.begin(), v.begin() + dimension + 1);
+  SimplexId found = -1;
+  switch (dimension) {
+    case 0: found = v[0]; break;
+    case 1: found = v[0] == v[1] ? -1 : topo.FindEdge(v[0], v[1]); break;
+    case 2: found = topo.FindTriangle(v[0], v[1], v[2]); break;
+    default: {
+      // The tetrahedra of its lowest vertex: internal ones come from its block's range and the
+      // external list, both short; scan them.
+      const int32_t b = topo.vertex_block(v[0]);
+      auto matches = [&](SimplexId t) {
+        const auto tv = topo.tetrahedron(t);
+        return std::equal(tv.begin(), tv.end(), v.begin());
+      };
+      for (SimplexId t = topo.block_tetrahedron_begin(b);
+           found < 0 && t < topo.block_tetrahedron_begin(b + 1); ++t) {
+        if (matches(t)) found = t;
+      }
+      for (SimplexId t : topo.external_tetrahedra(b)) {
+        if (found < 0 && matches(t)) found = t;
+      }
+    }
+  }
+  if (found < 0) {
+    return absl::NotFoundError(absl::StrCat(
+        std::string(field), ": (", absl::StrJoin(vertices, ", "), ") is not a ",
+        std::string(kDimensionNames[dimension]), " of mesh '", mesh_->id, "'"));
+  }
+  return found;
+}
+
+template <class Reader>
+absl::Status Session::QueryWith(Reader& reader, Relation r, SimplexId s,
+                                std::vector<int64_t>& ids, std::vector<int64_t>* vertices) {
+  const Topology& topo = *mesh_->topology;
+  const int target = TargetDimension(r);
+  for (SimplexId x : reader.get(r, s)) {
+    switch (target) {
+      case 0: ids.push_back(topo.vertex_input_id(x)); break;
+      case 3: ids.push_back(topo.tetrahedron_input_id(x)); break;
+      default: ids.push_back(x); break;
+    }
+    if (vertices != nullptr && (target == 1 || target == 2)) {
+      for (SimplexId v : CellInputVertices(topo, target, x)) vertices->push_back(v);
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::Status Session::Query(Relation r, SimplexId s, std::vector<int64_t>& ids,
+                            std::vector<int64_t>* vertices) {
+  const auto start = Clock::now();
+  Touch();
+  absl::Status status;
+  if (explicit_) {
+    auto reader = explicit_->NewReader();  // read-only: no lock
+    status = QueryWith(reader, r, s, ids, vertices);
+  } else {
+    std::lock_guard<std::mutex> lock(query_mu_);
+    status = compact_reader_ ? QueryWith(*compact_reader_, r, s, ids, vertices)
+                             : QueryWith(*actopo_reader_, r, s, ids, vertices);
+  }
+  queries_.fetch_add(1, std::memory_order_relaxed);
+  query_ns_.fetch_add(NanosSince(start), std::memory_order_relaxed);
+  return status;
+}
+
+const ResultContext& Session::result_context() {
+  std::lock_guard<std::mutex> lock(result_mu_);
+  if (!result_context_) {
+    const Mesh& m = mesh_->mesh;
+    const PointField* field = m.FindField(scalar_name_);
+    CompactStructure boundary(mesh_->topology, {});
+    auto reader = boundary.NewReader();
+    std::vector<uint8_t> on_boundary(mesh_->topology->num_vertices());
+    for (SimplexId v = 0; v < SimplexId(on_boundary.size()); ++v) {
+      on_boundary[v] = reader.vertex_on_boundary(v);
+    }
+    result_context_.emplace(ResultContext{m, *mesh_->topology, scalar_name_, field->values,
+                                          std::move(on_boundary)});
+  }
+  return *result_context_;
+}
+
+absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input,
+                                           const RunContext& context) {
+  std::unique_lock<std::mutex> job(job_mu_, std::try_to_lock);
+  if (!job.owns_lock()) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "session_id: session '", id_, "' is running job '", running_job(),
+        "'; wait for it or cancel it (CancelJob)"));
+  }
+  Touch();
+  const auto start = Clock::now();
+  RunContext ctx = context;
+  ctx.consumers = options_.consumers;
+  JobOutcome out;
+  if (explicit_) {
+    ASSIGN_OR_RETURN(out.outcome, RunAlgorithm(*explicit_, input, ctx));
+    out.memory = explicit_->memory();
+  } else if (compact_) {
+    // Jobs use readers of their own; the structure totals what finished readers counted.
+    const AccessStats before = compact_->stats();
+    ASSIGN_OR_RETURN(out.outcome, RunAlgorithm(*compact_, input, ctx));
+    const AccessStats after = compact_->stats();
+    out.engine.access = {.requests = after.requests - before.requests,
+                         .hits = after.hits - before.hits,
+                         .misses = after.misses - before.misses,
+                         .evictions = after.evictions - before.evictions,
+                         .relations_computed = after.relations_computed - before.relations_computed,
+                         .wait_ns = after.wait_ns - before.wait_ns};
+    out.engine.consumer_relations = out.engine.access.relations_computed;
+    out.memory = compact_->memory();
+  } else {
+    ASSIGN_OR_RETURN(auto engine, ActopoStructure::Create(
+                                      mesh_->topology, EngineOptions(input.algorithm,
+                                                                     options_.consumers)));
+    absl::StatusOr<AlgorithmOutcome> outcome = RunAlgorithm(*engine, input, ctx);
+    out.engine = engine->stats();
+    out.memory = engine->memory();
+    engine.reset();  // stop its producers before reporting
+    if (!outcome.ok()) return outcome.status();
+    out.outcome = std::move(*outcome);
+  }
+  {
+    std::lock_guard<std::mutex> lock(stats_mu_);
+    finished_jobs_ += out.engine;
+    relation_peak_bytes_ = std::max(relation_peak_bytes_, out.memory.relation_peak_bytes);
+  }
+  jobs_.fetch_add(1, std::memory_order_relaxed);
+  job_ns_.fetch_add(NanosSince(start), std::memory_order_relaxed);
+  Touch();
+  return out;
+}
+
+SessionStats Session::stats() const {
+  SessionStats s;
+  {
+    std::lock_guard<std::mutex> lock(stats_mu_);
+    s.engine = finished_jobs_;
+    s.memory.relation_peak_bytes = relation_peak_bytes_;
+  }
+  if (query_engine_) s.engine += query_engine_->stats();
+  const MemoryStats now = explicit_ ? explicit_->memory()
+                          : compact_ ? compact_->memory()
+                                     : query_engine_->memory();
+  s.memory.static_bytes = now.static_bytes;
+  s.memory.relation_bytes = now.relation_bytes;
+  s.memory.relation_peak_bytes = std::max(s.memory.relation_peak_bytes, now.relation_peak_bytes);
+  s.queries = queries_.load();
+  s.query_ns = query_ns_.load();
+  s.jobs = jobs_.load();
+  s.job_ns = job_ns_.load();
+  s.preprocess_seconds = preprocess_seconds_;
+  return s;
+}
+
+std::string Session::running_job() const {
+  std::lock_guard<std::mutex> lock(stats_mu_);
+  return running_job_;
+}
+
+void Session::set_running_job(const std::string& job_id) {
+  std::lock_guard<std::mutex> lock(stats_mu_);
+  running_job_ = job_id;
+}
+
+}  // namespace actopo::service

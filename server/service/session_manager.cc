@@ -1,0 +1,143 @@
+#include "server/service/session_manager.h"
+
+#include "absl/strings/str_cat.h"
+#include "server/core/status_macros.h"
+
+namespace actopo::service {
+
+SessionManager::SessionManager(SessionLimits limits, MemoryBudget* budget)
+    : limits_(limits), budget_(budget), reaper_([this] { ReapIdle(); }) {}
+
+SessionManager::~SessionManager() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_ = true;
+  }
+  reaper_cv_.notify_all();
+  reaper_.join();
+  std::map<std::string, std::shared_ptr<Session>> closing;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    closing.swap(sessions_);
+  }
+}
+
+absl::StatusOr<std::shared_ptr<Session>> SessionManager::Open(
+    std::shared_ptr<const LoadedMesh> mesh, const SessionOptions& options) {
+  RETURN_IF_ERROR(Session::Validate(options));
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (int(sessions_.size()) >= limits_.max_sessions) {
+      return absl::ResourceExhaustedError(absl::StrCat(
+          "sessions: the server holds its maximum of ", limits_.max_sessions,
+          " sessions; close one first (--max-sessions raises the limit)"));
+    }
+    const int producers = options.structure == StructureKind::kActopo ? options.producers : 0;
+    if (threads_ + producers > limits_.max_engine_threads) {
+      return absl::ResourceExhaustedError(absl::StrCat(
+          "engine.producers: ", producers, " more engine threads would exceed the server's ",
+          "budget of ", limits_.max_engine_threads, " (", threads_, " in use)"));
+    }
+    threads_ += producers;
+  }
+  absl::StatusOr<std::unique_ptr<Session>> session = Session::Open(mesh, options, budget_);
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!session.ok()) {
+    threads_ -= options.structure == StructureKind::kActopo ? options.producers : 0;
+    return session.status();
+  }
+  std::shared_ptr<Session> shared(std::move(*session));
+  sessions_[shared->id()] = shared;
+  return shared;
+}
+
+absl::StatusOr<std::shared_ptr<Session>> SessionManager::Get(const std::string& id) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = sessions_.find(id);
+  if (it == sessions_.end()) {
+    return absl::NotFoundError(absl::StrCat("session_id: no session '", id,
+                                            "' (closed, timed out after idling, or never opened)"));
+  }
+  return it->second;
+}
+
+std::vector<std::shared_ptr<Session>> SessionManager::List() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  std::vector<std::shared_ptr<Session>> out;
+  for (const auto& [id, s] : sessions_) out.push_back(s);
+  return out;
+}
+
+absl::Status SessionManager::Close(const std::string& id) {
+  std::shared_ptr<Session> closing;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = sessions_.find(id);
+    if (it == sessions_.end()) {
+      return absl::NotFoundError(absl::StrCat("session_id: no session '", id, "'"));
+    }
+    closing = std::move(it->second);
+    sessions_.erase(it);
+    threads_ -= closing->query_threads();
+  }
+  return absl::OkStatus();  // freed when the last request or job holding it ends
+}
+
+int SessionManager::SessionsOnMesh(const std::string& mesh_id) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  int n = 0;
+  for (const auto& [id, s] : sessions_) n += s->mesh().id == mesh_id;
+  return n;
+}
+
+size_t SessionManager::size() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return sessions_.size();
+}
+
+absl::Status SessionManager::ReserveJobThreads(const Session& session) {
+  std::lock_guard<std::mutex> lock(mu_);
+  const int needed = session.job_threads();
+  if (threads_ + needed > limits_.max_engine_threads) {
+    return absl::ResourceExhaustedError(absl::StrCat(
+        "engine: the job needs ", needed, " engine threads but the server's budget of ",
+        limits_.max_engine_threads, " has ", limits_.max_engine_threads - threads_,
+        " left; retry when other jobs end"));
+  }
+  threads_ += needed;
+  return absl::OkStatus();
+}
+
+void SessionManager::ReleaseJobThreads(const Session& session) {
+  std::lock_guard<std::mutex> lock(mu_);
+  threads_ -= session.job_threads();
+}
+
+int SessionManager::threads_in_use() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return threads_;
+}
+
+void SessionManager::ReapIdle() {
+  std::unique_lock<std::mutex> lock(mu_);
+  while (!stop_) {
+    reaper_cv_.wait_for(lock, std::chrono::seconds(1));
+    const absl::Time now = absl::Now();
+    std::vector<std::shared_ptr<Session>> expired;
+    for (auto it = sessions_.begin(); it != sessions_.end();) {
+      if (it->second->running_job().empty() &&
+          now - it->second->last_used() > limits_.idle_timeout) {
+        threads_ -= it->second->query_threads();
+        expired.push_back(std::move(it->second));
+        it = sessions_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    lock.unlock();
+    expired.clear();  // destroy outside the lock
+    lock.lock();
+  }
+}
+
+}  // namespace actopo::service
