@@ -6,7 +6,7 @@ CMAKE_FLAGS ?= -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo
 DATA_DIR ?= $(firstword $(wildcard $(abspath ../shared/data) /work/shared/data) $(abspath ../shared/data))
 DEMO_SAMPLE ?= jittered:40
 
-.PHONY: all deps build test test-unit test-asan test-tsan demo bench clean
+.PHONY: all deps build test test-unit test-asan test-tsan lint-proto demo bench clean
 
 all: build
 
@@ -19,9 +19,13 @@ $(BUILD)/build.ninja: | deps
 build: deps $(BUILD)/build.ninja
 	cmake --build $(BUILD) -j $(JOBS)
 
-# Unit and fidelity tests, then the core and algorithm tests again under ASan+UBSan and TSan.
-test: test-unit test-asan test-tsan
+# API lint, unit, service and fidelity tests, then the core and algorithm tests again under
+# ASan+UBSan and TSan.
+test: lint-proto test-unit test-asan test-tsan
 	@echo "make test: all suites passed"
+
+lint-proto: deps
+	.tools/node_modules/.bin/buf lint proto
 
 test-unit: build
 	ACTOPO_DATA_DIR=$(DATA_DIR) ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)

@@ -20,6 +20,8 @@ debian_packages=(
 )
 
 missing=()
+# npm (for buf): the machine's own Node.js when present, else Debian's.
+command -v npm >/dev/null 2>&1 || missing+=(nodejs npm)
 for p in "${debian_packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
@@ -33,6 +35,13 @@ if ((${#missing[@]})); then
   $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 else
   echo "install-deps: Debian packages present"
+fi
+
+# buf, the protobuf linter (make lint-proto), from npm into .tools/.
+buf="$here/.tools/node_modules/.bin/buf"
+if ((want_venv)) && [[ ! -x "$buf" ]]; then
+  echo "install-deps: installing buf (npm @bufbuild/buf)"
+  npm install --silent --no-audit --no-fund --prefix "$here/.tools" @bufbuild/buf@1.47.2 >/dev/null
 fi
 
 if ((want_venv)); then

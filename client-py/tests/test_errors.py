@@ -84,11 +84,11 @@ def test_resource_exhausted_and_authentication(strict_server):
         mesh = client.sample("jittered:4")
         with pytest.raises(actopo.ResourceExhaustedError):
             client.sample("jittered:5")
-        with pytest.raises(actopo.ResourceExhaustedError):
-            client.open_session(mesh, consumers=2, producers=2)  # 2 + 2 * 2 threads > 4
-        with client.open_session(mesh):
+        with client.open_session(mesh, consumers=4, producers=1) as session:
+            with pytest.raises(actopo.ResourceExhaustedError, match="engine threads"):
+                session.run("critical-points")  # 4 consumers + 4 producers > 4 threads
             with pytest.raises(actopo.ResourceExhaustedError) as e:
-                client.open_session(mesh)
+                client.open_session(mesh)  # a second session
             assert e.value.code == grpc.StatusCode.RESOURCE_EXHAUSTED
 
 

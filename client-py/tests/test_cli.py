@@ -1,0 +1,150 @@
+"""The `actopo` command line: every command, --json outputs parsed, results equal actopo-bench."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from actopo._cli import main
+
+
+@pytest.fixture
+def cli(server, capsys):
+    """cli(*args) -> (exit status, stdout, stderr) of `actopo --server TARGET args...`."""
+
+    def run(*args: str) -> tuple[int, str, str]:
+        status = main(["--server", server, *args])
+        out, err = capsys.readouterr()
+        return status, out, err
+
+    return run
+
+
+def _json(cli, *args):
+    status, out, err = cli(*args, "--json")
+    assert status == 0, err
+    return json.loads(out)
+
+
+@pytest.mark.parametrize("algorithm", ["critical-points", "discrete-gradient", "morse-smale"])
+def test_acceptance_run_json_equals_actopo_bench(server, data_dir, bench, algorithm):
+    """The issue's acceptance command, run as a user would."""
+    out = subprocess.run(
+        [sys.executable, "-m", "actopo", "--server", server, "run", "--mesh",
+         "fertility_tet.vtu", "--algorithm", algorithm, "--structure", "actopo", "--json"],
+        capture_output=True, text=True, timeout=120, check=True)
+    report = json.loads(out.stdout)
+    assert report["result"] == bench(data_dir / "fertility_tet.vtu", algorithm, "--scalar",
+                                     "eigenfunction4")
+    assert report["algorithm"] == algorithm and report["structure"] == "actopo"
+    assert report["mesh"]["tetrahedra"] == 60948
+    assert set(report) >= {"mesh", "structure", "algorithm", "config", "times_s", "engine",
+                           "memory", "result"}
+
+
+def test_console_script_is_installed(server):
+    script = Path(sys.executable).with_name("actopo")
+    if not script.exists():
+        pytest.skip("the actopo script is not beside this Python")
+    out = subprocess.run([str(script), "info"], capture_output=True, text=True, timeout=60,
+                         env={**os.environ, "ACTOPO_SERVER": server}, check=True)
+    assert "critical-points" in out.stdout
+
+
+def test_info_meshes_sessions(cli):
+    info = _json(cli, "info")
+    assert "morse-smale" in info["algorithms"] and info["limits"]["max_batch_size"] > 0
+    status, out, _ = cli("info")
+    assert status == 0 and "relations:" in out
+    mesh = _json(cli, "load", "manifoldCheck0_tet.vtu", "--block-size", "10")
+    assert mesh["tetrahedra"] == 24 and mesh["block_size"] == 10
+    assert mesh["mesh_id"] in [m["mesh_id"] for m in _json(cli, "meshes")]
+    status, out, _ = cli("meshes")
+    assert mesh["mesh_id"] in out
+    session = _json(cli, "open", mesh["mesh_id"], "--structure", "compact")
+    assert session["structure"] == "compact" and session["scalar_field"] == "height"
+    assert session["session_id"] in [s["session_id"] for s in _json(cli, "sessions")]
+    status, out, _ = cli("sessions")
+    assert session["session_id"] in out
+
+    relation = _json(cli, "relation", "vertex_star", "0", "3", "--session", session["session_id"])
+    assert [r["simplex"] for r in relation] == [0, 3] and relation[0]["ids"]
+    edges = _json(cli, "relation", "edge_triangles", "0,1", "--vertices", "--session",
+                  session["session_id"])
+    assert all(0 in v and 1 in v for v in edges[0]["vertices"])
+    status, out, _ = cli("relation", "vertex_edges", "0", "--session", session["session_id"])
+    assert out.startswith("vertex_edges(0): ")
+    stats = _json(cli, "stats", "--session", session["session_id"])
+    assert stats[session["session_id"]]["relation_queries"]["count"] == 4
+    assert session["session_id"] in _json(cli, "stats")
+    status, out, _ = cli("stats")
+    assert status == 0 and session["session_id"] in out
+
+    assert cli("close", session["session_id"])[0] == 0
+    assert cli("delete", mesh["mesh_id"])[0] == 0
+    assert mesh["mesh_id"] not in [m["mesh_id"] for m in _json(cli, "meshes")]
+
+
+def test_relation_on_a_temporary_mesh(cli):
+    before = _json(cli, "meshes")
+    answer = _json(cli, "relation", "tetrahedron_vertices", "0", "--mesh", "sample:jittered:3")
+    assert sorted(answer[0]["ids"]) == answer[0]["ids"] and len(answer[0]["ids"]) == 4
+    assert _json(cli, "meshes") == before  # loaded for the command, deleted after
+
+
+def test_upload_and_run_uploaded_file(cli, data_dir, bench):
+    pytest.importorskip("meshio")
+    path = str(data_dir / "manifoldCheck1_tet.vtu")
+    mesh = _json(cli, "upload", path, "--name", "mc1")
+    assert mesh["name"] == "mc1" and mesh["source"] == "upload"
+    report = _json(cli, "run", "--mesh-id", mesh["mesh_id"], "--algorithm", "morse-smale",
+                   "--structure", "explicit")
+    assert report["result"] == bench(path, "morse-smale")
+    report = _json(cli, "run", "--upload", path, "--algorithm", "discrete-gradient")
+    assert report["result"] == bench(path, "discrete-gradient")
+    assert cli("delete", mesh["mesh_id"])[0] == 0
+
+
+def test_run_writes_files_for_paraview(cli, data_dir, tmp_path):
+    pytest.importorskip("pyvista")
+    prefix = str(tmp_path / "mc0")
+    report = _json(cli, "run", "--mesh", "manifoldCheck0_tet.vtu", "--algorithm", "morse-smale",
+                   "--output", prefix, "--geometry", str(data_dir / "manifoldCheck0_tet.vtu"))
+    assert [Path(f).name for f in report["files"]] == [
+        "mc0_critical_points.vtp", "mc0_separatrices.vtp", "mc0_segmentation.vtu"]
+    for f in report["files"]:
+        assert b"VTKFile" in Path(f).read_bytes()[:200]
+    status, out, err = cli("run", "--mesh", "manifoldCheck0_tet.vtu", "--algorithm",
+                           "critical-points", "--output", str(tmp_path / "cp"))
+    assert status == 0 and "wrote" in out and (tmp_path / "cp_critical_points.vtp").exists()
+    status, out, err = cli("run", "--mesh", "manifoldCheck0_tet.vtu", "--algorithm",
+                           "morse-smale", "--output", str(tmp_path / "nogeo"))
+    assert status == 0 and "segmentation not written" in err
+
+
+def test_bench_compares_structures(cli):
+    report = _json(cli, "bench", "--mesh", "sample:jittered:8", "--algorithm",
+                   "discrete-gradient", "--structures", "explicit,compact,actopo")
+    rows = report["structures"]
+    assert [r["structure"] for r in rows] == ["explicit", "compact", "actopo"]
+    assert all(r["same_result"] and r["run_s"] > 0 for r in rows)
+    assert rows[0]["result"] == rows[1]["result"] == rows[2]["result"]
+    status, out, _ = cli("bench", "--mesh", "sample:jittered:6", "--algorithm", "critical-points",
+                         "--structures", "compact,actopo", "--repeat", "2")
+    assert status == 0 and "STRUCTURE" in out and "actopo" in out and "DIFFERENT" not in out
+
+
+def test_errors_exit_with_a_message(cli, data_dir, monkeypatch, capsys):
+    status, _, err = cli("load", "no_such_file.vtu")
+    assert status == 1 and "actopo: error:" in err and "NOT_FOUND" in err
+    status, _, err = cli("run", "--upload", str(data_dir / "happi_tas_tri.vtu"),
+                         "--algorithm", "critical-points")
+    assert status == 1 and "triangle" in err and "hint:" in err
+    monkeypatch.delenv("ACTOPO_SERVER", raising=False)
+    assert main(["info"]) == 2
+    assert "ACTOPO_SERVER" in capsys.readouterr().err
