@@ -30,6 +30,7 @@ lint-proto: deps
 test-unit: build
 	ACTOPO_DATA_DIR=$(DATA_DIR) ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)
 	ACTOPO_BUILD=$(abspath $(BUILD)) .venv/bin/python -m pytest -q tests
+	ACTOPO_BUILD=$(abspath $(BUILD)) ACTOPO_DATA_DIR=$(DATA_DIR) .venv/bin/python -m pytest -q client-py/tests
 
 # Sanitizer builds cover server/core and server/algorithms only (no VTK, no gRPC) to stay fast.
 build-asan/build.ninja: | deps

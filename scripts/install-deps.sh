@@ -58,4 +58,15 @@ if ((want_venv)); then
   else
     echo "install-deps: Python environment up to date"
   fi
+  # The Python client, editable; reinstalled (stubs regenerated) when its build inputs change.
+  client_stamp="$venv/.client-py.stamp"
+  client_inputs=$(cat "$here/client-py/pyproject.toml" "$here/client-py/setup.py" \
+                      "$here"/proto/actopo/v1/*.proto | sha256sum)
+  if [[ ! -f "$client_stamp" ]] || [[ "$(cat "$client_stamp")" != "$client_inputs" ]]; then
+    echo "install-deps: installing the Python client (client-py)"
+    "$venv/bin/pip" install -q -e "$here/client-py[all]"
+    echo "$client_inputs" > "$client_stamp"
+  else
+    echo "install-deps: Python client up to date"
+  fi
 fi

@@ -20,14 +20,36 @@ ResourceExhaustedError, ...) and keep the gRPC code and the server's message.
 
 from actopo._async_client import AsyncClient, AsyncJob, AsyncSession
 from actopo._client import Client, Job, Session
-from actopo._errors import (ActopoError, AuthenticationError, CancelledError,
-                            DeadlineExceededError, FailedPreconditionError, InvalidArgumentError,
-                            InvalidMeshError, NotFoundError, OutOfRangeError,
-                            ResourceExhaustedError, UnavailableError)
+from actopo._errors import (
+                            ActopoError,
+                            AuthenticationError,
+                            CancelledError,
+                            DeadlineExceededError,
+                            FailedPreconditionError,
+                            InvalidArgumentError,
+                            InvalidMeshError,
+                            NotFoundError,
+                            OutOfRangeError,
+                            ResourceExhaustedError,
+                            UnavailableError,
+)
 from actopo._results import JobResult
-from actopo._types import (Counter, EngineOptions, EngineStats, FieldInfo, JobStats, MemoryStats,
-                           MeshInfo, RelationBatch, ServerInfo, ServerLimits, SessionInfo,
-                           SessionStats, SimplexRelation, StreamItem)
+from actopo._types import (
+                            Counter,
+                            EngineOptions,
+                            EngineStats,
+                            FieldInfo,
+                            JobStats,
+                            MemoryStats,
+                            MeshInfo,
+                            RelationBatch,
+                            ServerInfo,
+                            ServerLimits,
+                            SessionInfo,
+                            SessionStats,
+                            SimplexRelation,
+                            StreamItem,
+)
 
 __version__ = "0.1.0"
 
@@ -37,6 +59,6 @@ __all__ = [
     "EngineStats", "FailedPreconditionError", "FieldInfo", "InvalidArgumentError",
     "InvalidMeshError", "Job", "JobResult", "JobStats", "MemoryStats", "MeshInfo",
     "NotFoundError", "OutOfRangeError", "RelationBatch", "ResourceExhaustedError", "ServerInfo",
-    "ServerLimits", "SessionInfo", "SessionStats", "SimplexRelation", "StreamItem",
+    "ServerLimits", "Session", "SessionInfo", "SessionStats", "SimplexRelation", "StreamItem",
     "UnavailableError", "__version__",
 ]

@@ -9,7 +9,7 @@ import numpy as np
 from actopo._errors import InvalidArgumentError
 from actopo._proto import pb
 
-DTYPES: dict[int, np.dtype[Any]] = {
+DTYPES: dict[Any, np.dtype[Any]] = {
     pb.DATA_TYPE_FLOAT32: np.dtype("<f4"),
     pb.DATA_TYPE_FLOAT64: np.dtype("<f8"),
     pb.DATA_TYPE_INT8: np.dtype("i1"),
@@ -33,7 +33,7 @@ def dtype_name(code: int) -> str:
     return DTYPES[code].name if code in DTYPES else "unspecified"
 
 
-def code_of(dtype: np.dtype[Any]) -> int:
+def code_of(dtype: np.dtype[Any]) -> Any:
     """The DataType value of a numpy dtype (byte order ignored)."""
     return _CODES[np.dtype(dtype).newbyteorder("<").str]
 

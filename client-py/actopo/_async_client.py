@@ -3,25 +3,45 @@
 from __future__ import annotations
 
 import asyncio
-from collections.abc import AsyncIterator, Awaitable, Coroutine, Generator, Iterable, Mapping
-from collections.abc import Sequence
+from collections.abc import (
+    AsyncIterator,
+    Awaitable,
+    Coroutine,
+    Generator,
+    Iterable,
+    Mapping,
+    Sequence,
+)
 from typing import Any
 
 import grpc
-import numpy as np
 import grpc.aio
+import numpy as np
 
 from actopo import _convert, _requests
-from actopo._channel import (DEFAULT_TIMEOUT, MESH_TIMEOUT, TlsArg, async_channel, metadata,
-                             resolve_target)
+from actopo._channel import (
+    DEFAULT_TIMEOUT,
+    MESH_TIMEOUT,
+    TlsArg,
+    async_channel,
+    metadata,
+    resolve_target,
+)
 from actopo._errors import error_for_number, translate, translated
 from actopo._mesh import MeshLike, mesh_arrays
 from actopo._progress import ProgressArg, make_progress
 from actopo._proto import pb, pb_grpc
 from actopo._requests import MeshRef, SimplexArg
 from actopo._results import Assembler, JobResult
-from actopo._types import (MeshInfo, RelationBatch, ServerInfo, SessionInfo, SessionStats,
-                           SimplexRelation, StreamItem)
+from actopo._types import (
+    MeshInfo,
+    RelationBatch,
+    ServerInfo,
+    SessionInfo,
+    SessionStats,
+    SimplexRelation,
+    StreamItem,
+)
 from actopo._upload import requests as upload_requests
 
 _UNSET: Any = object()

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from typing import Any, Union
+from typing import Any, TypeAlias
 
 import grpc
 import grpc.aio
 
-TlsArg = Union[bool, grpc.ChannelCredentials]
+TlsArg: TypeAlias = bool | grpc.ChannelCredentials
 
 DEFAULT_TIMEOUT = 30.0
 """Seconds for quick calls (info, lists, relations, stats)."""

@@ -238,7 +238,8 @@ def _report(mesh: MeshInfo, session: Session, result: JobResult, stats: SessionS
                    "consumer_relations": engine.consumer_relations,
                    "duplicates_avoided": engine.duplicates_avoided,
                    "producer_busy_s": engine.producer_busy_ns / 1e9},
-        "memory": {"process_rss_bytes": memory.process_rss_bytes,
+        "memory": {"process_rss_bytes": max(memory.process_rss_bytes,
+                                            stats.memory.process_rss_bytes),
                    "static_bytes": memory.static_bytes,
                    "relation_peak_bytes": memory.relation_peak_bytes,
                    "buffer_peak_bytes": engine.buffer_peak_bytes},
@@ -415,7 +416,8 @@ def parser() -> argparse.ArgumentParser:
     c.add_argument("--output", metavar="PREFIX",
                    help="write PREFIX_critical_points.vtp, ... for ParaView")
     c.add_argument("--geometry", metavar="FILE",
-                   help="the mesh as a local file, for PREFIX_segmentation.vtu with --mesh")
+                   help="the mesh as a local file, for PREFIX_segmentation.vtu with --mesh "
+                   "(default: NAME under the current directory or $ACTOPO_DATA_DIR, if there)")
     c.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     c = command("relation", cmd_relation, "a relation of some simplices")

@@ -10,16 +10,29 @@ import grpc
 import numpy as np
 
 from actopo import _convert, _requests
-from actopo._channel import (DEFAULT_TIMEOUT, MESH_TIMEOUT, TlsArg, metadata, resolve_target,
-                             sync_channel)
+from actopo._channel import (
+    DEFAULT_TIMEOUT,
+    MESH_TIMEOUT,
+    TlsArg,
+    metadata,
+    resolve_target,
+    sync_channel,
+)
 from actopo._errors import error_for_number, translate, translated
 from actopo._mesh import MeshLike, mesh_arrays
 from actopo._progress import ProgressArg, make_progress
 from actopo._proto import pb, pb_grpc
 from actopo._requests import MeshRef, SimplexArg
 from actopo._results import Assembler, JobResult
-from actopo._types import (MeshInfo, RelationBatch, ServerInfo, SessionInfo, SessionStats,
-                           SimplexRelation, StreamItem)
+from actopo._types import (
+    MeshInfo,
+    RelationBatch,
+    ServerInfo,
+    SessionInfo,
+    SessionStats,
+    SimplexRelation,
+    StreamItem,
+)
 from actopo._upload import requests as upload_requests
 
 _UNSET: Any = object()
@@ -84,7 +97,7 @@ class Client:
     def server_info(self) -> ServerInfo:
         """Versions, algorithms, relations, samples and limits of the server.
 
-        >>> client.server_info().algorithms  # doctest: +SKIP
+        >>> client.server_info().algorithms
         ['topo-relations', 'critical-points', 'discrete-gradient', 'morse-smale']
         """
         info = _convert.server_info(self._call("GetServerInfo", pb.GetServerInfoRequest()))
@@ -124,7 +137,10 @@ class Client:
 
         >>> import numpy as np
         >>> points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
-        >>> info = client.upload_mesh((points, [[0, 1, 2, 3]], {"h": points[:, 2]}))  # doctest: +SKIP
+        >>> info = client.upload_mesh((points, [[0, 1, 2, 3]], {"h": points[:, 2]}))
+        >>> info.vertices, info.edges, info.triangles, info.tetrahedra
+        (4, 6, 4, 1)
+        >>> client.delete_mesh(info)
         """
         arrays = mesh_arrays(mesh, name)
         partition = _requests.partition(block_size, block_label_field)
@@ -237,8 +253,13 @@ class Session:
         service's ids), or an (n, k) array of vertex tuples. Large inputs are split into batches
         of the server's max_batch_size.
 
-        >>> offsets, values = session.relation("vertex_star", [0, 1])  # doctest: +SKIP
-        >>> values[offsets[1]:offsets[2]]  # the tetrahedra around vertex 1  # doctest: +SKIP
+        On two tetrahedra (0, 1, 2, 3) and (1, 2, 3, 4):
+
+        >>> offsets, values = session.relation("vertex_star", [0, 1])
+        >>> offsets
+        array([0, 1, 3])
+        >>> values[offsets[1]:offsets[2]]  # the tetrahedra around vertex 1
+        array([0, 1])
         """
         requests = _requests.batches(self._id(), name, ids, self._client._batch_size())
         return _requests.merge([self._client._call("GetRelationBatch", r) for r in requests])
@@ -249,7 +270,10 @@ class Session:
 
         With include_vertices, result edges and triangles come with their vertex tuples.
 
-        >>> session.query("edge_triangles", (0, 5), include_vertices=True)  # doctest: +SKIP
+        >>> session.query("edge_triangles", (2, 1), include_vertices=True).vertices
+        array([[0, 1, 2],
+               [1, 2, 3],
+               [1, 2, 4]])
         """
         request = _requests.single(self._id(), name, simplex, include_vertices)
         return _requests.single_result(self._client._call("GetRelation", request))
@@ -294,8 +318,11 @@ class Session:
         `include_arrays`: False to receive only the summary and statistics.
         Ctrl-C cancels the job on the server and raises KeyboardInterrupt.
 
-        >>> result = session.run("critical-points", progress=True)  # doctest: +SKIP
-        >>> result.summary["counts"]["maximum"], result.critical_points["CriticalType"]  # doctest: +SKIP
+        >>> result = session.run("critical-points")
+        >>> result.summary["counts"]
+        {'degenerate': 0, 'maximum': 1, 'minimum': 1, 'saddle1': 0, 'saddle2': 0}
+        >>> result.critical_points["CriticalType"], result.critical_points["ttkVertexScalarField"]
+        (array([0, 3], dtype=int8), array([0, 4], dtype=int32))
         """
         return self.submit(algorithm, parameters=parameters, include_arrays=include_arrays,
                            timeout=timeout).result(progress=progress)

@@ -10,8 +10,19 @@ from google.protobuf import json_format
 from actopo import _names
 from actopo._arrays import dtype_name
 from actopo._proto import pb
-from actopo._types import (Counter, EngineOptions, EngineStats, FieldInfo, JobStats, MemoryStats,
-                           MeshInfo, ServerInfo, ServerLimits, SessionInfo, SessionStats)
+from actopo._types import (
+    Counter,
+    EngineOptions,
+    EngineStats,
+    FieldInfo,
+    JobStats,
+    MemoryStats,
+    MeshInfo,
+    ServerInfo,
+    ServerLimits,
+    SessionInfo,
+    SessionStats,
+)
 
 
 def _time(message: Any, name: str) -> datetime | None:
@@ -21,7 +32,7 @@ def _time(message: Any, name: str) -> datetime | None:
     return datetime.fromtimestamp(stamp.seconds + stamp.nanos / 1e9, tz=timezone.utc)
 
 
-def _fields(message: Any, cls: type) -> Any:
+def _fields(message: Any, cls: Any) -> Any:
     return cls(**{name: getattr(message, name) for name in cls.__dataclass_fields__})
 
 
@@ -77,7 +88,8 @@ def struct_to_dict(struct: Any) -> dict[str, Any]:
     """A google.protobuf.Struct as plain Python, integral numbers as int.
 
     Struct numbers are doubles; the summaries hold counts (exact below 2**53) and hex digests,
-    so ints come back as ints and the object equals actopo-bench's JSON `result`.
+    so ints come back as ints and the object equals actopo-bench's JSON `result`. A Struct is a
+    map, whose order the wire does not keep: keys come back sorted.
     """
     return _ints(json_format.MessageToDict(struct))
 
@@ -86,7 +98,7 @@ def _ints(value: Any) -> Any:
     if isinstance(value, float) and value.is_integer() and abs(value) < 2**53:
         return int(value)
     if isinstance(value, dict):
-        return {k: _ints(v) for k, v in value.items()}
+        return {k: _ints(value[k]) for k in sorted(value)}
     if isinstance(value, list):
         return [_ints(v) for v in value]
     return value

@@ -65,7 +65,8 @@ def _reject(cells: Mapping[str, int], source: str) -> InvalidMeshError:
 def _from_pyvista(mesh: Any, name: str) -> MeshArrays:
     import pyvista as pv
 
-    grid = mesh if isinstance(mesh, pv.UnstructuredGrid) else mesh.cast_to_unstructured_grid()
+    grid: Any = mesh if isinstance(mesh, pv.UnstructuredGrid) \
+        else mesh.cast_to_unstructured_grid()
     types = np.asarray(grid.celltypes)
     if types.size == 0:
         raise InvalidMeshError(f"{name}: the mesh has no cells")
@@ -78,7 +79,7 @@ def _from_pyvista(mesh: Any, name: str) -> MeshArrays:
 
 
 def _from_meshio(mesh: Any, name: str) -> MeshArrays:
-    found = Counter()
+    found: Counter[str] = Counter()
     for block in mesh.cells:
         found[block.type] += len(block.data)
     if not found:
@@ -124,7 +125,7 @@ def _checked(name: str, points: np.ndarray, tets: np.ndarray,
         raise InvalidMeshError(f"{name}: points must have shape (n, 3), got {points.shape}")
     if points.dtype.kind not in "fiu":
         raise InvalidMeshError(f"{name}: points must be numbers, got dtype {points.dtype}")
-    points = points.astype("<f4" if points.dtype == np.float32 else "<f8", copy=False)
+    points = np.ascontiguousarray(points, dtype="<f4" if points.dtype == np.float32 else "<f8")
     if tets.ndim != 2 or tets.shape[1] != 4:
         raise InvalidMeshError(f"{name}: tetrahedra must have shape (t, 4), got {tets.shape}")
     if tets.dtype.kind not in "iu":
@@ -135,7 +136,7 @@ def _checked(name: str, points: np.ndarray, tets: np.ndarray,
     if low < 0 or high >= len(points):
         raise InvalidMeshError(f"{name}: tetrahedra reference vertex {low if low < 0 else high}, "
                                f"outside [0, {len(points)})")
-    tets = tets.astype("<i4" if high < 2**31 else "<i8", copy=False)
+    tets = np.ascontiguousarray(tets, dtype="<i4" if high < 2**31 else "<i8")
     fields: dict[str, np.ndarray] = {}
     for key, values in data.items():
         values = np.asarray(values)
@@ -144,10 +145,11 @@ def _checked(name: str, points: np.ndarray, tets: np.ndarray,
         if values.ndim != 1 or len(values) != len(points) or values.dtype.kind not in "fiub":
             continue  # vectors, tensors, strings: the service keeps scalar point fields only
         if values.dtype in (np.float32, np.float64, np.int32, np.int64):
-            fields[str(key)] = values.astype(values.dtype.newbyteorder("<"), copy=False)
+            dtype = values.dtype.newbyteorder("<")
         else:
-            fields[str(key)] = values.astype(_FIELD_DTYPES[values.dtype.kind])
-    return MeshArrays(name, np.ascontiguousarray(points), np.ascontiguousarray(tets), fields)
+            dtype = np.dtype(_FIELD_DTYPES[values.dtype.kind]).newbyteorder("<")
+        fields[str(key)] = np.ascontiguousarray(values, dtype=dtype)
+    return MeshArrays(name, points, tets, fields)
 
 
 def mesh_arrays(mesh: MeshLike, name: str | None = None) -> MeshArrays:
@@ -159,7 +161,7 @@ def mesh_arrays(mesh: MeshLike, name: str | None = None) -> MeshArrays:
     elif isinstance(mesh, (tuple, list)):
         arrays = _from_tuple(mesh, name or "arrays")
     elif hasattr(mesh, "cells") and hasattr(mesh, "point_data") and hasattr(mesh, "points") \
-            and isinstance(getattr(mesh, "cells"), list):
+            and isinstance(mesh.cells, list):
         arrays = _from_meshio(mesh, name or "meshio")
     elif hasattr(mesh, "cast_to_unstructured_grid") or hasattr(mesh, "celltypes"):
         arrays = _from_pyvista(mesh, name or "pyvista")

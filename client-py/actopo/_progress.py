@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable
-from typing import Any, Protocol, Union
+from typing import Any, Protocol, TypeAlias
 
-ProgressArg = Union[bool, None, Callable[[float], Any]]
+ProgressArg: TypeAlias = bool | None | Callable[[float], Any]
 
 
 class Progress(Protocol):

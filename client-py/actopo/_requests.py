@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator, Mapping, Sequence
-from typing import Any, Union
+from typing import Any, TypeAlias
 
 import numpy as np
 
@@ -11,11 +11,10 @@ from actopo import _names
 from actopo._arrays import little_endian, to_array, to_numpy
 from actopo._errors import InvalidArgumentError
 from actopo._proto import pb
-from actopo._types import MeshInfo, RelationBatch, SessionInfo, SimplexRelation
+from actopo._types import MeshInfo, RelationBatch, SimplexRelation
 
-MeshRef = Union[MeshInfo, str]
-SessionRef = Union[SessionInfo, str]
-SimplexArg = Union[int, Sequence[int], np.ndarray]
+MeshRef: TypeAlias = MeshInfo | str
+SimplexArg: TypeAlias = int | Sequence[int] | np.ndarray
 
 DEFAULT_BATCH = 100_000
 
@@ -54,7 +53,7 @@ def open_session(mesh: MeshRef, scalar: str | None, structure: str, consumers: i
         structure=_names.lookup(_names.STRUCTURES, structure, "structure"), engine=engine)
 
 
-def relation(name: str) -> int:
+def relation(name: str) -> Any:
     return _names.lookup(_names.RELATIONS, name, "relation")
 
 

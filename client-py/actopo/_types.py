@@ -170,7 +170,7 @@ class RelationBatch(NamedTuple):
     values: np.ndarray
 
     @property
-    def count(self) -> int:
+    def num_simplices(self) -> int:
         """Number of simplices asked about."""
         return max(len(self.offsets) - 1, 0)
 
@@ -180,7 +180,7 @@ class RelationBatch(NamedTuple):
 
     def split(self) -> list[np.ndarray]:
         """One array per simplex."""
-        return np.split(self.values, self.offsets[1:-1]) if self.count else []
+        return np.split(self.values, self.offsets[1:-1]) if self.num_simplices else []
 
 
 class SimplexRelation(NamedTuple):
@@ -191,7 +191,8 @@ class SimplexRelation(NamedTuple):
     vertices: np.ndarray | None
 
 
-class StreamItem(NamedTuple):
+@dataclass(frozen=True)
+class StreamItem:
     """One answer of Session.relations_stream(): the index of the simplex in the input, the
     result ids, or the error of this item (the stream goes on after an item error)."""
 

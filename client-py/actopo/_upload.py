@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import itertools
 from collections.abc import Iterator
 
 from actopo._arrays import code_of
@@ -14,7 +15,7 @@ CHUNK_BYTES = 1 << 20
 
 def _buffers(mesh: MeshArrays) -> list[memoryview]:
     arrays = [mesh.points, mesh.tetrahedra, *mesh.point_data.values()]
-    return [memoryview(a).cast("B") for a in arrays]
+    return [a.data.cast("B") for a in arrays]
 
 
 def header(mesh: MeshArrays, partition: pb.PartitionOptions) -> pb.UploadMeshHeader:
@@ -32,9 +33,14 @@ def header(mesh: MeshArrays, partition: pb.PartitionOptions) -> pb.UploadMeshHea
 
 def requests(mesh: MeshArrays, partition: pb.PartitionOptions,
              chunk_bytes: int = CHUNK_BYTES) -> Iterator[pb.UploadMeshRequest]:
-    """The whole upload. Chunks have exactly `chunk_bytes` bytes (the last may be shorter) and
-    may straddle the boundary between two arrays: the payload is one byte stream."""
-    yield pb.UploadMeshRequest(header=header(mesh, partition))
+    """The whole upload. The header is made before this returns, so a problem surfaces here
+    rather than inside gRPC's request thread. Chunks have exactly `chunk_bytes` bytes (the last
+    may be shorter) and may straddle two arrays: the payload is one byte stream."""
+    first = pb.UploadMeshRequest(header=header(mesh, partition))
+    return itertools.chain([first], _chunks(mesh, chunk_bytes))
+
+
+def _chunks(mesh: MeshArrays, chunk_bytes: int) -> Iterator[pb.UploadMeshRequest]:
     pending: list[memoryview] = []
     size = 0
     for buffer in _buffers(mesh):

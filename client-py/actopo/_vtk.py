@@ -52,9 +52,9 @@ def to_pyvista(result: JobResult, mesh: Any = None) -> dict[str, Any]:
         if isinstance(mesh, pv.UnstructuredGrid):
             grid = mesh.copy()
         else:
-            arrays = mesh_arrays(mesh)
-            grid = pv.UnstructuredGrid({pv.CellType.TETRA: arrays.tetrahedra}, arrays.points)
-            for key, values in arrays.point_data.items():
+            local = mesh_arrays(mesh)
+            grid = pv.UnstructuredGrid({pv.CellType.TETRA: local.tetrahedra}, local.points)
+            for key, values in local.point_data.items():
                 grid.point_data[key] = values
         for key, values in segmentation.items():
             grid.point_data[key] = values
@@ -92,10 +92,10 @@ def _write_meshio(result: JobResult, prefix: str, mesh: Any) -> list[str]:
         written.append(path)
     segmentation = result.group("segmentation")
     if segmentation and mesh is not None:
-        arrays = mesh_arrays(mesh)
+        local = mesh_arrays(mesh)
         path = f"{prefix}_segmentation.vtu"
-        meshio.Mesh(arrays.points, [("tetra", arrays.tetrahedra)],
-                    point_data={**arrays.point_data, **segmentation}).write(path)
+        meshio.Mesh(local.points, [("tetra", local.tetrahedra)],
+                    point_data={**local.point_data, **segmentation}).write(path)
         written.append(path)
     return written
 

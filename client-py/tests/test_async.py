@@ -83,8 +83,10 @@ def test_async_errors_and_cancellation(server):
             mesh = await aclient.sample("jittered:50")
             try:
                 async with aclient.open_session(mesh, structure="compact") as session:
-                    task = asyncio.ensure_future(session.run("morse-smale"))
-                    await asyncio.sleep(0.2)
+                    running = asyncio.Event()
+                    task = asyncio.ensure_future(
+                        session.run("morse-smale", progress=lambda f: running.set()))
+                    await running.wait()
                     task.cancel()  # what Ctrl-C does under asyncio.run
                     with pytest.raises(asyncio.CancelledError):
                         await task

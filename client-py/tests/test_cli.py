@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -110,7 +112,7 @@ def test_upload_and_run_uploaded_file(cli, data_dir, bench):
     assert cli("delete", mesh["mesh_id"])[0] == 0
 
 
-def test_run_writes_files_for_paraview(cli, data_dir, tmp_path):
+def test_run_writes_files_for_paraview(cli, data_dir, tmp_path, monkeypatch):
     pytest.importorskip("pyvista")
     prefix = str(tmp_path / "mc0")
     report = _json(cli, "run", "--mesh", "manifoldCheck0_tet.vtu", "--algorithm", "morse-smale",
@@ -122,6 +124,8 @@ def test_run_writes_files_for_paraview(cli, data_dir, tmp_path):
     status, out, err = cli("run", "--mesh", "manifoldCheck0_tet.vtu", "--algorithm",
                            "critical-points", "--output", str(tmp_path / "cp"))
     assert status == 0 and "wrote" in out and (tmp_path / "cp_critical_points.vtp").exists()
+    monkeypatch.delenv("ACTOPO_DATA_DIR", raising=False)  # else the CLI finds the file there
+    monkeypatch.chdir(tmp_path)
     status, out, err = cli("run", "--mesh", "manifoldCheck0_tet.vtu", "--algorithm",
                            "morse-smale", "--output", str(tmp_path / "nogeo"))
     assert status == 0 and "segmentation not written" in err
@@ -148,3 +152,28 @@ def test_errors_exit_with_a_message(cli, data_dir, monkeypatch, capsys):
     monkeypatch.delenv("ACTOPO_SERVER", raising=False)
     assert main(["info"]) == 2
     assert "ACTOPO_SERVER" in capsys.readouterr().err
+
+
+def test_ctrl_c_cancels_the_cli_job(server, client):
+    """SIGINT while `actopo run` waits for its job: the job stops, the session and mesh go."""
+    before = {m.mesh_id for m in client.list_meshes()}
+    sessions = {s.session_id for s in client.list_sessions()}
+    process = subprocess.Popen(
+        [sys.executable, "-m", "actopo", "--server", server, "run", "--mesh",
+         "sample:jittered:60", "--algorithm", "morse-smale", "--structure", "compact"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.monotonic() + 30
+        while not any(s.running_job_id for s in client.list_sessions()
+                      if s.session_id not in sessions):
+            assert process.poll() is None and time.monotonic() < deadline, process.stderr.read()
+            time.sleep(0.02)
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130 and "actopo: cancelled" in err
+    assert {s.session_id for s in client.list_sessions()} == sessions
+    assert {m.mesh_id for m in client.list_meshes()} == before

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import shutil
+import subprocess
+
 import grpc
 import pytest
-from conftest import running_server
+from harness import running_server
 from meshes import lattice
 
 import actopo
@@ -120,3 +123,25 @@ def test_every_error_is_an_actopo_error():
         value = getattr(actopo, name)
         if isinstance(value, type) and name.endswith("Error"):
             assert issubclass(value, actopo.ActopoError)
+
+
+def test_tls_with_token(tmp_path):
+    openssl = shutil.which("openssl")
+    if openssl is None:
+        pytest.skip("openssl is needed to make a test certificate")
+    key, cert = tmp_path / "key.pem", tmp_path / "cert.pem"
+    subprocess.run([openssl, "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1",
+                    "-keyout", str(key), "-out", str(cert), "-subj", "/CN=localhost",
+                    "-addext", "subjectAltName=IP:127.0.0.1,DNS:localhost"],
+                   check=True, capture_output=True)
+    with running_server("--tls-cert", str(cert), "--tls-key", str(key),
+                        "--token", "t0ken") as target:
+        credentials = grpc.ssl_channel_credentials(root_certificates=cert.read_bytes())
+        with actopo.Client(target, tls=credentials, token="t0ken") as client:
+            assert "morse-smale" in client.server_info().algorithms
+        with actopo.Client(target, tls=credentials) as client:
+            with pytest.raises(actopo.AuthenticationError):
+                client.list_meshes()
+        with actopo.Client(target, timeout=5) as plaintext:
+            with pytest.raises(actopo.UnavailableError):
+                plaintext.list_meshes()

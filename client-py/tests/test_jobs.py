@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import threading
 import time
 
@@ -161,3 +162,24 @@ def test_deadline_and_busy_session(client, big):
 def test_cancel_unknown_job(client):
     with pytest.raises(actopo.NotFoundError):
         client.cancel_job("job-does-not-exist")
+
+
+def test_files_with_meshio_only(fertility_session, data_dir, tmp_path, monkeypatch):
+    meshio = pytest.importorskip("meshio")
+    ms = fertility_session.run("morse-smale")
+    monkeypatch.setitem(sys.modules, "pyvista", None)  # as if pyvista were not installed
+    files = ms.write(str(tmp_path / "ms"), data_dir / "fertility_tet.vtu")
+    assert [os.path.basename(f) for f in files] == ["ms_critical_points.vtu",
+                                                    "ms_separatrices.vtu", "ms_segmentation.vtu"]
+    points = meshio.read(files[0])
+    assert len(points.points) == sum(ms.summary["critical_cells"])
+    np.testing.assert_array_equal(points.point_data["CellDimension"],
+                                  ms.critical_points["CellDimension"])
+    segmentation = meshio.read(files[2])
+    np.testing.assert_array_equal(segmentation.point_data["AscendingManifold"],
+                                  ms.segmentation["AscendingManifold"])
+    with pytest.raises(ImportError, match="pyvista"):
+        ms.to_pyvista()
+    monkeypatch.setitem(sys.modules, "meshio", None)
+    with pytest.raises(ImportError, match=r"actopo\[pyvista\]"):
+        ms.write(str(tmp_path / "none"))

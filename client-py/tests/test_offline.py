@@ -82,6 +82,9 @@ def test_upload_stream_chunks_and_digest():
     assert header.tetrahedra_dtype == pb.DATA_TYPE_INT32
     assert [(f.name, f.dtype) for f in header.fields] == [("h", pb.DATA_TYPE_FLOAT32)]
     assert header.partition.block_size == 7
+    strided = _mesh.mesh_arrays((POINTS, TETS, {"h": POINTS[:, 2]}))  # a non-contiguous view
+    assert b"".join(m.chunk for m in list(_upload.requests(strided, pb.PartitionOptions()))[1:]) \
+        == POINTS.tobytes() + TETS.astype("<i4").tobytes() + POINTS[:, 2].copy().tobytes()
 
 
 @pytest.mark.parametrize("code,cls", [
@@ -140,7 +143,7 @@ def test_batches_split_and_merge():
     batch = _requests.merge(responses)
     np.testing.assert_array_equal(batch.offsets, np.arange(6) * 2)
     np.testing.assert_array_equal(batch.of(3), [3, 3])
-    assert batch.count == 5 and len(batch.split()) == 5
+    assert batch.num_simplices == 5 and len(batch.split()) == 5
     tuples = _requests.batches("s", "edge_star", [[0, 1], [1, 2]], max_batch=10)
     assert list(tuples[0].vertex_tuples.shape) == [2, 2] and not tuples[0].HasField("ids")
 
