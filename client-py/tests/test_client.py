@@ -168,12 +168,6 @@ def test_stats_count_queries_and_jobs(session):
     assert result.stats is not None and result.stats.run_seconds > 0
 
 
-SERVER_BUG_ORDER = ("server bug: vertex_neighbors, vertex_star, edge_star and "
-                    "tetrahedron_neighbors come in the server's internal order mapped to input "
-                    "ids, not ascending input ids as the proto's Relation enum promises")
-
-
-@pytest.mark.xfail(reason=SERVER_BUG_ORDER, strict=False)
 def test_relations_are_ascending_in_input_ids(session, cube):
     mesh = cube[0]
     for name, count in [("vertex_neighbors", mesh.vertices), ("vertex_star", mesh.vertices),
@@ -182,7 +176,5 @@ def test_relations_are_ascending_in_input_ids(session, cube):
             assert values.tolist() == sorted(values.tolist()), name
 
 
-@pytest.mark.xfail(reason="server bug: FieldInfo.dtype is FLOAT64 for float32 fields",
-                   strict=False)
 def test_field_dtype_is_as_loaded(cube):
     assert [(f.name, f.dtype) for f in cube[0].fields] == [("f", "float64"), ("z", "float32")]

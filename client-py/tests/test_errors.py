@@ -87,9 +87,12 @@ def test_resource_exhausted_and_authentication(strict_server):
         mesh = client.sample("jittered:4")
         with pytest.raises(actopo.ResourceExhaustedError):
             client.sample("jittered:5")
-        with client.open_session(mesh, consumers=4, producers=1) as session:
-            with pytest.raises(actopo.ResourceExhaustedError, match="engine threads"):
-                session.run("critical-points")  # 4 consumers + 4 producers > 4 threads
+        # 1 query producer + 4 consumers with 1 producer each per job > 4 threads: refused
+        # when opening, not later when a job cannot start.
+        with pytest.raises(actopo.InvalidArgumentError, match="engine threads"):
+            client.open_session(mesh, consumers=4, producers=1)
+        with client.open_session(mesh, consumers=1, producers=1) as session:
+            session.run("critical-points")
             with pytest.raises(actopo.ResourceExhaustedError) as e:
                 client.open_session(mesh)  # a second session
             assert e.value.code == grpc.StatusCode.RESOURCE_EXHAUSTED

@@ -29,6 +29,9 @@ struct PointField {
   std::string name;
   std::vector<double> values;
   bool is_integer = false;
+  // Bytes per value of the source array (4: float32/int32, 8: float64/int64), so clients can be
+  // told the type the field had as loaded.
+  int8_t source_bytes = 8;
 };
 
 struct Mesh {

@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_replace.h"
 #include "server/core/status_macros.h"
 #include "server/io/samples.h"
 #include "server/io/vtk_reader.h"
@@ -69,7 +70,13 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFile(
   RETURN_IF_ERROR(budget_->Reserve(file_bytes * 4, absl::StrCat("reading '", path, "'")));
   Reservation reading(budget_, file_bytes * 4);
   const auto start = std::chrono::steady_clock::now();
-  ASSIGN_OR_RETURN(Mesh mesh, io::ReadMesh(full.string()));
+  absl::StatusOr<Mesh> read = io::ReadMesh(full.string());
+  if (!read.ok()) {
+    // Name the file as the client did, not by the server's own directory layout.
+    return absl::Status(read.status().code(),
+                        absl::StrReplaceAll(read.status().message(), {{full.string(), path}}));
+  }
+  Mesh mesh = std::move(*read);
   return Add(full.filename().string(), "file:" + path, std::move(mesh), SecondsSince(start),
              partition);
 }

@@ -62,7 +62,13 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& o) {
       s.budget.get());
   s.service = std::make_unique<TopologyServiceImpl>(
       s.meshes.get(), s.sessions.get(), s.budget.get(), s.metrics.get(),
-      ServiceLimits{.max_batch_size = o.max_batch_size, .max_message_bytes = o.max_message_bytes},
+      ServiceLimits{.max_batch_size = o.max_batch_size,
+                    .max_message_bytes = o.max_message_bytes,
+                    .max_meshes = o.max_meshes,
+                    .max_sessions = o.max_sessions,
+                    .max_engine_threads = o.max_engine_threads,
+                    .session_idle_timeout_seconds =
+                        absl::ToInt64Seconds(o.session_idle_timeout)},
       o.token);
 
   std::shared_ptr<grpc::ServerCredentials> credentials = grpc::InsecureServerCredentials();

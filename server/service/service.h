@@ -20,6 +20,11 @@ namespace actopo::service {
 struct ServiceLimits {
   int max_batch_size = 1 << 20;
   int64_t max_message_bytes = 64 << 20;
+  // Reported by GetServerInfo (enforced by the registry and the session manager).
+  int max_meshes = 0;
+  int max_sessions = 0;
+  int max_engine_threads = 0;
+  int64_t session_idle_timeout_seconds = 0;
 };
 
 // A running job, for CancelJob.

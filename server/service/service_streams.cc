@@ -10,6 +10,7 @@
 #include "absl/strings/str_cat.h"
 #include "google/protobuf/util/json_util.h"
 #include "server/algorithms/digest.h"
+#include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
 #include "server/service/ids.h"
 #include "server/service/service.h"
@@ -166,6 +167,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
     for (const v1::UploadField& f : header_.fields()) {
       PointField field{f.name(), std::vector<double>(nv)};
       field.is_integer = f.dtype() == v1::DATA_TYPE_INT32 || f.dtype() == v1::DATA_TYPE_INT64;
+      field.source_bytes = int8_t(DataTypeSize(f.dtype()));
       for (int64_t i = 0; i < nv; ++i) {
         switch (f.dtype()) {
           case v1::DATA_TYPE_FLOAT32: field.values[i] = Read<float>(p + 4 * i); break;
@@ -386,6 +388,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     stats.mutable_stats()->set_run_seconds(job.outcome.run_s);
     Fill(job.engine, stats.mutable_stats()->mutable_engine());
     Fill(job.memory, stats.mutable_stats()->mutable_memory());
+    stats.mutable_stats()->mutable_memory()->set_process_rss_bytes(CurrentRssBytes());
     Push(std::move(stats));
     return absl::OkStatus();
   }

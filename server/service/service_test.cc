@@ -113,12 +113,34 @@ TEST_F(ServiceTest, RelationsMatchTheCore) {
         q.mutable_simplex()->set_id(wire);
         v1::GetRelationResponse answer;
         ASSERT_TRUE(stub_->GetRelation(Context().get(), q, &answer).ok());
-        std::vector<int64_t> expected;
-        for (SimplexId x : reader.get(r, s)) {
-          const int t = TargetDimension(r);
-          expected.push_back(t == 0 ? topo->vertex_input_id(x)
+        // The core's row in wire ids, ordered by the wire's rules: ascending ids; faces by
+        // their input vertices; links by the input ids of the star they come from.
+        const int t = TargetDimension(r);
+        const auto row = reader.get(r, s);
+        std::vector<std::pair<std::vector<int64_t>, int64_t>> keyed;
+        for (size_t i = 0; i < row.size(); ++i) {
+          const SimplexId x = row[i];
+          const int64_t id = t == 0 ? topo->vertex_input_id(x)
                              : t == 3 ? topo->tetrahedron_input_id(x)
-                                      : x);
+                                      : x;
+          std::vector<int64_t> key = {id};
+          if (r == Relation::kFE || r == Relation::kTE || r == Relation::kTF) {
+            const auto v = CellInputVertices(*topo, t, x);
+            key.assign(v.begin(), v.end());
+          }
+          if (r == Relation::kVL) key = {topo->tetrahedron_input_id(reader.vertex_star(s)[i])};
+          if (r == Relation::kEL) key = {topo->tetrahedron_input_id(reader.edge_star(s)[i])};
+          if (r == Relation::kFL) key = {topo->tetrahedron_input_id(reader.triangle_star(s)[i])};
+          if (t < 0) key = {0};
+          keyed.push_back({key, id});
+        }
+        std::stable_sort(keyed.begin(), keyed.end(),
+                         [](const auto& a, const auto& b) { return a.first < b.first; });
+        std::vector<int64_t> expected;
+        for (const auto& k : keyed) expected.push_back(k.second);
+        if (t >= 0 && r != Relation::kFE && r != Relation::kTE && r != Relation::kTF &&
+            r != Relation::kVL && r != Relation::kEL && r != Relation::kFL) {
+          EXPECT_TRUE(std::is_sorted(expected.begin(), expected.end()));
         }
         ASSERT_EQ(std::vector<int64_t>(answer.ids().begin(), answer.ids().end()), expected)
             << RelationName(r) << " of " << wire;

@@ -78,6 +78,10 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::GetServerInfo(grpc::CallbackServe
     l->set_max_batch_size(limits_.max_batch_size);
     l->set_max_message_bytes(limits_.max_message_bytes);
     l->set_memory_budget_bytes(budget_->limit());
+    l->set_max_meshes(limits_.max_meshes);
+    l->set_max_sessions(limits_.max_sessions);
+    l->set_max_engine_threads(limits_.max_engine_threads);
+    l->set_session_idle_timeout_seconds(limits_.session_idle_timeout_seconds);
     return absl::OkStatus();
   });
 }

@@ -201,19 +201,48 @@ absl::StatusOr<SimplexId> Session::ResolveVertices(int dimension,
   return found;
 }
 
+// The core orders rows by internal ids; on the wire they follow the same rules in the ids the
+// client sees: ascending ids, faces in the lexicographic order of their input vertices (the
+// (v0v1), (v0v2), ... local orders), links in the order of their star (ascending input ids).
 template <class Reader>
 absl::Status Session::QueryWith(Reader& reader, Relation r, SimplexId s,
                                 std::vector<int64_t>& ids, std::vector<int64_t>* vertices) {
   const Topology& topo = *mesh_->topology;
   const int target = TargetDimension(r);
-  for (SimplexId x : reader.get(r, s)) {
-    switch (target) {
-      case 0: ids.push_back(topo.vertex_input_id(x)); break;
-      case 3: ids.push_back(topo.tetrahedron_input_id(x)); break;
-      default: ids.push_back(x); break;
+  struct Item {
+    std::array<int64_t, 4> key;
+    int64_t id;
+    SimplexId internal;
+  };
+  std::vector<Item> items;
+  const auto row = reader.get(r, s);
+  std::span<const SimplexId> star;
+  if (r == Relation::kVL) star = reader.get(Relation::kVT, s);
+  if (r == Relation::kEL) star = reader.get(Relation::kET, s);
+  if (r == Relation::kFL) star = reader.get(Relation::kFT, s);
+  for (size_t i = 0; i < row.size(); ++i) {
+    const SimplexId x = row[i];
+    Item item{{-1, -1, -1, -1}, x, x};
+    if (target == 0) item.id = topo.vertex_input_id(x);
+    if (target == 3) item.id = topo.tetrahedron_input_id(x);
+    if (target < 0) {
+      item.key[0] = 0;  // a predicate: one value
+    } else if (!star.empty()) {
+      item.key[0] = topo.tetrahedron_input_id(star[i]);
+    } else if (r == Relation::kFE || r == Relation::kTE || r == Relation::kTF) {
+      const std::vector<SimplexId> v = CellInputVertices(topo, target, x);
+      std::copy(v.begin(), v.end(), item.key.begin());
+    } else {
+      item.key[0] = item.id;
     }
+    items.push_back(item);
+  }
+  std::stable_sort(items.begin(), items.end(),
+                   [](const Item& a, const Item& b) { return a.key < b.key; });
+  for (const Item& item : items) {
+    ids.push_back(item.id);
     if (vertices != nullptr && (target == 1 || target == 2)) {
-      for (SimplexId v : CellInputVertices(topo, target, x)) vertices->push_back(v);
+      for (SimplexId v : CellInputVertices(topo, target, item.internal)) vertices->push_back(v);
     }
   }
   return absl::OkStatus();

@@ -33,6 +33,13 @@ absl::StatusOr<std::shared_ptr<Session>> SessionManager::Open(
           " sessions; close one first (--max-sessions raises the limit)"));
     }
     const int producers = options.structure == StructureKind::kActopo ? options.producers : 0;
+    const int job = options.consumers * (1 + producers);
+    if (producers + job > limits_.max_engine_threads) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "engine: this session needs ", producers, " query producers plus ", job,
+          " threads per job, more than the server's budget of ", limits_.max_engine_threads,
+          " engine threads; use fewer consumers or producers"));
+    }
     if (threads_ + producers > limits_.max_engine_threads) {
       return absl::ResourceExhaustedError(absl::StrCat(
           "engine.producers: ", producers, " more engine threads would exceed the server's ",

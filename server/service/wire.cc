@@ -103,7 +103,9 @@ void Fill(const LoadedMesh& mesh, int sessions, pb::MeshInfo* out) {
   for (const PointField& f : mesh.mesh.point_fields) {
     pb::FieldInfo* fi = out->add_fields();
     fi->set_name(f.name);
-    fi->set_dtype(f.is_integer ? pb::DATA_TYPE_INT32 : pb::DATA_TYPE_FLOAT64);
+    fi->set_dtype(f.is_integer ? (f.source_bytes == 4 ? pb::DATA_TYPE_INT32 : pb::DATA_TYPE_INT64)
+                               : (f.source_bytes == 4 ? pb::DATA_TYPE_FLOAT32
+                                                      : pb::DATA_TYPE_FLOAT64));
     if (!f.values.empty()) {
       const auto [lo, hi] = std::minmax_element(f.values.begin(), f.values.end());
       fi->set_min(*lo);

@@ -192,6 +192,7 @@ void CopyPointFields(vtkUnstructuredGrid& grid, std::vector<PointField>& fields)
     PointField field;
     field.name = array->GetName() != nullptr ? array->GetName() : absl::StrCat("array", i);
     field.is_integer = IsIntegerType(array->GetDataType());
+    field.source_bytes = int8_t(array->GetDataTypeSize() <= 4 ? 4 : 8);
     field.values.resize(static_cast<size_t>(num_points));
     CopyToDouble(*array, field.values.data());
     fields.push_back(std::move(field));

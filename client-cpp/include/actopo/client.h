@@ -1,0 +1,588 @@
+// actopo/client.h: the C++ client of the ACTOPO topology service (proto package actopo.v1).
+//
+// A `Client` talks to an actopo-server over gRPC. It loads or uploads tetrahedral meshes, opens
+// sessions (a topological data structure on a mesh and a scalar field), asks relation queries
+// (one simplex, a batch, or a stream) and runs TTK-compatible algorithm jobs. Every fallible
+// call returns absl::Status or absl::StatusOr<T> carrying the server's gRPC code and message
+// unchanged (NOT_FOUND for an unknown mesh, OUT_OF_RANGE for a simplex id past the end, ...);
+// problems the client finds itself (an unknown relation name, a ragged array) are
+// INVALID_ARGUMENT before anything is sent.
+//
+// This is the only public header. The generated protobuf and gRPC types stay inside the
+// library, so a program using it depends on Abseil's status types and the standard library
+// only.
+//
+// Example:
+//
+//   absl::StatusOr<std::unique_ptr<actopo::Client>> client =
+//       actopo::Client::Connect("127.0.0.1:50051");
+//   if (!client.ok()) return client.status();
+//   absl::StatusOr<actopo::MeshInfo> mesh = (*client)->LoadMesh("sample:jittered:20");
+//   if (!mesh.ok()) return mesh.status();
+//   absl::StatusOr<actopo::SessionInfo> session =
+//       (*client)->OpenSession(mesh->mesh_id, {.structure = actopo::Structure::kCompact});
+//   if (!session.ok()) return session.status();
+//   absl::StatusOr<std::vector<int64_t>> star =
+//       (*client)->Relation(session->session_id, "vertex_star", 7);  // tetrahedra around 7
+//   absl::StatusOr<actopo::JobResult> result =
+//       (*client)->RunJob(session->session_id, "critical-points");
+//   if (result.ok()) std::cout << result->summary_json << "\n";  // {"counts": {...}, ...}
+//
+// Ids: vertices and tetrahedra are named by their input ids (as loaded or uploaded); edges and
+// triangles by the service's ids (stable for the life of a mesh) or by their vertex tuples.
+//
+// Thread safety: a Client may be used from many threads at once. A RelationStream has one
+// writer and one reader (which may be two different threads).
+#ifndef ACTOPO_CLIENT_H_
+#define ACTOPO_CLIENT_H_
+
+#include <chrono>
+#include <cstdint>
+#include <cstring>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+
+namespace actopo {
+
+namespace internal {
+struct Core;  // the channel, the stub and the options, shared by a Client and its streams
+}  // namespace internal
+
+// ---------------------------------------------------------------------------------------------
+// Arrays: raw little-endian values with an element type and a row-major shape.
+
+// Element type of an Array (the proto's DataType).
+enum class DataType { kUnspecified, kFloat32, kFloat64, kInt8, kInt32, kInt64, kUint8 };
+
+// "float32", "float64", "int8", "int32", "int64", "uint8" or "unspecified".
+std::string_view DataTypeName(DataType dtype);
+// Bytes per element (0 for kUnspecified).
+size_t DataTypeSize(DataType dtype);
+
+// The DataType of a C++ element type, kUnspecified for types the wire does not carry.
+template <class T>
+inline constexpr DataType kDataTypeOf = DataType::kUnspecified;
+template <>
+inline constexpr DataType kDataTypeOf<float> = DataType::kFloat32;
+template <>
+inline constexpr DataType kDataTypeOf<double> = DataType::kFloat64;
+template <>
+inline constexpr DataType kDataTypeOf<int8_t> = DataType::kInt8;
+template <>
+inline constexpr DataType kDataTypeOf<int32_t> = DataType::kInt32;
+template <>
+inline constexpr DataType kDataTypeOf<int64_t> = DataType::kInt64;
+template <>
+inline constexpr DataType kDataTypeOf<uint8_t> = DataType::kUint8;
+
+// A named array, e.g. a result array "critical_points/CriticalType" (int8, shape {n}).
+//
+//   absl::StatusOr<std::vector<int8_t>> types = array.As<int8_t>();
+//   std::vector<double> any = array.ToDouble();   // whatever the dtype
+struct Array {
+  std::string name;
+  DataType dtype = DataType::kUnspecified;
+  std::vector<int64_t> shape;  // row-major; the product is the number of elements
+  std::string data;            // raw little-endian bytes
+
+  // Number of elements: the product of the shape.
+  int64_t size() const;
+  // The values as T; INVALID_ARGUMENT unless dtype is kDataTypeOf<T> and the bytes match the
+  // shape.
+  template <class T>
+  absl::StatusOr<std::vector<T>> As() const;
+  // The values converted to double, whatever the dtype (empty if the dtype is unspecified).
+  std::vector<double> ToDouble() const;
+  // The values of an integer array as int64; INVALID_ARGUMENT for floating-point arrays.
+  absl::StatusOr<std::vector<int64_t>> ToInt64() const;
+
+  // OK when the dtype is `want` and data holds exactly size() elements of it.
+  absl::Status CheckLayout(DataType want) const;
+};
+
+template <class T>
+absl::StatusOr<std::vector<T>> Array::As() const {
+  static_assert(kDataTypeOf<T> != DataType::kUnspecified, "not an element type of the wire");
+  if (absl::Status s = CheckLayout(kDataTypeOf<T>); !s.ok()) return s;
+  std::vector<T> values(data.size() / sizeof(T));
+  if (!values.empty()) std::memcpy(values.data(), data.data(), data.size());
+  return values;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Server.
+
+// Limits enforced by the server.
+struct ServerLimits {
+  int32_t max_meshes = 0;
+  int32_t max_sessions = 0;
+  int32_t max_engine_threads = 0;      // consumers and producers over all sessions
+  int64_t memory_budget_bytes = 0;     // meshes and sessions
+  int64_t max_message_bytes = 0;       // largest gRPC message accepted
+  int32_t max_batch_size = 0;          // most simplices in one RelationBatch request
+  int64_t session_idle_timeout_seconds = 0;
+};
+
+// Versions, algorithms, relations, samples and limits of a server.
+struct ServerInfo {
+  std::string version;
+  std::map<std::string, std::string> library_versions;  // e.g. "grpc" -> "1.51.1"
+  std::vector<std::string> algorithms;  // "topo-relations", "critical-points", ...
+  std::vector<std::string> relations;   // "vertex_neighbors", "vertex_edges", ...
+  std::vector<std::string> samples;     // built-in samples with their descriptions
+  ServerLimits limits;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Meshes.
+
+// A point field of a mesh.
+struct FieldInfo {
+  std::string name;
+  DataType dtype = DataType::kUnspecified;  // as loaded
+  double min = 0;
+  double max = 0;
+};
+
+// A mesh loaded on the server.
+struct MeshInfo {
+  std::string mesh_id;
+  std::string name;    // file or sample name
+  std::string source;  // "file:PATH", "sample:NAME" or "upload"
+  int64_t vertices = 0;
+  int64_t edges = 0;
+  int64_t triangles = 0;
+  int64_t tetrahedra = 0;
+  int32_t blocks = 0;      // blocks of the partition
+  int32_t block_size = 0;  // octree bucket capacity used, 0 when partitioned by labels
+  std::vector<FieldInfo> fields;
+  int64_t bytes = 0;  // the mesh and its static encodings
+  int32_t sessions = 0;
+  std::chrono::system_clock::time_point created;
+  double load_seconds = 0;
+  double partition_seconds = 0;
+};
+
+// How the server partitions a mesh into blocks.
+struct PartitionOptions {
+  int32_t block_size = 0;         // octree bucket capacity (max vertices per block); 0: 1000
+  std::string block_label_field;  // partition by this integer point field instead
+};
+
+// A point field to upload: one value per vertex.
+struct ScalarField {
+  std::string name;
+  std::span<const double> values;
+};
+
+// Options of Client::UploadMesh.
+struct UploadOptions {
+  std::string name;  // shown in MeshInfo::name; empty: "upload"
+  PartitionOptions partition;
+  size_t chunk_bytes = size_t{1} << 20;  // bytes per message after the header
+};
+
+// ---------------------------------------------------------------------------------------------
+// Sessions.
+
+// The topological data structure of a session.
+enum class Structure {
+  kActopo,    // the task-parallel engine: producers compute ahead into a bounded buffer
+  kExplicit,  // every relation the algorithm needs computed up front
+  kCompact,   // relations computed on demand into a bounded cache
+};
+
+// Which blocks the actopo producers compute ahead.
+enum class Prefetch { kAuto, kLinear, kSpatial, kAdaptive };
+// Which relations the actopo producers compute for a block.
+enum class Precompute { kAuto, kRequested, kDeclared };
+
+// "actopo", "explicit", "compact"; "auto", "linear", ...; "auto", "requested", "declared".
+std::string_view StructureName(Structure structure);
+std::string_view PrefetchName(Prefetch prefetch);
+std::string_view PrecomputeName(Precompute precompute);
+
+// Options of Client::OpenSession; 0 and kAuto mean the server's default.
+struct SessionOptions {
+  std::string scalar;  // the scalar field; empty: the mesh's first floating-point field
+  Structure structure = Structure::kActopo;
+  int32_t consumers = 0;      // algorithm threads; 0: 1
+  int32_t producers = 0;      // actopo producer threads per consumer; 0: 2
+  double buffer_ratio = 0.0;  // buffer or cache capacity as a fraction of the blocks; 0: 0.2
+  Prefetch prefetch = Prefetch::kAuto;
+  Precompute precompute = Precompute::kAuto;
+};
+
+// An open session, with its engine options as the server resolved them.
+struct SessionInfo {
+  std::string session_id;
+  std::string mesh_id;
+  std::string scalar_field;
+  Structure structure = Structure::kActopo;
+  int32_t consumers = 0;
+  int32_t producers = 0;
+  double buffer_ratio = 0.0;
+  Prefetch prefetch = Prefetch::kAuto;
+  Precompute precompute = Precompute::kAuto;
+  std::chrono::system_clock::time_point created;
+  std::chrono::system_clock::time_point last_used;
+  std::string running_job_id;  // empty when no job runs
+};
+
+// A cumulative counter: diff two snapshots for an interval.
+struct Counter {
+  int64_t count = 0;
+  int64_t ns = 0;  // total nanoseconds
+};
+
+// Access and engine statistics (see the proto's EngineStats).
+struct EngineStats {
+  int64_t requests = 0;  // block-level relation requests
+  int64_t hits = 0;
+  int64_t misses = 0;
+  int64_t evictions = 0;
+  int64_t wait_ns = 0;  // time consumers waited
+  int64_t leader_relations = 0;
+  int64_t worker_relations = 0;
+  int64_t consumer_relations = 0;
+  int64_t duplicates_avoided = 0;
+  int64_t producer_busy_ns = 0;
+  int64_t buffer_bytes = 0;
+  int64_t buffer_peak_bytes = 0;
+
+  // hits / requests, 0 without requests.
+  double hit_rate() const { return requests > 0 ? double(hits) / double(requests) : 0.0; }
+};
+
+// Memory of a session.
+struct MemoryStats {
+  int64_t static_bytes = 0;         // the mesh's static encodings (shared by its sessions)
+  int64_t relation_bytes = 0;       // relations stored or buffered now
+  int64_t relation_peak_bytes = 0;
+  int64_t process_rss_bytes = 0;    // resident memory of the server process
+};
+
+// Statistics of a session over its life.
+struct SessionStats {
+  EngineStats engine;
+  MemoryStats memory;
+  Counter relation_queries;
+  Counter jobs;
+  double preprocess_seconds = 0;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Relations. Names are the proto's Relation values in lower case: "vertex_neighbors",
+// "vertex_edges", "vertex_triangles", "vertex_star", "edge_vertices", "edge_triangles",
+// "edge_star", "triangle_vertices", "triangle_edges", "triangle_star", "tetrahedron_vertices",
+// "tetrahedron_edges", "tetrahedron_triangles", "tetrahedron_neighbors", "vertex_link",
+// "edge_link", "triangle_link", "vertex_on_boundary", "edge_on_boundary",
+// "triangle_on_boundary".
+
+// The simplex a relation query is about: an id, or its input vertex ids in any order.
+//
+//   client->Relation(session, "vertex_star", 7);                             // vertex 7
+//   client->Relation(session, "edge_triangles", Simplex::Vertices({3, 17}));  // edge (3, 17)
+class Simplex {
+ public:
+  // Implicit so that an id can be passed where a Simplex is expected.
+  Simplex(int64_t id) : id_(id) {}  // NOLINT(google-explicit-constructor)
+  // A simplex by its 1 to 4 input vertex ids.
+  static Simplex Vertices(std::vector<int64_t> vertices);
+
+  bool by_vertices() const { return by_vertices_; }
+  int64_t id() const { return id_; }
+  const std::vector<int64_t>& vertices() const { return vertices_; }
+
+ private:
+  Simplex() = default;
+  int64_t id_ = 0;
+  bool by_vertices_ = false;
+  std::vector<int64_t> vertices_;
+};
+
+// The answer of Client::RelationWithVertices.
+struct RelationResult {
+  std::vector<int64_t> ids;
+  // For relations whose results are edges or triangles: the input vertices of each result,
+  // flattened (2 or 3 per id); empty otherwise.
+  std::vector<int64_t> vertices;
+};
+
+// A relation of many simplices in compressed sparse rows: the results of simplex i are
+// values[offsets[i] .. offsets[i + 1]).
+struct RelationCsr {
+  std::vector<int64_t> offsets;  // size() + 1 entries, offsets[0] == 0
+  std::vector<int64_t> values;
+
+  size_t size() const { return offsets.empty() ? 0 : offsets.size() - 1; }
+  std::span<const int64_t> operator[](size_t i) const {
+    return std::span<const int64_t>(values).subspan(size_t(offsets[i]),
+                                                    size_t(offsets[i + 1] - offsets[i]));
+  }
+};
+
+// One answer of a relation stream: the request's id and its result, or its own error (the
+// stream goes on after a bad item).
+struct StreamItem {
+  int64_t request_id = 0;
+  absl::StatusOr<std::vector<int64_t>> ids;
+};
+
+// A bidirectional relation stream (Client::OpenRelationStream). Write requests from one
+// thread and Read answers from another (or alternate in one thread: answers come one per
+// request, in order); WritesDone when all are sent; Read until it returns nullopt; then Finish.
+//
+//   auto stream = client->OpenRelationStream();
+//   std::thread writer([&] {
+//     for (int64_t v = 0; v < n; ++v) (*stream)->Write(v, session, "vertex_neighbors", v);
+//     (*stream)->WritesDone();
+//   });
+//   while (std::optional<StreamItem> item = (*stream)->Read()) { ... }
+//   writer.join();
+//   absl::Status status = (*stream)->Finish();
+class RelationStream {
+ public:
+  struct Impl;
+  explicit RelationStream(std::unique_ptr<Impl> impl);
+  RelationStream(const RelationStream&) = delete;
+  RelationStream& operator=(const RelationStream&) = delete;
+  // Cancels the call if it was not finished.
+  ~RelationStream();
+
+  // Sends one request. INVALID_ARGUMENT for an unknown relation name (nothing is sent);
+  // FAILED_PRECONDITION once the stream is broken or WritesDone was called (Finish says why).
+  absl::Status Write(int64_t request_id, std::string_view session_id, std::string_view relation,
+                     const Simplex& simplex);
+  // Tells the server no more requests follow.
+  absl::Status WritesDone();
+  // Blocks for the next answer; nullopt when the stream has ended (then call Finish).
+  std::optional<StreamItem> Read();
+  // The status of the whole call (per-item errors are in the items). Call after Read returned
+  // nullopt, or it cancels the call first.
+  absl::Status Finish();
+  // Cancels the call from any thread; pending Reads and Writes return at once.
+  void Cancel();
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Jobs. Algorithm names: "topo-relations", "critical-points", "discrete-gradient",
+// "morse-smale" ("morse_smale" works too).
+
+// Cancels a running job from any thread: RunJob then returns CANCELLED. Copies share the same
+// state, so keep one and hand a copy to JobOptions.
+class CancelToken {
+ public:
+  CancelToken();
+  // Requests cancellation (idempotent, thread-safe).
+  void Cancel() const;
+  bool cancelled() const;
+
+ private:
+  friend class Client;
+  class Registration;
+  // Calls `f` on Cancel (at once if already cancelled) until the registration is destroyed.
+  std::shared_ptr<Registration> OnCancel(std::function<void()> f) const;
+
+  struct State;
+  std::shared_ptr<State> state_;
+};
+
+// Options of Client::RunJob.
+struct JobOptions {
+  // Send the result arrays (otherwise only the summary and statistics).
+  bool include_arrays = true;
+  // Called with the fraction done (0 to 1) as progress arrives, on RunJob's thread.
+  std::function<void(double fraction)> progress;
+  // Called with the job id once the server accepted the job (e.g. to CancelJob it).
+  std::function<void(const std::string& job_id)> on_accepted;
+  // Cancel() on (a copy of) this token cancels the job.
+  CancelToken cancel;
+  // Deadline of the whole job; 0: none.
+  std::chrono::milliseconds timeout{0};
+};
+
+// Timings and statistics of a job.
+struct JobStats {
+  double run_seconds = 0;
+  EngineStats engine;
+  MemoryStats memory;
+};
+
+// The outcome of Client::RunJob.
+//
+// Arrays are named "<group>/<TTK array name>" (see the proto's ResultChunk):
+//   critical-points:   critical_points/{Points, CriticalType, IsOnBoundary, ...}
+//   discrete-gradient: critical_cells/{Points, CellDimension, CellId, ...}
+//   morse-smale:       critical_points/..., separatrices/{Points, Offsets, SeparatrixType, ...},
+//                      segmentation/{DescendingManifold, AscendingManifold, MorseSmaleManifold}
+//
+//   absl::StatusOr<std::vector<int8_t>> types =
+//       result->Get<int8_t>("critical_points/CriticalType");
+struct JobResult {
+  std::string job_id;
+  std::string algorithm;  // canonical name, e.g. "morse-smale"
+  // The summary as a JSON object: the same keys and values as actopo-bench's "result".
+  std::string summary_json;
+  std::map<std::string, Array, std::less<>> arrays;
+  JobStats stats;
+
+  // The array named `name`, or nullptr.
+  const Array* Find(std::string_view name) const;
+  // The values of array `name` as T: NOT_FOUND without it, INVALID_ARGUMENT for another dtype.
+  template <class T>
+  absl::StatusOr<std::vector<T>> Get(std::string_view name) const;
+};
+
+template <class T>
+absl::StatusOr<std::vector<T>> JobResult::Get(std::string_view name) const {
+  const Array* array = Find(name);
+  if (array == nullptr) {
+    return absl::NotFoundError("result array '" + std::string(name) + "' not found");
+  }
+  return array->As<T>();
+}
+
+// ---------------------------------------------------------------------------------------------
+// The client.
+
+// Options of Client::Connect.
+struct ClientOptions {
+  // Bearer token sent as `authorization: Bearer TOKEN` with every call; empty: none.
+  std::string token;
+  // TLS: off by default; with use_tls, tls_root_certs (PEM) or, when empty, the system roots.
+  bool use_tls = false;
+  std::string tls_root_certs;
+  // Deadline of quick calls (info, lists, relations, stats, cancel); 0: none.
+  std::chrono::milliseconds default_timeout = std::chrono::seconds(30);
+  // Deadline of calls that read, partition or preprocess a mesh (load, upload, open session).
+  std::chrono::milliseconds mesh_timeout = std::chrono::minutes(10);
+  // When positive, Connect waits this long for the channel to be ready (UNAVAILABLE if not);
+  // otherwise it connects lazily on the first call.
+  std::chrono::milliseconds connect_timeout{0};
+  // Largest message sent or received.
+  int max_message_bytes = 256 << 20;
+};
+
+// A connection to an actopo-server. Create with Connect; thread-safe.
+class Client {
+ public:
+  // `target`: "HOST:PORT" (a gRPC URI such as "dns:///host:port" works too); empty: the
+  // environment variable ACTOPO_SERVER.
+  static absl::StatusOr<std::unique_ptr<Client>> Connect(std::string_view target,
+                                                         const ClientOptions& options = {});
+  Client(const Client&) = delete;
+  Client& operator=(const Client&) = delete;
+  ~Client();
+
+  const std::string& target() const;
+
+  // Server.
+  absl::StatusOr<ServerInfo> GetServerInfo();
+
+  // Meshes.
+
+  // Loads a file under the server's data directory, or a built-in sample as "sample:NAME"
+  // (e.g. "sample:jittered:32", "sample:wavelet:64").
+  absl::StatusOr<MeshInfo> LoadMesh(std::string_view path, const PartitionOptions& partition = {});
+  // Uploads a mesh: `points` holds x, y, z per vertex, `tetrahedra` 4 vertex ids (0-based
+  // indices into the points) per tetrahedron, each field one value per vertex. Shapes are
+  // checked before anything is sent; the data goes as a header with its SHA-256 and chunks.
+  //
+  //   std::vector<double> points = {0,0,0, 1,0,0, 0,1,0, 0,0,1};
+  //   std::vector<int32_t> tets = {0, 1, 2, 3};
+  //   std::vector<double> height = {0, 0, 0, 1};
+  //   auto mesh = client->UploadMesh(points, tets, {{"height", height}}, {.name = "one tet"});
+  absl::StatusOr<MeshInfo> UploadMesh(std::span<const double> points,
+                                      std::span<const int32_t> tetrahedra,
+                                      const std::vector<ScalarField>& fields = {},
+                                      const UploadOptions& options = {});
+  absl::StatusOr<MeshInfo> UploadMesh(std::span<const double> points,
+                                      std::span<const int64_t> tetrahedra,
+                                      const std::vector<ScalarField>& fields = {},
+                                      const UploadOptions& options = {});
+  absl::StatusOr<std::vector<MeshInfo>> ListMeshes();
+  absl::StatusOr<MeshInfo> GetMesh(std::string_view mesh_id);
+  // Deletes a mesh; the server frees it once no session uses it.
+  absl::Status DeleteMesh(std::string_view mesh_id);
+
+  // Sessions.
+
+  absl::StatusOr<SessionInfo> OpenSession(std::string_view mesh_id,
+                                          const SessionOptions& options = {});
+  absl::StatusOr<SessionInfo> GetSession(std::string_view session_id);
+  absl::StatusOr<std::vector<SessionInfo>> ListSessions();
+  // Closes a session, cancelling its running job.
+  absl::Status CloseSession(std::string_view session_id);
+  // Cumulative statistics of a session.
+  absl::StatusOr<SessionStats> Stats(std::string_view session_id);
+
+  // Relations.
+
+  // One relation of one simplex: client->Relation(session_id, "vertex_star", 7).
+  absl::StatusOr<std::vector<int64_t>> Relation(std::string_view session_id,
+                                                std::string_view relation,
+                                                const Simplex& simplex);
+  // The same, with the vertex tuples of result edges and triangles.
+  absl::StatusOr<RelationResult> RelationWithVertices(std::string_view session_id,
+                                                      std::string_view relation,
+                                                      const Simplex& simplex);
+  // One relation of many simplices by id. Inputs larger than the server's max_batch_size are
+  // split into several requests and the answers merged.
+  absl::StatusOr<RelationCsr> RelationBatch(std::string_view session_id,
+                                            std::string_view relation,
+                                            std::span<const int64_t> ids);
+  // One relation of many simplices by vertex tuples: `tuples` holds `tuple_size` input vertex
+  // ids per simplex (2 for edges, 3 for triangles, ...).
+  absl::StatusOr<RelationCsr> RelationBatchByVertices(std::string_view session_id,
+                                                      std::string_view relation,
+                                                      std::span<const int64_t> tuples,
+                                                      int tuple_size);
+  // Streams one relation over many simplices (request id = index in the input), calling
+  // `on_item` on this thread for each answer as it arrives; a bad simplex gets its own error in
+  // its item and the stream goes on. The returned status is that of the whole call.
+  absl::Status StreamRelations(std::string_view session_id, std::string_view relation,
+                               std::span<const int64_t> ids,
+                               const std::function<void(StreamItem)>& on_item);
+  absl::Status StreamRelations(std::string_view session_id, std::string_view relation,
+                               std::span<const Simplex> simplices,
+                               const std::function<void(StreamItem)>& on_item);
+  // A stream to drive yourself (mixed sessions, relations and request ids).
+  absl::StatusOr<std::unique_ptr<RelationStream>> OpenRelationStream();
+
+  // Jobs.
+
+  // Runs an algorithm on a session and waits for its result. `parameters`: e.g.
+  // {{"boundary_rule", "none"}} for critical points.
+  //
+  //   actopo::CancelToken cancel;   // cancel.Cancel() from another thread stops the job
+  //   auto result = client->RunJob(session_id, "morse-smale", {},
+  //       {.progress = [](double f) { std::cerr << int(100 * f) << "%\r"; }, .cancel = cancel});
+  absl::StatusOr<JobResult> RunJob(std::string_view session_id, std::string_view algorithm,
+                                   const std::map<std::string, std::string>& parameters = {},
+                                   const JobOptions& options = {});
+  // Cancels a running job by id (the RunJob call then returns CANCELLED).
+  absl::Status CancelJob(std::string_view job_id);
+
+ private:
+  explicit Client(std::shared_ptr<internal::Core> core);
+  absl::StatusOr<int64_t> MaxBatchSize();
+
+  std::shared_ptr<internal::Core> core_;
+};
+
+}  // namespace actopo
+
+#endif  // ACTOPO_CLIENT_H_

@@ -1,0 +1,155 @@
+// Client: connection, server info, meshes and sessions (unary calls).
+#include "actopo/client.h"
+
+#include "absl/strings/str_cat.h"
+#include "src/internal/convert.h"
+#include "src/internal/core.h"
+#include "src/internal/names.h"
+
+namespace actopo {
+
+using internal::FromProto;
+using internal::ToProto;
+
+absl::StatusOr<std::unique_ptr<Client>> Client::Connect(std::string_view target,
+                                                        const ClientOptions& options) {
+  ACTOPO_ASSIGN_OR_RETURN(std::shared_ptr<internal::Core> core,
+                          internal::NewCore(std::string(target), options));
+  return std::unique_ptr<Client>(new Client(std::move(core)));
+}
+
+Client::Client(std::shared_ptr<internal::Core> core) : core_(std::move(core)) {}
+
+Client::~Client() = default;
+
+const std::string& Client::target() const { return core_->target; }
+
+absl::StatusOr<ServerInfo> Client::GetServerInfo() {
+  ACTOPO_ASSIGN_OR_RETURN(v1::GetServerInfoResponse response,
+                          core_->Unary(&v1::TopologyService::Stub::GetServerInfo,
+                                       v1::GetServerInfoRequest(), core_->QuickContext()));
+  ServerInfo info = FromProto(response);
+  core_->max_batch_size = info.limits.max_batch_size;
+  return info;
+}
+
+absl::StatusOr<int64_t> Client::MaxBatchSize() {
+  if (core_->max_batch_size.load() <= 0) {
+    ACTOPO_RETURN_IF_ERROR(GetServerInfo().status());
+  }
+  // A server that reports no limit gets batches of a size any server takes.
+  const int64_t limit = core_->max_batch_size.load();
+  return limit > 0 ? limit : int64_t{100'000};
+}
+
+// ---------------------------------------------------------------------------------------------
+// Meshes.
+
+absl::StatusOr<MeshInfo> Client::LoadMesh(std::string_view path,
+                                          const PartitionOptions& partition) {
+  if (partition.block_size < 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("partition.block_size: ", partition.block_size, " is negative"));
+  }
+  constexpr std::string_view kSample = "sample:";
+  v1::LoadMeshRequest request;
+  if (path.substr(0, kSample.size()) == kSample) {
+    request.set_sample(std::string(path.substr(kSample.size())));
+  } else {
+    request.set_path(std::string(path));
+  }
+  *request.mutable_partition() = ToProto(partition);
+  ACTOPO_ASSIGN_OR_RETURN(
+      v1::LoadMeshResponse response,
+      core_->Unary(&v1::TopologyService::Stub::LoadMesh, request, core_->MeshContext()));
+  return FromProto(response.mesh());
+}
+
+absl::StatusOr<std::vector<MeshInfo>> Client::ListMeshes() {
+  ACTOPO_ASSIGN_OR_RETURN(v1::ListMeshesResponse response,
+                          core_->Unary(&v1::TopologyService::Stub::ListMeshes,
+                                       v1::ListMeshesRequest(), core_->QuickContext()));
+  std::vector<MeshInfo> meshes;
+  for (const v1::MeshInfo& m : response.meshes()) meshes.push_back(FromProto(m));
+  return meshes;
+}
+
+absl::StatusOr<MeshInfo> Client::GetMesh(std::string_view mesh_id) {
+  v1::GetMeshRequest request;
+  request.set_mesh_id(std::string(mesh_id));
+  ACTOPO_ASSIGN_OR_RETURN(
+      v1::GetMeshResponse response,
+      core_->Unary(&v1::TopologyService::Stub::GetMesh, request, core_->QuickContext()));
+  return FromProto(response.mesh());
+}
+
+absl::Status Client::DeleteMesh(std::string_view mesh_id) {
+  v1::DeleteMeshRequest request;
+  request.set_mesh_id(std::string(mesh_id));
+  return core_->Unary(&v1::TopologyService::Stub::DeleteMesh, request, core_->QuickContext())
+      .status();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Sessions.
+
+absl::StatusOr<SessionInfo> Client::OpenSession(std::string_view mesh_id,
+                                                const SessionOptions& options) {
+  v1::OpenSessionRequest request;
+  request.set_mesh_id(std::string(mesh_id));
+  request.set_scalar_field(options.scalar);
+  request.set_structure(ToProto(options.structure));
+  v1::EngineOptions* engine = request.mutable_engine();
+  engine->set_consumers(options.consumers);
+  engine->set_producers(options.producers);
+  engine->set_buffer_ratio(options.buffer_ratio);
+  engine->set_prefetch(ToProto(options.prefetch));
+  engine->set_precompute(ToProto(options.precompute));
+  ACTOPO_ASSIGN_OR_RETURN(
+      v1::OpenSessionResponse response,
+      core_->Unary(&v1::TopologyService::Stub::OpenSession, request, core_->MeshContext()));
+  return FromProto(response.session());
+}
+
+absl::StatusOr<SessionInfo> Client::GetSession(std::string_view session_id) {
+  v1::GetSessionRequest request;
+  request.set_session_id(std::string(session_id));
+  ACTOPO_ASSIGN_OR_RETURN(
+      v1::GetSessionResponse response,
+      core_->Unary(&v1::TopologyService::Stub::GetSession, request, core_->QuickContext()));
+  return FromProto(response.session());
+}
+
+absl::StatusOr<std::vector<SessionInfo>> Client::ListSessions() {
+  ACTOPO_ASSIGN_OR_RETURN(v1::ListSessionsResponse response,
+                          core_->Unary(&v1::TopologyService::Stub::ListSessions,
+                                       v1::ListSessionsRequest(), core_->QuickContext()));
+  std::vector<SessionInfo> sessions;
+  for (const v1::SessionInfo& s : response.sessions()) sessions.push_back(FromProto(s));
+  return sessions;
+}
+
+absl::Status Client::CloseSession(std::string_view session_id) {
+  v1::CloseSessionRequest request;
+  request.set_session_id(std::string(session_id));
+  return core_->Unary(&v1::TopologyService::Stub::CloseSession, request, core_->QuickContext())
+      .status();
+}
+
+absl::StatusOr<SessionStats> Client::Stats(std::string_view session_id) {
+  v1::GetSessionStatsRequest request;
+  request.set_session_id(std::string(session_id));
+  ACTOPO_ASSIGN_OR_RETURN(v1::GetSessionStatsResponse response,
+                          core_->Unary(&v1::TopologyService::Stub::GetSessionStats, request,
+                                       core_->QuickContext()));
+  return FromProto(response);
+}
+
+absl::Status Client::CancelJob(std::string_view job_id) {
+  v1::CancelJobRequest request;
+  request.set_job_id(std::string(job_id));
+  return core_->Unary(&v1::TopologyService::Stub::CancelJob, request, core_->QuickContext())
+      .status();
+}
+
+}  // namespace actopo

@@ -1,0 +1,73 @@
+#include "src/internal/core.h"
+
+#include <cstdlib>
+
+#include "absl/strings/str_cat.h"
+
+namespace actopo::internal {
+
+absl::Status FromGrpc(const grpc::Status& status) {
+  if (status.ok()) return absl::OkStatus();
+  return absl::Status(static_cast<absl::StatusCode>(status.error_code()),
+                      status.error_message());
+}
+
+std::unique_ptr<grpc::ClientContext> Core::Context(std::chrono::milliseconds timeout) const {
+  auto context = std::make_unique<grpc::ClientContext>();
+  if (!options.token.empty()) {
+    context->AddMetadata("authorization", "Bearer " + options.token);
+  }
+  if (timeout.count() > 0) context->set_deadline(std::chrono::system_clock::now() + timeout);
+  return context;
+}
+
+absl::StatusOr<std::shared_ptr<Core>> NewCore(std::string target, const ClientOptions& options) {
+  if (target.empty()) {
+    const char* env = std::getenv("ACTOPO_SERVER");
+    if (env != nullptr) target = env;
+  }
+  if (target.empty()) {
+    return absl::InvalidArgumentError(
+        "target: no server given; pass \"HOST:PORT\" or set ACTOPO_SERVER");
+  }
+  if (options.max_message_bytes <= 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("options.max_message_bytes: ", options.max_message_bytes,
+                     " is not positive"));
+  }
+  std::shared_ptr<grpc::ChannelCredentials> credentials;
+  if (options.use_tls) {
+    grpc::SslCredentialsOptions ssl;
+    ssl.pem_root_certs = options.tls_root_certs;
+    credentials = grpc::SslCredentials(ssl);
+  } else if (!options.tls_root_certs.empty()) {
+    return absl::InvalidArgumentError(
+        "options.tls_root_certs: given without use_tls; set use_tls = true");
+  } else {
+    credentials = grpc::InsecureChannelCredentials();
+  }
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(options.max_message_bytes);
+  args.SetMaxSendMessageSize(options.max_message_bytes);
+  // A ping every minute while calls are in flight: a job can be silent for long, and a dead
+  // peer should not hang the client. Never on an idle channel, which servers would refuse.
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 60'000);
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 20'000);
+  args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 0);
+
+  auto core = std::make_shared<Core>();
+  core->target = target;
+  core->options = options;
+  core->channel = grpc::CreateCustomChannel(target, credentials, args);
+  core->stub = v1::TopologyService::NewStub(core->channel);
+  if (options.connect_timeout.count() > 0 &&
+      !core->channel->WaitForConnected(std::chrono::system_clock::now() +
+                                       options.connect_timeout)) {
+    return absl::UnavailableError(absl::StrCat("target: could not connect to ", target,
+                                               " within ", options.connect_timeout.count(),
+                                               " ms"));
+  }
+  return core;
+}
+
+}  // namespace actopo::internal

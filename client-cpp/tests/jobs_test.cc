@@ -1,0 +1,210 @@
+// Jobs: results equal actopo-bench's, arrays, progress, parameters, cancellation and deadlines.
+#include <unistd.h>
+
+#include <future>
+#include <stdexcept>
+#include <thread>
+
+#include "tests/testing/fixture.h"
+
+namespace actopo::testing {
+namespace {
+
+using absl::StatusCode;
+
+int64_t Sum(const nlohmann::json& values) {
+  int64_t total = 0;
+  for (const auto& v : values) total += v.get<int64_t>();
+  return total;
+}
+
+class BenchEqualityTest : public ServerTest, public ::testing::WithParamInterface<const char*> {};
+
+// The summary of a job equals actopo-bench's "result" on the same file, scalar and algorithm.
+TEST_P(BenchEqualityTest, SummaryEqualsBenchAndArraysAreComplete) {
+  const std::string algorithm = GetParam();
+  if (access(BenchBinary().c_str(), X_OK) != 0) {
+    GTEST_SKIP() << "actopo-bench not found at " << BenchBinary() << " (set ACTOPO_BENCH_BIN)";
+  }
+  const std::string session = Open(Fertility(), {.scalar = "eigenfunction4"});
+  std::vector<double> progress;
+  std::string accepted;
+  absl::StatusOr<JobResult> result = client().RunJob(
+      session, algorithm, {},
+      {.progress = [&](double f) { progress.push_back(f); },
+       .on_accepted = [&](const std::string& id) { accepted = id; }});
+  ASSERT_OK(result);
+  EXPECT_EQ(result->algorithm, algorithm);
+  EXPECT_EQ(result->job_id, accepted);
+  EXPECT_EQ(result->job_id.rfind("job", 0), 0u);
+  ASSERT_FALSE(progress.empty());
+  for (double f : progress) {
+    EXPECT_GE(f, 0.0);
+    EXPECT_LE(f, 1.0);
+  }
+  EXPECT_GT(result->stats.run_seconds, 0.0);
+
+  const nlohmann::json summary = nlohmann::json::parse(result->summary_json);
+  const nlohmann::json expected = BenchResult("fertility_tet.vtu", "eigenfunction4", algorithm);
+  ASSERT_FALSE(expected.is_null());
+  EXPECT_EQ(summary, expected) << "client: " << summary.dump() << "\nbench:  " << expected.dump();
+
+  if (algorithm == "critical-points") {
+    int64_t total = 0;
+    for (const auto& [name, count] : expected["counts"].items()) total += count.get<int64_t>();
+    absl::StatusOr<std::vector<int8_t>> types = result->Get<int8_t>("critical_points/CriticalType");
+    ASSERT_OK(types);
+    EXPECT_EQ(int64_t(types->size()), total);
+    const Array* points = result->Find("critical_points/Points");
+    ASSERT_NE(points, nullptr);
+    EXPECT_EQ(points->shape, (std::vector<int64_t>{total, 3}));
+    EXPECT_OK(points->As<double>());
+    EXPECT_OK(result->Get<double>("critical_points/eigenfunction4"));
+    EXPECT_OK(result->Get<int32_t>("critical_points/ttkVertexScalarField"));
+    EXPECT_OK(result->Get<int8_t>("critical_points/IsOnBoundary"));
+  } else if (algorithm == "discrete-gradient") {
+    absl::StatusOr<std::vector<int8_t>> dims = result->Get<int8_t>("critical_cells/CellDimension");
+    ASSERT_OK(dims);
+    EXPECT_EQ(int64_t(dims->size()), Sum(expected["critical_cells"]));
+    EXPECT_OK(result->Get<int32_t>("critical_cells/CellId"));
+  } else if (algorithm == "topo-relations") {
+    EXPECT_TRUE(result->arrays.empty());
+  } else {
+    absl::StatusOr<std::vector<int32_t>> labels =
+        result->Get<int32_t>("segmentation/MorseSmaleManifold");
+    ASSERT_OK(labels);
+    EXPECT_EQ(labels->size(), 14570u);
+    absl::StatusOr<std::vector<int64_t>> offsets = result->Get<int64_t>("separatrices/Offsets");
+    ASSERT_OK(offsets);
+    const Array* points = result->Find("separatrices/Points");
+    ASSERT_NE(points, nullptr);
+    EXPECT_EQ(offsets->back(), points->shape[0]);
+    EXPECT_OK(result->Get<int8_t>("separatrices/SeparatrixType"));
+    EXPECT_OK(result->Get<int32_t>("critical_points/ManifoldSize"));
+  }
+  absl::StatusOr<SessionStats> stats = client().Stats(session);
+  ASSERT_OK(stats);
+  EXPECT_EQ(stats->jobs.count, 1);
+}
+
+INSTANTIATE_TEST_SUITE_P(Fertility, BenchEqualityTest,
+                         ::testing::Values("topo-relations", "critical-points",
+                                           "discrete-gradient", "morse-smale"));
+
+TEST_F(ServerTest, SummaryOnlyAndParameters) {
+  const std::string session = Open(LoadSample("jittered:8"), {.structure = Structure::kCompact});
+  absl::StatusOr<JobResult> lean =
+      client().RunJob(session, "morse_smale", {}, {.include_arrays = false});
+  ASSERT_OK(lean);
+  EXPECT_EQ(lean->algorithm, "morse-smale");
+  EXPECT_TRUE(lean->arrays.empty());
+  EXPECT_TRUE(nlohmann::json::parse(lean->summary_json).contains("critical_cells"));
+
+  absl::StatusOr<JobResult> relations = client().RunJob(session, "topo-relations");
+  ASSERT_OK(relations);
+  EXPECT_TRUE(relations->arrays.empty());  // topo-relations has no arrays
+  EXPECT_TRUE(nlohmann::json::parse(relations->summary_json).contains("relation_totals"));
+
+  EXPECT_OK(client().RunJob(session, "critical-points", {{"boundary_rule", "none"}}));
+  EXPECT_TRUE(HasError(client().RunJob(session, "critical-points", {{"boundary_rule", "maybe"}}),
+                       StatusCode::kInvalidArgument, "boundary_rule: unknown value 'maybe'"));
+  EXPECT_TRUE(HasError(client().RunJob(session, "critical-points", {{"speed", "fast"}}),
+                       StatusCode::kInvalidArgument, "unknown parameter 'speed'"));
+  EXPECT_TRUE(HasError(client().RunJob("session-guess", "critical-points"),
+                       StatusCode::kNotFound, "session-guess"));
+}
+
+TEST_F(ServerTest, JobCallbackMayThrow) {
+  const std::string session = Open(LoadSample("jittered:12"), {.structure = Structure::kCompact});
+  EXPECT_THROW(client().RunJob(session, "morse-smale", {},
+                               {.progress = [](double) { throw std::runtime_error("stop"); }}),
+               std::runtime_error);
+}
+
+// Waits until the server says no job runs on `session`.
+void WaitIdle(Client& client, const std::string& session) {
+  for (int i = 0; i < 200; ++i) {
+    absl::StatusOr<SessionInfo> info = client.GetSession(session);
+    if (!info.ok() || info->running_job_id.empty()) return;
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  ADD_FAILURE() << "the job on " << session << " did not stop";
+}
+
+// A 1.3M-tetrahedron sample on which topo-relations runs a few seconds: long enough to cancel.
+// Loaded once for the binary (the server goes at the end).
+std::string BigSample(Client& client) {
+  static const std::string id = [&] {
+    absl::StatusOr<MeshInfo> mesh = client.LoadMesh("sample:jittered:60", {.block_size = 500});
+    EXPECT_TRUE(mesh.ok()) << mesh.status();
+    return mesh.ok() ? mesh->mesh_id : std::string();
+  }();
+  return id;
+}
+
+TEST_F(ServerTest, Cancellation) {
+  const std::string session = Open(BigSample(client()), {.structure = Structure::kCompact});
+  ASSERT_FALSE(session.empty());
+
+  // CancelJob from another thread, with the id from on_accepted.
+  std::promise<std::string> job_id;
+  auto start = std::chrono::steady_clock::now();
+  std::future<absl::StatusOr<JobResult>> run = std::async(std::launch::async, [&] {
+    return client().RunJob(session, "topo-relations", {},
+                           {.on_accepted = [&](const std::string& id) { job_id.set_value(id); }});
+  });
+  const std::string id = job_id.get_future().get();
+  absl::StatusOr<SessionInfo> busy = client().GetSession(session);
+  ASSERT_OK(busy);
+  EXPECT_EQ(busy->running_job_id, id);
+  EXPECT_TRUE(HasError(client().RunJob(session, "critical-points"),
+                       StatusCode::kFailedPrecondition, "is running job"));
+  ASSERT_OK(client().CancelJob(id));
+  EXPECT_TRUE(HasError(run.get(), StatusCode::kCancelled));
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
+  EXPECT_TRUE(HasError(client().CancelJob(id), StatusCode::kNotFound, id));
+
+  // A CancelToken cancelled from another thread once the job is accepted.
+  CancelToken cancel;
+  std::promise<void> accepted;
+  start = std::chrono::steady_clock::now();
+  std::thread canceller([&] {
+    accepted.get_future().wait();
+    cancel.Cancel();
+  });
+  absl::StatusOr<JobResult> cancelled = client().RunJob(
+      session, "topo-relations", {},
+      {.on_accepted = [&](const std::string&) { accepted.set_value(); }, .cancel = cancel});
+  canceller.join();
+  EXPECT_TRUE(HasError(cancelled, StatusCode::kCancelled));
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
+  WaitIdle(client(), session);
+
+  // A job deadline.
+  EXPECT_TRUE(HasError(
+      client().RunJob(session, "topo-relations", {}, {.timeout = std::chrono::milliseconds(200)}),
+      StatusCode::kDeadlineExceeded));
+  WaitIdle(client(), session);
+
+  // The session is usable again.
+  EXPECT_OK(client().RunJob(session, "critical-points", {}, {.include_arrays = false}));
+}
+
+TEST_F(ServerTest, ClosingTheSessionCancelsItsJob) {
+  absl::StatusOr<SessionInfo> session =
+      client().OpenSession(BigSample(client()), {.structure = Structure::kCompact});
+  ASSERT_OK(session);
+  std::promise<void> accepted;
+  std::future<absl::StatusOr<JobResult>> run = std::async(std::launch::async, [&] {
+    return client().RunJob(session->session_id, "topo-relations", {},
+                           {.on_accepted = [&](const std::string&) { accepted.set_value(); }});
+  });
+  accepted.get_future().wait();
+  ASSERT_OK(client().CloseSession(session->session_id));
+  const absl::StatusOr<JobResult> result = run.get();
+  EXPECT_FALSE(result.ok());
+  EXPECT_EQ(result.status().code(), StatusCode::kCancelled) << result.status();
+}
+
+}  // namespace
+}  // namespace actopo::testing
