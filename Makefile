@@ -49,13 +49,10 @@ test-tsan: deps build-tsan/build.ninja
 	TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1" \
 	  setarch $$(uname -m) -R ctest --test-dir build-tsan --output-on-failure -j $(JOBS)
 
-# Until the service lands: the in-process benchmark on a built-in sample, both structures.
+# Starts the server on a built-in sample, runs jobs and relation queries through the Python
+# CLI, prints results and statistics, stops the server.
 demo: build
-	@for s in explicit compact; do \
-	  echo "== actopo-bench --sample $(DEMO_SAMPLE) --algorithm topo-relations --structure $$s"; \
-	  $(BUILD)/server/cmd/actopo-bench --sample $(DEMO_SAMPLE) --algorithm topo-relations \
-	    --structure $$s || exit 1; \
-	done
+	BUILD=$(abspath $(BUILD)) DATA_DIR=$(DATA_DIR) bash scripts/demo.sh
 
 bench: build
 	bash bench/compare_structures.sh

@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# make demo: start actopo-server on a free port, load a built-in sample, run critical points and
+# the Morse-Smale complex through the Python CLI, ask some relations, print statistics, stop.
+set -euo pipefail
+here=$(cd "$(dirname "$0")/.." && pwd)
+build=${BUILD:-$here/build}
+sample=${DEMO_SAMPLE:-wavelet:48}
+data_dir=${DATA_DIR:-$here/../shared/data}
+[[ -d "$data_dir" ]] || data_dir=$(mktemp -d)
+actopo="$here/.venv/bin/actopo"
+
+log=$(mktemp)
+"$build/server/cmd/actopo-server" --host 127.0.0.1 --port 0 --data-dir "$data_dir" >"$log" 2>&1 &
+server=$!
+trap 'kill $server 2>/dev/null; wait $server 2>/dev/null; rm -f "$log"' EXIT
+for _ in $(seq 100); do
+  grep -q "listening on" "$log" && break
+  sleep 0.1
+done
+target=$(sed -n 's/.*listening on //p' "$log")
+[[ -n "$target" ]] || { cat "$log"; echo "demo: the server did not start"; exit 1; }
+export ACTOPO_SERVER=$target
+step() { printf '\n== %s\n' "$*"; }
+
+step "actopo-server on $target"
+"$actopo" info
+
+step "load the built-in sample $sample (ParaView's Wavelet, tetrahedralized)"
+mesh=$("$actopo" load "sample:$sample" --json | python3 -c 'import json,sys; print(json.load(sys.stdin)["mesh_id"])')
+"$actopo" meshes
+
+step "critical points (TTK ScalarFieldCriticalPoints) on the actopo structure"
+"$actopo" run --mesh-id "$mesh" --algorithm critical-points --structure actopo
+
+step "Morse-Smale complex (TTK MorseSmaleComplex 3D) on the actopo structure"
+"$actopo" run --mesh-id "$mesh" --algorithm morse-smale --structure actopo
+
+step "relation queries: the star of vertex 0, the triangles around edge (0,1), vertex 7 on the boundary?"
+"$actopo" relation --mesh-id "$mesh" vertex_star 0
+"$actopo" relation --mesh-id "$mesh" --vertices edge_triangles 0,1
+"$actopo" relation --mesh-id "$mesh" vertex_on_boundary 7
+
+step "the three structures on the same job: time, consumer wait and memory"
+"$actopo" bench --mesh-id "$mesh" --algorithm critical-points
+
+step "statistics of the sessions still open"
+"$actopo" stats
