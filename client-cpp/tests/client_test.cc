@@ -28,8 +28,10 @@ TEST_F(ServerTest, ServerInfo) {
   EXPECT_EQ(info->limits.max_batch_size, kSharedMaxBatchSize);
   EXPECT_EQ(info->limits.max_message_bytes, int64_t{64} << 20);
   EXPECT_GT(info->limits.memory_budget_bytes, 0);
-  // max_meshes, max_sessions, max_engine_threads and session_idle_timeout_seconds are not
-  // checked: the server leaves them 0 (service_unary.cc fills three of the seven limits).
+  EXPECT_EQ(info->limits.max_meshes, 64);  // the shared server's flag
+  EXPECT_EQ(info->limits.max_sessions, 64);
+  EXPECT_EQ(info->limits.max_engine_threads, 64);
+  EXPECT_EQ(info->limits.session_idle_timeout_seconds, 1800);
   // Every relation the server lists is a name the client accepts.
   const std::string mesh = LoadSample("jittered:3");
   const std::string session = Open(mesh, {.structure = Structure::kExplicit});

@@ -43,6 +43,7 @@ struct BenchOptions {
   int producers = 2;
   std::string prefetch = "auto";
   std::string precompute = "auto";
+  std::string miss_policy = "consumer";
   double buffer_ratio = 0.2;
   int block_size = 1000;
   std::string block_labels;
@@ -77,6 +78,10 @@ absl::Status Validate(const BenchOptions& o) {
   if (o.precompute != "auto" && o.precompute != "requested" && o.precompute != "declared") {
     return absl::InvalidArgumentError(absl::StrCat(
         "--precompute: unknown scope '", o.precompute, "'; available: auto, requested, declared"));
+  }
+  if (o.miss_policy != "leader" && o.miss_policy != "consumer") {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--miss-policy: unknown policy '", o.miss_policy, "'; available: leader, consumer"));
   }
   if (o.consumers < 1 || o.consumers > 256) {
     return absl::InvalidArgumentError(
@@ -139,6 +144,7 @@ ActopoStructure::Options EngineOptions(const BenchOptions& o, Algorithm algorith
   if (o.prefetch == "linear") e.prefetch = Prefetch::kLinear;
   if (o.prefetch == "spatial") e.prefetch = Prefetch::kSpatial;
   if (o.prefetch == "adaptive") e.prefetch = Prefetch::kAdaptive;
+  e.miss_policy = o.miss_policy == "leader" ? MissPolicy::kLeader : MissPolicy::kConsumer;
   if (o.precompute == "requested") e.precompute = Precompute::kRequested;
   if (o.precompute == "declared") e.precompute = Precompute::kDeclared;
   return e;
@@ -213,6 +219,7 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
     out.engine_detail = {{"producers", engine.producers},
                          {"prefetch", std::string(PrefetchName(engine.prefetch))},
                          {"precompute", std::string(PrecomputeName(engine.precompute))},
+                         {"miss_policy", std::string(MissPolicyName(engine.miss_policy))},
                          {"buffer_capacity_blocks", structure->buffer_capacity_blocks()},
                          {"leader_relations", stats.leader_relations},
                          {"worker_relations", stats.worker_relations},
@@ -343,6 +350,8 @@ int main(int argc, char** argv) {
   flags.Add("prefetch", &o.prefetch,
             "actopo: auto (per algorithm), linear, spatial or adaptive");
   flags.Add("precompute", &o.precompute, "actopo: auto (per algorithm), requested or declared");
+  flags.Add("miss-policy", &o.miss_policy,
+            "actopo: who computes a missed relation: leader (the paper) or consumer");
   flags.Add("block-size", &o.block_size, "octree bucket capacity: max vertices per block");
   flags.Add("block-labels", &o.block_labels,
             "partition by this integer point field instead of the octree");

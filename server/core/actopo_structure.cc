@@ -112,6 +112,10 @@ std::string_view PrefetchName(Prefetch p) {
   return "?";
 }
 
+std::string_view MissPolicyName(MissPolicy p) {
+  return p == MissPolicy::kLeader ? "leader" : "consumer";
+}
+
 std::string_view PrecomputeName(Precompute p) {
   return p == Precompute::kRequested ? "requested" : "declared";
 }
@@ -192,6 +196,24 @@ class ActopoStructure::Consumer {
     const auto start = Clock::now();
     std::unique_lock<std::mutex> lock(mu_);
     if (TryPin(c)) {  // became ready meanwhile
+      wait_ns_.Add(NanosSince(start));
+      return &c;
+    }
+    if (options_.miss_policy == MissPolicy::kConsumer && c.state.load() == kAbsent && !stop_) {
+      // Compute it here: waking the leader to compute exactly this would only add a hand-off.
+      // The leader still learns where the consumer is and re-targets the workers.
+      c.state.store(kComputing);
+      hint_ = {block, r};
+      Predict(block, hint_prediction_);
+      ++hint_seq_;
+      leader_cv_.notify_one();
+      lock.unlock();
+      auto data = std::make_unique<RelationBlock>(
+          ComputeBlockRelation(topo_, r, block, Scratch()));
+      consumer_relations_.Add(1);
+      lock.lock();
+      Publish({block, r}, data.release());
+      c.pins.fetch_add(1, std::memory_order_seq_cst);  // under mu_: no eviction in between
       wait_ns_.Add(NanosSince(start));
       return &c;
     }

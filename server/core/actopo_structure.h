@@ -10,8 +10,11 @@
 //   for (SimplexId t : reader.vertex_star(v)) ...
 //
 // Per consumer: its own buffer of floor(buffer_ratio * blocks / consumers) + 1 blocks and its own
-// P producers. The leader serves the consumer's misses at once, then re-targets the workers to
-// the neighbourhood of the missed block; workers compute (block, relation) pairs speculatively.
+// P producers. On a miss, the leader re-targets the workers to the neighbourhood of the missed
+// block; workers compute (block, relation) pairs speculatively. The missed relation itself is
+// computed at once, by the leader (MissPolicy::kLeader, the paper's protocol: the consumer waits
+// for the hand-off) or by the consumer (kConsumer, the default: on 2 cores it ran topo-relations
+// 1.6x and Morse-Smale 1.4x faster, see bench/RESULTS.md); either way never twice at once.
 // While no request is pending the leader prefetches too (one task at a time, so a new request
 // waits at most one block computation): when the consumer reads faster than one producer
 // computes, which is the common case, an idle leader would waste a core.
@@ -55,6 +58,13 @@ enum class Prefetch : uint8_t {
   kAdaptive,  // the blocks this consumer has most often moved to from b (learned online), then
               // spatial neighbours for the rest of the window
 };
+// Who computes a relation the consumer misses when no producer is already computing it.
+enum class MissPolicy : uint8_t {
+  kLeader,    // the paper's protocol: the consumer asks its leader and waits
+  kConsumer,  // the consumer computes it itself (no thread hand-off) and only tells the leader
+              // where it is, so the workers re-target
+};
+
 // Which relations producers compute for a prefetched block.
 enum class Precompute : uint8_t {
   kRequested,  // the relation the consumer last asked for
@@ -62,6 +72,7 @@ enum class Precompute : uint8_t {
 };
 
 std::string_view PrefetchName(Prefetch p);
+std::string_view MissPolicyName(MissPolicy p);
 std::string_view PrecomputeName(Precompute p);
 
 // Engine counters of one consumer (and summed per session).
@@ -90,6 +101,7 @@ class ActopoStructure {
     Prefetch prefetch = Prefetch::kLinear;
     Precompute precompute = Precompute::kRequested;
     RelationSet declared = RelationSet::All();  // used by Precompute::kDeclared
+    MissPolicy miss_policy = MissPolicy::kConsumer;  // measured faster; kLeader: the paper
   };
 
   // Validates the options (each error names the option and value) and starts C * P threads.
