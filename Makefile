@@ -6,7 +6,7 @@ CMAKE_FLAGS ?= -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo
 DATA_DIR ?= $(firstword $(wildcard $(abspath ../shared/data) /work/shared/data) $(abspath ../shared/data))
 DEMO_SAMPLE ?= jittered:40
 
-.PHONY: all deps build test test-unit test-asan test-tsan lint-proto demo bench clean
+.PHONY: all deps build test test-unit test-client-cpp test-asan test-tsan lint-proto demo bench clean
 
 all: build
 
@@ -21,8 +21,13 @@ build: deps $(BUILD)/build.ninja
 
 # API lint, unit, service and fidelity tests, then the core and algorithm tests again under
 # ASan+UBSan and TSan.
-test: lint-proto test-unit test-asan test-tsan
+test: lint-proto test-unit test-client-cpp test-asan test-tsan
 	@echo "make test: all suites passed"
+
+# The C++ client as a user gets it: built, installed, tested against the real server, and its
+# examples built from a separate CMake project against the installed package.
+test-client-cpp: build
+	JOBS=$(JOBS) ACTOPO_DATA_DIR=$(DATA_DIR) bash client-cpp/check.sh $(abspath $(BUILD))
 
 lint-proto: deps
 	.tools/node_modules/.bin/buf lint proto

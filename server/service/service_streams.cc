@@ -209,7 +209,8 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
 };
 
 // ---------------------------------------------------------------------------------------------
-// StreamRelations: one request in, one response out, errors in band.
+// StreamRelations: errors in band. Reading and writing overlap (the next request is read while
+// earlier answers are written), with at most kMaxQueued answers waiting before reading pauses.
 class StreamRelationsReactor final
     : public grpc::ServerBidiReactor<v1::StreamRelationsRequest, v1::StreamRelationsResponse> {
  public:
@@ -218,6 +219,7 @@ class StreamRelationsReactor final
     const absl::Status admitted = service_->Admit(context);
     if (!admitted.ok()) {
       service_->Count("StreamRelations", admitted);
+      finished_ = true;
       Finish(ToGrpcStatus(admitted));
       return;
     }
@@ -225,41 +227,77 @@ class StreamRelationsReactor final
   }
 
   void OnReadDone(bool ok) override {
+    std::lock_guard<std::mutex> lock(mu_);
     if (!ok) {
-      service_->Count("StreamRelations", absl::OkStatus());
-      Finish(grpc::Status::OK);
+      reads_done_ = true;
+      MaybeFinishLocked();
       return;
     }
-    response_.Clear();
-    response_.set_request_id(request_.request_id());
+    v1::StreamRelationsResponse& response = queue_.emplace_back();
+    response.set_request_id(request_.request_id());
     std::vector<int64_t> ids;
-    absl::Status s = service_->draining()
-                         ? absl::UnavailableError("the server is shutting down")
-                         : service_->AnswerRelation(request_.session_id(), request_.relation(),
-                                                    request_.simplex(), false, ids, nullptr);
+    const absl::Status s =
+        service_->draining()
+            ? absl::UnavailableError("the server is shutting down")
+            : service_->AnswerRelation(request_.session_id(), request_.relation(),
+                                       request_.simplex(), false, ids, nullptr);
     if (s.ok()) {
-      response_.mutable_ids()->Add(ids.begin(), ids.end());
+      response.mutable_ids()->Add(ids.begin(), ids.end());
     } else {
-      response_.mutable_error()->set_code(int(s.code()));
-      response_.mutable_error()->set_message(std::string(s.message()));
+      response.mutable_error()->set_code(int(s.code()));
+      response.mutable_error()->set_message(std::string(s.message()));
     }
-    StartWrite(&response_);
+    if (!writing_) {
+      writing_ = true;
+      StartWrite(&queue_.front());
+    }
+    if (queue_.size() < kMaxQueued) {
+      StartRead(&request_);
+    } else {
+      read_paused_ = true;
+    }
   }
 
   void OnWriteDone(bool ok) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    queue_.pop_front();
+    writing_ = false;
     if (!ok) {
-      Finish(grpc::Status(grpc::StatusCode::CANCELLED, "the client went away"));
+      if (!finished_) {
+        finished_ = true;
+        Finish(grpc::Status(grpc::StatusCode::CANCELLED, "the client went away"));
+      }
       return;
     }
-    StartRead(&request_);
+    if (!queue_.empty()) {
+      writing_ = true;
+      StartWrite(&queue_.front());
+    }
+    if (read_paused_ && queue_.size() < kMaxQueued) {
+      read_paused_ = false;
+      StartRead(&request_);
+    }
+    MaybeFinishLocked();
   }
 
   void OnDone() override { delete this; }
 
  private:
+  static constexpr size_t kMaxQueued = 256;
+
+  void MaybeFinishLocked() {
+    if (reads_done_ && queue_.empty() && !writing_ && !finished_) {
+      finished_ = true;
+      service_->Count("StreamRelations", absl::OkStatus());
+      Finish(grpc::Status::OK);
+    }
+  }
+
   TopologyServiceImpl* service_;
   v1::StreamRelationsRequest request_;
-  v1::StreamRelationsResponse response_;
+  std::mutex mu_;
+  std::deque<v1::StreamRelationsResponse> queue_;
+  bool writing_ = false, reads_done_ = false, read_paused_ = false, finished_ = false;
 };
 
 // ---------------------------------------------------------------------------------------------
