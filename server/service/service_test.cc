@@ -1,4 +1,9 @@
 // Every RPC against a real server in the test process.
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <cstring>
 #include <thread>
 
@@ -472,6 +477,77 @@ TEST_F(ServiceTest, DrainingRefusesNewWorkAndCancelsJobs) {
   const grpc::Status s = stub_->GetServerInfo(Context().get(), {}, &info);
   EXPECT_EQ(s.error_code(), grpc::StatusCode::UNAVAILABLE);
   EXPECT_NE(s.error_message().find("shutting down"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace actopo::service
+
+namespace actopo::service {
+namespace {
+
+int FreePort() {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr);
+  socklen_t len = sizeof addr;
+  getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
+  close(fd);
+  return ntohs(addr.sin_port);
+}
+
+std::string HttpGet(int port, const std::string& path) {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(port);
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    close(fd);
+    return "";
+  }
+  const std::string request = "GET " + path + " HTTP/1.0\r\nHost: localhost\r\n\r\n";
+  (void)!write(fd, request.data(), request.size());
+  std::string response;
+  char buf[4096];
+  for (ssize_t n; (n = read(fd, buf, sizeof buf)) > 0;) response.append(buf, n);
+  close(fd);
+  return response;
+}
+
+TEST_F(ServiceTest, PrometheusMetrics) {
+  options_.metrics_port = FreePort();
+  StartServer();
+  ASSERT_EQ(server_->metrics_port(), options_.metrics_port);
+  const std::string mesh = LoadSample("jittered:5");
+  const std::string session = Open(mesh, v1::STRUCTURE_ACTOPO);
+  v1::RunJobRequest request;
+  request.set_session_id(session);
+  request.set_algorithm(v1::ALGORITHM_CRITICAL_POINTS);
+  auto context = Context();
+  auto reader = stub_->RunJob(context.get(), request);
+  v1::RunJobResponse m;
+  while (reader->Read(&m)) {
+  }
+  ASSERT_TRUE(reader->Finish().ok());
+  v1::GetMeshRequest missing;
+  missing.set_mesh_id("mesh-none");
+  v1::GetMeshResponse out;
+  stub_->GetMesh(Context().get(), missing, &out);
+  const std::string text = HttpGet(options_.metrics_port, "/metrics");
+  for (const char* expected :
+       {"actopo_requests_total{code=\"0\",rpc=\"LoadMesh\"} 1",
+        "actopo_requests_total{code=\"5\",rpc=\"GetMesh\"} 1",
+        "actopo_requests_total{code=\"0\",rpc=\"RunJob\"} 1",
+        "actopo_job_duration_seconds_count{algorithm=\"critical-points\",structure=\"actopo\"} 1",
+        "actopo_sessions 1", "actopo_meshes 1", "actopo_buffer_hits_total",
+        "actopo_consumer_wait_seconds_total", "actopo_process_resident_bytes"}) {
+    EXPECT_NE(text.find(expected), std::string::npos) << expected << "\n" << text.substr(0, 2000);
+  }
+  // Low cardinality: no ids in labels.
+  EXPECT_EQ(text.find("session-"), std::string::npos);
+  EXPECT_EQ(text.find("mesh-"), std::string::npos);
 }
 
 }  // namespace
