@@ -6,7 +6,7 @@ CMAKE_FLAGS ?= -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo
 DATA_DIR ?= $(firstword $(wildcard $(abspath ../shared/data) /work/shared/data) $(abspath ../shared/data))
 DEMO_SAMPLE ?= jittered:40
 
-.PHONY: all deps build test test-unit test-client-cpp test-asan test-tsan lint-proto demo bench clean
+.PHONY: all deps build test test-unit test-client-cpp test-asan test-tsan lint-proto demo bench deploy-check clean
 
 all: build
 
@@ -58,6 +58,11 @@ test-tsan: deps build-tsan/build.ninja
 # CLI, prints results and statistics, stops the server.
 demo: build
 	BUILD=$(abspath $(BUILD)) DATA_DIR=$(DATA_DIR) bash scripts/demo.sh
+
+# Lints and validates the deployment files, builds the server and client images with podman,
+# runs the server and one job against it (scripts/deploy-check.sh; root or sudo; after make test).
+deploy-check: deps
+	DATA_DIR=$(DATA_DIR) bash scripts/deploy-check.sh
 
 bench: build
 	bash bench/compare_structures.sh

@@ -20,8 +20,8 @@ debian_packages=(
 )
 
 missing=()
-# npm (for buf): the machine's own Node.js when present, else Debian's.
-command -v npm >/dev/null 2>&1 || missing+=(nodejs npm)
+# npm (for buf, a development tool): the machine's own Node.js when present, else Debian's.
+if ((want_venv)) && ! command -v npm >/dev/null 2>&1; then missing+=(nodejs npm); fi
 for p in "${debian_packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
