@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import os
 from collections.abc import (
     AsyncIterator,
     Awaitable,
@@ -68,12 +69,15 @@ class AsyncClient:
     """
 
     def __init__(self, target: str | None = None, *, token: str | None = None,
+                 affinity_key: str | None = None,
                  tls: TlsArg = False, timeout: float | None = DEFAULT_TIMEOUT,
                  options: Sequence[tuple[str, Any]] = ()) -> None:
         self.target = resolve_target(target)
         self._channel = async_channel(self.target, tls, options)
         self._stub = pb_grpc.TopologyServiceStub(self._channel)
-        self._metadata = metadata(token)
+        self._metadata = metadata(
+            token, affinity_key if affinity_key is not None
+            else os.environ.get("ACTOPO_AFFINITY_KEY"))
         self._timeout = timeout
         self._mesh_timeout = MESH_TIMEOUT if timeout is not None else None
         self._max_batch: int | None = None

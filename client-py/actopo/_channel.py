@@ -63,6 +63,17 @@ def async_channel(target: str, tls: TlsArg,
     return grpc.aio.secure_channel(target, credentials, options=_options(options))
 
 
-def metadata(token: str | None) -> tuple[tuple[str, str], ...]:
-    """Per-call metadata: the bearer token, sent on plaintext and TLS channels alike."""
-    return (("authorization", f"Bearer {token}"),) if token else ()
+AFFINITY_HEADER = "x-actopo-session"
+
+
+def metadata(token: str | None,
+             affinity_key: str | None = None) -> tuple[tuple[str, str], ...]:
+    """Per-call metadata: the bearer token, sent on plaintext and TLS channels alike, and the
+    affinity key that a load balancer hashes (deploy/envoy.yaml) so every call of this client
+    reaches the same server, where its meshes and sessions live."""
+    out: tuple[tuple[str, str], ...] = ()
+    if token:
+        out += (("authorization", f"Bearer {token}"),)
+    if affinity_key:
+        out += ((AFFINITY_HEADER, affinity_key),)
+    return out

@@ -373,6 +373,9 @@ def parser() -> argparse.ArgumentParser:
                    help="HOST:PORT of actopo-server (default: $ACTOPO_SERVER)")
     p.add_argument("--token", default=os.environ.get("ACTOPO_TOKEN"),
                    help="bearer token (default: $ACTOPO_TOKEN)")
+    p.add_argument("--affinity-key", default=os.environ.get("ACTOPO_AFFINITY_KEY"),
+                   help="sent as x-actopo-session so a load balancer keeps this client on one "
+                        "server replica (default: $ACTOPO_AFFINITY_KEY)")
     p.add_argument("--tls", action="store_true", help="use TLS with the system's roots")
     p.add_argument("--timeout", type=float, default=30.0,
                    help="deadline of quick calls in seconds (default 30)")
@@ -453,7 +456,8 @@ def main(argv: Sequence[str] | None = None) -> int:
               file=sys.stderr)
         return 2
     try:
-        with Client(args.server, token=args.token, tls=args.tls, timeout=args.timeout) as client:
+        with Client(args.server, token=args.token, tls=args.tls, timeout=args.timeout,
+                    affinity_key=args.affinity_key) as client:
             args.func(client, args)
     except ActopoError as e:
         print(f"actopo: error: {e}", file=sys.stderr)

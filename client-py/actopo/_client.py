@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import threading
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import Any
@@ -44,6 +45,9 @@ class Client:
     Args:
         target: "HOST:PORT"; defaults to $ACTOPO_SERVER.
         token: a bearer token sent with every call (``authorization`` metadata).
+        affinity_key: sent with every call as ``x-actopo-session``; behind a load balancer that
+            hashes it (deploy/envoy.yaml), all calls of this client reach one server replica,
+            where its meshes and sessions live. Defaults to $ACTOPO_AFFINITY_KEY.
         tls: False for plaintext, True for TLS with the system's roots, or your own
             ``grpc.ChannelCredentials``.
         timeout: deadline in seconds of quick calls; loading, uploading and opening sessions get
@@ -62,12 +66,15 @@ class Client:
     """
 
     def __init__(self, target: str | None = None, *, token: str | None = None,
+                 affinity_key: str | None = None,
                  tls: TlsArg = False, timeout: float | None = DEFAULT_TIMEOUT,
                  options: Sequence[tuple[str, Any]] = ()) -> None:
         self.target = resolve_target(target)
         self._channel = sync_channel(self.target, tls, options)
         self._stub = pb_grpc.TopologyServiceStub(self._channel)
-        self._metadata = metadata(token)
+        self._metadata = metadata(
+            token, affinity_key if affinity_key is not None
+            else os.environ.get("ACTOPO_AFFINITY_KEY"))
         self._timeout = timeout
         self._mesh_timeout = MESH_TIMEOUT if timeout is not None else None
         self._max_batch: int | None = None

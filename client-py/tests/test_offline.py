@@ -184,3 +184,17 @@ def test_unreachable_server_is_unavailable():
     with actopo.Client("127.0.0.1:1", timeout=5) as client:
         with pytest.raises(actopo.UnavailableError):
             client.server_info()
+
+
+def test_affinity_key_travels_as_metadata(monkeypatch):
+    from actopo._channel import metadata
+
+    assert metadata(None) == ()
+    assert metadata("t", "tenant-7") == (("authorization", "Bearer t"),
+                                         ("x-actopo-session", "tenant-7"))
+    monkeypatch.setenv("ACTOPO_AFFINITY_KEY", "from-env")
+    client = actopo.Client("127.0.0.1:9")
+    try:
+        assert ("x-actopo-session", "from-env") in client._metadata
+    finally:
+        client.close()
