@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import os
+import uuid
 from collections.abc import (
     AsyncIterator,
     Awaitable,
@@ -75,9 +76,11 @@ class AsyncClient:
         self.target = resolve_target(target)
         self._channel = async_channel(self.target, tls, options)
         self._stub = pb_grpc.TopologyServiceStub(self._channel)
-        self._metadata = metadata(
-            token, affinity_key if affinity_key is not None
-            else os.environ.get("ACTOPO_AFFINITY_KEY"))
+        # One key per client by default: behind a hashing load balancer, everything this client
+        # creates stays on one replica without the user doing anything.
+        self.affinity_key = (affinity_key or os.environ.get("ACTOPO_AFFINITY_KEY")
+                             or uuid.uuid4().hex)
+        self._metadata = metadata(token, self.affinity_key)
         self._timeout = timeout
         self._mesh_timeout = MESH_TIMEOUT if timeout is not None else None
         self._max_batch: int | None = None

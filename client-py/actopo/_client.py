@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import threading
+import uuid
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import Any
 
@@ -47,7 +48,8 @@ class Client:
         token: a bearer token sent with every call (``authorization`` metadata).
         affinity_key: sent with every call as ``x-actopo-session``; behind a load balancer that
             hashes it (deploy/envoy.yaml), all calls of this client reach one server replica,
-            where its meshes and sessions live. Defaults to $ACTOPO_AFFINITY_KEY.
+            where its meshes and sessions live. Defaults to $ACTOPO_AFFINITY_KEY, else a fresh
+            random key per client.
         tls: False for plaintext, True for TLS with the system's roots, or your own
             ``grpc.ChannelCredentials``.
         timeout: deadline in seconds of quick calls; loading, uploading and opening sessions get
@@ -72,9 +74,11 @@ class Client:
         self.target = resolve_target(target)
         self._channel = sync_channel(self.target, tls, options)
         self._stub = pb_grpc.TopologyServiceStub(self._channel)
-        self._metadata = metadata(
-            token, affinity_key if affinity_key is not None
-            else os.environ.get("ACTOPO_AFFINITY_KEY"))
+        # One key per client by default: behind a hashing load balancer, everything this client
+        # creates stays on one replica without the user doing anything.
+        self.affinity_key = (affinity_key or os.environ.get("ACTOPO_AFFINITY_KEY")
+                             or uuid.uuid4().hex)
+        self._metadata = metadata(token, self.affinity_key)
         self._timeout = timeout
         self._mesh_timeout = MESH_TIMEOUT if timeout is not None else None
         self._max_batch: int | None = None
