@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import os
-import uuid
 from collections.abc import (
     AsyncIterator,
     Awaitable,
@@ -26,7 +24,7 @@ from actopo._channel import (
     MESH_TIMEOUT,
     TlsArg,
     async_channel,
-    metadata,
+    client_metadata,
     resolve_target,
 )
 from actopo._errors import error_for_number, translate, translated
@@ -76,11 +74,7 @@ class AsyncClient:
         self.target = resolve_target(target)
         self._channel = async_channel(self.target, tls, options)
         self._stub = pb_grpc.TopologyServiceStub(self._channel)
-        # One key per client by default: behind a hashing load balancer, everything this client
-        # creates stays on one replica without the user doing anything.
-        self.affinity_key = (affinity_key or os.environ.get("ACTOPO_AFFINITY_KEY")
-                             or uuid.uuid4().hex)
-        self._metadata = metadata(token, self.affinity_key)
+        self.affinity_key, self._metadata = client_metadata(token, affinity_key)
         self._timeout = timeout
         self._mesh_timeout = MESH_TIMEOUT if timeout is not None else None
         self._max_batch: int | None = None

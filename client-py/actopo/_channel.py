@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import uuid
 from collections.abc import Sequence
 from typing import Any, TypeAlias
 
@@ -77,3 +78,12 @@ def metadata(token: str | None,
     if affinity_key:
         out += ((AFFINITY_HEADER, affinity_key),)
     return out
+
+
+def client_metadata(token: str | None,
+                    affinity_key: str | None) -> tuple[str, tuple[tuple[str, str], ...]]:
+    """The affinity key a client uses (given, else $ACTOPO_AFFINITY_KEY, else a fresh random
+    one, so everything one client creates stays on one replica behind a hashing balancer) and
+    the metadata of its calls."""
+    key = affinity_key or os.environ.get("ACTOPO_AFFINITY_KEY") or uuid.uuid4().hex
+    return key, metadata(token, key)

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import os
 import threading
-import uuid
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import Any
 
@@ -16,7 +14,7 @@ from actopo._channel import (
     DEFAULT_TIMEOUT,
     MESH_TIMEOUT,
     TlsArg,
-    metadata,
+    client_metadata,
     resolve_target,
     sync_channel,
 )
@@ -74,11 +72,7 @@ class Client:
         self.target = resolve_target(target)
         self._channel = sync_channel(self.target, tls, options)
         self._stub = pb_grpc.TopologyServiceStub(self._channel)
-        # One key per client by default: behind a hashing load balancer, everything this client
-        # creates stays on one replica without the user doing anything.
-        self.affinity_key = (affinity_key or os.environ.get("ACTOPO_AFFINITY_KEY")
-                             or uuid.uuid4().hex)
-        self._metadata = metadata(token, self.affinity_key)
+        self.affinity_key, self._metadata = client_metadata(token, affinity_key)
         self._timeout = timeout
         self._mesh_timeout = MESH_TIMEOUT if timeout is not None else None
         self._max_batch: int | None = None

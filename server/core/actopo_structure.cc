@@ -616,11 +616,7 @@ void ActopoStructure::Reader::MoveSlot(Relation r, int32_t block) {
     data = own_[Index(r)].get();
   }
   last_block_ = block;
-  slot.first = data->first;
-  slot.count = data->count;
-  slot.offsets = data->offsets.data();
-  slot.values = data->values.data();
-  slot.relation = data;
+  slot.Point(*data);
   slot.block = block;
 }
 

@@ -127,26 +127,15 @@ class ActopoStructure {
     template <Relation R>
     std::span<const SimplexId> Lookup(SimplexId s) {
       Slot& slot = slots_[Index(R)];
-      const uint32_t i = static_cast<uint32_t>(s - slot.first);
-      if (i >= static_cast<uint32_t>(slot.count)) [[unlikely]] {
+      if (!slot.Contains(s)) [[unlikely]] {
         MoveSlot(R, topology_->block_of(SourceDimension(R), s));
-        return slot.relation->row(s - slot.first);
       }
-      if constexpr (FixedSize(R) > 0) {
-        return {slot.values + size_t(i) * FixedSize(R), size_t(FixedSize(R))};
-      } else {
-        return {slot.values + slot.offsets[i], slot.values + slot.offsets[i + 1]};
-      }
+      return slot.template Row<R>(s);
     }
 
    private:
     friend class ActopoStructure;
-    struct Slot {
-      SimplexId first = 0;
-      SimplexId count = 0;
-      const SimplexId* offsets = nullptr;
-      const SimplexId* values = nullptr;
-      const RelationBlock* relation = nullptr;
+    struct Slot : RelationSlot {
       int32_t block = -1;
       void* cell = nullptr;  // the pinned buffer cell, or null for a consumer-computed block
     };

@@ -80,7 +80,9 @@ TEST(ActopoStructure, EveryConfigurationMatchesOracle) {
       EXPECT_EQ(mismatches.load(), 0) << Label(c);
       for (const EngineStats& s : structure->consumer_stats()) {
         EXPECT_EQ(s.access.requests, s.access.hits + s.access.misses) << Label(c);
-        if (policy == MissPolicy::kLeader) EXPECT_EQ(s.consumer_relations, 0) << Label(c);
+        if (policy == MissPolicy::kLeader) {
+          EXPECT_EQ(s.consumer_relations, 0) << Label(c);
+        }
         // The buffer holds at most its capacity, plus the block just inserted, plus blocks
         // the consumer pins (one per relation slot).
         EXPECT_LE(s.buffer_peak_blocks,

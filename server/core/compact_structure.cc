@@ -117,11 +117,7 @@ void CompactStructure::Reader::MoveSlot(Relation r, int32_t block) {
     AddBytes(rel->bytes());
   }
   ++e.pins;
-  slot.first = rel->first;
-  slot.count = rel->count;
-  slot.offsets = rel->offsets.data();
-  slot.values = rel->values.data();
-  slot.relation = rel.get();
+  slot.Point(*rel);
   slot.entry = index;
 }
 

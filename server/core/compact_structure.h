@@ -44,16 +44,10 @@ class CompactStructure {
     template <Relation R>
     std::span<const SimplexId> Lookup(SimplexId s) {
       Slot& slot = slots_[Index(R)];
-      const uint32_t i = static_cast<uint32_t>(s - slot.first);
-      if (i >= static_cast<uint32_t>(slot.count)) [[unlikely]] {
+      if (!slot.Contains(s)) [[unlikely]] {
         MoveSlot(R, topology_->block_of(SourceDimension(R), s));
-        return slot.relation->row(s - slot.first);
       }
-      if constexpr (FixedSize(R) > 0) {
-        return {slot.values + size_t(i) * FixedSize(R), size_t(FixedSize(R))};
-      } else {
-        return {slot.values + slot.offsets[i], slot.values + slot.offsets[i + 1]};
-      }
+      return slot.template Row<R>(s);
     }
 
     // This reader's counters so far (also added to the structure's totals on destruction).
@@ -67,14 +61,8 @@ class CompactStructure {
       int pins = 0;
       std::array<std::unique_ptr<RelationBlock>, kNumRelations> relations;
     };
-    // The block a relation's last span points into; first/count/offsets/values are copies of the
-    // RelationBlock fields so the hit path touches one cache line.
-    struct Slot {
-      SimplexId first = 0;
-      SimplexId count = 0;
-      const SimplexId* offsets = nullptr;
-      const SimplexId* values = nullptr;
-      const RelationBlock* relation = nullptr;
+    // The block a relation's last span points into, and the cache entry pinned for it.
+    struct Slot : RelationSlot {
       int entry = -1;
     };
 

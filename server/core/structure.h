@@ -25,11 +25,40 @@
 
 #include <span>
 
+#include "server/core/block_relations.h"
 #include "server/core/mesh.h"
 #include "server/core/relation.h"
 #include "server/core/topology.h"
 
 namespace actopo {
+
+// Where a caching reader's last span of one relation points: copies of the RelationBlock's
+// fields, so a read inside the same block touches one cache line and takes one comparison.
+struct RelationSlot {
+  SimplexId first = 0;
+  SimplexId count = 0;
+  const SimplexId* offsets = nullptr;
+  const SimplexId* values = nullptr;
+
+  bool Contains(SimplexId s) const {
+    return static_cast<uint32_t>(s - first) < static_cast<uint32_t>(count);
+  }
+  void Point(const RelationBlock& block) {
+    first = block.first;
+    count = block.count;
+    offsets = block.offsets.data();
+    values = block.values.data();
+  }
+  template <Relation R>
+  std::span<const SimplexId> Row(SimplexId s) const {
+    const size_t i = size_t(s - first);
+    if constexpr (FixedSize(R) > 0) {
+      return {values + i * FixedSize(R), size_t(FixedSize(R))};
+    } else {
+      return {values + offsets[i], values + offsets[i + 1]};
+    }
+  }
+};
 
 // CRTP base: Derived provides `template <Relation R> std::span<const SimplexId> Lookup(SimplexId)`
 // for the non-static relations.
