@@ -82,9 +82,12 @@ CriticalType Classify(Reader& reader, SimplexId v, std::span<const SimplexId> or
 }  // namespace
 
 std::string CriticalPointsResult::VerticesDigest() const {
-  std::string text;
-  for (const CriticalPoint& p : points) absl::StrAppend(&text, p.vertex, " ", int(p.type), "\n");
-  return Sha256Hex(text);
+  StreamedText text;
+  for (const CriticalPoint& p : points) {
+    absl::StrAppend(&text.buffer(), p.vertex, " ", int(p.type), "\n");
+    text.Flush();
+  }
+  return text.HexDigest();
 }
 
 RelationSet CriticalPointsDeclared() {

@@ -1,13 +1,22 @@
 // SHA-256 digests of result texts (DESIGN.md "Digests"): lowercase hex of the UTF-8 text, every
 // line ending in "\n". They compare directly with TTK's results in ../shared/data.
 //
-//   LineDigest lines;
-//   lines.Add("0 17");              // one line, without its "\n"
-//   std::string hex = lines.Sorted();   // lines in byte order, as LC_ALL=C sort
+// The texts can be large (a 10M-tetrahedra gradient has 23M pair lines, about 1 GB), so they are
+// streamed: written in pieces of about a megabyte into an incremental hash, never held whole.
+//
+//   Sha256 sha;
+//   sha.Update("0 17\n");
+//   std::string hex = sha.HexDigest();
+//
+//   // Lines "<d> <ids>\n" in byte order, as LC_ALL=C sort orders them, without sorting text:
+//   LineGroup edges{.items = num_edges, .tokens = 2, .sort_tokens = ..., .append_line = ...};
+//   std::string hex = SortedLinesSha256(num_vertices, {&edges, 1});
 #ifndef ACTOPO_SERVER_ALGORITHMS_DIGEST_H_
 #define ACTOPO_SERVER_ALGORITHMS_DIGEST_H_
 
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <span>
 #include <string>
 #include <string_view>
@@ -17,34 +26,73 @@
 
 namespace actopo {
 
+// Incremental SHA-256 (OpenSSL).
+class Sha256 {
+ public:
+  Sha256();
+  ~Sha256();
+  Sha256(const Sha256&) = delete;
+  Sha256& operator=(const Sha256&) = delete;
+  void Update(std::string_view data);
+  // Lowercase hex; call once.
+  std::string HexDigest();
+
+ private:
+  struct Context;
+  std::unique_ptr<Context> context_;
+};
+
 // Hex SHA-256 of a text.
 std::string Sha256Hex(std::string_view text);
 
-// Collects lines in one arena (no allocation per line) and digests them in insertion order or
-// sorted in byte order.
-class LineDigest {
+// A text built line by line and hashed in pieces of about a megabyte.
+class StreamedText {
  public:
-  void Add(std::string_view line);
-  // Avoids regrowing (and copying) a large arena when the size is known roughly.
-  void Reserve(size_t lines, size_t bytes) {
-    lines_.reserve(lines);
-    arena_.reserve(bytes);
+  // The line being appended to; end it with "\n" and call Flush() now and then (cheap).
+  std::string& buffer() { return buffer_; }
+  void Flush() {
+    if (buffer_.size() >= kFlushBytes) FlushAll();
   }
-  // Appends "<a>,<b>,..." (ids ascending as given) to the line being built; helpers for callers.
-  static void AppendIds(std::string& out, std::span<const SimplexId> ids);
-  size_t size() const { return lines_.size(); }
-  std::string InOrder() const;
-  // Sorts on two threads (halves, then a merge): results have tens of millions of lines.
-  std::string Sorted();
+  std::string HexDigest() {
+    FlushAll();
+    return sha_.HexDigest();
+  }
 
  private:
-  struct Line {
-    uint64_t start;
-    uint32_t length;  // including the "\n"
-  };
-  std::string arena_;
-  std::vector<Line> lines_;
+  static constexpr size_t kFlushBytes = 1 << 20;
+  void FlushAll() {
+    sha_.Update(buffer_);
+    buffer_.clear();
+  }
+  Sha256 sha_;
+  std::string buffer_;
 };
+
+// rank[i] = position of the decimal string of i among those of 0..n-1 in byte order ("0", "1",
+// "10", "100", ..., "11", ...). Comparing ranks compares the ids as text.
+std::vector<uint32_t> DecimalRanks(int64_t n);
+
+// Lines that share a prefix and a layout of id tokens, e.g. every gradient pair "1 <a>,<b>
+// <c>,<d>,<e>" of edges with triangles. Items 0..items-1 each give at most one line.
+struct LineGroup {
+  int64_t items = 0;
+  // Ids that order the group's lines (1 to 4): writes the item's leading ids in the order they
+  // appear in its line, returns false when the item has no line. Two lines of a group must not
+  // have the same sort tokens.
+  int tokens = 1;
+  std::function<bool(int64_t item, SimplexId* ids)> sort_tokens;
+  // Appends the item's whole line without its "\n".
+  std::function<void(int64_t item, std::string& line)> append_line;
+};
+
+// Hex SHA-256 of every group's lines, the groups in the given order, the lines of each group in
+// byte order. Because separators (' ', ',', '\n') sort below digits and the lines of a group
+// share their layout, byte order of the lines equals the order of their sort tokens compared as
+// decimal text, so ids in [0, max_id) are ranked once (DecimalRanks) and no text is sorted.
+// Memory: the ranks plus at most `chunk_items` item ids (4 bytes each) at a time; each chunk of
+// ranks costs two more calls of sort_tokens per item.
+std::string SortedLinesSha256(int64_t max_id, std::span<const LineGroup> groups,
+                              int64_t chunk_items = int64_t(1) << 23);
 
 }  // namespace actopo
 

@@ -184,55 +184,74 @@ std::vector<SimplexId> CellInputVertices(const Topology& topology, int d, Simple
 
 namespace {
 
+// A cell's input vertex ids, ascending, into ids[0..d].
+void CellTokens(const Topology& topology, int d, SimplexId c, SimplexId* ids) {
+  switch (d) {
+    case 0: ids[0] = c; break;
+    case 1: std::copy_n(topology.edge(c).begin(), 2, ids); break;
+    case 2: std::copy_n(topology.triangle(c).begin(), 3, ids); break;
+    default: std::copy_n(topology.tetrahedron(c).begin(), 4, ids); break;
+  }
+  for (int i = 0; i <= d; ++i) ids[i] = topology.vertex_input_id(ids[i]);
+  std::sort(ids, ids + d + 1);
+}
+
 // Appends a cell's input vertex ids, ascending, joined by commas.
 void AppendCell(std::string& line, const Topology& topology, int d, SimplexId c) {
-  std::array<SimplexId, 4> v{};
-  switch (d) {
-    case 0: v[0] = c; break;
-    case 1: std::copy_n(topology.edge(c).begin(), 2, v.begin()); break;
-    case 2: std::copy_n(topology.triangle(c).begin(), 3, v.begin()); break;
-    default: std::copy_n(topology.tetrahedron(c).begin(), 4, v.begin()); break;
+  SimplexId ids[4];
+  CellTokens(topology, d, c, ids);
+  for (int i = 0; i <= d; ++i) {
+    if (i > 0) line.push_back(',');
+    absl::StrAppend(&line, ids[i]);
   }
-  for (int i = 0; i <= d; ++i) v[i] = topology.vertex_input_id(v[i]);
-  std::sort(v.begin(), v.begin() + d + 1);
-  LineDigest::AppendIds(line, std::span<const SimplexId>(v.data(), d + 1));
 }
 
 }  // namespace
 
 std::string DiscreteGradientResult::CriticalCellsDigest(const Topology& topology) const {
-  LineDigest lines;
-  const int64_t n = critical_cells[0] + critical_cells[1] + critical_cells[2] + critical_cells[3];
-  lines.Reserve(n, 0);
-  std::string line;
+  std::vector<LineGroup> groups;
   for (int d = 0; d < 4; ++d) {
-    for (SimplexId c = 0; c < topology.num_simplices(d); ++c) {
-      if (!gradient.IsCritical(d, c)) continue;
-      line = absl::StrCat(d, " ");
-      AppendCell(line, topology, d, c);
-      lines.Add(line);
-    }
+    groups.push_back(LineGroup{
+        .items = topology.num_simplices(d),
+        .tokens = d + 1,
+        .sort_tokens =
+            [this, &topology, d](int64_t c, SimplexId* ids) {
+              if (!gradient.IsCritical(d, SimplexId(c))) return false;
+              CellTokens(topology, d, SimplexId(c), ids);
+              return true;
+            },
+        .append_line =
+            [&topology, d](int64_t c, std::string& line) {
+              line.push_back(char('0' + d));
+              line.push_back(' ');
+              AppendCell(line, topology, d, SimplexId(c));
+            }});
   }
-  return lines.Sorted();
+  return SortedLinesSha256(topology.num_vertices(), groups);
 }
 
 std::string DiscreteGradientResult::PairsDigest(const Topology& topology) const {
-  LineDigest lines;
-  const int64_t n = pairs[0] + pairs[1] + pairs[2];
-  lines.Reserve(n, 0);
-  std::string line;
+  std::vector<LineGroup> groups;
   for (int d = 0; d < 3; ++d) {
-    for (SimplexId c = 0; c < topology.num_simplices(d); ++c) {
-      const SimplexId higher = gradient.up[d][c];
-      if (higher < 0) continue;
-      line = absl::StrCat(d, " ");
-      AppendCell(line, topology, d, c);
-      line.push_back(' ');
-      AppendCell(line, topology, d + 1, higher);
-      lines.Add(line);
-    }
+    groups.push_back(LineGroup{
+        .items = topology.num_simplices(d),
+        .tokens = d + 1,
+        .sort_tokens =
+            [this, &topology, d](int64_t c, SimplexId* ids) {
+              if (gradient.up[d][c] < 0) return false;
+              CellTokens(topology, d, SimplexId(c), ids);
+              return true;
+            },
+        .append_line =
+            [this, &topology, d](int64_t c, std::string& line) {
+              line.push_back(char('0' + d));
+              line.push_back(' ');
+              AppendCell(line, topology, d, SimplexId(c));
+              line.push_back(' ');
+              AppendCell(line, topology, d + 1, gradient.up[d][c]);
+            }});
   }
-  return lines.Sorted();
+  return SortedLinesSha256(topology.num_vertices(), groups);
 }
 
 RelationSet DiscreteGradientDeclared() {

@@ -359,10 +359,12 @@ int64_t MorseSmaleResult::Regions(std::span<const SimplexId> labels) {
 }
 
 std::string MorseSmaleResult::SegmentationDigest(std::span<const SimplexId> labels) {
-  std::string text;
-  text.reserve(labels.size() * 12);
-  for (size_t v = 0; v < labels.size(); ++v) absl::StrAppend(&text, v, " ", labels[v], "\n");
-  return Sha256Hex(text);
+  StreamedText text;
+  for (size_t v = 0; v < labels.size(); ++v) {
+    absl::StrAppend(&text.buffer(), v, " ", labels[v], "\n");
+    text.Flush();
+  }
+  return text.HexDigest();
 }
 
 RelationSet MorseSmaleDeclared() {
