@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <array>
 
+#include "server/core/parallel.h"
+
 namespace actopo {
 
 struct Sha256::Context {
@@ -62,87 +64,133 @@ std::vector<uint32_t> DecimalRanks(int64_t n) {
 
 namespace {
 
-// One group's lines in byte order: counting sort on the rank of the first token, in chunks of
-// consecutive ranks that hold at most `chunk_items` items, then the few lines sharing a first
-// token sorted by the ranks of the others.
-void HashGroup(const LineGroup& group, std::span<const uint32_t> rank, int64_t chunk_items,
-               StreamedText& text) {
-  const int64_t num_ranks = static_cast<int64_t>(rank.size());
-  int shift = 0;
-  while ((num_ranks >> shift) > (1 << 16)) ++shift;
-  std::vector<int64_t> bins((num_ranks >> shift) + 1, 0);
-  SimplexId ids[4];
-  for (int64_t i = 0; i < group.items; ++i) {
-    if (group.sort_tokens(i, ids)) ++bins[rank[ids[0]] >> shift];
-  }
-
-  std::vector<uint32_t> offsets, items;
+// Lines of a run of buckets of one chunk, formatted into `out`; the lines of a bucket (same first
+// token) sorted by the ranks of their other tokens.
+void FormatBuckets(const LineGroup& group, std::span<const uint32_t> rank,
+                   std::span<const uint32_t> items, std::span<const uint32_t> bucket_end,
+                   uint32_t begin, std::string& out) {
   struct Keyed {
     std::array<uint32_t, 4> key;
     uint32_t item;
+    std::array<SimplexId, 4> ids;
   };
   std::vector<Keyed> ties;
-  const auto emit = [&](uint32_t item) {
-    std::string& line = text.buffer();
-    group.append_line(item, line);
-    line.push_back('\n');
-    text.Flush();
+  SimplexId ids[4];
+  const auto emit = [&](uint32_t item, const SimplexId* tokens) {
+    group.append_line(item, tokens, out);
+    out += '\n';
   };
-  for (size_t bin = 0; bin < bins.size();) {
-    size_t end = bin + 1;
-    int64_t count = bins[bin];
-    while (end < bins.size() && count + bins[end] <= chunk_items) count += bins[end++];
-    const int64_t first = int64_t(bin) << shift;
-    const int64_t last = std::min(int64_t(end) << shift, num_ranks);
-    bin = end;
-    if (count == 0) continue;
-
-    offsets.assign(size_t(last - first) + 1, 0);
-    for (int64_t i = 0; i < group.items; ++i) {
-      if (!group.sort_tokens(i, ids)) continue;
-      const int64_t r = rank[ids[0]];
-      if (r >= first && r < last) ++offsets[r - first + 1];
-    }
-    for (size_t r = 1; r < offsets.size(); ++r) offsets[r] += offsets[r - 1];
-    items.resize(size_t(count));
-    for (int64_t i = 0; i < group.items; ++i) {
-      if (!group.sort_tokens(i, ids)) continue;
-      const int64_t r = rank[ids[0]];
-      if (r >= first && r < last) items[offsets[r - first]++] = uint32_t(i);
-    }
-    // offsets[r] is now the end of bucket r, the start of bucket r + 1.
-    uint32_t begin = 0;
-    for (size_t r = 0; r + 1 < offsets.size(); ++r) {
-      const uint32_t bucket_end = offsets[r];
-      if (bucket_end - begin == 1) {
-        emit(items[begin]);
-      } else if (bucket_end > begin) {
-        ties.clear();
-        for (uint32_t k = begin; k < bucket_end; ++k) {
-          group.sort_tokens(items[k], ids);
-          Keyed keyed{{0, 0, 0, 0}, items[k]};
-          for (int t = 1; t < group.tokens; ++t) keyed.key[t] = rank[ids[t]];
-          ties.push_back(keyed);
-        }
-        std::sort(ties.begin(), ties.end(),
-                  [](const Keyed& a, const Keyed& b) { return a.key < b.key; });
-        for (const Keyed& k : ties) emit(k.item);
+  for (const uint32_t end : bucket_end) {
+    if (end - begin == 1) {
+      group.sort_tokens(items[begin], ids);
+      emit(items[begin], ids);
+    } else if (end > begin) {
+      ties.clear();
+      for (uint32_t j = begin; j < end; ++j) {
+        Keyed keyed{{0, 0, 0, 0}, items[j], {}};
+        group.sort_tokens(items[j], keyed.ids.data());
+        for (int t = 1; t < group.tokens; ++t) keyed.key[t] = rank[keyed.ids[t]];
+        ties.push_back(keyed);
       }
-      begin = bucket_end;
+      std::sort(ties.begin(), ties.end(),
+                [](const Keyed& a, const Keyed& b) { return a.key < b.key; });
+      for (const Keyed& keyed : ties) emit(keyed.item, keyed.ids.data());
     }
+    begin = end;
+  }
+}
+
+// One group's lines in byte order: a counting sort on the rank of the first token, filled in
+// chunks of consecutive ranks holding about `chunk_items` items. Counting, filling and formatting
+// run on `threads` threads (each over its own range of items, or its own run of buckets); only
+// the hashing is sequential, in order, so the digest does not depend on the thread count.
+void HashGroup(const LineGroup& group, std::span<const uint32_t> rank, int64_t chunk_items,
+               int threads, Sha256& sha) {
+  const size_t num_ranks = rank.size();
+  const auto item_begin = [&](int t) { return group.items * t / threads; };
+  // count[t][r]: items of thread t's range whose first token has rank r.
+  std::vector<std::vector<uint32_t>> count(threads);
+  ParallelFor(threads, threads, [&](int64_t t, int) {
+    count[t].assign(num_ranks, 0);
+    SimplexId ids[4];
+    for (int64_t i = item_begin(t); i < item_begin(t + 1); ++i) {
+      if (group.sort_tokens(i, ids)) ++count[t][rank[ids[0]]];
+    }
+  });
+  const auto total_at = [&](size_t r) {
+    int64_t n = 0;
+    for (const auto& c : count) n += c[r];
+    return n;
+  };
+
+  std::vector<uint32_t> items, bucket_end;
+  std::vector<std::string> texts(threads);
+  for (size_t first = 0; first < num_ranks;) {
+    size_t last = first + 1;
+    int64_t total = total_at(first);
+    while (last < num_ranks && total + total_at(last) <= chunk_items) total += total_at(last++);
+    if (total == 0) {
+      first = last;
+      continue;
+    }
+    // cursor[t][k]: where thread t writes its next item of bucket k (rank first + k).
+    std::vector<std::vector<uint32_t>> cursor(threads, std::vector<uint32_t>(last - first));
+    bucket_end.resize(last - first);
+    uint32_t position = 0;
+    for (size_t k = 0; k < last - first; ++k) {
+      for (int t = 0; t < threads; ++t) {
+        cursor[t][k] = position;
+        position += count[t][first + k];
+      }
+      bucket_end[k] = position;
+    }
+    items.resize(size_t(total));
+    ParallelFor(threads, threads, [&](int64_t t, int) {
+      SimplexId ids[4];
+      for (int64_t i = item_begin(t); i < item_begin(t + 1); ++i) {
+        if (!group.sort_tokens(i, ids)) continue;
+        const size_t r = rank[ids[0]];
+        if (r >= first && r < last) items[cursor[t][r - first]++] = uint32_t(i);
+      }
+    });
+    cursor.clear();
+    // Runs of buckets of about kSegmentItems items, formatted `threads` at a time, hashed in order.
+    constexpr uint32_t kSegmentItems = 1 << 15;
+    std::vector<size_t> segment_start{0};
+    uint32_t segment_begin = 0;
+    for (size_t k = 0; k < bucket_end.size(); ++k) {
+      if (bucket_end[k] - segment_begin >= kSegmentItems || k + 1 == bucket_end.size()) {
+        segment_start.push_back(k + 1);
+        segment_begin = bucket_end[k];
+      }
+    }
+    for (size_t s = 0; s + 1 < segment_start.size(); s += threads) {
+      const int wave = int(std::min<size_t>(threads, segment_start.size() - 1 - s));
+      ParallelFor(wave, wave, [&](int64_t w, int) {
+        const size_t from = segment_start[s + w], to = segment_start[s + w + 1];
+        texts[w].clear();
+        texts[w].reserve(size_t(64) * kSegmentItems);
+        FormatBuckets(group, rank, items,
+                      std::span<const uint32_t>(bucket_end).subspan(from, to - from),
+                      from == 0 ? 0 : bucket_end[from - 1], texts[w]);
+      });
+      for (int w = 0; w < wave; ++w) sha.Update(texts[w]);
+    }
+    first = last;
   }
 }
 
 }  // namespace
 
 std::string SortedLinesSha256(int64_t max_id, std::span<const LineGroup> groups,
-                              int64_t chunk_items) {
+                              int64_t chunk_items, int threads) {
   const std::vector<uint32_t> rank = DecimalRanks(max_id);
-  StreamedText text;
+  if (threads <= 0) threads = std::min(DefaultThreads(), 4);
+  Sha256 sha;
   for (const LineGroup& group : groups) {
-    HashGroup(group, rank, std::max<int64_t>(chunk_items, 1), text);
+    HashGroup(group, rank, std::max<int64_t>(chunk_items, 1), threads, sha);
   }
-  return text.HexDigest();
+  return sha.HexDigest();
 }
 
 }  // namespace actopo

@@ -68,6 +68,19 @@ class StreamedText {
   std::string buffer_;
 };
 
+// Writes the decimal digits of v at p; returns the end. For formatting lines without
+// allocation (a gradient digest formats tens of millions of them).
+inline char* WriteDecimal(char* p, uint32_t v) {
+  char digits[10];
+  int n = 0;
+  do {
+    digits[n++] = char('0' + v % 10);
+    v /= 10;
+  } while (v != 0);
+  while (n > 0) *p++ = digits[--n];
+  return p;
+}
+
 // rank[i] = position of the decimal string of i among those of 0..n-1 in byte order ("0", "1",
 // "10", "100", ..., "11", ...). Comparing ranks compares the ids as text.
 std::vector<uint32_t> DecimalRanks(int64_t n);
@@ -81,18 +94,20 @@ struct LineGroup {
   // have the same sort tokens.
   int tokens = 1;
   std::function<bool(int64_t item, SimplexId* ids)> sort_tokens;
-  // Appends the item's whole line without its "\n".
-  std::function<void(int64_t item, std::string& line)> append_line;
+  // Appends the item's whole line without its "\n"; `ids` are its sort tokens.
+  std::function<void(int64_t item, const SimplexId* ids, std::string& line)> append_line;
 };
 
 // Hex SHA-256 of every group's lines, the groups in the given order, the lines of each group in
 // byte order. Because separators (' ', ',', '\n') sort below digits and the lines of a group
 // share their layout, byte order of the lines equals the order of their sort tokens compared as
 // decimal text, so ids in [0, max_id) are ranked once (DecimalRanks) and no text is sorted.
-// Memory: the ranks plus at most `chunk_items` item ids (4 bytes each) at a time; each chunk of
-// ranks costs two more calls of sort_tokens per item.
+// Memory: 4 + 4 * threads bytes per id (ranks and counts) plus 4 bytes per item of a chunk and a
+// few megabytes of text per thread; each chunk costs one more pass of sort_tokens over the group
+// (a 10M-tetrahedra gradient fits one chunk). The callbacks are called from `threads` threads at
+// once (0: the cores, at most 4) and must be safe for that; the digest does not depend on it.
 std::string SortedLinesSha256(int64_t max_id, std::span<const LineGroup> groups,
-                              int64_t chunk_items = int64_t(1) << 23);
+                              int64_t chunk_items = int64_t(12) << 20, int threads = 0);
 
 }  // namespace actopo
 

@@ -93,7 +93,7 @@ TEST(SortedLinesSha256, EqualsSortedText) {
                      return true;
                    },
                .append_line =
-                   [&](int64_t i, std::string& line) {
+                   [&](int64_t i, const SimplexId*, std::string& line) {
                      absl::StrAppend(&line, "1 ", pairs[i][0], ",", pairs[i][1], " ", pairs[i][2]);
                    }};
   groups[1] = {.items = int64_t(triples.size()),
@@ -104,13 +104,16 @@ TEST(SortedLinesSha256, EqualsSortedText) {
                      return true;
                    },
                .append_line =
-                   [&](int64_t i, std::string& line) {
+                   [&](int64_t i, const SimplexId*, std::string& line) {
                      absl::StrAppend(&line, "2 ", triples[i][0], ",", triples[i][1], ",",
                                      triples[i][2]);
                    }};
   const std::string expected = Sha256Hex(expected_text);
-  for (int64_t chunk : {int64_t(1), int64_t(17), int64_t(1000), int64_t(1) << 23}) {
-    EXPECT_EQ(SortedLinesSha256(max_id, groups, chunk), expected) << "chunk " << chunk;
+  for (int threads : {1, 2, 3}) {
+    for (int64_t chunk : {int64_t(1), int64_t(17), int64_t(1000), int64_t(1) << 23}) {
+      EXPECT_EQ(SortedLinesSha256(max_id, groups, chunk, threads), expected)
+          << "chunk " << chunk << ", threads " << threads;
+    }
   }
 }
 

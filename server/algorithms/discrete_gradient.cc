@@ -186,45 +186,79 @@ namespace {
 
 // A cell's input vertex ids, ascending, into ids[0..d].
 void CellTokens(const Topology& topology, int d, SimplexId c, SimplexId* ids) {
+  const auto order = [&](int i, int j) {
+    if (ids[j] < ids[i]) std::swap(ids[i], ids[j]);
+  };
   switch (d) {
-    case 0: ids[0] = c; break;
-    case 1: std::copy_n(topology.edge(c).begin(), 2, ids); break;
-    case 2: std::copy_n(topology.triangle(c).begin(), 3, ids); break;
-    default: std::copy_n(topology.tetrahedron(c).begin(), 4, ids); break;
+    case 0:
+      ids[0] = topology.vertex_input_id(c);
+      return;
+    case 1:
+      for (int i = 0; i < 2; ++i) ids[i] = topology.vertex_input_id(topology.edge(c)[i]);
+      order(0, 1);
+      return;
+    case 2:
+      for (int i = 0; i < 3; ++i) ids[i] = topology.vertex_input_id(topology.triangle(c)[i]);
+      order(0, 1), order(1, 2), order(0, 1);
+      return;
+    default:
+      for (int i = 0; i < 4; ++i) ids[i] = topology.vertex_input_id(topology.tetrahedron(c)[i]);
+      order(0, 1), order(2, 3), order(0, 2), order(1, 3), order(1, 2);
+      return;
   }
-  for (int i = 0; i <= d; ++i) ids[i] = topology.vertex_input_id(ids[i]);
-  std::sort(ids, ids + d + 1);
 }
 
-// Appends a cell's input vertex ids, ascending, joined by commas.
-void AppendCell(std::string& line, const Topology& topology, int d, SimplexId c) {
-  SimplexId ids[4];
-  CellTokens(topology, d, c, ids);
-  for (int i = 0; i <= d; ++i) {
-    if (i > 0) line.push_back(',');
-    absl::StrAppend(&line, ids[i]);
+char* WriteIds(char* p, const SimplexId* ids, int n) {
+  for (int i = 0; i < n; ++i) {
+    if (i > 0) *p++ = ',';
+    p = WriteDecimal(p, uint32_t(ids[i]));
   }
+  return p;
+}
+
+// Appends "<d> <cell>[ <higher cell>]" (a line of the critical-cell or pair digests); `ids` are
+// the cell's input vertex ids, ascending.
+void AppendCellLine(std::string& line, const Topology& topology, int d, const SimplexId* ids,
+                    SimplexId higher = -1) {
+  char buffer[2 + 4 * 11 + 1 + 4 * 11];
+  char* p = buffer;
+  *p++ = char('0' + d);
+  *p++ = ' ';
+  p = WriteIds(p, ids, d + 1);
+  if (higher >= 0) {
+    *p++ = ' ';
+    SimplexId higher_ids[4];
+    CellTokens(topology, d + 1, higher, higher_ids);
+    p = WriteIds(p, higher_ids, d + 2);
+  }
+  line.append(buffer, p);
 }
 
 }  // namespace
 
 std::string DiscreteGradientResult::CriticalCellsDigest(const Topology& topology) const {
+  // Critical cells are few: list them once instead of scanning every cell per pass.
+  std::array<std::vector<SimplexId>, 4> critical;
+  for (int d = 0; d < 4; ++d) {
+    critical[d].reserve(critical_cells[d]);
+    for (SimplexId c = 0; c < topology.num_simplices(d); ++c) {
+      if (gradient.IsCritical(d, c)) critical[d].push_back(c);
+    }
+  }
   std::vector<LineGroup> groups;
   for (int d = 0; d < 4; ++d) {
+    const std::vector<SimplexId>& cells = critical[d];
     groups.push_back(LineGroup{
-        .items = topology.num_simplices(d),
+        .items = int64_t(cells.size()),
         .tokens = d + 1,
         .sort_tokens =
-            [this, &topology, d](int64_t c, SimplexId* ids) {
-              if (!gradient.IsCritical(d, SimplexId(c))) return false;
-              CellTokens(topology, d, SimplexId(c), ids);
+            [&topology, &cells, d](int64_t i, SimplexId* ids) {
+              CellTokens(topology, d, cells[i], ids);
               return true;
             },
         .append_line =
-            [&topology, d](int64_t c, std::string& line) {
-              line.push_back(char('0' + d));
-              line.push_back(' ');
-              AppendCell(line, topology, d, SimplexId(c));
+            [&topology, d](int64_t, const SimplexId* ids, std::string& line) {
+              AppendCellLine(line, topology, d, ids);
             }});
   }
   return SortedLinesSha256(topology.num_vertices(), groups);
@@ -243,12 +277,8 @@ std::string DiscreteGradientResult::PairsDigest(const Topology& topology) const 
               return true;
             },
         .append_line =
-            [this, &topology, d](int64_t c, std::string& line) {
-              line.push_back(char('0' + d));
-              line.push_back(' ');
-              AppendCell(line, topology, d, SimplexId(c));
-              line.push_back(' ');
-              AppendCell(line, topology, d + 1, gradient.up[d][c]);
+            [this, &topology, d](int64_t c, const SimplexId* ids, std::string& line) {
+              AppendCellLine(line, topology, d, ids, gradient.up[d][c]);
             }});
   }
   return SortedLinesSha256(topology.num_vertices(), groups);

@@ -100,6 +100,7 @@ absl::Status Validate(const BenchOptions& o) {
 
 struct RunOutput {
   double preprocess_s = 0, run_s = 0;
+  double results_s = 0;  // summary digests and --output files
   int64_t peak_rss_after_run = 0;  // before result digests and files, which can be large
   std::vector<std::string> files;  // written with --output
   Json engine_detail = Json::object();  // actopo only
@@ -126,10 +127,12 @@ absl::StatusOr<RunOutput> RunAndSummarize(Structure& structure, const AlgorithmI
   RunOutput out;
   out.run_s = outcome.run_s;
   out.peak_rss_after_run = outcome.peak_rss_after_run;
+  const auto start = Clock::now();
   out.result = Summarize(outcome.result, structure.topology());
   if (files != nullptr) {
     ASSIGN_OR_RETURN(out.files, WriteResultFiles(o.output, *files, outcome.result));
   }
+  out.results_s = Seconds(start);
   return out;
 }
 
@@ -269,6 +272,7 @@ absl::StatusOr<Json> Run(const BenchOptions& o) {
                   {"partition", partition_s},
                   {"preprocess", order_s + out.preprocess_s},
                   {"run", out.run_s},
+                  {"results", out.results_s},
                   {"total", Seconds(total_start)}};
   j["engine"] = {{"wait_s", out.access.wait_ns * 1e-9},
                  {"requests", out.access.requests},
