@@ -37,7 +37,10 @@ def test_same_result_on_every_structure(algorithm):
     assert set(first) >= {"mesh", "structure", "algorithm", "config", "times_s", "engine",
                           "memory", "result"}
     assert first["mesh"]["tetrahedra"] == 6 * 11 ** 3
-    assert set(first["times_s"]) == {"load", "partition", "preprocess", "run", "total"}
+    times = first["times_s"]
+    assert set(times) == {"load", "partition", "preprocess", "run", "results", "total"}
+    # total runs from process start to result ready: it covers every phase.
+    assert times["total"] >= sum(v for k, v in times.items() if k != "total")
     assert set(first["engine"]) >= {"wait_s", "requests", "hits", "misses", "evictions",
                                     "blocks_computed"}
     assert set(first["memory"]) >= {"peak_rss_bytes", "structure_bytes", "buffer_peak_bytes"}
@@ -72,14 +75,27 @@ def test_output_files(tmp_path):
         assert name in text
 
 
+@pytest.mark.parametrize("structure", ["explicit", "compact", "actopo"])
+def test_default_threads_use_every_core(structure):
+    cores = os.cpu_count()
+    r = run_json("--sample", "jittered:6", "--algorithm", "critical-points",
+                 "--structure", structure)
+    if structure == "actopo":
+        consumers = max(1, cores // 2)
+        assert r["config"]["consumers"] == consumers
+        assert r["config"]["producers"] == max(1, cores // consumers - 1)
+    else:
+        assert r["config"]["consumers"] == cores
+
+
 @pytest.mark.parametrize("args,message", [
     (["--sample", "jittered:5", "--structure", "fancy"], "--structure: unknown structure 'fancy'"),
     (["--sample", "jittered:5", "--algorithm", "contour-tree"], "unknown algorithm 'contour-tree'"),
-    (["--sample", "jittered:5", "--consumers", "0"], "--consumers: 0 is outside [1, 256]"),
+    (["--sample", "jittered:5", "--consumers", "-1"], "--consumers: -1 is outside [0, 256]"),
     (["--sample", "jittered:5", "--buffer-ratio", "2"], "--buffer-ratio: 2 is outside [0, 1]"),
     (["--sample", "jittered:5", "--prefetch", "psychic"], "--prefetch: unknown mode 'psychic'"),
-    (["--sample", "jittered:5", "--structure", "actopo", "--producers", "0"],
-     "producers: 0 is outside [1, 64]"),
+    (["--sample", "jittered:5", "--structure", "actopo", "--producers", "-1"],
+     "--producers: -1 is negative"),
     (["--sample", "nope:3"], "sample 'nope:3'"),
     (["--mesh", "/does/not/exist.vtu"], "/does/not/exist.vtu"),
     (["--sample", "jittered:5", "--scalar", "pressure"], "scalar field 'pressure' not found"),

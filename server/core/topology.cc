@@ -153,13 +153,20 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   // Tetrahedra: sorted internal tuples, stable counting sort by the block of the lowest vertex.
   {
     std::vector<SimplexId> sorted(4 * size_t(nt));
+    constexpr int64_t kTetsPerTask = 1 << 16;
+    ParallelFor((int64_t(nt) + kTetsPerTask - 1) / kTetsPerTask, threads, [&](int64_t task, int) {
+      const int64_t end = std::min<int64_t>(nt, (task + 1) * kTetsPerTask);
+      for (int64_t i = task * kTetsPerTask; i < end; ++i) {
+        SimplexId* s = &sorted[4 * size_t(i)];
+        for (int k = 0; k < 4; ++k) s[k] = t.vertex_internal_id_[mesh.tetrahedra[4 * size_t(i) + k]];
+        const auto order = [s](int a, int b) {
+          if (s[b] < s[a]) std::swap(s[a], s[b]);
+        };
+        order(0, 1), order(2, 3), order(0, 2), order(1, 3), order(1, 2);
+      }
+    });
     std::fill(block_count.begin(), block_count.end(), 0);
-    for (SimplexId i = 0; i < nt; ++i) {
-      SimplexId* s = &sorted[4 * size_t(i)];
-      for (int k = 0; k < 4; ++k) s[k] = t.vertex_internal_id_[mesh.tetrahedra[4 * size_t(i) + k]];
-      std::sort(s, s + 4);
-      ++block_count[t.vertex_block_[s[0]]];
-    }
+    for (SimplexId i = 0; i < nt; ++i) ++block_count[t.vertex_block_[sorted[4 * size_t(i)]]];
     t.block_tet_begin_ = PrefixSum(block_count);
     std::vector<SimplexId> cursor(t.block_tet_begin_.begin(), t.block_tet_begin_.end() - 1);
     t.tet_vertices_.resize(4 * size_t(nt));
@@ -198,45 +205,82 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     }
   }
 
-  // Edges, triangles and boundary flags, block-parallel, then concatenated in block order.
+  // Edges, triangles and boundary flags, block-parallel, then concatenated in block order. Per
+  // internal vertex v (ascending), from its star: the vertices above v give its edges, the pairs
+  // above v in each tetrahedron its triangles, each seen once per incident tetrahedron (so a run
+  // of one is a boundary triangle). Only small per-vertex lists are sorted.
+  struct Scratch {
+    std::vector<SimplexId> star_begin, star;
+    std::vector<SimplexId> upper;
+    std::vector<uint64_t> pairs;
+  };
   std::vector<BlockFaces> faces(num_blocks);
   std::vector<std::vector<int32_t>> neighbors(num_blocks);
-  ParallelFor(num_blocks, threads, [&](int64_t block, int) {
+  std::vector<Scratch> scratch(std::max(threads, 1));
+  ParallelFor(num_blocks, threads, [&](int64_t block, int thread) {
     const int32_t b = static_cast<int32_t>(block);
     const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
+    Scratch& sc = scratch[thread];
     BlockFaces& out = faces[b];
     std::vector<int32_t>& adjacent = neighbors[b];
-    auto visit = [&](SimplexId tet) {
-      const SimplexId* s = &t.tet_vertices_[4 * size_t(tet)];
-      for (int i = 0; i < 4; ++i) {
-        const int32_t vb = t.vertex_block_[s[i]];
-        if (vb != b) adjacent.push_back(vb);
-        if (s[i] < vbegin || s[i] >= vend) continue;
-        for (int j = i + 1; j < 4; ++j) {
-          out.edges.push_back(uint64_t(uint32_t(s[i])) << 32 | uint32_t(s[j]));
-          for (int k = j + 1; k < 4; ++k) out.triangles.push_back({s[i], s[j], s[k]});
+    const auto external = t.external_tetrahedra(b);
+    const SimplexId tet_begin = t.block_tet_begin_[b], tet_end = t.block_tet_begin_[b + 1];
+    const auto for_each_tet = [&](auto&& fn) {
+      for (SimplexId tet : external) fn(tet, &t.tet_vertices_[4 * size_t(tet)]);
+      for (SimplexId tet = tet_begin; tet < tet_end; ++tet) fn(tet, &t.tet_vertices_[4 * size_t(tet)]);
+    };
+    // Stars of the internal vertices (CSR, counting sort).
+    sc.star_begin.assign(size_t(vend - vbegin) + 1, 0);
+    for_each_tet([&](SimplexId, const SimplexId* s) {
+      for (int k = 0; k < 4; ++k) {
+        if (s[k] >= vbegin && s[k] < vend) {
+          ++sc.star_begin[s[k] - vbegin + 1];
+        } else {
+          adjacent.push_back(t.vertex_block_[s[k]]);
         }
       }
-    };
-    for (SimplexId tet : t.external_tetrahedra(b)) visit(tet);
-    for (SimplexId tet = t.block_tet_begin_[b]; tet < t.block_tet_begin_[b + 1]; ++tet) visit(tet);
-
-    std::sort(out.edges.begin(), out.edges.end());
-    out.edges.erase(std::unique(out.edges.begin(), out.edges.end()), out.edges.end());
-    out.edges.shrink_to_fit();
-    std::sort(out.triangles.begin(), out.triangles.end());
-    // Every tetrahedron around a triangle of this block contains its lowest vertex, so it was
-    // visited: the run length is the exact number of incident tetrahedra.
-    size_t write = 0;
-    for (size_t read = 0; read < out.triangles.size();) {
-      size_t run = read + 1;
-      while (run < out.triangles.size() && out.triangles[run] == out.triangles[read]) ++run;
-      out.triangles[write++] = out.triangles[read];
-      out.triangle_boundary.push_back(run - read == 1);
-      read = run;
+    });
+    for (size_t i = 1; i < sc.star_begin.size(); ++i) sc.star_begin[i] += sc.star_begin[i - 1];
+    sc.star.resize(sc.star_begin.back());
+    for_each_tet([&](SimplexId tet, const SimplexId* s) {
+      for (int k = 0; k < 4; ++k) {
+        if (s[k] >= vbegin && s[k] < vend) sc.star[sc.star_begin[s[k] - vbegin]++] = tet;
+      }
+    });
+    // star_begin[i] now ends vertex i's star.
+    SimplexId star_from = 0;
+    for (SimplexId v = vbegin; v < vend; ++v) {
+      const SimplexId star_to = sc.star_begin[v - vbegin];
+      sc.upper.clear();
+      sc.pairs.clear();
+      for (SimplexId i = star_from; i < star_to; ++i) {
+        const SimplexId* s = &t.tet_vertices_[4 * size_t(sc.star[i])];
+        int p = 0;
+        while (s[p] != v) ++p;
+        for (int j = p + 1; j < 4; ++j) {
+          sc.upper.push_back(s[j]);
+          for (int k = j + 1; k < 4; ++k) {
+            sc.pairs.push_back(uint64_t(uint32_t(s[j])) << 32 | uint32_t(s[k]));
+          }
+        }
+      }
+      star_from = star_to;
+      std::sort(sc.upper.begin(), sc.upper.end());
+      sc.upper.erase(std::unique(sc.upper.begin(), sc.upper.end()), sc.upper.end());
+      for (SimplexId w : sc.upper) out.edges.push_back(uint64_t(uint32_t(v)) << 32 | uint32_t(w));
+      std::sort(sc.pairs.begin(), sc.pairs.end());
+      for (size_t read = 0; read < sc.pairs.size();) {
+        size_t run = read + 1;
+        while (run < sc.pairs.size() && sc.pairs[run] == sc.pairs[read]) ++run;
+        out.triangles.push_back(
+            {v, SimplexId(sc.pairs[read] >> 32), SimplexId(sc.pairs[read] & 0xffffffffu)});
+        out.triangle_boundary.push_back(run - read == 1);
+        read = run;
+      }
     }
-    out.triangles.resize(write);
+    out.edges.shrink_to_fit();
     out.triangles.shrink_to_fit();
+    out.triangle_boundary.shrink_to_fit();
     std::sort(adjacent.begin(), adjacent.end());
     adjacent.erase(std::unique(adjacent.begin(), adjacent.end()), adjacent.end());
     adjacent.shrink_to_fit();

@@ -5,6 +5,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "google/protobuf/util/time_util.h"
+#include "server/core/parallel.h"
 
 namespace actopo::service {
 
@@ -54,8 +55,9 @@ absl::StatusOr<SessionOptions> FromProto(const pb::OpenSessionRequest& r) {
           absl::StrCat("structure: ", int(r.structure()), " is not a structure"));
   }
   const pb::EngineOptions& e = r.engine();
-  if (e.consumers() != 0) o.consumers = e.consumers();
-  if (e.producers() != 0) o.producers = e.producers();
+  const ThreadPlan plan = DefaultThreadPlan(o.structure == StructureKind::kActopo);
+  o.consumers = e.consumers() != 0 ? e.consumers() : plan.consumers;
+  o.producers = e.producers() != 0 ? e.producers() : std::max(plan.producers, 1);
   if (e.buffer_ratio() != 0) o.buffer_ratio = e.buffer_ratio();
   switch (e.prefetch()) {
     case pb::PREFETCH_UNSPECIFIED: break;
