@@ -9,9 +9,11 @@
 namespace actopo {
 namespace {
 
+// Bytes in use: the face arrays keep an untouched upper-bound reservation (see Build), which
+// costs address space, not memory.
 template <class T>
 int64_t VectorBytes(const std::vector<T>& v) {
-  return static_cast<int64_t>(v.capacity() * sizeof(T));
+  return static_cast<int64_t>(v.size() * sizeof(T));
 }
 
 // Edges and triangles owned by one block (lowest vertex inside it), sorted and unique, with the
@@ -150,35 +152,40 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     }
   }
 
-  // Tetrahedra: sorted internal tuples, stable counting sort by the block of the lowest vertex.
+  // Tetrahedra: stable counting sort by the block of the lowest vertex, then each sorted internal
+  // tuple written straight to its place (no second copy of the tetrahedra at any time).
   {
-    std::vector<SimplexId> sorted(4 * size_t(nt));
+    const auto internal = [&](int64_t i, int k) {
+      return t.vertex_internal_id_[mesh.tetrahedra[4 * size_t(i) + k]];
+    };
+    const auto lowest_block = [&](int64_t i) {
+      return t.vertex_block_[std::min(std::min(internal(i, 0), internal(i, 1)),
+                                      std::min(internal(i, 2), internal(i, 3)))];
+    };
+    std::fill(block_count.begin(), block_count.end(), 0);
+    for (SimplexId i = 0; i < nt; ++i) ++block_count[lowest_block(i)];
+    t.block_tet_begin_ = PrefixSum(block_count);
+    std::vector<SimplexId> cursor(t.block_tet_begin_.begin(), t.block_tet_begin_.end() - 1);
+    t.tet_input_id_.resize(nt);
+    t.tet_internal_id_.resize(nt);
+    for (SimplexId i = 0; i < nt; ++i) {
+      const SimplexId id = cursor[lowest_block(i)]++;
+      t.tet_input_id_[id] = i;
+      t.tet_internal_id_[i] = id;
+    }
+    t.tet_vertices_.resize(4 * size_t(nt));
     constexpr int64_t kTetsPerTask = 1 << 16;
     ParallelFor((int64_t(nt) + kTetsPerTask - 1) / kTetsPerTask, threads, [&](int64_t task, int) {
       const int64_t end = std::min<int64_t>(nt, (task + 1) * kTetsPerTask);
-      for (int64_t i = task * kTetsPerTask; i < end; ++i) {
-        SimplexId* s = &sorted[4 * size_t(i)];
-        for (int k = 0; k < 4; ++k) s[k] = t.vertex_internal_id_[mesh.tetrahedra[4 * size_t(i) + k]];
+      for (int64_t id = task * kTetsPerTask; id < end; ++id) {
+        SimplexId* s = &t.tet_vertices_[4 * size_t(id)];
+        for (int k = 0; k < 4; ++k) s[k] = internal(t.tet_input_id_[id], k);
         const auto order = [s](int a, int b) {
           if (s[b] < s[a]) std::swap(s[a], s[b]);
         };
         order(0, 1), order(2, 3), order(0, 2), order(1, 3), order(1, 2);
       }
     });
-    std::fill(block_count.begin(), block_count.end(), 0);
-    for (SimplexId i = 0; i < nt; ++i) ++block_count[t.vertex_block_[sorted[4 * size_t(i)]]];
-    t.block_tet_begin_ = PrefixSum(block_count);
-    std::vector<SimplexId> cursor(t.block_tet_begin_.begin(), t.block_tet_begin_.end() - 1);
-    t.tet_vertices_.resize(4 * size_t(nt));
-    t.tet_input_id_.resize(nt);
-    t.tet_internal_id_.resize(nt);
-    for (SimplexId i = 0; i < nt; ++i) {
-      const SimplexId* s = &sorted[4 * size_t(i)];
-      const SimplexId id = cursor[t.vertex_block_[s[0]]]++;
-      std::copy(s, s + 4, &t.tet_vertices_[4 * size_t(id)]);
-      t.tet_input_id_[id] = i;
-      t.tet_internal_id_[i] = id;
-    }
   }
 
   // External tetrahedra: a tetrahedron is external to every later block holding one of its
@@ -196,7 +203,9 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
       }
     };
     std::fill(block_count.begin(), block_count.end(), 0);
-    for (SimplexId i = 0; i < nt; ++i) for_each_external_block(i, [&](int32_t b) { ++block_count[b]; });
+    for (SimplexId i = 0; i < nt; ++i) {
+      for_each_external_block(i, [&](int32_t b) { ++block_count[b]; });
+    }
     t.external_offsets_ = PrefixSum(block_count);
     t.external_tets_.resize(t.external_offsets_.back());
     std::vector<SimplexId> cursor(t.external_offsets_.begin(), t.external_offsets_.end() - 1);
@@ -214,114 +223,115 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     std::vector<SimplexId> upper;
     std::vector<uint64_t> pairs;
   };
-  std::vector<BlockFaces> faces(num_blocks);
+  // Blocks go in windows: each window is computed in parallel, then appended in block order to
+  // the final arrays, whose upper bounds (6 edges and 4 triangles per tetrahedron) are reserved
+  // but untouched, so memory grows by what is written and no second copy of the faces exists.
+  constexpr int32_t kWindow = 256;
+  std::vector<BlockFaces> faces(std::min(num_blocks, kWindow));
   std::vector<std::vector<int32_t>> neighbors(num_blocks);
   std::vector<Scratch> scratch(std::max(threads, 1));
-  ParallelFor(num_blocks, threads, [&](int64_t block, int thread) {
-    const int32_t b = static_cast<int32_t>(block);
-    const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
-    Scratch& sc = scratch[thread];
-    BlockFaces& out = faces[b];
-    std::vector<int32_t>& adjacent = neighbors[b];
-    const auto external = t.external_tetrahedra(b);
-    const SimplexId tet_begin = t.block_tet_begin_[b], tet_end = t.block_tet_begin_[b + 1];
-    const auto for_each_tet = [&](auto&& fn) {
-      for (SimplexId tet : external) fn(tet, &t.tet_vertices_[4 * size_t(tet)]);
-      for (SimplexId tet = tet_begin; tet < tet_end; ++tet) fn(tet, &t.tet_vertices_[4 * size_t(tet)]);
-    };
-    // Stars of the internal vertices (CSR, counting sort).
-    sc.star_begin.assign(size_t(vend - vbegin) + 1, 0);
-    for_each_tet([&](SimplexId, const SimplexId* s) {
-      for (int k = 0; k < 4; ++k) {
-        if (s[k] >= vbegin && s[k] < vend) {
-          ++sc.star_begin[s[k] - vbegin + 1];
-        } else {
-          adjacent.push_back(t.vertex_block_[s[k]]);
-        }
-      }
-    });
-    for (size_t i = 1; i < sc.star_begin.size(); ++i) sc.star_begin[i] += sc.star_begin[i - 1];
-    sc.star.resize(sc.star_begin.back());
-    for_each_tet([&](SimplexId tet, const SimplexId* s) {
-      for (int k = 0; k < 4; ++k) {
-        if (s[k] >= vbegin && s[k] < vend) sc.star[sc.star_begin[s[k] - vbegin]++] = tet;
-      }
-    });
-    // star_begin[i] now ends vertex i's star.
-    SimplexId star_from = 0;
-    for (SimplexId v = vbegin; v < vend; ++v) {
-      const SimplexId star_to = sc.star_begin[v - vbegin];
-      sc.upper.clear();
-      sc.pairs.clear();
-      for (SimplexId i = star_from; i < star_to; ++i) {
-        const SimplexId* s = &t.tet_vertices_[4 * size_t(sc.star[i])];
-        int p = 0;
-        while (s[p] != v) ++p;
-        for (int j = p + 1; j < 4; ++j) {
-          sc.upper.push_back(s[j]);
-          for (int k = j + 1; k < 4; ++k) {
-            sc.pairs.push_back(uint64_t(uint32_t(s[j])) << 32 | uint32_t(s[k]));
-          }
-        }
-      }
-      star_from = star_to;
-      std::sort(sc.upper.begin(), sc.upper.end());
-      sc.upper.erase(std::unique(sc.upper.begin(), sc.upper.end()), sc.upper.end());
-      for (SimplexId w : sc.upper) out.edges.push_back(uint64_t(uint32_t(v)) << 32 | uint32_t(w));
-      std::sort(sc.pairs.begin(), sc.pairs.end());
-      for (size_t read = 0; read < sc.pairs.size();) {
-        size_t run = read + 1;
-        while (run < sc.pairs.size() && sc.pairs[run] == sc.pairs[read]) ++run;
-        out.triangles.push_back(
-            {v, SimplexId(sc.pairs[read] >> 32), SimplexId(sc.pairs[read] & 0xffffffffu)});
-        out.triangle_boundary.push_back(run - read == 1);
-        read = run;
-      }
-    }
-    out.edges.shrink_to_fit();
-    out.triangles.shrink_to_fit();
-    out.triangle_boundary.shrink_to_fit();
-    std::sort(adjacent.begin(), adjacent.end());
-    adjacent.erase(std::unique(adjacent.begin(), adjacent.end()), adjacent.end());
-    adjacent.shrink_to_fit();
-  });
-
-  size_t num_edges = 0, num_triangles = 0;
-  for (const BlockFaces& f : faces) {
-    num_edges += f.edges.size();
-    num_triangles += f.triangles.size();
-  }
-  if (num_edges > INT32_MAX || num_triangles > INT32_MAX) {
-    return absl::ResourceExhaustedError(absl::StrCat(
-        "mesh: ", num_triangles, " triangles exceed the 32-bit simplex id range"));
-  }
-  t.edge_vertices_.resize(2 * num_edges);
-  t.triangle_vertices_.resize(3 * num_triangles);
-  t.triangle_boundary_.resize(num_triangles);
+  t.edge_vertices_.reserve(2 * 6 * size_t(nt));
+  t.triangle_vertices_.reserve(3 * 4 * size_t(nt));
+  t.triangle_boundary_.reserve(4 * size_t(nt));
   t.vertex_edge_begin_.assign(nv + 1, 0);
   t.vertex_triangle_begin_.assign(nv + 1, 0);
-  {
-    size_t e = 0, f = 0;
-    for (BlockFaces& bf : faces) {
+  for (int32_t window = 0; window < num_blocks; window += kWindow) {
+    const int32_t window_size = std::min(kWindow, num_blocks - window);
+    ParallelFor(window_size, threads, [&](int64_t index, int thread) {
+      const int32_t b = window + static_cast<int32_t>(index);
+      const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
+      Scratch& sc = scratch[thread];
+      BlockFaces& out = faces[index];
+      out.edges.clear();
+      out.triangles.clear();
+      out.triangle_boundary.clear();
+      std::vector<int32_t>& adjacent = neighbors[b];
+      const auto external = t.external_tetrahedra(b);
+      const SimplexId tet_begin = t.block_tet_begin_[b], tet_end = t.block_tet_begin_[b + 1];
+      const auto for_each_tet = [&](auto&& fn) {
+        for (SimplexId tet : external) fn(tet, &t.tet_vertices_[4 * size_t(tet)]);
+        for (SimplexId tet = tet_begin; tet < tet_end; ++tet) {
+          fn(tet, &t.tet_vertices_[4 * size_t(tet)]);
+        }
+      };
+      // Stars of the internal vertices (CSR, counting sort).
+      sc.star_begin.assign(size_t(vend - vbegin) + 1, 0);
+      for_each_tet([&](SimplexId, const SimplexId* s) {
+        for (int k = 0; k < 4; ++k) {
+          if (s[k] >= vbegin && s[k] < vend) {
+            ++sc.star_begin[s[k] - vbegin + 1];
+          } else {
+            adjacent.push_back(t.vertex_block_[s[k]]);
+          }
+        }
+      });
+      for (size_t i = 1; i < sc.star_begin.size(); ++i) sc.star_begin[i] += sc.star_begin[i - 1];
+      sc.star.resize(sc.star_begin.back());
+      for_each_tet([&](SimplexId tet, const SimplexId* s) {
+        for (int k = 0; k < 4; ++k) {
+          if (s[k] >= vbegin && s[k] < vend) sc.star[sc.star_begin[s[k] - vbegin]++] = tet;
+        }
+      });
+      // star_begin[i] now ends vertex i's star.
+      SimplexId star_from = 0;
+      for (SimplexId v = vbegin; v < vend; ++v) {
+        const SimplexId star_to = sc.star_begin[v - vbegin];
+        sc.upper.clear();
+        sc.pairs.clear();
+        for (SimplexId i = star_from; i < star_to; ++i) {
+          const SimplexId* s = &t.tet_vertices_[4 * size_t(sc.star[i])];
+          int p = 0;
+          while (s[p] != v) ++p;
+          for (int j = p + 1; j < 4; ++j) {
+            sc.upper.push_back(s[j]);
+            for (int k = j + 1; k < 4; ++k) {
+              sc.pairs.push_back(uint64_t(uint32_t(s[j])) << 32 | uint32_t(s[k]));
+            }
+          }
+        }
+        star_from = star_to;
+        std::sort(sc.upper.begin(), sc.upper.end());
+        sc.upper.erase(std::unique(sc.upper.begin(), sc.upper.end()), sc.upper.end());
+        for (SimplexId w : sc.upper) out.edges.push_back(uint64_t(uint32_t(v)) << 32 | uint32_t(w));
+        std::sort(sc.pairs.begin(), sc.pairs.end());
+        for (size_t read = 0; read < sc.pairs.size();) {
+          size_t run = read + 1;
+          while (run < sc.pairs.size() && sc.pairs[run] == sc.pairs[read]) ++run;
+          out.triangles.push_back(
+              {v, SimplexId(sc.pairs[read] >> 32), SimplexId(sc.pairs[read] & 0xffffffffu)});
+          out.triangle_boundary.push_back(run - read == 1);
+          read = run;
+        }
+      }
+      std::sort(adjacent.begin(), adjacent.end());
+      adjacent.erase(std::unique(adjacent.begin(), adjacent.end()), adjacent.end());
+      adjacent.shrink_to_fit();
+    });
+    for (int32_t index = 0; index < window_size; ++index) {
+      const BlockFaces& bf = faces[index];
       for (uint64_t key : bf.edges) {
         const SimplexId a = SimplexId(key >> 32);
-        t.edge_vertices_[2 * e] = a;
-        t.edge_vertices_[2 * e + 1] = SimplexId(key & 0xffffffffu);
+        t.edge_vertices_.push_back(a);
+        t.edge_vertices_.push_back(SimplexId(key & 0xffffffffu));
         ++t.vertex_edge_begin_[a + 1];
-        ++e;
       }
       for (size_t i = 0; i < bf.triangles.size(); ++i) {
-        std::copy(bf.triangles[i].begin(), bf.triangles[i].end(), &t.triangle_vertices_[3 * f]);
-        t.triangle_boundary_[f] = bf.triangle_boundary[i];
+        t.triangle_vertices_.insert(t.triangle_vertices_.end(), bf.triangles[i].begin(),
+                                    bf.triangles[i].end());
+        t.triangle_boundary_.push_back(bf.triangle_boundary[i]);
         ++t.vertex_triangle_begin_[bf.triangles[i][0] + 1];
-        ++f;
       }
-      bf = BlockFaces();  // release as we go: keeps the peak near one copy
     }
-    for (SimplexId v = 0; v < nv; ++v) {
-      t.vertex_edge_begin_[v + 1] += t.vertex_edge_begin_[v];
-      t.vertex_triangle_begin_[v + 1] += t.vertex_triangle_begin_[v];
-    }
+  }
+  faces.clear();
+
+  if (t.edge_vertices_.size() / 2 > INT32_MAX || t.triangle_vertices_.size() / 3 > INT32_MAX) {
+    return absl::ResourceExhaustedError(absl::StrCat("mesh: ", t.triangle_vertices_.size() / 3,
+                                                     " triangles exceed the 32-bit id range"));
+  }
+  for (SimplexId v = 0; v < nv; ++v) {
+    t.vertex_edge_begin_[v + 1] += t.vertex_edge_begin_[v];
+    t.vertex_triangle_begin_[v + 1] += t.vertex_triangle_begin_[v];
   }
 
   t.block_neighbor_offsets_.assign(num_blocks + 1, 0);
@@ -330,7 +340,9 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
         t.block_neighbor_offsets_[b] + static_cast<int32_t>(neighbors[b].size());
   }
   t.block_neighbors_.reserve(t.block_neighbor_offsets_.back());
-  for (const auto& n : neighbors) t.block_neighbors_.insert(t.block_neighbors_.end(), n.begin(), n.end());
+  for (const auto& n : neighbors) {
+    t.block_neighbors_.insert(t.block_neighbors_.end(), n.begin(), n.end());
+  }
   return topo;
 }
 
