@@ -186,26 +186,14 @@ namespace {
 
 // A cell's input vertex ids, ascending, into ids[0..d].
 void CellTokens(const Topology& topology, int d, SimplexId c, SimplexId* ids) {
-  const auto order = [&](int i, int j) {
-    if (ids[j] < ids[i]) std::swap(ids[i], ids[j]);
-  };
   switch (d) {
-    case 0:
-      ids[0] = topology.vertex_input_id(c);
-      return;
-    case 1:
-      for (int i = 0; i < 2; ++i) ids[i] = topology.vertex_input_id(topology.edge(c)[i]);
-      order(0, 1);
-      return;
-    case 2:
-      for (int i = 0; i < 3; ++i) ids[i] = topology.vertex_input_id(topology.triangle(c)[i]);
-      order(0, 1), order(1, 2), order(0, 1);
-      return;
-    default:
-      for (int i = 0; i < 4; ++i) ids[i] = topology.vertex_input_id(topology.tetrahedron(c)[i]);
-      order(0, 1), order(2, 3), order(0, 2), order(1, 3), order(1, 2);
-      return;
+    case 0: ids[0] = c; break;
+    case 1: std::copy_n(topology.edge(c).begin(), 2, ids); break;
+    case 2: std::copy_n(topology.triangle(c).begin(), 3, ids); break;
+    default: std::copy_n(topology.tetrahedron(c).begin(), 4, ids); break;
   }
+  for (int i = 0; i <= d; ++i) ids[i] = topology.vertex_input_id(ids[i]);
+  SortVertexIds(ids, d + 1);
 }
 
 char* WriteIds(char* p, const SimplexId* ids, int n) {

@@ -180,10 +180,7 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
       for (int64_t id = task * kTetsPerTask; id < end; ++id) {
         SimplexId* s = &t.tet_vertices_[4 * size_t(id)];
         for (int k = 0; k < 4; ++k) s[k] = internal(t.tet_input_id_[id], k);
-        const auto order = [s](int a, int b) {
-          if (s[b] < s[a]) std::swap(s[a], s[b]);
-        };
-        order(0, 1), order(2, 3), order(0, 2), order(1, 3), order(1, 2);
+        SortVertexIds(s, 4);
       }
     });
   }

@@ -22,12 +22,24 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include "absl/status/statusor.h"
 #include "server/core/mesh.h"
 
 namespace actopo {
+
+// Sorts a simplex's n <= 4 vertex ids ascending in place (a sorting network: no call, no loop;
+// run once per tetrahedron while encoding and per cell while digesting).
+inline void SortVertexIds(SimplexId* s, int n) {
+  const auto order = [s](int a, int b) {
+    if (s[b] < s[a]) std::swap(s[a], s[b]);
+  };
+  if (n == 2) order(0, 1);
+  if (n == 3) order(0, 1), order(1, 2), order(0, 1);
+  if (n == 4) order(0, 1), order(2, 3), order(0, 2), order(1, 3), order(1, 2);
+}
 
 struct TopologyOptions {
   int threads = 0;  // 0: DefaultThreads()
