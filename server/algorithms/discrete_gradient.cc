@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <queue>
+#include <utility>
 
 #include "absl/strings/str_cat.h"
 #include "server/algorithms/digest.h"
@@ -170,21 +171,11 @@ class LowerStarPairing {
 }  // namespace
 
 std::vector<SimplexId> CellInputVertices(const Topology& topology, int d, SimplexId c) {
-  std::vector<SimplexId> v;
-  switch (d) {
-    case 0: v = {c}; break;
-    case 1: v.assign(topology.edge(c).begin(), topology.edge(c).end()); break;
-    case 2: v.assign(topology.triangle(c).begin(), topology.triangle(c).end()); break;
-    default: v.assign(topology.tetrahedron(c).begin(), topology.tetrahedron(c).end()); break;
-  }
-  for (SimplexId& x : v) x = topology.vertex_input_id(x);
-  std::sort(v.begin(), v.end());
+  std::vector<SimplexId> v(size_t(d) + 1);
+  CellTokens(topology, d, c, v.data());
   return v;
 }
 
-namespace {
-
-// A cell's input vertex ids, ascending, into ids[0..d].
 void CellTokens(const Topology& topology, int d, SimplexId c, SimplexId* ids) {
   switch (d) {
     case 0: ids[0] = c; break;
@@ -196,12 +187,52 @@ void CellTokens(const Topology& topology, int d, SimplexId c, SimplexId* ids) {
   SortVertexIds(ids, d + 1);
 }
 
+namespace {
+
 char* WriteIds(char* p, const SimplexId* ids, int n) {
   for (int i = 0; i < n; ++i) {
     if (i > 0) *p++ = ',';
     p = WriteDecimal(p, uint32_t(ids[i]));
   }
   return p;
+}
+
+// The input vertex ids of `cofacet`, a (d + 1)-cell having the d-cell of input ids `ids` as a
+// face, ascending, into out[0..d + 1]. Only the vertex not in `ids` is looked for, reading as
+// little of the cofacet's encoding as it can: its stored (highest) vertex first, then its edge's
+// (a random read each, instead of decoding the whole tuple; pairs point all over the mesh).
+void CofacetTokens(const Topology& topology, int d, const SimplexId* ids, SimplexId cofacet,
+                   SimplexId* out) {
+  const auto in_face = [&](SimplexId internal) {
+    const SimplexId input = topology.vertex_input_id(internal);
+    return std::find(ids, ids + d + 1, input) != ids + d + 1 ? -1 : input;
+  };
+  SimplexId extra = -1;
+  switch (d) {
+    case 0:
+      extra = in_face(topology.edge_upper(cofacet));
+      if (extra < 0) extra = in_face(topology.edge_lowest(cofacet));
+      break;
+    case 1: {
+      extra = in_face(topology.triangle_third(cofacet));
+      if (extra >= 0) break;
+      const SimplexId e = topology.triangle_edge(cofacet);
+      extra = in_face(topology.edge_upper(e));
+      if (extra < 0) extra = in_face(topology.edge_lowest(e));
+      break;
+    }
+    default:
+      for (SimplexId v : topology.tetrahedron(cofacet)) {
+        if (extra < 0) extra = in_face(v);
+      }
+  }
+  // Insert `extra` into the sorted ids.
+  int k = 0;
+  for (int i = 0; i <= d; ++i) {
+    if (extra >= 0 && extra < ids[i]) out[k++] = std::exchange(extra, -1);
+    out[k++] = ids[i];
+  }
+  if (extra >= 0) out[k] = extra;
 }
 
 // Appends "<d> <cell>[ <higher cell>]" (a line of the critical-cell or pair digests); `ids` are
@@ -216,7 +247,7 @@ void AppendCellLine(std::string& line, const Topology& topology, int d, const Si
   if (higher >= 0) {
     *p++ = ' ';
     SimplexId higher_ids[4];
-    CellTokens(topology, d + 1, higher, higher_ids);
+    CofacetTokens(topology, d, ids, higher, higher_ids);
     p = WriteIds(p, higher_ids, d + 2);
   }
   line.append(buffer, p);

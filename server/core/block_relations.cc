@@ -151,7 +151,7 @@ class BlockComputer {
     LowerNeighbors(out);
     AppendUpperRanges(out, [&](SimplexId v, std::vector<SimplexId>& row) {
       for (SimplexId e = topo_.vertex_first_edge(v); e < topo_.vertex_first_edge(v + 1); ++e) {
-        row.push_back(topo_.edge(e)[1]);
+        row.push_back(topo_.edge_upper(e));
       }
     });
   }
@@ -227,37 +227,31 @@ class BlockComputer {
       const SimplexId end = out.offsets[i + 1];
       s_.values.insert(s_.values.end(), out.values.begin() + begin, out.values.begin() + end);
       begin = end;
-      const auto edge = topo_.edge(out.first + i);
-      SimplexId f = FirstTriangleWith(edge[0], edge[1]);
-      const SimplexId last = topo_.vertex_first_triangle(edge[0] + 1);
-      for (; f < last && topo_.triangle(f)[1] == edge[1]; ++f) s_.values.push_back(f);
+      const SimplexId e = out.first + i;
+      for (SimplexId f = topo_.edge_first_triangle(e); f < topo_.edge_first_triangle(e + 1); ++f) {
+        s_.values.push_back(f);
+      }
       out.offsets[i + 1] = static_cast<SimplexId>(s_.values.size());
     }
     out.values.assign(s_.values.begin(), s_.values.end());
   }
 
-  // First triangle (a, b, *) in a's sorted run (or the first after where it would be).
-  SimplexId FirstTriangleWith(SimplexId a, SimplexId b) const {
-    SimplexId lo = topo_.vertex_first_triangle(a), hi = topo_.vertex_first_triangle(a + 1);
-    while (lo < hi) {
-      const SimplexId mid = lo + (hi - lo) / 2;
-      if (topo_.triangle(mid)[1] < b) {
-        lo = mid + 1;
-      } else {
-        hi = mid;
-      }
-    }
-    return lo;
-  }
-
   void TriangleEdges(RelationBlock& out) {
     out.stride = 3;
     out.values.resize(size_t(out.count) * 3);
-    for (SimplexId i = 0; i < out.count; ++i) {
-      const auto f = topo_.triangle(out.first + i);
-      out.values[3 * size_t(i)] = topo_.FindEdge(f[0], f[1]);
-      out.values[3 * size_t(i) + 1] = topo_.FindEdge(f[0], f[2]);
-      out.values[3 * size_t(i) + 2] = topo_.FindEdge(f[1], f[2]);
+    // The block's triangles (a, b, c) in id order: by a, then by edge (a, b), then by c.
+    for (SimplexId a = vbegin_; a < vend_; ++a) {
+      for (SimplexId e = topo_.vertex_first_edge(a); e < topo_.vertex_first_edge(a + 1); ++e) {
+        const SimplexId b = topo_.edge_upper(e);
+        for (SimplexId f = topo_.edge_first_triangle(e); f < topo_.edge_first_triangle(e + 1);
+             ++f) {
+          const SimplexId c = topo_.triangle_third(f);
+          SimplexId* row = &out.values[3 * size_t(f - out.first)];
+          row[0] = e;
+          row[1] = topo_.FindEdge(a, c);
+          row[2] = topo_.FindEdge(b, c);
+        }
+      }
     }
   }
 
@@ -341,7 +335,7 @@ class BlockComputer {
     const SimplexId oend = topo_.block_vertex_begin(owner + 1);
     s_.mark.assign(size_t(oend - obegin), 0);
     for (const int64_t* r = begin; r != end; ++r) {
-      s_.mark[topo_.triangle(SimplexId(*r >> 32))[0] - obegin] = 1;
+      s_.mark[topo_.edge_lowest(topo_.triangle_edge(SimplexId(*r >> 32))) - obegin] = 1;
     }
     ForEachTet(owner, [&](SimplexId t, const SimplexId* s) {
       for (int f = 0; f < 4; ++f) {

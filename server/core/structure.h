@@ -16,13 +16,15 @@
 //
 // Lifetime rule: a span returned for relation R stays valid until the same reader is next asked
 // for relation R. Spans of different relations do not invalidate each other, so nested loops
-// over different relations are fine; to keep a row of R while asking R again, copy it. Static
-// relations (edge_vertices, triangle_vertices, tetrahedron_vertices) stay valid forever.
+// over different relations are fine; to keep a row of R while asking R again, copy it.
+// tetrahedron_vertices stays valid forever; edge_vertices and triangle_vertices return their
+// (decoded) tuples by value.
 //
 // Ids are internal (see topology.h); translate at the edges with the topology's permutations.
 #ifndef ACTOPO_SERVER_CORE_STRUCTURE_H_
 #define ACTOPO_SERVER_CORE_STRUCTURE_H_
 
+#include <array>
 #include <span>
 
 #include "server/core/block_relations.h"
@@ -70,9 +72,11 @@ class ReaderBase {
   template <Relation R>
   std::span<const SimplexId> get(SimplexId s) {
     if constexpr (R == Relation::kEV) {
-      return topology_->edge(s);
+      edge_row_ = topology_->edge(s);
+      return edge_row_;
     } else if constexpr (R == Relation::kFV) {
-      return topology_->triangle(s);
+      triangle_row_ = topology_->triangle(s);
+      return triangle_row_;
     } else if constexpr (R == Relation::kTV) {
       return topology_->tetrahedron(s);
     } else if constexpr (R == Relation::kFB) {
@@ -91,15 +95,13 @@ class ReaderBase {
   std::span<const SimplexId> vertex_link(SimplexId v) { return get<Relation::kVL>(v); }
   bool vertex_on_boundary(SimplexId v) { return get<Relation::kVB>(v)[0] != 0; }
 
-  std::span<const SimplexId, 2> edge_vertices(SimplexId e) const { return topology_->edge(e); }
+  std::array<SimplexId, 2> edge_vertices(SimplexId e) const { return topology_->edge(e); }
   std::span<const SimplexId> edge_triangles(SimplexId e) { return get<Relation::kEF>(e); }
   std::span<const SimplexId> edge_star(SimplexId e) { return get<Relation::kET>(e); }
   std::span<const SimplexId> edge_link(SimplexId e) { return get<Relation::kEL>(e); }
   bool edge_on_boundary(SimplexId e) { return get<Relation::kEB>(e)[0] != 0; }
 
-  std::span<const SimplexId, 3> triangle_vertices(SimplexId f) const {
-    return topology_->triangle(f);
-  }
+  std::array<SimplexId, 3> triangle_vertices(SimplexId f) const { return topology_->triangle(f); }
   std::span<const SimplexId> triangle_edges(SimplexId f) { return get<Relation::kFE>(f); }
   std::span<const SimplexId> triangle_star(SimplexId f) { return get<Relation::kFT>(f); }
   std::span<const SimplexId> triangle_link(SimplexId f) { return get<Relation::kFL>(f); }
@@ -118,6 +120,9 @@ class ReaderBase {
 
  private:
   static constexpr SimplexId kFlags[2] = {0, 1};
+  // Where get<EV> and get<FV> decode their rows.
+  std::array<SimplexId, 2> edge_row_{};
+  std::array<SimplexId, 3> triangle_row_{};
 };
 
 template <class Derived>

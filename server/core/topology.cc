@@ -19,9 +19,10 @@ int64_t VectorBytes(const std::vector<T>& v) {
 // Edges and triangles owned by one block (lowest vertex inside it), sorted and unique, with the
 // number of tetrahedra around each triangle (1 = boundary).
 struct BlockFaces {
-  std::vector<uint64_t> edges;  // (a << 32) | b
-  std::vector<std::array<SimplexId, 3>> triangles;
-  std::vector<uint8_t> triangle_boundary;
+  std::vector<uint64_t> edges;               // (a << 32) | b
+  std::vector<SimplexId> edge_triangles;     // per edge: its triangles (a, b, *)
+  std::vector<SimplexId> triangle_third;     // c of each triangle (a, b, c), in order
+  std::vector<uint8_t> triangle_boundary;    // per triangle
 };
 
 // Offsets of per-item counts: out[0] = 0, out[i + 1] = out[i] + counts[i].
@@ -33,6 +34,41 @@ std::vector<T> PrefixSum(const std::vector<T>& counts) {
 }
 
 }  // namespace
+
+void RunLookup::Build(const std::vector<SimplexId>& begin, SimplexId items) {
+  sample_.assign((size_t(items) + 63) / 64 + 1, 0);
+  offset_.assign(size_t(items), kFar);
+  SimplexId run = 0;
+  for (SimplexId x = 0; x < items; ++x) {
+    while (begin[run + 1] <= x) ++run;
+    if (x % 64 == 0) sample_[x / 64] = run;
+    const SimplexId offset = run - sample_[x / 64];
+    if (offset < kFar) offset_[x] = uint16_t(offset);
+  }
+  if (items > 0) sample_.back() = run;
+}
+
+SimplexId RunLookup::Search(const std::vector<SimplexId>& begin, SimplexId x) const {
+  // The run lies between the runs of item 64 * (x / 64) and of the next sample (or last item).
+  SimplexId lo = sample_[size_t(x) >> 6], hi = sample_[(size_t(x) >> 6) + 1];
+  while (lo < hi) {
+    const SimplexId mid = lo + (hi - lo + 1) / 2;
+    if (begin[mid] <= x) {
+      lo = mid;
+    } else {
+      hi = mid - 1;
+    }
+  }
+  return lo;
+}
+
+SimplexId Topology::tetrahedron_internal_id(SimplexId input) const {
+  std::call_once(tet_internal_once_, [this] {
+    tet_internal_id_.resize(tet_input_id_.size());
+    for (size_t t = 0; t < tet_input_id_.size(); ++t) tet_internal_id_[tet_input_id_[t]] = SimplexId(t);
+  });
+  return tet_internal_id_[input];
+}
 
 SimplexId Topology::num_simplices(int dimension) const {
   switch (dimension) {
@@ -46,8 +82,8 @@ SimplexId Topology::num_simplices(int dimension) const {
 int32_t Topology::block_of(int dimension, SimplexId s) const {
   switch (dimension) {
     case 0: return vertex_block_[s];
-    case 1: return vertex_block_[edge_vertices_[2 * size_t(s)]];
-    case 2: return vertex_block_[triangle_vertices_[3 * size_t(s)]];
+    case 1: return vertex_block_[edge_lowest(s)];
+    case 2: return vertex_block_[edge_lowest(triangle_edge(s))];
     default: return vertex_block_[tet_vertices_[4 * size_t(s)]];
   }
 }
@@ -63,44 +99,33 @@ SimplexId Topology::block_begin(int dimension, int32_t b) const {
 
 SimplexId Topology::FindEdge(SimplexId a, SimplexId b) const {
   // Edges starting at a are few (tens) and sorted by their second vertex.
-  SimplexId lo = vertex_edge_begin_[a], hi = vertex_edge_begin_[a + 1];
-  while (lo < hi) {
-    const SimplexId mid = lo + (hi - lo) / 2;
-    if (edge_vertices_[2 * size_t(mid) + 1] < b) {
-      lo = mid + 1;
-    } else {
-      hi = mid;
-    }
+  // Edges starting at a are few (tens), sorted by their upper vertex: a short linear scan.
+  const SimplexId end = vertex_edge_begin_[a + 1];
+  for (SimplexId e = vertex_edge_begin_[a]; e < end; ++e) {
+    if (edge_upper_[e] >= b) return edge_upper_[e] == b ? e : -1;
   }
-  return lo < vertex_edge_begin_[a + 1] && edge_vertices_[2 * size_t(lo) + 1] == b ? lo : -1;
+  return -1;
 }
 
 SimplexId Topology::FindTriangle(SimplexId a, SimplexId b, SimplexId c) const {
-  SimplexId lo = vertex_triangle_begin_[a], hi = vertex_triangle_begin_[a + 1];
-  const SimplexId end = hi;
-  while (lo < hi) {
-    const SimplexId mid = lo + (hi - lo) / 2;
-    const SimplexId* t = &triangle_vertices_[3 * size_t(mid)];
-    if (t[1] < b || (t[1] == b && t[2] < c)) {
-      lo = mid + 1;
-    } else {
-      hi = mid;
-    }
+  const SimplexId e = FindEdge(a, b);
+  if (e < 0) return -1;
+  const SimplexId end = edge_triangle_begin_[e + 1];
+  for (SimplexId f = edge_triangle_begin_[e]; f < end; ++f) {
+    if (triangle_third_[f] >= c) return triangle_third_[f] == c ? f : -1;
   }
-  if (lo == end) return -1;
-  const SimplexId* t = &triangle_vertices_[3 * size_t(lo)];
-  return t[1] == b && t[2] == c ? lo : -1;
+  return -1;
 }
 
 TopologyBytes Topology::bytes() const {
   TopologyBytes b;
   b.vertices = VectorBytes(vertex_block_) + VectorBytes(vertex_input_id_) +
                VectorBytes(vertex_internal_id_);
-  b.edges = VectorBytes(edge_vertices_) + VectorBytes(vertex_edge_begin_);
-  b.triangles = VectorBytes(triangle_vertices_) + VectorBytes(vertex_triangle_begin_) +
-                VectorBytes(triangle_boundary_);
-  b.tetrahedra = VectorBytes(tet_vertices_) + VectorBytes(tet_input_id_) +
-                 VectorBytes(tet_internal_id_);
+  b.edges = VectorBytes(edge_upper_) + VectorBytes(vertex_edge_begin_) + edge_lowest_.bytes();
+  b.triangles = VectorBytes(triangle_third_) + VectorBytes(edge_triangle_begin_) +
+                triangle_edge_.bytes() + VectorBytes(triangle_boundary_);
+  // tet_internal_id_ is built on first use by the service; not part of what algorithms need.
+  b.tetrahedra = VectorBytes(tet_vertices_) + VectorBytes(tet_input_id_);
   b.blocks = VectorBytes(block_vertex_begin_) + VectorBytes(block_tet_begin_) +
              VectorBytes(external_offsets_) + VectorBytes(external_tets_) +
              VectorBytes(block_neighbor_offsets_) + VectorBytes(block_neighbors_);
@@ -167,12 +192,7 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     t.block_tet_begin_ = PrefixSum(block_count);
     std::vector<SimplexId> cursor(t.block_tet_begin_.begin(), t.block_tet_begin_.end() - 1);
     t.tet_input_id_.resize(nt);
-    t.tet_internal_id_.resize(nt);
-    for (SimplexId i = 0; i < nt; ++i) {
-      const SimplexId id = cursor[lowest_block(i)]++;
-      t.tet_input_id_[id] = i;
-      t.tet_internal_id_[i] = id;
-    }
+    for (SimplexId i = 0; i < nt; ++i) t.tet_input_id_[cursor[lowest_block(i)]++] = i;
     t.tet_vertices_.resize(4 * size_t(nt));
     constexpr int64_t kTetsPerTask = 1 << 16;
     ParallelFor((int64_t(nt) + kTetsPerTask - 1) / kTetsPerTask, threads, [&](int64_t task, int) {
@@ -227,11 +247,12 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   std::vector<BlockFaces> faces(std::min(num_blocks, kWindow));
   std::vector<std::vector<int32_t>> neighbors(num_blocks);
   std::vector<Scratch> scratch(std::max(threads, 1));
-  t.edge_vertices_.reserve(2 * 6 * size_t(nt));
-  t.triangle_vertices_.reserve(3 * 4 * size_t(nt));
-  t.triangle_boundary_.reserve(4 * size_t(nt));
+  t.edge_upper_.reserve(6 * size_t(nt));
+  t.edge_triangle_begin_.reserve(6 * size_t(nt) + 1);
+  t.edge_triangle_begin_.push_back(0);
+  t.triangle_third_.reserve(4 * size_t(nt));
+  t.triangle_boundary_.reserve((4 * size_t(nt) + 63) / 64);
   t.vertex_edge_begin_.assign(nv + 1, 0);
-  t.vertex_triangle_begin_.assign(nv + 1, 0);
   for (int32_t window = 0; window < num_blocks; window += kWindow) {
     const int32_t window_size = std::min(kWindow, num_blocks - window);
     ParallelFor(window_size, threads, [&](int64_t index, int thread) {
@@ -240,7 +261,8 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
       Scratch& sc = scratch[thread];
       BlockFaces& out = faces[index];
       out.edges.clear();
-      out.triangles.clear();
+      out.edge_triangles.clear();
+      out.triangle_third.clear();
       out.triangle_boundary.clear();
       std::vector<int32_t>& adjacent = neighbors[b];
       const auto external = t.external_tetrahedra(b);
@@ -289,13 +311,19 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
         star_from = star_to;
         std::sort(sc.upper.begin(), sc.upper.end());
         sc.upper.erase(std::unique(sc.upper.begin(), sc.upper.end()), sc.upper.end());
+        const size_t first_edge = out.edges.size();
         for (SimplexId w : sc.upper) out.edges.push_back(uint64_t(uint32_t(v)) << 32 | uint32_t(w));
+        out.edge_triangles.resize(out.edges.size(), 0);
+        // Pairs (b, c) sorted by b; upper is sorted and holds every b: walk both.
         std::sort(sc.pairs.begin(), sc.pairs.end());
+        size_t edge = first_edge;
         for (size_t read = 0; read < sc.pairs.size();) {
           size_t run = read + 1;
           while (run < sc.pairs.size() && sc.pairs[run] == sc.pairs[read]) ++run;
-          out.triangles.push_back(
-              {v, SimplexId(sc.pairs[read] >> 32), SimplexId(sc.pairs[read] & 0xffffffffu)});
+          const uint32_t b = uint32_t(sc.pairs[read] >> 32);
+          while (uint32_t(out.edges[edge]) != b) ++edge;
+          ++out.edge_triangles[edge];
+          out.triangle_third.push_back(SimplexId(sc.pairs[read] & 0xffffffffu));
           out.triangle_boundary.push_back(run - read == 1);
           read = run;
         }
@@ -306,30 +334,33 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     });
     for (int32_t index = 0; index < window_size; ++index) {
       const BlockFaces& bf = faces[index];
-      for (uint64_t key : bf.edges) {
-        const SimplexId a = SimplexId(key >> 32);
-        t.edge_vertices_.push_back(a);
-        t.edge_vertices_.push_back(SimplexId(key & 0xffffffffu));
-        ++t.vertex_edge_begin_[a + 1];
+      // Counts now, prefix sums once every window is in.
+      for (size_t i = 0; i < bf.edges.size(); ++i) {
+        ++t.vertex_edge_begin_[(bf.edges[i] >> 32) + 1];
+        t.edge_upper_.push_back(SimplexId(bf.edges[i] & 0xffffffffu));
+        t.edge_triangle_begin_.push_back(bf.edge_triangles[i]);
       }
-      for (size_t i = 0; i < bf.triangles.size(); ++i) {
-        t.triangle_vertices_.insert(t.triangle_vertices_.end(), bf.triangles[i].begin(),
-                                    bf.triangles[i].end());
-        t.triangle_boundary_.push_back(bf.triangle_boundary[i]);
-        ++t.vertex_triangle_begin_[bf.triangles[i][0] + 1];
+      for (size_t i = 0; i < bf.triangle_third.size(); ++i) {
+        const size_t f = t.triangle_third_.size();
+        if (f % 64 == 0) t.triangle_boundary_.push_back(0);
+        t.triangle_boundary_.back() |= uint64_t(bf.triangle_boundary[i]) << (f % 64);
+        t.triangle_third_.push_back(bf.triangle_third[i]);
       }
     }
   }
   faces.clear();
 
-  if (t.edge_vertices_.size() / 2 > INT32_MAX || t.triangle_vertices_.size() / 3 > INT32_MAX) {
-    return absl::ResourceExhaustedError(absl::StrCat("mesh: ", t.triangle_vertices_.size() / 3,
+  // Ids are 32-bit (SimplexId); the sums below would overflow first.
+  if (t.triangle_third_.size() > size_t(INT32_MAX)) {
+    return absl::ResourceExhaustedError(absl::StrCat("mesh: ", t.triangle_third_.size(),
                                                      " triangles exceed the 32-bit id range"));
   }
-  for (SimplexId v = 0; v < nv; ++v) {
-    t.vertex_edge_begin_[v + 1] += t.vertex_edge_begin_[v];
-    t.vertex_triangle_begin_[v + 1] += t.vertex_triangle_begin_[v];
+  for (SimplexId v = 0; v < nv; ++v) t.vertex_edge_begin_[v + 1] += t.vertex_edge_begin_[v];
+  for (size_t e = 1; e < t.edge_triangle_begin_.size(); ++e) {
+    t.edge_triangle_begin_[e] += t.edge_triangle_begin_[e - 1];
   }
+  t.edge_lowest_.Build(t.vertex_edge_begin_, t.num_edges());
+  t.triangle_edge_.Build(t.edge_triangle_begin_, t.num_triangles());
 
   t.block_neighbor_offsets_.assign(num_blocks + 1, 0);
   for (int32_t b = 0; b < num_blocks; ++b) {

@@ -69,6 +69,13 @@ TEST(Topology, EdgesTrianglesAndBoundaryMatchOracle) {
       for (SimplexId f = 0; f < topo->num_triangles(); ++f) {
         const auto& tri = oracle.triangles()[f];
         EXPECT_EQ(topo->FindTriangle(tri[0], tri[1], tri[2]), f);
+        const auto decoded = topo->triangle(f);
+        EXPECT_TRUE(std::equal(decoded.begin(), decoded.end(), tri.begin())) << "triangle " << f;
+        const SimplexId e = topo->triangle_edge(f);
+        EXPECT_EQ(e, topo->FindEdge(tri[0], tri[1]));
+        EXPECT_GE(f, topo->edge_first_triangle(e));
+        EXPECT_LT(f, topo->edge_first_triangle(e + 1));
+        EXPECT_EQ(topo->block_of(2, f), topo->vertex_block(tri[0]));
         EXPECT_EQ(topo->triangle_on_boundary(f),
                   oracle.rows(Relation::kFB)[f][0] == 1) << "triangle " << f;
       }
@@ -80,6 +87,29 @@ TEST(Topology, EdgesTrianglesAndBoundaryMatchOracle) {
         }
       }
     }
+  }
+}
+
+// Runs of items with long stretches of empty runs (unused vertices): offsets past 16 bits take
+// the binary-search path.
+TEST(RunLookup, MatchesLinearScanAcrossEmptyStretches) {
+  std::vector<SimplexId> begin = {0};
+  const auto add_runs = [&](int runs, SimplexId items_each) {
+    for (int i = 0; i < runs; ++i) begin.push_back(begin.back() + items_each);
+  };
+  add_runs(100, 3);
+  add_runs(70000, 0);  // one 64-item stretch will span these
+  add_runs(5, 1);
+  add_runs(200000, 0);
+  add_runs(3, 70);
+  add_runs(10, 0);
+  const SimplexId items = begin.back();
+  RunLookup lookup;
+  lookup.Build(begin, items);
+  SimplexId run = 0;
+  for (SimplexId x = 0; x < items; ++x) {
+    while (begin[run + 1] <= x) ++run;
+    ASSERT_EQ(lookup.Owner(begin, x), run) << "item " << x;
   }
 }
 
