@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <array>
+#include <condition_variable>
+#include <mutex>
 
 #include "server/core/parallel.h"
 
@@ -100,6 +102,45 @@ void FormatBuckets(const LineGroup& group, std::span<const uint32_t> rank,
   }
 }
 
+// Texts 0..n-1 written by `format(i, text)` on `threads` threads in any order and hashed strictly
+// in order: whichever thread finishes the text next in line hashes it (and any that follow and
+// are ready) while the others keep formatting, so hashing overlaps formatting. At most
+// 2 * threads texts exist at once; a thread waits before starting a text that far ahead.
+template <class Format>
+void FormatAndHashInOrder(int64_t n, int threads, Format&& format, Sha256& sha) {
+  const int64_t window = 2 * int64_t(std::max(threads, 1));
+  std::vector<std::string> texts(window);
+  std::mutex mu;
+  std::condition_variable slot_free;
+  std::vector<char> ready(window, 0);  // guarded by mu
+  int64_t next = 0;                    // guarded by mu: the next text to hash
+  bool hashing = false;                // guarded by mu: a thread is in the hashing loop
+  ParallelFor(n, threads, [&](int64_t i, int) {
+    std::string& text = texts[i % window];
+    {
+      std::unique_lock lock(mu);
+      slot_free.wait(lock, [&] { return i < next + window; });
+    }
+    // The slot is ours: text i - window has been hashed and nobody touches it until ready.
+    text.clear();
+    format(i, text);
+    std::unique_lock lock(mu);
+    ready[i % window] = 1;
+    if (hashing) return;  // the thread hashing will reach this text
+    hashing = true;
+    while (next < n && ready[next % window]) {
+      const int64_t slot = next % window;
+      lock.unlock();
+      sha.Update(texts[slot]);
+      lock.lock();
+      ready[slot] = 0;
+      ++next;
+      slot_free.notify_all();
+    }
+    hashing = false;
+  });
+}
+
 // One group's lines in byte order: a counting sort on the rank of the first token, filled in
 // chunks of consecutive ranks holding about `chunk_items` items. Counting, filling and formatting
 // run on `threads` threads (each over its own range of items, or its own run of buckets); only
@@ -124,7 +165,6 @@ void HashGroup(const LineGroup& group, std::span<const uint32_t> rank, int64_t c
   };
 
   std::vector<uint32_t> items, bucket_end;
-  std::vector<std::string> texts(threads);
   for (size_t first = 0; first < num_ranks;) {
     size_t last = first + 1;
     int64_t total = total_at(first);
@@ -154,7 +194,7 @@ void HashGroup(const LineGroup& group, std::span<const uint32_t> rank, int64_t c
       }
     });
     cursor.clear();
-    // Runs of buckets of about kSegmentItems items, formatted `threads` at a time, hashed in order.
+    // Runs of buckets of about kSegmentItems items, formatted on every thread, hashed in order.
     constexpr uint32_t kSegmentItems = 1 << 15;
     std::vector<size_t> segment_start{0};
     uint32_t segment_begin = 0;
@@ -164,18 +204,16 @@ void HashGroup(const LineGroup& group, std::span<const uint32_t> rank, int64_t c
         segment_begin = bucket_end[k];
       }
     }
-    for (size_t s = 0; s + 1 < segment_start.size(); s += threads) {
-      const int wave = int(std::min<size_t>(threads, segment_start.size() - 1 - s));
-      ParallelFor(wave, wave, [&](int64_t w, int) {
-        const size_t from = segment_start[s + w], to = segment_start[s + w + 1];
-        texts[w].clear();
-        texts[w].reserve(size_t(64) * kSegmentItems);
-        FormatBuckets(group, rank, items,
-                      std::span<const uint32_t>(bucket_end).subspan(from, to - from),
-                      from == 0 ? 0 : bucket_end[from - 1], texts[w]);
-      });
-      for (int w = 0; w < wave; ++w) sha.Update(texts[w]);
-    }
+    FormatAndHashInOrder(
+        int64_t(segment_start.size()) - 1, threads,
+        [&](int64_t s, std::string& text) {
+          const size_t from = segment_start[s], to = segment_start[s + 1];
+          text.reserve(size_t(64) * kSegmentItems);
+          FormatBuckets(group, rank, items,
+                        std::span<const uint32_t>(bucket_end).subspan(from, to - from),
+                        from == 0 ? 0 : bucket_end[from - 1], text);
+        },
+        sha);
     first = last;
   }
 }
