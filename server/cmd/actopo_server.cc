@@ -6,16 +6,20 @@
 // are cancelled, then the server waits up to --grace-s for calls to end and exits.
 #include <signal.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
 
 #include "absl/strings/str_cat.h"
 #include "server/cmd/flags.h"
+#include "server/core/parallel.h"
 #include "server/service/server.h"
 
 int main(int argc, char** argv) {
   actopo::service::ServerOptions o;
+  // A default session runs a consumer and a producer per core: leave room for several.
+  o.max_engine_threads = std::max(o.max_engine_threads, 4 * actopo::DefaultThreads());
   int memory_budget_mib = 0, max_message_mib = 64, idle_timeout_s = 1800, grace_s = 10;
   if (const char* token = std::getenv("ACTOPO_TOKEN")) o.token = token;
   actopo::FlagParser flags("actopo-server",

@@ -2,7 +2,7 @@
 // structure and session on the mesh.
 //
 // This is the part of the localized data structure that is never recomputed: the blocks (vertex
-// clusters, TopoCluster's "clusters"), the sorted edge and triangle lists, each block's internal
+// clusters, TopoCluster's "clusters"), the sorted edges and triangles (as runs, see Storage), each block's internal
 // and external tetrahedra, block adjacency and boundary-triangle flags. Everything a block needs
 // to compute any relation of its internal simplices on its own is here; the relations themselves
 // are computed by block_relations.h.
@@ -57,9 +57,9 @@ struct TopologyOptions {
 // Bytes of each part of the static encoding.
 struct TopologyBytes {
   int64_t vertices = 0;     // block of each vertex, both vertex permutations
-  int64_t edges = 0;        // edge list and per-vertex first-edge index
-  int64_t triangles = 0;    // triangle list, per-vertex first-triangle index, boundary flags
-  int64_t tetrahedra = 0;   // tetrahedron list and both permutations
+  int64_t edges = 0;        // upper vertices, per-vertex run starts, lowest-vertex lookup
+  int64_t triangles = 0;    // third vertices, per-edge run starts, edge lookup, boundary bits
+  int64_t tetrahedra = 0;   // tetrahedron list and its internal -> input permutation
   int64_t blocks = 0;       // interval arrays, external tetrahedra, block adjacency
   int64_t total() const { return vertices + edges + triangles + tetrahedra + blocks; }
 };
