@@ -9,6 +9,7 @@ memory per structure and algorithm is written too (needs matplotlib).
 
     python3 bench/whole_process.py --mesh /path/wavelet128.vtu [--runs 3] [--plot bench/x.png]
     python3 bench/whole_process.py --mesh F.vtu --structures actopo --algorithms critical-points
+    python3 bench/whole_process.py --sample jittered:256 --structures actopo --runs 1
 
 Default threads come from the cores (DefaultThreadPlan); extra actopo-bench flags go after --.
 """
@@ -26,8 +27,8 @@ STRUCTURES = ["explicit", "compact", "actopo"]
 ALGORITHMS = ["critical-points", "discrete-gradient", "morse-smale", "topo-relations"]
 
 
-def run_once(bench, mesh, structure, algorithm, extra):
-    cmd = ["/usr/bin/time", "-f", "TIME %e %M", str(bench), "--mesh", mesh,
+def run_once(bench, source, structure, algorithm, extra):
+    cmd = ["/usr/bin/time", "-f", "TIME %e %M", str(bench), *source,
            "--structure", structure, "--algorithm", algorithm, "--json", *extra]
     proc = subprocess.run(cmd, capture_output=True, text=True, check=True)
     wall, rss_kib = re.search(r"TIME ([\d.]+) (\d+)", proc.stderr).groups()
@@ -38,7 +39,9 @@ def run_once(bench, mesh, structure, algorithm, extra):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--mesh", required=True)
+    where = parser.add_mutually_exclusive_group(required=True)
+    where.add_argument("--mesh", help="mesh file")
+    where.add_argument("--sample", help="built-in sample, e.g. jittered:256")
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--structures", nargs="+", default=STRUCTURES)
     parser.add_argument("--algorithms", nargs="+", default=ALGORITHMS)
@@ -47,14 +50,16 @@ def main():
     parser.add_argument("extra", nargs="*", help="more actopo-bench flags, after --")
     args = parser.parse_args()
     bench = Path(args.build) / "server/cmd/actopo-bench"
+    source = ["--mesh", args.mesh] if args.mesh else ["--sample", args.sample]
+    name = Path(args.mesh).name if args.mesh else args.sample
     out = ROOT / "bench/results"
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     for algorithm in args.algorithms:
         for structure in args.structures:
-            runs = [run_once(bench, args.mesh, structure, algorithm, args.extra)
+            runs = [run_once(bench, source, structure, algorithm, args.extra)
                     for _ in range(args.runs)]
-            tag = f"{Path(args.mesh).stem}_{structure}_{algorithm}"
+            tag = f"{Path(name).stem.replace(':', '')}_{structure}_{algorithm}"
             (out / f"whole_{tag}.json").write_text(json.dumps(runs, indent=1))
             med = lambda f: statistics.median(f(r) for r in runs)  # noqa: E731
             rows.append({
@@ -69,7 +74,7 @@ def main():
                 "wait_s": med(lambda r: r["engine"]["wait_s"]),
                 "tets": runs[0]["mesh"]["tetrahedra"],
             })
-    print(f"{Path(args.mesh).name}: {rows[0]['tets']:,} tetrahedra, median of {args.runs} runs, "
+    print(f"{name}: {rows[0]['tets']:,} tetrahedra, median of {args.runs} runs, "
           f"whole process (wall s, peak RSS MiB by /usr/bin/time)")
     print()
     print("| algorithm | structure | C / P | wall s (min-max) | peak RSS MiB | load | partition "
@@ -83,7 +88,7 @@ def main():
               f"({lo:.2f}-{hi:.2f}) | {r['rss_mib']:.0f} | {r['load']:.2f} | {r['partition']:.2f} "
               f"| {r['preprocess']:.2f} | {r['run']:.2f} | {r['results']:.2f} | {r['wait_s']:.2f} |")
     if args.plot:
-        plot(rows, args.plot, Path(args.mesh).name)
+        plot(rows, args.plot, name)
 
 
 def plot(rows, path, title):
