@@ -113,6 +113,7 @@ def plot(rows, path, title):
             ax_t.text(x, bottom, structure[0].upper(), ha="center", va="bottom", fontsize=7)
             ax_m.bar(x, r["rss_mib"], width * 0.9, color=f"C{s_index}",
                      label=structure if a_index == 0 else None)
+    ax_t.set_ylim(0, 1.08 * max(sum(r[p] for p in phases) for r in rows))  # room for the labels
     for ax, label in [(ax_t, "seconds (phases, whole process)"), (ax_m, "peak RSS, MiB")]:
         ax.set_xticks(range(len(algorithms)), algorithms, rotation=15)
         ax.set_ylabel(label)
