@@ -16,8 +16,8 @@ int64_t VectorBytes(const std::vector<T>& v) {
   return static_cast<int64_t>(v.size() * sizeof(T));
 }
 
-// Edges and triangles owned by one block (lowest vertex inside it), sorted and unique, with the
-// number of tetrahedra around each triangle (1 = boundary).
+// Edges and triangles owned by one block (lowest vertex inside it), sorted and unique, as the
+// runs the topology stores, with a boundary flag per triangle (one tetrahedron around it).
 struct BlockFaces {
   std::vector<uint64_t> edges;               // (a << 32) | b
   std::vector<SimplexId> edge_triangles;     // per edge: its triangles (a, b, *)
@@ -65,7 +65,9 @@ SimplexId RunLookup::Search(const std::vector<SimplexId>& begin, SimplexId x) co
 SimplexId Topology::tetrahedron_internal_id(SimplexId input) const {
   std::call_once(tet_internal_once_, [this] {
     tet_internal_id_.resize(tet_input_id_.size());
-    for (size_t t = 0; t < tet_input_id_.size(); ++t) tet_internal_id_[tet_input_id_[t]] = SimplexId(t);
+    for (size_t t = 0; t < tet_input_id_.size(); ++t) {
+      tet_internal_id_[tet_input_id_[t]] = SimplexId(t);
+    }
   });
   return tet_internal_id_[input];
 }

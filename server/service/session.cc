@@ -170,10 +170,7 @@ absl::StatusOr<SimplexId> Session::ResolveVertices(int dimension,
     }
     v[i] = topo.vertex_internal_id(SimplexId(vertices[i]));
   }
-  // Insertion sort of at most 4 ids (std::sort here trips a false -Warray-bounds in GCC 12).
-  for (int i = 1; i <= dimension; ++i) {
-    for (int j = i; j > 0 && v[j - 1] > v[j]; --j) std::swap(v[j - 1], v[j]);
-  }
+  SortVertexIds(v.data(), dimension + 1);
   SimplexId found = -1;
   switch (dimension) {
     case 0: found = v[0]; break;
