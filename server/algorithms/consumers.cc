@@ -44,23 +44,40 @@ bool WorkTracker::Done(int64_t units) {
   return !cancelled();
 }
 
-absl::Status RunOnConsumers(const RunContext& context, const Topology& topology,
-                            int64_t total_units,
-                            const std::function<void(int, BlockRange, WorkTracker&)>& body) {
-  WorkTracker tracker(context, total_units);
-  const std::vector<BlockRange> ranges = SplitBlocks(topology, context.consumers);
-  if (ranges.size() == 1) {
-    body(0, ranges[0], tracker);
+namespace {
+
+// Runs fn(c) for c in [0, n) on n threads, or inline when n is 1; then the run's status.
+absl::Status RunThreads(int n, const WorkTracker& tracker, const RunContext& context,
+                        const std::function<void(int)>& fn) {
+  if (n == 1) {
+    fn(0);
   } else {
     std::vector<std::thread> threads;
-    for (size_t c = 0; c < ranges.size(); ++c) {
-      threads.emplace_back([&, c] { body(static_cast<int>(c), ranges[c], tracker); });
-    }
+    for (int c = 0; c < n; ++c) threads.emplace_back([&, c] { fn(c); });
     for (std::thread& t : threads) t.join();
   }
   if (tracker.cancelled()) return absl::CancelledError("the run was cancelled");
   if (context.progress) context.progress(1.0);
   return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::Status RunOnConsumers(const RunContext& context, const Topology& topology,
+                            int64_t total_units,
+                            const std::function<void(int, BlockRange, WorkTracker&)>& body) {
+  WorkTracker tracker(context, total_units);
+  const std::vector<BlockRange> ranges = SplitBlocks(topology, context.consumers);
+  return RunThreads(int(ranges.size()), tracker, context,
+                    [&](int c) { body(c, ranges[c], tracker); });
+}
+
+absl::Status RunOnConsumersShared(const RunContext& context, int64_t items, int64_t chunk,
+                                  const std::function<void(int, ItemQueue&, WorkTracker&)>& body) {
+  WorkTracker tracker(context, items);
+  ItemQueue queue(items, chunk);
+  return RunThreads(std::max(context.consumers, 1), tracker, context,
+                    [&](int c) { body(c, queue, tracker); });
 }
 
 }  // namespace actopo

@@ -1,13 +1,19 @@
 // Running an algorithm on C consumer threads, each with its own reader and a contiguous range of
-// blocks (so each block's relations are computed by one consumer, once), with progress and
-// cancellation.
+// blocks (so each block's relations are computed by one consumer, once), or items from a shared
+// queue, with progress and cancellation.
 //
 //   RunContext context{.consumers = 2, .progress = [](double f) { ... }};
 //   absl::Status s = RunOnConsumers(context, topology, units_per_block,
 //       [&](int consumer, const BlockRange& range, WorkTracker& tracker) { ... });
+//
+// or, for items that do not follow blocks, each consumer taking the next chunk from a queue:
+//
+//   absl::Status s = RunOnConsumersShared(context, saddles.size(), /*chunk=*/8,
+//       [&](int consumer, ItemQueue& queue, WorkTracker& tracker) { ... });
 #ifndef ACTOPO_SERVER_ALGORITHMS_CONSUMERS_H_
 #define ACTOPO_SERVER_ALGORITHMS_CONSUMERS_H_
 
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <functional>
@@ -59,6 +65,30 @@ class WorkTracker {
 absl::Status RunOnConsumers(const RunContext& context, const Topology& topology,
                             int64_t total_units,
                             const std::function<void(int, BlockRange, WorkTracker&)>& body);
+
+// Items 0 .. n-1 handed out in ascending chunks to whichever consumer asks first: for work whose
+// items vary in cost and do not follow blocks (a saddle's wall, a separatrix).
+class ItemQueue {
+ public:
+  ItemQueue(int64_t items, int64_t chunk) : items_(items), chunk_(std::max<int64_t>(chunk, 1)) {}
+  // The next chunk [begin, end); false when every item has been handed out.
+  bool Next(int64_t& begin, int64_t& end) {
+    begin = next_.fetch_add(chunk_, std::memory_order_relaxed);
+    if (begin >= items_) return false;
+    end = std::min(items_, begin + chunk_);
+    return true;
+  }
+
+ private:
+  const int64_t items_, chunk_;
+  std::atomic<int64_t> next_{0};
+};
+
+// Runs body(consumer, queue, tracker) on context.consumers threads (inline when 1), all taking
+// items from one queue of `items`; CancelledError if the run was cancelled. Progress counts
+// the units the bodies report to the tracker, out of `items`.
+absl::Status RunOnConsumersShared(const RunContext& context, int64_t items, int64_t chunk,
+                                  const std::function<void(int, ItemQueue&, WorkTracker&)>& body);
 
 }  // namespace actopo
 

@@ -1,9 +1,10 @@
 #include "server/algorithms/morse_smale.h"
 
 #include <algorithm>
-#include <map>
+#include <iterator>
 #include <queue>
 
+#include "absl/container/flat_hash_set.h"
 #include "absl/strings/str_cat.h"
 #include "server/algorithms/digest.h"
 #include "server/core/actopo_structure.h"
@@ -13,162 +14,82 @@
 namespace actopo {
 namespace {
 
-// Everything after the gradient, on one reader.
+// Descending 1-separatrices: from each 1-saddle's two vertices down the vertex-edge pairs to a
+// minimum. Needs no relation.
+void DescendingSeparatrices(const Topology& topo, const GradientField& g,
+                            std::vector<Separatrix>& out) {
+  for (SimplexId e = 0; e < topo.num_edges(); ++e) {
+    if (!g.IsCritical(1, e)) continue;
+    for (SimplexId start : topo.edge(e)) {
+      Separatrix s{SeparatrixType::kDescending, {1, e}, {}, {{1, e}}};
+      SimplexId v = start;
+      while (true) {
+        s.cells.push_back({0, v});
+        if (g.IsCritical(0, v)) break;
+        const SimplexId edge = g.up[0][v];
+        s.cells.push_back({1, edge});
+        const auto ev = topo.edge(edge);
+        v = ev[0] == v ? ev[1] : ev[0];
+      }
+      s.destination = s.cells.back();
+      out.push_back(std::move(s));
+    }
+  }
+}
+
+// The work after the gradient that reads relations, per item, on one consumer's reader.
 template <class Reader>
 class Builder {
  public:
   Builder(Reader& reader, const GradientField& gradient,
-          std::span<const SimplexId> input_tetrahedra, const RunContext& context)
-      : r_(reader),
-        topo_(reader.topology()),
-        g_(gradient),
-        input_tets_(input_tetrahedra),
-        context_(context) {}
+          std::span<const SimplexId> input_tetrahedra)
+      : r_(reader), topo_(reader.topology()), g_(gradient), input_tets_(input_tetrahedra) {}
 
-  bool cancelled() const {
-    return context_.cancel != nullptr && context_.cancel->load(std::memory_order_relaxed);
-  }
-
-  void DescendingSeparatrices(std::vector<Separatrix>& out) {
-    for (SimplexId e = 0; e < topo_.num_edges(); ++e) {
-      if (!g_.IsCritical(1, e)) continue;
-      for (SimplexId start : topo_.edge(e)) {
-        Separatrix s{SeparatrixType::kDescending, {1, e}, {}, {{1, e}}};
-        SimplexId v = start;
-        while (true) {
-          s.cells.push_back({0, v});
-          if (g_.IsCritical(0, v)) break;
-          const SimplexId edge = g_.up[0][v];
-          s.cells.push_back({1, edge});
-          const auto ev = topo_.edge(edge);
-          v = ev[0] == v ? ev[1] : ev[0];
-        }
+  // The ascending 1-separatrices of 2-saddle f: one per tetrahedron of its star (in TTK's order)
+  // whose path ends at a maximum.
+  void AscendingSeparatrices(SimplexId f, std::vector<Separatrix>& out) {
+    const auto star = r_.triangle_star(f);
+    star_.assign(star.begin(), star.end());
+    std::sort(star_.begin(), star_.end(), [&](SimplexId a, SimplexId b) {
+      return topo_.tetrahedron_input_id(a) < topo_.tetrahedron_input_id(b);
+    });
+    for (SimplexId t : star_) {
+      Separatrix s{SeparatrixType::kAscending, {2, f}, {}, {{2, f}}};
+      if (AscendingPath(t, s.cells)) {
         s.destination = s.cells.back();
         out.push_back(std::move(s));
       }
     }
   }
 
-  void AscendingSeparatrices(std::vector<Separatrix>& out) {
-    for (SimplexId f = 0; f < topo_.num_triangles(); ++f) {
-      if (!g_.IsCritical(2, f)) continue;
-      const auto star = r_.triangle_star(f);
-      star_.assign(star.begin(), star.end());
-      SortByInputId(star_);  // TTK's order of the saddle's star
-      for (SimplexId t : star_) {
-        Separatrix s{SeparatrixType::kAscending, {2, f}, {}, {{2, f}}};
-        if (AscendingPath(t, s.cells)) {
-          s.destination = s.cells.back();
-          out.push_back(std::move(s));
-        }
+  // The saddle connectors ending at 2-saddle s2: its descending wall (triangles reached through
+  // the up-pairs of their edges) and, from each 1-saddle on it, the path up through the wall.
+  void SaddleConnectors(SimplexId s2, std::vector<Separatrix>& out) {
+    DescendingWall(s2);
+    for (SimplexId s1 : wall_saddles_) {
+      Separatrix s{SeparatrixType::kSaddleConnector, {1, s1}, {2, s2}, {}};
+      if (PathThroughWall(s1, s.cells) && s.cells.back().dim == 2 && s.cells.back().id == s2) {
+        out.push_back(std::move(s));
       }
     }
   }
 
-  // Saddle connectors: for each 2-saddle, its descending wall (triangles reached through the
-  // up-pairs of their edges) and, from each 1-saddle on it, the path up through the wall.
-  void SaddleConnectors(std::vector<Separatrix>& out) {
-    visited_.assign(topo_.num_triangles(), 0);
-    for (SimplexId s2 = 0; s2 < topo_.num_triangles(); ++s2) {
-      if (!g_.IsCritical(2, s2)) continue;
-      if (cancelled()) return;
-      DescendingWall(s2);
-      for (SimplexId s1 : wall_saddles_) {
-        Separatrix s{SeparatrixType::kSaddleConnector, {1, s1}, {2, s2}, {}};
-        if (PathThroughWall(s1, s.cells) && s.cells.back().dim == 2 && s.cells.back().id == s2) {
-          out.push_back(std::move(s));
-        }
-      }
-      for (SimplexId f : wall_) visited_[f] = 0;
-    }
+  // The next tetrahedron up from non-maximum t (across its paired triangle), -1 when that
+  // triangle is on the boundary.
+  SimplexId NextUp(SimplexId t) {
+    const SimplexId next = FirstOtherTet(g_.down[3][t], t);
+    return next == t ? -1 : next;
   }
 
-  // Minima labelled 0.. in ascending vertex id; each vertex takes its V-path's minimum.
-  std::vector<SimplexId> DescendingSegmentation(std::vector<int64_t>& sizes) {
-    const SimplexId nv = topo_.num_vertices();
-    std::vector<SimplexId> minima;
-    for (SimplexId v = 0; v < nv; ++v) {
-      if (g_.IsCritical(0, v)) minima.push_back(v);
+  // The tetrahedron of v's star with the lowest input id, -1 for an unused vertex.
+  SimplexId FirstInStar(SimplexId v) {
+    const auto star = r_.vertex_star(v);
+    if (star.empty()) return -1;
+    SimplexId first = star[0];
+    for (SimplexId t : star) {
+      if (topo_.tetrahedron_input_id(t) < topo_.tetrahedron_input_id(first)) first = t;
     }
-    SortVerticesByInputId(minima);
-    std::vector<SimplexId> label(nv, -1);  // internal ids
-    if (minima.size() == 1) {
-      std::fill(label.begin(), label.end(), 0);  // as TTK: every vertex, used or not
-    } else {
-      for (size_t i = 0; i < minima.size(); ++i) label[minima[i]] = SimplexId(i);
-      std::vector<SimplexId> path;
-      for (SimplexId v = 0; v < nv; ++v) {
-        SimplexId cur = v;
-        path.clear();
-        while (label[cur] == -1) {
-          path.push_back(cur);
-          const auto ev = topo_.edge(g_.up[0][cur]);
-          cur = ev[0] == cur ? ev[1] : ev[0];
-        }
-        for (SimplexId p : path) label[p] = label[cur];
-      }
-    }
-    sizes.assign(minima.size(), 0);
-    for (SimplexId l : label) {
-      if (l >= 0) ++sizes[l];
-    }
-    return ToInputOrder(label);
-  }
-
-  // Maxima (critical tetrahedra) labelled 0.. in ascending tetrahedron id; each tetrahedron
-  // follows its path up, -1 if it leaves through the boundary; a vertex takes the label of the
-  // lowest-id tetrahedron of its star.
-  std::vector<SimplexId> AscendingSegmentation(std::vector<int64_t>& sizes) {
-    const SimplexId nt = topo_.num_tetrahedra();
-    std::vector<SimplexId> maxima;
-    for (SimplexId t = 0; t < nt; ++t) {
-      if (g_.IsCritical(3, t)) maxima.push_back(t);
-    }
-    std::sort(maxima.begin(), maxima.end(), [&](SimplexId a, SimplexId b) {
-      return topo_.tetrahedron_input_id(a) < topo_.tetrahedron_input_id(b);
-    });
-    const SimplexId nv = topo_.num_vertices();
-    std::vector<SimplexId> vertex_label(nv, -1);
-    sizes.assign(maxima.size(), 0);
-    if (!maxima.empty()) {
-      std::vector<SimplexId> label(nt, -1);
-      std::vector<uint8_t> done(nt, 0);
-      for (size_t i = 0; i < maxima.size(); ++i) {
-        label[maxima[i]] = SimplexId(i);
-        done[maxima[i]] = 1;
-      }
-      std::vector<SimplexId> path;
-      for (SimplexId t = 0; t < nt; ++t) {
-        if (done[t]) continue;
-        path.clear();
-        SimplexId cur = t;
-        while (!done[cur]) {
-          path.push_back(cur);
-          const SimplexId next = FirstOtherTet(g_.down[3][cur], cur);
-          if (next == cur) break;  // left through the boundary
-          cur = next;
-        }
-        const SimplexId l = done[cur] ? label[cur] : -1;
-        for (SimplexId p : path) {
-          label[p] = l;
-          done[p] = 1;
-        }
-        if ((t & 1023) == 0 && cancelled()) return {};
-      }
-      for (SimplexId v = 0; v < nv; ++v) {
-        const auto star = r_.vertex_star(v);
-        if (star.empty()) continue;
-        SimplexId first = star[0];
-        for (SimplexId t : star) {
-          if (topo_.tetrahedron_input_id(t) < topo_.tetrahedron_input_id(first)) first = t;
-        }
-        vertex_label[v] = label[first];
-      }
-      for (SimplexId l : vertex_label) {
-        if (l >= 0) ++sizes[l];
-      }
-    }
-    return ToInputOrder(vertex_label);
+    return first;
   }
 
  private:
@@ -209,9 +130,7 @@ class Builder {
     while (!bfs.empty()) {
       const SimplexId f = bfs.front();
       bfs.pop();
-      if (visited_[f]) continue;
-      visited_[f] = 1;
-      wall_.push_back(f);
+      if (!wall_.insert(f).second) continue;
       for (SimplexId e : r_.triangle_edges(f)) {
         if (g_.IsCritical(1, e)) wall_saddles_.push_back(e);
         const SimplexId paired = g_.up[1][e];
@@ -232,7 +151,7 @@ class Builder {
     SimplexId cur = -1;
     candidates_.clear();
     for (SimplexId f : r_.edge_triangles(s1)) {
-      if (!visited_[f]) continue;
+      if (!wall_.contains(f)) continue;
       if (g_.IsCritical(2, f)) {
         cells.push_back({2, f});
         return true;
@@ -251,7 +170,7 @@ class Builder {
       if (g_.IsCritical(1, e)) return true;
       candidates_.clear();
       for (SimplexId f : r_.edge_triangles(e)) {
-        if (visited_[f] && f != old) candidates_.push_back(f);
+        if (f != old && wall_.contains(f)) candidates_.push_back(f);
       }
       if (candidates_.empty()) return true;  // dead end: the path stops at edge e
       cur = LastInTtkOrder(candidates_);
@@ -291,32 +210,83 @@ class Builder {
     return last;
   }
 
-  void SortByInputId(std::vector<SimplexId>& tets) const {
-    std::sort(tets.begin(), tets.end(), [&](SimplexId a, SimplexId b) {
-      return topo_.tetrahedron_input_id(a) < topo_.tetrahedron_input_id(b);
-    });
-  }
-  void SortVerticesByInputId(std::vector<SimplexId>& vertices) const {
-    std::sort(vertices.begin(), vertices.end(), [&](SimplexId a, SimplexId b) {
-      return topo_.vertex_input_id(a) < topo_.vertex_input_id(b);
-    });
-  }
-  std::vector<SimplexId> ToInputOrder(const std::vector<SimplexId>& by_internal) const {
-    std::vector<SimplexId> out(by_internal.size());
-    for (SimplexId v = 0; v < SimplexId(by_internal.size()); ++v) {
-      out[topo_.vertex_input_id(v)] = by_internal[v];
-    }
-    return out;
-  }
-
   Reader& r_;
   const Topology& topo_;
   const GradientField& g_;
   std::span<const SimplexId> input_tets_;
-  const RunContext& context_;
-  std::vector<uint8_t> visited_;
-  std::vector<SimplexId> wall_, wall_saddles_, candidates_, star_;
+  absl::flat_hash_set<SimplexId> wall_;  // the current wall: a few triangles of many
+  std::vector<SimplexId> wall_saddles_, candidates_, star_;
 };
+
+std::vector<SimplexId> ToInputOrder(const Topology& topo, const std::vector<SimplexId>& by_internal) {
+  std::vector<SimplexId> out(by_internal.size());
+  for (SimplexId v = 0; v < SimplexId(by_internal.size()); ++v) {
+    out[topo.vertex_input_id(v)] = by_internal[v];
+  }
+  return out;
+}
+
+// Minima labelled 0.. in ascending input vertex id; each vertex takes its V-path's minimum.
+// Needs no relation.
+std::vector<SimplexId> DescendingSegmentation(const Topology& topo, const GradientField& g,
+                                              std::vector<int64_t>& sizes) {
+  const SimplexId nv = topo.num_vertices();
+  std::vector<SimplexId> minima;
+  for (SimplexId v = 0; v < nv; ++v) {
+    if (g.IsCritical(0, v)) minima.push_back(v);
+  }
+  std::sort(minima.begin(), minima.end(), [&](SimplexId a, SimplexId b) {
+    return topo.vertex_input_id(a) < topo.vertex_input_id(b);
+  });
+  std::vector<SimplexId> label(nv, -1);  // internal ids
+  if (minima.size() == 1) {
+    std::fill(label.begin(), label.end(), 0);  // as TTK: every vertex, used or not
+  } else {
+    for (size_t i = 0; i < minima.size(); ++i) label[minima[i]] = SimplexId(i);
+    std::vector<SimplexId> path;
+    for (SimplexId v = 0; v < nv; ++v) {
+      SimplexId cur = v;
+      path.clear();
+      while (label[cur] == -1) {
+        path.push_back(cur);
+        const auto ev = topo.edge(g.up[0][cur]);
+        cur = ev[0] == cur ? ev[1] : ev[0];
+      }
+      for (SimplexId p : path) label[p] = label[cur];
+    }
+  }
+  sizes.assign(minima.size(), 0);
+  for (SimplexId l : label) {
+    if (l >= 0) ++sizes[l];
+  }
+  return ToInputOrder(topo, label);
+}
+
+// Labels as codes that cannot be tetrahedron ids: label L (>= -1) is -2 - L, so -1 stays -1.
+constexpr SimplexId LabelCode(SimplexId label) { return -2 - label; }
+
+// `next` holds per tetrahedron the next one up (NextUp), -1 at the boundary, or a maximum's
+// LabelCode. Follows every path to its end and leaves the labels: the maximum reached, -1 when
+// the path leaves through the boundary. Needs no relation.
+void ResolveAscendingLabels(std::vector<SimplexId>& next) {
+  constexpr SimplexId kOnPath = INT32_MIN;
+  std::vector<SimplexId> path;
+  for (SimplexId t = 0; t < SimplexId(next.size()); ++t) {
+    if (next[t] < 0) continue;  // already a code
+    path.clear();
+    SimplexId cur = t;
+    while (next[cur] >= 0) {
+      path.push_back(cur);
+      const SimplexId up = next[cur];
+      next[cur] = kOnPath;
+      cur = up;
+    }
+    // kOnPath: the path closed on itself, which a valid gradient never does.
+    const SimplexId code = next[cur] == kOnPath ? LabelCode(-1) : next[cur];
+    for (SimplexId p : path) next[p] = code;
+  }
+  for (SimplexId& code : next) code = LabelCode(code);  // its own inverse
+}
 
 std::vector<SimplexId> FinalSegmentation(const std::vector<SimplexId>& descending,
                                          const std::vector<SimplexId>& ascending,
@@ -383,36 +353,104 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
         "morse-smale: ", input_tetrahedra.size(), " tetrahedron vertex ids for ",
         topo.num_tetrahedra(), " tetrahedra"));
   }
-  // Progress: the gradient is the first half, the rest the second.
-  auto report = [&](double f) {
-    if (context.progress) context.progress(f);
+  // Progress: the gradient is the first half, the separatrices and segmentations the rest.
+  const auto phase = [&context](double from, double to) {
+    RunContext c = context;
+    if (context.progress) {
+      c.progress = [&context, from, to](double f) { context.progress(from + (to - from) * f); };
+    }
+    return c;
   };
-  RunContext gradient_context = context;
-  if (context.progress) gradient_context.progress = [&](double f) { report(0.5 * f); };
   MorseSmaleResult result;
   {
-    auto gradient = RunDiscreteGradient(structure, order, gradient_context);
+    auto gradient = RunDiscreteGradient(structure, order, phase(0.0, 0.5));
     if (!gradient.ok()) return gradient.status();
     result.gradient = std::move(*gradient);
   }
-  auto reader = structure.NewReader();
-  Builder builder(reader, result.gradient.gradient, input_tetrahedra, context);
-  const auto cancelled = [&] { return absl::CancelledError("the run was cancelled"); };
+  const GradientField& g = result.gradient.gradient;
+  DescendingSeparatrices(topo, g, result.separatrices);
 
-  builder.DescendingSeparatrices(result.separatrices);
-  report(0.55);
-  builder.AscendingSeparatrices(result.separatrices);
-  report(0.6);
-  if (builder.cancelled()) return cancelled();
-  builder.SaddleConnectors(result.separatrices);
-  report(0.8);
-  if (builder.cancelled()) return cancelled();
-  result.descending = builder.DescendingSegmentation(result.minimum_sizes);
-  result.ascending = builder.AscendingSegmentation(result.maximum_sizes);
-  if (builder.cancelled()) return cancelled();
+  // Per 2-saddle, in ascending id: its ascending separatrices and its saddle connectors, on
+  // every consumer (walls differ in size, so saddles go to whichever consumer is free).
+  std::vector<SimplexId> saddles;
+  for (SimplexId f = 0; f < topo.num_triangles(); ++f) {
+    if (g.IsCritical(2, f)) saddles.push_back(f);
+  }
+  std::vector<std::vector<Separatrix>> ascending(saddles.size()), connectors(saddles.size());
+  absl::Status status = RunOnConsumersShared(
+      phase(0.5, 0.8), int64_t(saddles.size()), /*chunk=*/1,
+      [&](int, ItemQueue& queue, WorkTracker& tracker) {
+        auto reader = structure.NewReader();
+        Builder builder(reader, g, input_tetrahedra);
+        int64_t begin, end;
+        while (queue.Next(begin, end)) {
+          for (int64_t i = begin; i < end; ++i) {
+            builder.AscendingSeparatrices(saddles[i], ascending[i]);
+            builder.SaddleConnectors(saddles[i], connectors[i]);
+          }
+          if (!tracker.Done(end - begin)) return;
+        }
+      });
+  if (!status.ok()) return status;
+  for (auto* per_saddle : {&ascending, &connectors}) {
+    for (auto& list : *per_saddle) {
+      std::move(list.begin(), list.end(), std::back_inserter(result.separatrices));
+    }
+  }
+
+  result.descending = DescendingSegmentation(topo, g, result.minimum_sizes);
+
+  // Ascending: maxima labelled 0.. in ascending input tetrahedron id; each tetrahedron follows
+  // its path up (-1 if it leaves through the boundary); a vertex takes the label of the
+  // tetrahedron of its star with the lowest input id.
+  std::vector<SimplexId> maxima;
+  for (SimplexId t = 0; t < topo.num_tetrahedra(); ++t) {
+    if (g.IsCritical(3, t)) maxima.push_back(t);
+  }
+  std::sort(maxima.begin(), maxima.end(), [&](SimplexId a, SimplexId b) {
+    return topo.tetrahedron_input_id(a) < topo.tetrahedron_input_id(b);
+  });
+  std::vector<SimplexId> vertex_label(topo.num_vertices(), -1);
+  if (!maxima.empty()) {
+    std::vector<SimplexId> up(topo.num_tetrahedra());
+    status = RunOnConsumers(phase(0.8, 0.9), topo, topo.num_blocks(),
+                            [&](int, BlockRange range, WorkTracker& tracker) {
+                              auto reader = structure.NewReader();
+                              Builder builder(reader, g, input_tetrahedra);
+                              for (int32_t b = range.begin; b < range.end; ++b) {
+                                for (SimplexId t = topo.block_tetrahedron_begin(b);
+                                     t < topo.block_tetrahedron_begin(b + 1); ++t) {
+                                  if (!g.IsCritical(3, t)) up[t] = builder.NextUp(t);
+                                }
+                                if (!tracker.Done()) return;
+                              }
+                            });
+    if (!status.ok()) return status;
+    for (size_t i = 0; i < maxima.size(); ++i) up[maxima[i]] = LabelCode(SimplexId(i));
+    ResolveAscendingLabels(up);
+    status = RunOnConsumers(phase(0.9, 1.0), topo, topo.num_blocks(),
+                            [&](int, BlockRange range, WorkTracker& tracker) {
+                              auto reader = structure.NewReader();
+                              Builder builder(reader, g, input_tetrahedra);
+                              for (int32_t b = range.begin; b < range.end; ++b) {
+                                for (SimplexId v = topo.block_vertex_begin(b);
+                                     v < topo.block_vertex_begin(b + 1); ++v) {
+                                  const SimplexId first = builder.FirstInStar(v);
+                                  if (first >= 0) vertex_label[v] = up[first];
+                                }
+                                if (!tracker.Done()) return;
+                              }
+                            });
+    if (!status.ok()) return status;
+  }
+  result.maximum_sizes.assign(maxima.size(), 0);
+  for (SimplexId l : vertex_label) {
+    if (l >= 0) ++result.maximum_sizes[l];
+  }
+  result.ascending = ToInputOrder(topo, vertex_label);
   result.morse_smale = FinalSegmentation(result.descending, result.ascending,
                                          int64_t(result.maximum_sizes.size()));
-  report(1.0);
+  if (context.progress) context.progress(1.0);
   return result;
 }
 

@@ -61,7 +61,8 @@ struct MorseSmaleResult {
 RelationSet MorseSmaleDeclared();
 
 // `input_tetrahedra`: the mesh's tetrahedra as given (4 input vertex ids each), which fix TTK's
-// triangle numbering. The gradient runs on all consumers; the rest on the first.
+// triangle numbering. Everything that reads relations runs on all consumers: the gradient and
+// the ascending segmentation by blocks, the separatrices by 2-saddle.
 template <class Structure>
 absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
                                                std::span<const SimplexId> order,

@@ -75,20 +75,35 @@ TEST(MorseSmale, InvariantsAndStructureIndependence) {
     ExpectInvariants(reference, *in.topo);
     EXPECT_GT(reference.gradient.critical_cells[1], 0);  // the field has saddles to trace
     const auto digests = [](const MorseSmaleResult& r) {
+      std::string cells;  // every separatrix, cell by cell, in the result's order
+      for (const Separatrix& s : r.separatrices) {
+        cells += std::to_string(int(s.type)) + ":";
+        for (const Cell& c : s.cells) {
+          cells += std::to_string(c.dim) + "," + std::to_string(c.id) + " ";
+        }
+        cells += "\n";
+      }
       return std::vector<std::string>{MorseSmaleResult::SegmentationDigest(r.descending),
                                       MorseSmaleResult::SegmentationDigest(r.ascending),
-                                      MorseSmaleResult::SegmentationDigest(r.morse_smale),
-                                      std::to_string(r.separatrices.size()),
-                                      std::to_string(r.Segments())};
+                                      MorseSmaleResult::SegmentationDigest(r.morse_smale), cells};
     };
     const auto expected = digests(reference);
-    CompactStructure compact(in.topo, {.cache_ratio = 0.05});
-    EXPECT_EQ(digests(*RunMorseSmale(compact, in.order, in.mesh.tetrahedra, {})), expected);
+    for (int consumers : {1, 2, 3}) {
+      EXPECT_EQ(digests(*RunMorseSmale(*explicit_structure, in.order, in.mesh.tetrahedra,
+                                       {.consumers = consumers})),
+                expected)
+          << consumers << " consumers";
+      CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = consumers});
+      EXPECT_EQ(digests(*RunMorseSmale(compact, in.order, in.mesh.tetrahedra,
+                                       {.consumers = consumers})),
+                expected)
+          << consumers << " consumers";
+    }
     for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
-      auto actopo = *ActopoStructure::Create(in.topo, {.consumers = 2, .producers = 2,
+      auto actopo = *ActopoStructure::Create(in.topo, {.consumers = 3, .producers = 2,
                                                        .buffer_ratio = 0.05, .prefetch = p,
                                                        .declared = MorseSmaleDeclared()});
-      EXPECT_EQ(digests(*RunMorseSmale(*actopo, in.order, in.mesh.tetrahedra, {.consumers = 2})),
+      EXPECT_EQ(digests(*RunMorseSmale(*actopo, in.order, in.mesh.tetrahedra, {.consumers = 3})),
                 expected)
           << PrefetchName(p);
     }

@@ -57,8 +57,10 @@ RelationSet DeclaredRelations(Algorithm a) {
 
 bool NeedsScalar(Algorithm a) { return a != Algorithm::kTopoRelations; }
 
-Prefetch DefaultPrefetch(Algorithm a) {
-  return a == Algorithm::kMorseSmale ? Prefetch::kSpatial : Prefetch::kLinear;
+Prefetch DefaultPrefetch(Algorithm) {
+  // Every algorithm reads relations block by block on every consumer (Morse-Smale's
+  // separatrices touch few blocks): linear beat spatial on Morse-Smale too, 0.93x wall.
+  return Prefetch::kLinear;
 }
 
 Precompute DefaultPrecompute(Algorithm a) {

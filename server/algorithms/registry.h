@@ -31,8 +31,9 @@ RelationSet DeclaredRelations(Algorithm a);
 // Whether the algorithm reads a scalar field.
 bool NeedsScalar(Algorithm a);
 
-// The paper's best engine modes per algorithm: topo-relations linear + requested, critical
-// points and discrete gradient linear + declared, Morse-Smale spatial + requested.
+// Engine modes per algorithm: linear prefetch for all (each consumer sweeps its blocks in
+// order); topo-relations and Morse-Smale precompute the requested relation, critical points and
+// discrete gradient every declared one.
 Prefetch DefaultPrefetch(Algorithm a);
 Precompute DefaultPrecompute(Algorithm a);
 
