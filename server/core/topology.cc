@@ -33,6 +33,42 @@ std::vector<T> PrefixSum(const std::vector<T>& counts) {
   return out;
 }
 
+// Stable bucket sort of the items 0 .. n-1 over `threads` contiguous chunks in parallel:
+// for_each_bucket(i, emit) calls emit(bucket) once per bucket item i goes to. Fills `offsets`
+// (buckets + 1) and `items` (per bucket, its items ascending).
+template <class ForEachBucket>
+void BucketItems(int64_t n, int32_t buckets, int threads, ForEachBucket&& for_each_bucket,
+                 std::vector<SimplexId>& offsets, std::vector<SimplexId>& items) {
+  const int chunks = int(std::clamp<int64_t>(threads, 1, std::max<int64_t>(n, 1)));
+  const auto chunk_begin = [&](int64_t c) { return n * c / chunks; };
+  // Per chunk: its count per bucket, then where its items of that bucket go.
+  std::vector<std::vector<SimplexId>> cursor(chunks, std::vector<SimplexId>(buckets, 0));
+  ParallelFor(chunks, chunks, [&](int64_t c, int) {
+    std::vector<SimplexId>& count = cursor[c];
+    for (int64_t i = chunk_begin(c); i < chunk_begin(c + 1); ++i) {
+      for_each_bucket(i, [&](int32_t b) { ++count[b]; });
+    }
+  });
+  offsets.assign(size_t(buckets) + 1, 0);
+  SimplexId total = 0;
+  for (int32_t b = 0; b < buckets; ++b) {
+    offsets[b] = total;
+    for (int c = 0; c < chunks; ++c) {
+      const SimplexId count = cursor[c][b];
+      cursor[c][b] = total;
+      total += count;
+    }
+  }
+  offsets[buckets] = total;
+  items.resize(total);
+  ParallelFor(chunks, chunks, [&](int64_t c, int) {
+    std::vector<SimplexId>& at = cursor[c];
+    for (int64_t i = chunk_begin(c); i < chunk_begin(c + 1); ++i) {
+      for_each_bucket(i, [&](int32_t b) { items[at[b]++] = SimplexId(i); });
+    }
+  });
+}
+
 }  // namespace
 
 void RunLookup::Build(const std::vector<SimplexId>& begin, SimplexId items) {
@@ -179,22 +215,19 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     }
   }
 
-  // Tetrahedra: stable counting sort by the block of the lowest vertex, then each sorted internal
+  // Tetrahedra: stable bucket sort by the block of the lowest vertex, then each sorted internal
   // tuple written straight to its place (no second copy of the tetrahedra at any time).
   {
     const auto internal = [&](int64_t i, int k) {
       return t.vertex_internal_id_[mesh.tetrahedra[4 * size_t(i) + k]];
     };
-    const auto lowest_block = [&](int64_t i) {
-      return t.vertex_block_[std::min(std::min(internal(i, 0), internal(i, 1)),
-                                      std::min(internal(i, 2), internal(i, 3)))];
-    };
-    std::fill(block_count.begin(), block_count.end(), 0);
-    for (SimplexId i = 0; i < nt; ++i) ++block_count[lowest_block(i)];
-    t.block_tet_begin_ = PrefixSum(block_count);
-    std::vector<SimplexId> cursor(t.block_tet_begin_.begin(), t.block_tet_begin_.end() - 1);
-    t.tet_input_id_.resize(nt);
-    for (SimplexId i = 0; i < nt; ++i) t.tet_input_id_[cursor[lowest_block(i)]++] = i;
+    BucketItems(
+        nt, num_blocks, threads,
+        [&](int64_t i, auto&& emit) {
+          emit(t.vertex_block_[std::min(std::min(internal(i, 0), internal(i, 1)),
+                                        std::min(internal(i, 2), internal(i, 3)))]);
+        },
+        t.block_tet_begin_, t.tet_input_id_);
     t.tet_vertices_.resize(4 * size_t(nt));
     constexpr int64_t kTetsPerTask = 1 << 16;
     ParallelFor((int64_t(nt) + kTetsPerTask - 1) / kTetsPerTask, threads, [&](int64_t task, int) {
@@ -221,16 +254,8 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
         }
       }
     };
-    std::fill(block_count.begin(), block_count.end(), 0);
-    for (SimplexId i = 0; i < nt; ++i) {
-      for_each_external_block(i, [&](int32_t b) { ++block_count[b]; });
-    }
-    t.external_offsets_ = PrefixSum(block_count);
-    t.external_tets_.resize(t.external_offsets_.back());
-    std::vector<SimplexId> cursor(t.external_offsets_.begin(), t.external_offsets_.end() - 1);
-    for (SimplexId i = 0; i < nt; ++i) {
-      for_each_external_block(i, [&](int32_t b) { t.external_tets_[cursor[b]++] = i; });
-    }
+    BucketItems(nt, num_blocks, threads, for_each_external_block, t.external_offsets_,
+                t.external_tets_);
   }
 
   // Edges, triangles and boundary flags, block-parallel, then concatenated in block order. Per
@@ -282,7 +307,11 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
           if (s[k] >= vbegin && s[k] < vend) {
             ++sc.star_begin[s[k] - vbegin + 1];
           } else {
-            adjacent.push_back(t.vertex_block_[s[k]]);
+            // Neighbours are few (tens) and met thousands of times: keep them unique.
+            const int32_t nb = t.vertex_block_[s[k]];
+            if (std::find(adjacent.begin(), adjacent.end(), nb) == adjacent.end()) {
+              adjacent.push_back(nb);
+            }
           }
         }
       });
@@ -331,22 +360,38 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
         }
       }
       std::sort(adjacent.begin(), adjacent.end());
-      adjacent.erase(std::unique(adjacent.begin(), adjacent.end()), adjacent.end());
       adjacent.shrink_to_fit();
     });
+    // Append the window: offsets in block order, then every block copied in parallel. A block's
+    // edges start at its own vertices, so the per-vertex counts do not collide; the boundary
+    // bits share words across blocks and are set in one pass.
+    std::vector<size_t> edge_at(window_size + 1), triangle_at(window_size + 1);
+    edge_at[0] = t.edge_upper_.size();
+    triangle_at[0] = t.triangle_third_.size();
     for (int32_t index = 0; index < window_size; ++index) {
+      edge_at[index + 1] = edge_at[index] + faces[index].edges.size();
+      triangle_at[index + 1] = triangle_at[index] + faces[index].triangle_third.size();
+    }
+    // Within the reservations above: no reallocation.
+    t.edge_upper_.resize(edge_at[window_size]);
+    t.edge_triangle_begin_.resize(edge_at[window_size] + 1);
+    t.triangle_third_.resize(triangle_at[window_size]);
+    t.triangle_boundary_.resize((triangle_at[window_size] + 63) / 64, 0);
+    ParallelFor(window_size, threads, [&](int64_t index, int) {
       const BlockFaces& bf = faces[index];
-      // Counts now, prefix sums once every window is in.
       for (size_t i = 0; i < bf.edges.size(); ++i) {
         ++t.vertex_edge_begin_[(bf.edges[i] >> 32) + 1];
-        t.edge_upper_.push_back(SimplexId(bf.edges[i] & 0xffffffffu));
-        t.edge_triangle_begin_.push_back(bf.edge_triangles[i]);
+        t.edge_upper_[edge_at[index] + i] = SimplexId(bf.edges[i] & 0xffffffffu);
+        t.edge_triangle_begin_[edge_at[index] + i + 1] = bf.edge_triangles[i];
       }
-      for (size_t i = 0; i < bf.triangle_third.size(); ++i) {
-        const size_t f = t.triangle_third_.size();
-        if (f % 64 == 0) t.triangle_boundary_.push_back(0);
-        t.triangle_boundary_.back() |= uint64_t(bf.triangle_boundary[i]) << (f % 64);
-        t.triangle_third_.push_back(bf.triangle_third[i]);
+      std::copy(bf.triangle_third.begin(), bf.triangle_third.end(),
+                t.triangle_third_.begin() + triangle_at[index]);
+    });
+    for (int32_t index = 0; index < window_size; ++index) {
+      const std::vector<uint8_t>& boundary = faces[index].triangle_boundary;
+      for (size_t i = 0; i < boundary.size(); ++i) {
+        const size_t f = triangle_at[index] + i;
+        t.triangle_boundary_[f / 64] |= uint64_t(boundary[i]) << (f % 64);
       }
     }
   }
@@ -361,8 +406,13 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   for (size_t e = 1; e < t.edge_triangle_begin_.size(); ++e) {
     t.edge_triangle_begin_[e] += t.edge_triangle_begin_[e - 1];
   }
-  t.edge_lowest_.Build(t.vertex_edge_begin_, t.num_edges());
-  t.triangle_edge_.Build(t.edge_triangle_begin_, t.num_triangles());
+  ParallelFor(2, threads, [&](int64_t which, int) {
+    if (which == 0) {
+      t.edge_lowest_.Build(t.vertex_edge_begin_, t.num_edges());
+    } else {
+      t.triangle_edge_.Build(t.edge_triangle_begin_, t.num_triangles());
+    }
+  });
 
   t.block_neighbor_offsets_.assign(num_blocks + 1, 0);
   for (int32_t b = 0; b < num_blocks; ++b) {

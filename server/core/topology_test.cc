@@ -52,6 +52,32 @@ TEST(Topology, PermutationsAndBlockOrder) {
   }
 }
 
+TEST(Topology, SameForAnyThreadCount) {
+  const Mesh m = testing::Lattice(9, 8, 7, 5);
+  auto one = BuildOrDie(m, 20, /*threads=*/1);
+  for (int threads : {2, 3}) {
+    auto many = BuildOrDie(m, 20, threads);
+    ASSERT_EQ(many->num_blocks(), one->num_blocks());
+    for (SimplexId t = 0; t < one->num_tetrahedra(); ++t) {
+      ASSERT_EQ(many->tetrahedron_input_id(t), one->tetrahedron_input_id(t)) << threads;
+    }
+    for (int32_t b = 0; b < one->num_blocks(); ++b) {
+      const auto a = one->external_tetrahedra(b), c = many->external_tetrahedra(b);
+      EXPECT_TRUE(std::equal(a.begin(), a.end(), c.begin(), c.end())) << "block " << b;
+      // Tetrahedra of a block keep their input order (a stable sort).
+      for (SimplexId t = one->block_tetrahedron_begin(b) + 1;
+           t < one->block_tetrahedron_begin(b + 1); ++t) {
+        EXPECT_LT(one->tetrahedron_input_id(t - 1), one->tetrahedron_input_id(t));
+      }
+    }
+    ASSERT_EQ(many->num_triangles(), one->num_triangles());
+    for (SimplexId f = 0; f < one->num_triangles(); ++f) {
+      ASSERT_EQ(many->triangle(f), one->triangle(f));
+      ASSERT_EQ(many->triangle_on_boundary(f), one->triangle_on_boundary(f));
+    }
+  }
+}
+
 TEST(Topology, EdgesTrianglesAndBoundaryMatchOracle) {
   for (const Mesh& m : {testing::Lattice(5, 4, 4, 1), testing::NonManifold(),
                         testing::TwoComponents(), testing::SingleTetrahedron()}) {
