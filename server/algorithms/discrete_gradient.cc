@@ -19,7 +19,7 @@ struct StarCell {
   int dim;
   SimplexId id;
   std::array<SimplexId, 3> key;
-  std::array<uint8_t, 3> faces;  // indices in the lower star of its faces that contain x
+  std::array<int32_t, 3> faces;  // indices in the lower star of its faces that contain x
   bool paired;
 };
 
@@ -30,6 +30,7 @@ class LowerStarPairing {
   template <class Reader>
   void Process(Reader& reader, SimplexId x, std::span<const SimplexId> order) {
     Build(reader, x, order);
+    IndexCofacets();
     auto& edges = star_[1];
     if (edges.empty()) return;  // a minimum
     size_t delta = 0;
@@ -108,11 +109,17 @@ class LowerStarPairing {
     for (SimplexId t : reader.vertex_star(x)) {
       std::array<SimplexId, 3> key{};
       int n = 0;
+      bool lower = true;
       for (SimplexId w : reader.tetrahedron_vertices(t)) {
-        if (w != x) key[n++] = order[w];
+        if (w == x) continue;
+        key[n] = order[w];
+        lower &= key[n++] < ox;
       }
-      std::sort(key.rbegin(), key.rend());
-      if (key[0] > ox) continue;
+      if (!lower) continue;  // most of the star: decided before sorting
+      // Descending, by three compare-exchanges.
+      if (key[0] < key[1]) std::swap(key[0], key[1]);
+      if (key[1] < key[2]) std::swap(key[1], key[2]);
+      if (key[0] < key[1]) std::swap(key[0], key[1]);
       StarCell cell{3, t, key, {}, false};
       int k = 0;
       for (size_t j = 0; j < star_[2].size(); ++j) {
@@ -140,18 +147,33 @@ class LowerStarPairing {
     return count;
   }
 
+  // For the edges and triangles of the lower star, their cofacets there (ascending index), as
+  // CSR: cofacets_[d][cofacet_begin_[d][i] ..] for cell i of dimension d.
+  void IndexCofacets() {
+    for (int d = 1; d <= 2; ++d) {
+      std::vector<int32_t>& begin = cofacet_begin_[d];
+      std::vector<int32_t>& list = cofacets_[d];
+      begin.assign(star_[d].size() + 1, 0);
+      for (const StarCell& c : star_[d + 1]) {
+        for (int i = 0; i <= d; ++i) ++begin[c.faces[i] + 1];
+      }
+      for (size_t i = 1; i < begin.size(); ++i) begin[i] += begin[i - 1];
+      list.resize(begin.back());
+      cursor_.assign(begin.begin(), begin.end() - 1);
+      for (size_t j = 0; j < star_[d + 1].size(); ++j) {
+        for (int i = 0; i <= d; ++i) list[cursor_[star_[d + 1][j].faces[i]]++] = int32_t(j);
+      }
+    }
+  }
+
   // Pushes the cofacets of cell (dim, index) with exactly one unpaired face.
   void PushCofacets(int dim, int index) {
     if (dim != 1 && dim != 2) return;
-    const int nfaces = dim == 1 ? 2 : 3;
-    auto& cofacets = star_[dim + 1];
-    for (size_t j = 0; j < cofacets.size(); ++j) {
-      const StarCell& beta = cofacets[j];
-      bool contains = false;
-      for (int i = 0; i < nfaces; ++i) contains |= beta.faces[i] == index;
-      if (!contains) continue;
+    const std::vector<int32_t>& begin = cofacet_begin_[dim];
+    for (int32_t k = begin[index]; k < begin[index + 1]; ++k) {
+      const int32_t j = cofacets_[dim][k];
       int face;
-      const Ref ref{dim + 1, int(j), beta.key};
+      const Ref ref{dim + 1, j, star_[dim + 1][j].key};
       if (UnpairedFaces(ref, face) == 1) one_.push(ref);
     }
   }
@@ -165,6 +187,8 @@ class LowerStarPairing {
 
   GradientField& gradient_;
   std::array<std::vector<StarCell>, 4> star_;
+  std::array<std::vector<int32_t>, 3> cofacet_begin_, cofacets_;  // [1] and [2] used
+  std::vector<int32_t> cursor_;
   MinQueue zero_, one_;
 };
 
