@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
+#include <cstring>
 #include <condition_variable>
 #include <mutex>
 
@@ -43,6 +45,19 @@ std::string Sha256Hex(std::string_view text) {
   Sha256 sha;
   sha.Update(text);
   return sha.HexDigest();
+}
+
+DecimalTable::DecimalTable(int64_t n) {
+  static_assert(std::endian::native == std::endian::little, "bytes 0..6 are the low bytes");
+  if (n > kMaxIds) return;
+  text_.resize(size_t(std::max<int64_t>(n, 0)));
+  for (int64_t v = 0; v < n; ++v) {
+    char digits[8] = {};
+    const int length = int(WriteDecimal(digits, uint32_t(v)) - digits);
+    uint64_t packed = 0;
+    std::memcpy(&packed, digits, 7);
+    text_[v] = packed | uint64_t(length) << 56;
+  }
 }
 
 std::vector<uint32_t> DecimalRanks(int64_t n) {

@@ -15,6 +15,7 @@
 #define ACTOPO_SERVER_ALGORITHMS_DIGEST_H_
 
 #include <cstdint>
+#include <cstring>
 #include <functional>
 #include <memory>
 #include <span>
@@ -69,17 +70,51 @@ class StreamedText {
 };
 
 // Writes the decimal digits of v at p; returns the end. For formatting lines without
-// allocation (a gradient digest formats tens of millions of them).
+// allocation (a gradient digest formats tens of millions of them): the length first, then two
+// digits per step from the end.
 inline char* WriteDecimal(char* p, uint32_t v) {
-  char digits[10];
-  int n = 0;
-  do {
-    digits[n++] = char('0' + v % 10);
-    v /= 10;
-  } while (v != 0);
-  while (n > 0) *p++ = digits[--n];
-  return p;
+  static constexpr char kPairs[] =
+      "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
+      "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
+      "8081828384858687888990919293949596979899";
+  int n = 1;
+  for (uint32_t bound = 10; n < 10 && v >= bound; bound *= 10) ++n;
+  char* end = p + n;
+  char* q = end;
+  while (v >= 100) {
+    const uint32_t pair = 2 * (v % 100);
+    v /= 100;
+    *--q = kPairs[pair + 1];
+    *--q = kPairs[pair];
+  }
+  if (v >= 10) {
+    *--q = kPairs[2 * v + 1];
+    *--q = kPairs[2 * v];
+  } else {
+    *--q = char('0' + v);
+  }
+  return end;
 }
+
+// The decimal text of every id below n, for writing ids by the ten million: an 8-byte copy
+// instead of divisions. At most kMaxIds ids (64 MiB); larger ids are written by WriteDecimal.
+class DecimalTable {
+ public:
+  static constexpr int64_t kMaxIds = int64_t(1) << 23;  // all below 10^7: 7 digits + length
+
+  explicit DecimalTable(int64_t n);
+
+  // Writes v at p and returns the end; may write up to 8 bytes past p whatever v's length.
+  char* Write(char* p, uint32_t v) const {
+    if (v >= text_.size()) return WriteDecimal(p, v);
+    const uint64_t packed = text_[v];
+    std::memcpy(p, &packed, 8);
+    return p + (packed >> 56);  // the length is the last byte
+  }
+
+ private:
+  std::vector<uint64_t> text_;  // digits in bytes 0..6 (in memory order), length in byte 7
+};
 
 // rank[i] = position of the decimal string of i among those of 0..n-1 in byte order ("0", "1",
 // "10", "100", ..., "11", ...). Comparing ranks compares the ids as text.

@@ -24,6 +24,28 @@ TEST(Sha256, KnownDigests) {
   EXPECT_EQ(text.HexDigest(), Sha256Hex("0 0\n0 9\n1 4,5\n"));
 }
 
+TEST(WriteDecimal, MatchesToString) {
+  std::vector<uint32_t> values = {0, 9, 10, 99, 100, 999, 1000, 4294967295u, 1000000000u};
+  for (uint32_t p = 10; p < 1000000000u; p *= 10) values.insert(values.end(), {p - 1, p, p + 1});
+  std::mt19937 random(7);
+  for (int i = 0; i < 10000; ++i) values.push_back(random() >> (random() % 32));
+  for (uint32_t v : values) {
+    char buffer[16];
+    EXPECT_EQ(std::string(buffer, WriteDecimal(buffer, v)), std::to_string(v));
+  }
+}
+
+TEST(DecimalTable, MatchesToStringInsideAndBeyondTheTable) {
+  const DecimalTable table(12345);
+  for (uint32_t v : {0u, 7u, 10u, 999u, 1000u, 12344u, 12345u, 99999999u, 4294967295u}) {
+    char buffer[16 + 8];
+    EXPECT_EQ(std::string(buffer, table.Write(buffer, v)), std::to_string(v)) << v;
+  }
+  const DecimalTable too_large(DecimalTable::kMaxIds + 1);  // falls back to WriteDecimal
+  char buffer[16 + 8];
+  EXPECT_EQ(std::string(buffer, too_large.Write(buffer, 8388607u)), "8388607");
+}
+
 class DecimalRanksTest : public testing::TestWithParam<int64_t> {};
 
 TEST_P(DecimalRanksTest, OrdersIdsAsText) {

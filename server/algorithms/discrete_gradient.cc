@@ -213,10 +213,10 @@ void CellTokens(const Topology& topology, int d, SimplexId c, SimplexId* ids) {
 
 namespace {
 
-char* WriteIds(char* p, const SimplexId* ids, int n) {
+char* WriteIds(char* p, const DecimalTable& decimal, const SimplexId* ids, int n) {
   for (int i = 0; i < n; ++i) {
     if (i > 0) *p++ = ',';
-    p = WriteDecimal(p, uint32_t(ids[i]));
+    p = decimal.Write(p, uint32_t(ids[i]));
   }
   return p;
 }
@@ -261,18 +261,18 @@ void CofacetTokens(const Topology& topology, int d, const SimplexId* ids, Simple
 
 // Appends "<d> <cell>[ <higher cell>]" (a line of the critical-cell or pair digests); `ids` are
 // the cell's input vertex ids, ascending.
-void AppendCellLine(std::string& line, const Topology& topology, int d, const SimplexId* ids,
-                    SimplexId higher = -1) {
-  char buffer[2 + 4 * 11 + 1 + 4 * 11];
+void AppendCellLine(std::string& line, const Topology& topology, const DecimalTable& decimal,
+                    int d, const SimplexId* ids, SimplexId higher = -1) {
+  char buffer[2 + 4 * 11 + 1 + 4 * 11 + 8];  // + 8: DecimalTable::Write's slack
   char* p = buffer;
   *p++ = char('0' + d);
   *p++ = ' ';
-  p = WriteIds(p, ids, d + 1);
+  p = WriteIds(p, decimal, ids, d + 1);
   if (higher >= 0) {
     *p++ = ' ';
     SimplexId higher_ids[4];
     CofacetTokens(topology, d, ids, higher, higher_ids);
-    p = WriteIds(p, higher_ids, d + 2);
+    p = WriteIds(p, decimal, higher_ids, d + 2);
   }
   line.append(buffer, p);
 }
@@ -281,6 +281,7 @@ void AppendCellLine(std::string& line, const Topology& topology, int d, const Si
 
 std::string DiscreteGradientResult::CriticalCellsDigest(const Topology& topology) const {
   // Critical cells are few: list them once instead of scanning every cell per pass.
+  const DecimalTable decimal(topology.num_vertices());
   std::array<std::vector<SimplexId>, 4> critical;
   for (int d = 0; d < 4; ++d) {
     critical[d].reserve(critical_cells[d]);
@@ -300,14 +301,15 @@ std::string DiscreteGradientResult::CriticalCellsDigest(const Topology& topology
               return true;
             },
         .append_line =
-            [&topology, d](int64_t, const SimplexId* ids, std::string& line) {
-              AppendCellLine(line, topology, d, ids);
+            [&topology, &decimal, d](int64_t, const SimplexId* ids, std::string& line) {
+              AppendCellLine(line, topology, decimal, d, ids);
             }});
   }
   return SortedLinesSha256(topology.num_vertices(), groups);
 }
 
 std::string DiscreteGradientResult::PairsDigest(const Topology& topology) const {
+  const DecimalTable decimal(topology.num_vertices());
   std::vector<LineGroup> groups;
   for (int d = 0; d < 3; ++d) {
     groups.push_back(LineGroup{
@@ -320,8 +322,9 @@ std::string DiscreteGradientResult::PairsDigest(const Topology& topology) const 
               return true;
             },
         .append_line =
-            [this, &topology, d](int64_t c, const SimplexId* ids, std::string& line) {
-              AppendCellLine(line, topology, d, ids, gradient.up[d][c]);
+            [this, &topology, &decimal, d](int64_t c, const SimplexId* ids,
+                                           std::string& line) {
+              AppendCellLine(line, topology, decimal, d, ids, gradient.up[d][c]);
             }});
   }
   return SortedLinesSha256(topology.num_vertices(), groups);
