@@ -136,19 +136,40 @@ class BlockComputer {
     out.values.assign(s_.values.begin(), s_.values.end());
   }
 
-  void LowerNeighbors(RelationBlock& out) {
+  // The vertices that can be the lowest vertex of an edge or triangle holding an inside vertex,
+  // ascending: the outside vertices below the block that external tetrahedra reach, then the
+  // inside vertices. Walking their edge and triangle runs visits each such face once, in id
+  // order, with no search (edges (a, *) and triangles (a, b, *) are runs).
+  template <class Fn>
+  void ForEachLowestCandidate(Fn&& fn) {
+    s_.candidates.clear();
+    for (SimplexId t : topo_.external_tetrahedra(b_)) {
+      for (SimplexId v : topo_.tetrahedron(t)) {
+        if (v < vbegin_) s_.candidates.push_back(v);
+      }
+    }
+    std::sort(s_.candidates.begin(), s_.candidates.end());
+    s_.candidates.erase(std::unique(s_.candidates.begin(), s_.candidates.end()),
+                        s_.candidates.end());
+    for (SimplexId a : s_.candidates) fn(a);
+    for (SimplexId a = vbegin_; a < vend_; ++a) fn(a);
+  }
+
+  // The lower parts of the vertex rows (edges (a, v) with a < v), as CSR: value(a, e) per edge.
+  template <class Value>
+  void LowerEdges(RelationBlock& out, Value&& value) {
     BeginPairs();
-    ForEachTet(b_, [&](SimplexId, const SimplexId* s) {
-      for (int k = 1; k < 4; ++k) {
-        if (!Inside(s[k])) continue;
-        for (int j = 0; j < k; ++j) Pair(s[k] - vbegin_, s[j]);
+    ForEachLowestCandidate([&](SimplexId a) {
+      for (SimplexId e = topo_.vertex_first_edge(a); e < topo_.vertex_first_edge(a + 1); ++e) {
+        const SimplexId b = topo_.edge_upper(e);
+        if (Inside(b)) Pair(b - vbegin_, value(a, e));
       }
     });
-    PairsToCsr(out, true);
+    PairsToCsr(out, false);
   }
 
   void VertexNeighbors(RelationBlock& out) {
-    LowerNeighbors(out);
+    LowerEdges(out, [](SimplexId a, SimplexId) { return a; });
     AppendUpperRanges(out, [&](SimplexId v, std::vector<SimplexId>& row) {
       for (SimplexId e = topo_.vertex_first_edge(v); e < topo_.vertex_first_edge(v + 1); ++e) {
         row.push_back(topo_.edge_upper(e));
@@ -157,13 +178,7 @@ class BlockComputer {
   }
 
   void VertexEdges(RelationBlock& out) {
-    LowerNeighbors(out);
-    // Edges (u, v) with u < v are numbered by u, so ascending u gives ascending ids.
-    for (SimplexId i = 0; i < out.count; ++i) {
-      for (SimplexId k = out.offsets[i]; k < out.offsets[i + 1]; ++k) {
-        out.values[k] = topo_.FindEdge(out.values[k], vbegin_ + i);
-      }
-    }
+    LowerEdges(out, [](SimplexId, SimplexId e) { return e; });
     AppendUpperRanges(out, [&](SimplexId v, std::vector<SimplexId>& row) {
       for (SimplexId e = topo_.vertex_first_edge(v); e < topo_.vertex_first_edge(v + 1); ++e) {
         row.push_back(e);
@@ -172,17 +187,21 @@ class BlockComputer {
   }
 
   void VertexTriangles(RelationBlock& out) {
+    // Lower parts: triangles (a, b, c) with b or c inside, from the runs of every candidate a.
     BeginPairs();
-    ForEachTet(b_, [&](SimplexId, const SimplexId* s) {
-      for (int f = 0; f < 4; ++f) {
-        const int* face = kTetFaces[f];
-        if (!Inside(s[face[1]]) && !Inside(s[face[2]])) continue;
-        const SimplexId id = Face(s, f);
-        if (Inside(s[face[1]])) Pair(s[face[1]] - vbegin_, id);
-        if (Inside(s[face[2]])) Pair(s[face[2]] - vbegin_, id);
+    ForEachLowestCandidate([&](SimplexId a) {
+      for (SimplexId e = topo_.vertex_first_edge(a); e < topo_.vertex_first_edge(a + 1); ++e) {
+        const SimplexId b = topo_.edge_upper(e);
+        const bool b_inside = Inside(b);
+        for (SimplexId f = topo_.edge_first_triangle(e); f < topo_.edge_first_triangle(e + 1);
+             ++f) {
+          const SimplexId c = topo_.triangle_third(f);
+          if (b_inside) Pair(b - vbegin_, f);
+          if (Inside(c)) Pair(c - vbegin_, f);
+        }
       }
     });
-    PairsToCsr(out, true);
+    PairsToCsr(out, false);
     AppendUpperRanges(out, [&](SimplexId v, std::vector<SimplexId>& row) {
       for (SimplexId f = topo_.vertex_first_triangle(v); f < topo_.vertex_first_triangle(v + 1);
            ++f) {

@@ -48,7 +48,7 @@ struct RelationBlock {
 
 // Reusable per-thread buffers.
 struct BlockScratch {
-  std::vector<SimplexId> rows, values, counts, mark, tmp;
+  std::vector<SimplexId> rows, values, counts, mark, tmp, candidates;
   std::vector<int64_t> keys;
 };
 
