@@ -216,7 +216,8 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   }
 
   // Tetrahedra: stable bucket sort by the block of the lowest vertex, then each sorted internal
-  // tuple written straight to its place (no second copy of the tetrahedra at any time).
+  // tuple written straight to its place (no second copy of the tetrahedra at any time), then
+  // each block's by their lowest vertex.
   {
     const auto internal = [&](int64_t i, int k) {
       return t.vertex_internal_id_[mesh.tetrahedra[4 * size_t(i) + k]];
@@ -229,6 +230,10 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
         },
         t.block_tet_begin_, t.tet_input_id_);
     t.tet_vertices_.resize(4 * size_t(nt));
+    struct Reorder {
+      std::vector<SimplexId> at, tuples, inputs;
+    };
+    std::vector<Reorder> reorder(std::max(threads, 1));
     constexpr int64_t kTetsPerTask = 1 << 16;
     ParallelFor((int64_t(nt) + kTetsPerTask - 1) / kTetsPerTask, threads, [&](int64_t task, int) {
       const int64_t end = std::min<int64_t>(nt, (task + 1) * kTetsPerTask);
@@ -237,6 +242,30 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
         for (int k = 0; k < 4; ++k) s[k] = internal(t.tet_input_id_[id], k);
         SortVertexIds(s, 4);
       }
+    });
+    // Within a block, tetrahedra by their lowest vertex (a stable counting sort): a vertex's
+    // star is then a few nearby runs, however the file ordered its cells.
+    ParallelFor(num_blocks, threads, [&](int64_t b, int thread) {
+      const SimplexId begin = t.block_tet_begin_[b], end = t.block_tet_begin_[b + 1];
+      const SimplexId vbegin = t.block_vertex_begin_[b];
+      std::vector<SimplexId>& at = reorder[thread].at;
+      std::vector<SimplexId>& tuples = reorder[thread].tuples;
+      std::vector<SimplexId>& inputs = reorder[thread].inputs;
+      at.assign(size_t(t.block_vertex_begin_[b + 1] - vbegin) + 1, 0);
+      for (SimplexId id = begin; id < end; ++id) {
+        ++at[t.tet_vertices_[4 * size_t(id)] - vbegin + 1];
+      }
+      for (size_t i = 1; i < at.size(); ++i) at[i] += at[i - 1];
+      tuples.resize(4 * size_t(end - begin));
+      inputs.resize(size_t(end - begin));
+      for (SimplexId id = begin; id < end; ++id) {
+        const SimplexId* s = &t.tet_vertices_[4 * size_t(id)];
+        const SimplexId to = at[s[0] - vbegin]++;
+        std::copy_n(s, 4, &tuples[4 * size_t(to)]);
+        inputs[to] = t.tet_input_id_[id];
+      }
+      std::copy(tuples.begin(), tuples.end(), &t.tet_vertices_[4 * size_t(begin)]);
+      std::copy(inputs.begin(), inputs.end(), &t.tet_input_id_[begin]);
     });
   }
 
@@ -266,6 +295,7 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     std::vector<SimplexId> star_begin, star;
     std::vector<SimplexId> upper;
     std::vector<uint64_t> pairs;
+    std::vector<uint32_t> pair_count;  // tetrahedra around each pair's triangle
   };
   // Blocks go in windows: each window is computed in parallel, then appended in block order to
   // the final arrays, whose upper bounds (6 edges and 4 triangles per tetrahedron) are reserved
@@ -322,41 +352,46 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
           if (s[k] >= vbegin && s[k] < vend) sc.star[sc.star_begin[s[k] - vbegin]++] = tet;
         }
       });
-      // star_begin[i] now ends vertex i's star.
+      // star_begin[i] now ends vertex i's star. Each upper vertex and pair comes once per
+      // tetrahedron around it: inserted into short sorted lists (tens of entries), not sorted
+      // with their repeats.
       SimplexId star_from = 0;
       for (SimplexId v = vbegin; v < vend; ++v) {
         const SimplexId star_to = sc.star_begin[v - vbegin];
         sc.upper.clear();
         sc.pairs.clear();
+        sc.pair_count.clear();
         for (SimplexId i = star_from; i < star_to; ++i) {
           const SimplexId* s = &t.tet_vertices_[4 * size_t(sc.star[i])];
           int p = 0;
           while (s[p] != v) ++p;
           for (int j = p + 1; j < 4; ++j) {
-            sc.upper.push_back(s[j]);
+            const auto at = std::lower_bound(sc.upper.begin(), sc.upper.end(), s[j]);
+            if (at == sc.upper.end() || *at != s[j]) sc.upper.insert(at, s[j]);
             for (int k = j + 1; k < 4; ++k) {
-              sc.pairs.push_back(uint64_t(uint32_t(s[j])) << 32 | uint32_t(s[k]));
+              const uint64_t pair = uint64_t(uint32_t(s[j])) << 32 | uint32_t(s[k]);
+              const auto where = std::lower_bound(sc.pairs.begin(), sc.pairs.end(), pair);
+              const size_t index = size_t(where - sc.pairs.begin());
+              if (where == sc.pairs.end() || *where != pair) {
+                sc.pairs.insert(where, pair);
+                sc.pair_count.insert(sc.pair_count.begin() + index, 0);
+              }
+              ++sc.pair_count[index];
             }
           }
         }
         star_from = star_to;
-        std::sort(sc.upper.begin(), sc.upper.end());
-        sc.upper.erase(std::unique(sc.upper.begin(), sc.upper.end()), sc.upper.end());
         const size_t first_edge = out.edges.size();
         for (SimplexId w : sc.upper) out.edges.push_back(uint64_t(uint32_t(v)) << 32 | uint32_t(w));
         out.edge_triangles.resize(out.edges.size(), 0);
         // Pairs (b, c) sorted by b; upper is sorted and holds every b: walk both.
-        std::sort(sc.pairs.begin(), sc.pairs.end());
         size_t edge = first_edge;
-        for (size_t read = 0; read < sc.pairs.size();) {
-          size_t run = read + 1;
-          while (run < sc.pairs.size() && sc.pairs[run] == sc.pairs[read]) ++run;
-          const uint32_t b = uint32_t(sc.pairs[read] >> 32);
+        for (size_t i = 0; i < sc.pairs.size(); ++i) {
+          const uint32_t b = uint32_t(sc.pairs[i] >> 32);
           while (uint32_t(out.edges[edge]) != b) ++edge;
           ++out.edge_triangles[edge];
-          out.triangle_third.push_back(SimplexId(sc.pairs[read] & 0xffffffffu));
-          out.triangle_boundary.push_back(run - read == 1);
-          read = run;
+          out.triangle_third.push_back(SimplexId(sc.pairs[i] & 0xffffffffu));
+          out.triangle_boundary.push_back(sc.pair_count[i] == 1);
         }
       }
       std::sort(adjacent.begin(), adjacent.end());

@@ -11,8 +11,9 @@
 //   SimplexId e = topology->FindEdge(u, v);   // internal ids, -1 if absent
 //
 // Ids. Vertices are renumbered so each block is a contiguous range (block order, then input id);
-// tetrahedra are grouped by the block of their lowest vertex (then input id). A simplex belongs to
-// the block of its lowest vertex. Edges and triangles are numbered in lexicographic order of their
+// tetrahedra are grouped by the block of their lowest vertex, then by that vertex, then input
+// id (so a vertex's star sits in a few short runs whatever the file's cell order). A simplex
+// belongs to the block of its lowest vertex. Edges and triangles are numbered in lexicographic order of their
 // sorted vertex tuples; because blocks are vertex ranges in order, that numbering is also "by
 // block, then lexicographic inside the block", so an edge's id is its block's first edge plus its
 // rank inside the block (TopoCluster's numbering). Both permutations are kept so results can be

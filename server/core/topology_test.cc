@@ -64,10 +64,13 @@ TEST(Topology, SameForAnyThreadCount) {
     for (int32_t b = 0; b < one->num_blocks(); ++b) {
       const auto a = one->external_tetrahedra(b), c = many->external_tetrahedra(b);
       EXPECT_TRUE(std::equal(a.begin(), a.end(), c.begin(), c.end())) << "block " << b;
-      // Tetrahedra of a block keep their input order (a stable sort).
+      // Tetrahedra of a block by lowest vertex, then in input order (stable sorts).
       for (SimplexId t = one->block_tetrahedron_begin(b) + 1;
            t < one->block_tetrahedron_begin(b + 1); ++t) {
-        EXPECT_LT(one->tetrahedron_input_id(t - 1), one->tetrahedron_input_id(t));
+        const auto key = [&](SimplexId tet) {
+          return std::make_pair(one->tetrahedron(tet)[0], one->tetrahedron_input_id(tet));
+        };
+        EXPECT_LT(key(t - 1), key(t));
       }
     }
     ASSERT_EQ(many->num_triangles(), one->num_triangles());

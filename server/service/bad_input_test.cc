@@ -315,7 +315,7 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
          return static_cast<BadInputTest*>(t)->Upload(u.header, {u.bytes});
        }},
       {"upload: NaN scalars refused at session open", C::INVALID_ARGUMENT, "non-finite value nan",
-       [](auto* t, auto& stub, auto&, auto&) {
+       [](auto*, auto& stub, auto&, auto&) {
          TinyUpload u(std::nan(""));
          v1::UploadMeshResponse out;
          grpc::ClientContext c;
