@@ -65,6 +65,40 @@ class BlockComputer {
     for (SimplexId t = topo_.block_tetrahedron_begin(block); t < end; ++t) fn(t, Tet(t));
   }
 
+  // Edge (a, w) for each of `n` ascending upper vertices w of a, in one pass over a's run.
+  void EdgesFrom(SimplexId a, const SimplexId* w, int n, SimplexId* out) const {
+    SimplexId e = topo_.vertex_first_edge(a);
+    for (int i = 0; i < n; ++i) {
+      while (topo_.edge_upper(e) < w[i]) ++e;
+      assert(topo_.edge_upper(e) == w[i]);
+      out[i] = e;
+    }
+  }
+  // Triangle (a, b, c) for each of `n` ascending third vertices c of edge e = (a, b).
+  void TrianglesOn(SimplexId e, const SimplexId* c, int n, SimplexId* out) const {
+    SimplexId f = topo_.edge_first_triangle(e);
+    for (int i = 0; i < n; ++i) {
+      while (topo_.triangle_third(f) < c[i]) ++f;
+      assert(topo_.triangle_third(f) == c[i]);
+      out[i] = f;
+    }
+  }
+  // The 6 edges of sorted tetrahedron s in kTetEdges order: three runs read once each.
+  void TetEdges(const SimplexId* s, SimplexId* out) const {
+    EdgesFrom(s[0], s + 1, 3, out);
+    EdgesFrom(s[1], s + 2, 2, out + 3);
+    EdgesFrom(s[2], s + 3, 1, out + 5);
+  }
+  // The 4 triangles of sorted tetrahedron s in kTetFaces order.
+  void TetFaces(const SimplexId* s, SimplexId* out) const {
+    SimplexId e[3];  // (s0, s1), (s0, s2), then (s1, s2)
+    EdgesFrom(s[0], s + 1, 2, e);
+    EdgesFrom(s[1], s + 2, 1, e + 2);
+    TrianglesOn(e[0], s + 2, 2, out);  // (s0 s1 s2), (s0 s1 s3)
+    TrianglesOn(e[1], s + 3, 1, out + 2);
+    TrianglesOn(e[2], s + 3, 1, out + 3);
+  }
+
   SimplexId Face(const SimplexId* s, int f) const {
     return topo_.FindTriangle(s[kTetFaces[f][0]], s[kTetFaces[f][1]], s[kTetFaces[f][2]]);
   }
@@ -278,8 +312,11 @@ class BlockComputer {
   void TriangleStarPairs(SimplexId first) {
     BeginPairs();
     ForEachTet(b_, [&](SimplexId t, const SimplexId* s) {
+      if (!Inside(s[0]) && !Inside(s[1])) return;  // no face has its lowest vertex inside
+      SimplexId faces[4];
+      TetFaces(s, faces);
       for (int f = 0; f < 4; ++f) {
-        if (Inside(s[kTetFaces[f][0]])) Pair(Face(s, f) - first, t);
+        if (Inside(s[kTetFaces[f][0]])) Pair(faces[f] - first, t);
       }
     });
   }
@@ -293,8 +330,7 @@ class BlockComputer {
     out.stride = 6;
     out.values.resize(size_t(out.count) * 6);
     for (SimplexId i = 0; i < out.count; ++i) {
-      const SimplexId* s = Tet(out.first + i);
-      for (int e = 0; e < 6; ++e) out.values[6 * size_t(i) + e] = Edge(s, e);
+      TetEdges(Tet(out.first + i), &out.values[6 * size_t(i)]);
     }
   }
 
@@ -302,8 +338,7 @@ class BlockComputer {
     out.stride = 4;
     out.values.resize(size_t(out.count) * 4);
     for (SimplexId i = 0; i < out.count; ++i) {
-      const SimplexId* s = Tet(out.first + i);
-      for (int f = 0; f < 4; ++f) out.values[4 * size_t(i) + f] = Face(s, f);
+      TetFaces(Tet(out.first + i), &out.values[4 * size_t(i)]);
     }
   }
 
@@ -322,9 +357,9 @@ class BlockComputer {
     BeginPairs();
     for (SimplexId i = 0; i < out.count; ++i) {
       const SimplexId t = out.first + i;
-      const SimplexId* s = Tet(t);
-      for (int f = 0; f < 4; ++f) {
-        const SimplexId id = Face(s, f);
+      SimplexId faces[4];
+      TetFaces(Tet(t), faces);
+      for (SimplexId id : faces) {
         if (id >= star.first && id < star.first + star.count) {
           for (SimplexId other : star.row(id - star.first)) {
             if (other != t) Pair(i, other);
@@ -411,18 +446,29 @@ class BlockComputer {
     }
   }
 
-  // A vertex or edge is on the boundary iff it is a face of a boundary triangle.
+  // Calls fn(a, e, f) for every triangle f = (a, b, c) whose lowest vertex a is a candidate
+  // (ForEachLowestCandidate), e = (a, b) its edge: every triangle holding an inside vertex.
+  template <class Fn>
+  void ForEachCandidateTriangle(Fn&& fn) {
+    ForEachLowestCandidate([&](SimplexId a) {
+      for (SimplexId e = topo_.vertex_first_edge(a); e < topo_.vertex_first_edge(a + 1); ++e) {
+        for (SimplexId f = topo_.edge_first_triangle(e); f < topo_.edge_first_triangle(e + 1);
+             ++f) {
+          fn(a, e, f);
+        }
+      }
+    });
+  }
+
+  // A vertex or edge is on the boundary iff it is a face of a boundary triangle: read from the
+  // boundary bits of the triangles the block's vertices can be in, no triangle search.
   void VertexOnBoundary(RelationBlock& out) {
     out.stride = 1;
     out.values.assign(out.count, 0);
-    ForEachTet(b_, [&](SimplexId, const SimplexId* s) {
-      for (int f = 0; f < 4; ++f) {
-        const int* face = kTetFaces[f];
-        if (!Inside(s[face[0]]) && !Inside(s[face[1]]) && !Inside(s[face[2]])) continue;
-        if (!topo_.triangle_on_boundary(Face(s, f))) continue;
-        for (int k = 0; k < 3; ++k) {
-          if (Inside(s[face[k]])) out.values[s[face[k]] - vbegin_] = 1;
-        }
+    ForEachCandidateTriangle([&](SimplexId a, SimplexId e, SimplexId f) {
+      if (!topo_.triangle_on_boundary(f)) return;
+      for (SimplexId v : {a, topo_.edge_upper(e), topo_.triangle_third(f)}) {
+        if (Inside(v)) out.values[v - vbegin_] = 1;
       }
     });
   }
@@ -430,17 +476,15 @@ class BlockComputer {
   void EdgeOnBoundary(RelationBlock& out) {
     out.stride = 1;
     out.values.assign(out.count, 0);
-    constexpr int kFaceEdges[3][2] = {{0, 1}, {0, 2}, {1, 2}};
-    ForEachTet(b_, [&](SimplexId, const SimplexId* s) {
-      for (int f = 0; f < 4; ++f) {
-        const int* face = kTetFaces[f];
-        if (!Inside(s[face[0]]) && !Inside(s[face[1]])) continue;
-        if (!topo_.triangle_on_boundary(Face(s, f))) continue;
-        for (const auto& fe : kFaceEdges) {
-          const SimplexId a = s[face[fe[0]]], c = s[face[fe[1]]];
-          if (Inside(a)) out.values[topo_.FindEdge(a, c) - out.first] = 1;
-        }
+    // Boundary triangles are few: their other two edges are searched for.
+    ForEachCandidateTriangle([&](SimplexId a, SimplexId e, SimplexId f) {
+      if (!topo_.triangle_on_boundary(f)) return;
+      const SimplexId b = topo_.edge_upper(e), c = topo_.triangle_third(f);
+      if (Inside(a)) {
+        out.values[e - out.first] = 1;
+        out.values[topo_.FindEdge(a, c) - out.first] = 1;
       }
+      if (Inside(b)) out.values[topo_.FindEdge(b, c) - out.first] = 1;
     });
   }
 
