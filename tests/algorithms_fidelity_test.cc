@@ -115,9 +115,10 @@ TEST_F(MatchesTtk, MorseSmale) {
     SCOPED_TRACE(c.file + " / " + c.field);
     const Loaded in = Load(c.file, c.field);
     const Json& ms = c.expected["morse_smale"];
-    ForEveryStructureAndThreadCount(in, Prefetch::kSpatial, [&](const std::string& label,
-                                                                auto& structure,
-                                                                const RunContext& context) {
+    // Linear: the default; morse_smale_test.cc covers the other prefetch modes.
+    ForEveryStructureAndThreadCount(in, Prefetch::kLinear, [&](const std::string& label,
+                                                               auto& structure,
+                                                               const RunContext& context) {
       SCOPED_TRACE(label);
       const MorseSmaleResult r = *RunMorseSmale(structure, in.order, in.tetrahedra, context);
       EXPECT_EQ(Json(r.gradient.critical_cells), ms["critical_cells"]);
