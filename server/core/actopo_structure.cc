@@ -227,6 +227,13 @@ class ActopoStructure::Consumer {
     return nullptr;
   }
 
+  // Any thread: switches prefetching on or off; off drops the pending tasks at once.
+  void SetPrefetching(bool on) {
+    std::lock_guard<std::mutex> lock(mu_);
+    prefetching_ = on;
+    if (!on) DropTasks();
+  }
+
   void Unpin(Cell& c) { c.pins.fetch_sub(1, std::memory_order_seq_cst); }
 
   void CountOwnComputation() { consumer_relations_.Add(1); }
@@ -436,8 +443,19 @@ class ActopoStructure::Consumer {
     if (now > peak_bytes_.Get()) peak_bytes_.value.store(now, std::memory_order_relaxed);
   }
 
+  // mu_ held.
+  void DropTasks() {
+    tasks_.clear();
+    next_task_ = 0;
+    trigger_block_.store(-1, std::memory_order_relaxed);
+  }
+
   // mu_ held: replace the workers' task list with the neighbourhood of `from`.
   void Retarget(const Task& from, const std::vector<int32_t>& prediction) {
+    if (!prefetching_) {
+      DropTasks();
+      return;
+    }
     const int32_t nb = topo_.num_blocks();
     std::vector<int32_t> blocks;
     switch (options_.prefetch) {
@@ -503,6 +521,7 @@ class ActopoStructure::Consumer {
   uint64_t hint_seq_ = 0;
   std::vector<Task> tasks_;
   size_t next_task_ = 0;
+  bool prefetching_ = true;  // false: re-targets drop the tasks (see SetPrefetching)
   std::vector<int32_t> resident_;         // blocks in the buffer, oldest first
   std::vector<int64_t> block_inserted_;   // -1 when not resident
 
@@ -548,6 +567,10 @@ ActopoStructure::~ActopoStructure() { Shutdown(); }
 
 void ActopoStructure::Shutdown() {
   for (auto& c : consumers_) c->Stop();
+}
+
+void ActopoStructure::SetPrefetching(bool on) {
+  for (auto& c : consumers_) c->SetPrefetching(on);
 }
 
 ActopoStructure::Reader ActopoStructure::NewReader() {

@@ -113,6 +113,13 @@ class ActopoStructure {
   // miss from then on they compute themselves. Idempotent.
   void Shutdown();
 
+  // Off: producers stop prefetching (pending tasks dropped, re-targets ignored) and only a
+  // missed relation is still computed, by whoever the miss policy names; on again: the next
+  // miss or hint re-targets them. For phases that read blocks in no order an engine could
+  // follow (Morse-Smale's walls): prefetching there computes blocks nobody reads, on the
+  // consumers' cores, and evicts the ones they come back to. Safe to call while running.
+  void SetPrefetching(bool on);
+
   ActopoStructure(const ActopoStructure&) = delete;
   ActopoStructure& operator=(const ActopoStructure&) = delete;
 
