@@ -437,35 +437,34 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
   });
   std::vector<SimplexId> vertex_label(topo.num_vertices(), -1);
   if (!maxima.empty()) {
-    std::vector<SimplexId> up(topo.num_tetrahedra());
-    status = RunOnConsumers(phase(0.8, 0.9), topo, topo.num_blocks(),
+    // fn(builder, block) for every block, each consumer on its blocks with its own reader.
+    const auto for_each_block = [&](const RunContext& c, auto&& fn) {
+      return RunOnConsumers(c, topo, topo.num_blocks(),
                             [&](int, BlockRange range, WorkTracker& tracker) {
                               auto reader = structure.NewReader();
                               Builder builder(reader, g, input_tetrahedra);
                               for (int32_t b = range.begin; b < range.end; ++b) {
-                                for (SimplexId t = topo.block_tetrahedron_begin(b);
-                                     t < topo.block_tetrahedron_begin(b + 1); ++t) {
-                                  if (!g.IsCritical(3, t)) up[t] = builder.NextUp(t);
-                                }
+                                fn(builder, b);
                                 if (!tracker.Done()) return;
                               }
                             });
+    };
+    std::vector<SimplexId> up(topo.num_tetrahedra());
+    status = for_each_block(phase(0.8, 0.9), [&](auto& builder, int32_t b) {
+      for (SimplexId t = topo.block_tetrahedron_begin(b); t < topo.block_tetrahedron_begin(b + 1);
+           ++t) {
+        if (!g.IsCritical(3, t)) up[t] = builder.NextUp(t);
+      }
+    });
     if (!status.ok()) return status;
     for (size_t i = 0; i < maxima.size(); ++i) up[maxima[i]] = LabelCode(SimplexId(i));
     ResolveAscendingLabels(up);
-    status = RunOnConsumers(phase(0.9, 1.0), topo, topo.num_blocks(),
-                            [&](int, BlockRange range, WorkTracker& tracker) {
-                              auto reader = structure.NewReader();
-                              Builder builder(reader, g, input_tetrahedra);
-                              for (int32_t b = range.begin; b < range.end; ++b) {
-                                for (SimplexId v = topo.block_vertex_begin(b);
-                                     v < topo.block_vertex_begin(b + 1); ++v) {
-                                  const SimplexId first = builder.FirstInStar(v);
-                                  if (first >= 0) vertex_label[v] = up[first];
-                                }
-                                if (!tracker.Done()) return;
-                              }
-                            });
+    status = for_each_block(phase(0.9, 1.0), [&](auto& builder, int32_t b) {
+      for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
+        const SimplexId first = builder.FirstInStar(v);
+        if (first >= 0) vertex_label[v] = up[first];
+      }
+    });
     if (!status.ok()) return status;
   }
   result.maximum_sizes.assign(maxima.size(), 0);

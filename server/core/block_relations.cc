@@ -65,23 +65,26 @@ class BlockComputer {
     for (SimplexId t = topo_.block_tetrahedron_begin(block); t < end; ++t) fn(t, Tet(t));
   }
 
-  // Edge (a, w) for each of `n` ascending upper vertices w of a, in one pass over a's run.
-  void EdgesFrom(SimplexId a, const SimplexId* w, int n, SimplexId* out) const {
-    SimplexId e = topo_.vertex_first_edge(a);
+  // For each of `n` ascending targets, the first index from `first` on whose value(index) is
+  // the target, in one pass: runs are sorted, and each target is known to be in the run.
+  template <class Value>
+  static void FindInRun(SimplexId first, Value&& value, const SimplexId* targets, int n,
+                        SimplexId* out) {
     for (int i = 0; i < n; ++i) {
-      while (topo_.edge_upper(e) < w[i]) ++e;
-      assert(topo_.edge_upper(e) == w[i]);
-      out[i] = e;
+      while (value(first) < targets[i]) ++first;
+      assert(value(first) == targets[i]);
+      out[i] = first;
     }
+  }
+  // Edge (a, w) for each of `n` ascending upper vertices w of a.
+  void EdgesFrom(SimplexId a, const SimplexId* w, int n, SimplexId* out) const {
+    FindInRun(topo_.vertex_first_edge(a), [&](SimplexId e) { return topo_.edge_upper(e); }, w, n,
+              out);
   }
   // Triangle (a, b, c) for each of `n` ascending third vertices c of edge e = (a, b).
   void TrianglesOn(SimplexId e, const SimplexId* c, int n, SimplexId* out) const {
-    SimplexId f = topo_.edge_first_triangle(e);
-    for (int i = 0; i < n; ++i) {
-      while (topo_.triangle_third(f) < c[i]) ++f;
-      assert(topo_.triangle_third(f) == c[i]);
-      out[i] = f;
-    }
+    FindInRun(topo_.edge_first_triangle(e), [&](SimplexId f) { return topo_.triangle_third(f); },
+              c, n, out);
   }
   // The 6 edges of sorted tetrahedron s in kTetEdges order: three runs read once each.
   void TetEdges(const SimplexId* s, SimplexId* out) const {

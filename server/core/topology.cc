@@ -215,9 +215,9 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     }
   }
 
-  // Tetrahedra: stable bucket sort by the block of the lowest vertex, then each sorted internal
-  // tuple written straight to its place (no second copy of the tetrahedra at any time), then
-  // each block's by their lowest vertex.
+  // Tetrahedra: stable bucket sort by the block of the lowest vertex, then within each block by
+  // the lowest vertex, each sorted internal tuple written straight to its place (no second copy
+  // of the tetrahedra at any time, only one block's per thread).
   {
     const auto internal = [&](int64_t i, int k) {
       return t.vertex_internal_id_[mesh.tetrahedra[4 * size_t(i) + k]];
@@ -229,43 +229,34 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
                                         std::min(internal(i, 2), internal(i, 3)))]);
         },
         t.block_tet_begin_, t.tet_input_id_);
+    // Per block, in parallel: each tetrahedron's sorted internal tuple, then the block's
+    // tetrahedra ordered by lowest vertex (a stable counting sort), written to their places. A
+    // vertex's star is then a few nearby runs, however the file ordered its cells.
     t.tet_vertices_.resize(4 * size_t(nt));
-    struct Reorder {
+    struct BlockTets {
       std::vector<SimplexId> at, tuples, inputs;
     };
-    std::vector<Reorder> reorder(std::max(threads, 1));
-    constexpr int64_t kTetsPerTask = 1 << 16;
-    ParallelFor((int64_t(nt) + kTetsPerTask - 1) / kTetsPerTask, threads, [&](int64_t task, int) {
-      const int64_t end = std::min<int64_t>(nt, (task + 1) * kTetsPerTask);
-      for (int64_t id = task * kTetsPerTask; id < end; ++id) {
-        SimplexId* s = &t.tet_vertices_[4 * size_t(id)];
-        for (int k = 0; k < 4; ++k) s[k] = internal(t.tet_input_id_[id], k);
-        SortVertexIds(s, 4);
-      }
-    });
-    // Within a block, tetrahedra by their lowest vertex (a stable counting sort): a vertex's
-    // star is then a few nearby runs, however the file ordered its cells.
+    std::vector<BlockTets> block_tets(std::max(threads, 1));
     ParallelFor(num_blocks, threads, [&](int64_t b, int thread) {
       const SimplexId begin = t.block_tet_begin_[b], end = t.block_tet_begin_[b + 1];
       const SimplexId vbegin = t.block_vertex_begin_[b];
-      std::vector<SimplexId>& at = reorder[thread].at;
-      std::vector<SimplexId>& tuples = reorder[thread].tuples;
-      std::vector<SimplexId>& inputs = reorder[thread].inputs;
-      at.assign(size_t(t.block_vertex_begin_[b + 1] - vbegin) + 1, 0);
-      for (SimplexId id = begin; id < end; ++id) {
-        ++at[t.tet_vertices_[4 * size_t(id)] - vbegin + 1];
+      BlockTets& sc = block_tets[thread];
+      sc.at.assign(size_t(t.block_vertex_begin_[b + 1] - vbegin) + 1, 0);
+      sc.tuples.resize(4 * size_t(end - begin));
+      sc.inputs.assign(t.tet_input_id_.begin() + begin, t.tet_input_id_.begin() + end);
+      for (SimplexId i = 0; i < end - begin; ++i) {
+        SimplexId* s = &sc.tuples[4 * size_t(i)];
+        for (int k = 0; k < 4; ++k) s[k] = internal(sc.inputs[i], k);
+        SortVertexIds(s, 4);
+        ++sc.at[s[0] - vbegin + 1];
       }
-      for (size_t i = 1; i < at.size(); ++i) at[i] += at[i - 1];
-      tuples.resize(4 * size_t(end - begin));
-      inputs.resize(size_t(end - begin));
-      for (SimplexId id = begin; id < end; ++id) {
-        const SimplexId* s = &t.tet_vertices_[4 * size_t(id)];
-        const SimplexId to = at[s[0] - vbegin]++;
-        std::copy_n(s, 4, &tuples[4 * size_t(to)]);
-        inputs[to] = t.tet_input_id_[id];
+      for (size_t i = 1; i < sc.at.size(); ++i) sc.at[i] += sc.at[i - 1];
+      for (SimplexId i = 0; i < end - begin; ++i) {
+        const SimplexId* s = &sc.tuples[4 * size_t(i)];
+        const SimplexId to = begin + sc.at[s[0] - vbegin]++;
+        std::copy_n(s, 4, &t.tet_vertices_[4 * size_t(to)]);
+        t.tet_input_id_[to] = sc.inputs[i];
       }
-      std::copy(tuples.begin(), tuples.end(), &t.tet_vertices_[4 * size_t(begin)]);
-      std::copy(inputs.begin(), inputs.end(), &t.tet_input_id_[begin]);
     });
   }
 
