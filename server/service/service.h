@@ -27,12 +27,6 @@ struct ServiceLimits {
   int64_t session_idle_timeout_seconds = 0;
 };
 
-// A running job, for CancelJob.
-struct JobHandle {
-  std::string session_id;
-  std::atomic<bool> cancel{false};
-};
-
 namespace v1 = ::actopo::v1;
 
 class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
@@ -96,8 +90,6 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
   SessionManager& sessions() { return *sessions_; }
   Metrics& metrics() { return *metrics_; }
   const ServiceLimits& limits() const { return limits_; }
-  std::shared_ptr<JobHandle> RegisterJob(const std::string& job_id, const std::string& session);
-  void UnregisterJob(const std::string& job_id);
   void RefreshGauges();
 
  private:
@@ -112,8 +104,6 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
   const ServiceLimits limits_;
   const std::string token_;
   std::atomic<bool> draining_{false};
-  std::mutex jobs_mu_;
-  std::map<std::string, std::shared_ptr<JobHandle>> jobs_;
 };
 
 }  // namespace actopo::service

@@ -326,14 +326,14 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     std::lock_guard<std::mutex> lock(mu_);
     writing_ = false;
     if (!ok) {
-      handle_->cancel = true;
+      job_->cancel = true;
       client_gone_ = true;
     }
     WriteNextLocked();
   }
 
   void OnCancel() override {
-    if (handle_) handle_->cancel = true;
+    if (job_) job_->cancel = true;
   }
 
   void OnDone() override {
@@ -345,37 +345,30 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   absl::Status Prepare(const v1::RunJobRequest& request) {
     ASSIGN_OR_RETURN(session_, service_->sessions().Get(request.session_id()));
     ASSIGN_OR_RETURN(input_.algorithm, FromProto(request.algorithm()));
-    if (!session_->running_job().empty()) {
-      return absl::FailedPreconditionError(absl::StrCat(
-          "session_id: session '", session_->id(), "' is running job '", session_->running_job(),
-          "'; wait for it or cancel it (CancelJob)"));
-    }
     const AlgorithmInput& base = session_->base_input();
     input_.order = base.order;
     if (input_.algorithm == Algorithm::kMorseSmale) input_.input_tetrahedra = base.input_tetrahedra;
     std::map<std::string, std::string> parameters(request.parameters().begin(),
                                                   request.parameters().end());
     RETURN_IF_ERROR(ApplyParameters(parameters, input_));
-    RETURN_IF_ERROR(service_->sessions().ReserveJobThreads(*session_));
     include_arrays_ = request.include_arrays();
-    job_id_ = NewId("job");
-    handle_ = service_->RegisterJob(job_id_, session_->id());
-    session_->set_running_job(job_id_);
+    // Atomic: of N concurrent calls on a session exactly one gets the lease.
+    ASSIGN_OR_RETURN(lease_, service_->sessions().StartJob(session_->id(), input_.algorithm));
+    job_ = lease_.shared_job();
+    job_id_ = job_->id;
     return absl::OkStatus();
   }
 
   void Run() {
     RunContext context;
-    context.cancel = &handle_->cancel;
+    context.cancel = &job_->cancel;
     context.progress = [this](double fraction) {
       v1::RunJobResponse progress;
       progress.mutable_progress()->set_fraction(fraction);
       Push(std::move(progress));
     };
     absl::StatusOr<JobOutcome> outcome = session_->RunJob(input_, context);
-    session_->set_running_job("");
-    service_->UnregisterJob(job_id_);  // before the client can see the end of the stream
-    service_->sessions().ReleaseJobThreads(*session_);
+    lease_.Release();  // before the client can see the end of the stream
     absl::Status status = outcome.status();
     if (status.ok()) status = SendResult(*outcome);
     service_->Count("RunJob", status);
@@ -473,7 +466,8 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
 
   TopologyServiceImpl* service_;
   std::shared_ptr<Session> session_;
-  std::shared_ptr<JobHandle> handle_;
+  JobLease lease_;             // released by the job's thread when the algorithm returns
+  std::shared_ptr<Job> job_;   // its cancel flag, for OnCancel and OnWriteDone
   std::string job_id_;
   AlgorithmInput input_;
   bool include_arrays_ = false;

@@ -315,6 +315,73 @@ TEST_F(ServiceTest, CancelJobStopsTheRun) {
   EXPECT_TRUE(RunJob(*stub_, again.get(), request).status.ok());
 }
 
+TEST_F(ServiceTest, OfManyConcurrentRunJobsOnASessionExactlyOneRuns) {
+  const std::string session = Open(LoadSample("jittered:60", 500), v1::STRUCTURE_ACTOPO);
+  v1::RunJobRequest request;
+  request.set_session_id(session);
+  request.set_algorithm(v1::ALGORITHM_TOPO_RELATIONS);  // a few seconds: it outlives the race
+  constexpr int kCalls = 24;
+  struct Call {
+    std::unique_ptr<grpc::ClientContext> context;
+    std::unique_ptr<grpc::ClientReader<v1::RunJobResponse>> reader;
+    std::string job_id;  // set when accepted
+    grpc::Status status;
+  };
+  std::vector<Call> calls(kCalls);
+  std::atomic<bool> go{false};
+  std::vector<std::thread> threads;
+  for (Call& call : calls) {
+    threads.emplace_back([&] {
+      while (!go.load()) std::this_thread::yield();
+      call.context = Context();
+      call.reader = stub_->RunJob(call.context.get(), request);
+      v1::RunJobResponse first;
+      if (call.reader->Read(&first) && first.has_accepted()) {
+        call.job_id = first.accepted().job_id();
+      } else {
+        call.status = call.reader->Finish();
+      }
+    });
+  }
+  go = true;
+  for (std::thread& t : threads) t.join();
+  std::string winner;
+  for (const Call& call : calls) {
+    if (call.job_id.empty()) continue;
+    ASSERT_TRUE(winner.empty()) << "two jobs accepted: " << winner << " and " << call.job_id;
+    winner = call.job_id;
+  }
+  ASSERT_FALSE(winner.empty());
+  v1::GetSessionRequest get;
+  get.set_session_id(session);
+  v1::GetSessionResponse described;
+  ASSERT_TRUE(stub_->GetSession(Context().get(), get, &described).ok());
+  EXPECT_EQ(described.session().running_job_id(), winner);
+  for (const Call& call : calls) {
+    if (!call.job_id.empty()) continue;
+    EXPECT_EQ(call.status.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+    EXPECT_NE(call.status.error_message().find(winner), std::string::npos)
+        << call.status.error_message();
+  }
+  v1::CancelJobRequest cancel;
+  cancel.set_job_id(winner);
+  v1::CancelJobResponse cancelled;
+  ASSERT_TRUE(stub_->CancelJob(Context().get(), cancel, &cancelled).ok());
+  for (Call& call : calls) {
+    if (call.job_id.empty()) continue;
+    v1::RunJobResponse message;
+    while (call.reader->Read(&message)) {
+    }
+    EXPECT_EQ(call.reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
+  }
+  // The lease is released before the stream ends: the session takes the next job at once.
+  ASSERT_TRUE(stub_->GetSession(Context().get(), get, &described).ok());
+  EXPECT_EQ(described.session().running_job_id(), "");
+  request.set_algorithm(v1::ALGORITHM_CRITICAL_POINTS);
+  auto again = Context();
+  EXPECT_TRUE(RunJob(*stub_, again.get(), request).status.ok());
+}
+
 TEST_F(ServiceTest, CancellingTheCallCancelsTheJob) {
   const std::string session = Open(LoadSample("jittered:60", 500), v1::STRUCTURE_ACTOPO);
   v1::RunJobRequest request;

@@ -24,8 +24,7 @@ TopologyServiceImpl::TopologyServiceImpl(MeshRegistry* meshes, SessionManager* s
 
 void TopologyServiceImpl::Drain() {
   draining_ = true;
-  std::lock_guard<std::mutex> lock(jobs_mu_);
-  for (auto& [id, job] : jobs_) job->cancel = true;
+  sessions_->Drain();
 }
 
 absl::Status TopologyServiceImpl::Admit(grpc::CallbackServerContext* context) const {
@@ -138,7 +137,7 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::OpenSession(grpc::CallbackServerC
     ASSIGN_OR_RETURN(auto mesh, meshes_->Get(in->mesh_id()));
     ASSIGN_OR_RETURN(SessionOptions options, FromProto(*in));
     ASSIGN_OR_RETURN(auto session, sessions_->Open(mesh, options));
-    Fill(*session, out->mutable_session());
+    Fill(*session, /*running_job=*/"", out->mutable_session());
     return absl::OkStatus();
   });
 }
@@ -148,7 +147,7 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::GetSession(grpc::CallbackServerCo
                                                           v1::GetSessionResponse* out) {
   return Unary(c, "GetSession", [&]() -> absl::Status {
     ASSIGN_OR_RETURN(auto session, sessions_->Get(in->session_id()));
-    Fill(*session, out->mutable_session());
+    Fill(*session, sessions_->RunningJob(session->id()), out->mutable_session());
     return absl::OkStatus();
   });
 }
@@ -157,7 +156,9 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::ListSessions(grpc::CallbackServer
                                                             const v1::ListSessionsRequest*,
                                                             v1::ListSessionsResponse* out) {
   return Unary(c, "ListSessions", [&] {
-    for (const auto& s : sessions_->List()) Fill(*s, out->add_sessions());
+    for (const auto& s : sessions_->List()) {
+      Fill(*s, sessions_->RunningJob(s->id()), out->add_sessions());
+    }
     return absl::OkStatus();
   });
 }
@@ -166,14 +167,7 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::CloseSession(grpc::CallbackServer
                                                             const v1::CloseSessionRequest* in,
                                                             v1::CloseSessionResponse*) {
   return Unary(c, "CloseSession", [&]() -> absl::Status {
-    ASSIGN_OR_RETURN(auto session, sessions_->Get(in->session_id()));
-    {
-      // Cancel its running job; the job's stream ends with CANCELLED.
-      std::lock_guard<std::mutex> lock(jobs_mu_);
-      for (auto& [id, job] : jobs_) {
-        if (job->session_id == session->id()) job->cancel = true;
-      }
-    }
+    // Its running job is cancelled; the job's stream ends with CANCELLED.
     return sessions_->Close(in->session_id());
   });
 }
@@ -280,31 +274,7 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::GetRelationBatch(
 grpc::ServerUnaryReactor* TopologyServiceImpl::CancelJob(grpc::CallbackServerContext* c,
                                                          const v1::CancelJobRequest* in,
                                                          v1::CancelJobResponse*) {
-  return Unary(c, "CancelJob", [&]() -> absl::Status {
-    std::lock_guard<std::mutex> lock(jobs_mu_);
-    auto it = jobs_.find(in->job_id());
-    if (it == jobs_.end()) {
-      return absl::NotFoundError(
-          absl::StrCat("job_id: no running job '", in->job_id(), "' (finished or never started)"));
-    }
-    it->second->cancel = true;
-    return absl::OkStatus();
-  });
-}
-
-std::shared_ptr<JobHandle> TopologyServiceImpl::RegisterJob(const std::string& job_id,
-                                                            const std::string& session) {
-  auto handle = std::make_shared<JobHandle>();
-  handle->session_id = session;
-  std::lock_guard<std::mutex> lock(jobs_mu_);
-  if (draining_) handle->cancel = true;
-  jobs_[job_id] = handle;
-  return handle;
-}
-
-void TopologyServiceImpl::UnregisterJob(const std::string& job_id) {
-  std::lock_guard<std::mutex> lock(jobs_mu_);
-  jobs_.erase(job_id);
+  return Unary(c, "CancelJob", [&] { return sessions_->CancelJob(in->job_id()); });
 }
 
 }  // namespace actopo::service

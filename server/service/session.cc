@@ -285,12 +285,6 @@ const ResultContext& Session::result_context() {
 
 absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input,
                                            const RunContext& context) {
-  std::unique_lock<std::mutex> job(job_mu_, std::try_to_lock);
-  if (!job.owns_lock()) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        "session_id: session '", id_, "' is running job '", running_job(),
-        "'; wait for it or cancel it (CancelJob)"));
-  }
   Touch();
   const auto start = Clock::now();
   RunContext ctx = context;
@@ -354,16 +348,6 @@ SessionStats Session::stats() const {
   s.job_ns = job_ns_.load();
   s.preprocess_seconds = preprocess_seconds_;
   return s;
-}
-
-std::string Session::running_job() const {
-  std::lock_guard<std::mutex> lock(stats_mu_);
-  return running_job_;
-}
-
-void Session::set_running_job(const std::string& job_id) {
-  std::lock_guard<std::mutex> lock(stats_mu_);
-  running_job_ = job_id;
 }
 
 }  // namespace actopo::service

@@ -1,5 +1,6 @@
 // A session: one structure (explicit, compact or actopo) on a shared mesh and a scalar field,
-// answering relation queries and running one algorithm job at a time.
+// answering relation queries and running algorithm jobs (one at a time: the SessionManager's
+// JobLease is what makes them exclusive).
 //
 //   ASSIGN_OR_RETURN(auto session, Session::Open(mesh, options, &budget));
 //   ASSIGN_OR_RETURN(SimplexId v, session->ResolveId(0, 17));
@@ -94,15 +95,13 @@ class Session {
   absl::Status Query(Relation r, SimplexId s, std::vector<int64_t>& ids,
                      std::vector<int64_t>* vertices);
 
-  // Runs an algorithm (one job at a time: FAILED_PRECONDITION otherwise).
+  // Runs an algorithm. The caller holds the session's JobLease (SessionManager::StartJob).
   absl::StatusOr<JobOutcome> RunJob(const AlgorithmInput& input, const RunContext& context);
   const AlgorithmInput& base_input() const { return base_; }
   // For result arrays and files.
   const ResultContext& result_context();
 
   SessionStats stats() const;
-  std::string running_job() const;
-  void set_running_job(const std::string& job_id);
 
  private:
   Session() = default;
@@ -129,11 +128,9 @@ class Session {
   std::mutex result_mu_;
   std::optional<ResultContext> result_context_;
 
-  std::mutex job_mu_;  // held while a job runs
   mutable std::mutex stats_mu_;
   EngineStats finished_jobs_;
   int64_t relation_peak_bytes_ = 0;
-  std::string running_job_;
   std::atomic<int64_t> last_used_ns_{0};
   std::atomic<int64_t> queries_{0}, query_ns_{0}, jobs_{0}, job_ns_{0};
   double preprocess_seconds_ = 0;

@@ -1,7 +1,10 @@
 #include "server/service/session_manager.h"
 
+#include <utility>
+
 #include "absl/strings/str_cat.h"
 #include "server/core/status_macros.h"
+#include "server/service/ids.h"
 
 namespace actopo::service {
 
@@ -83,6 +86,10 @@ absl::Status SessionManager::Close(const std::string& id) {
     if (it == sessions_.end()) {
       return absl::NotFoundError(absl::StrCat("session_id: no session '", id, "'"));
     }
+    // Its job (if any) sees the flag and ends with CANCELLED; its lease stays valid until then.
+    if (auto job = job_of_session_.find(id); job != job_of_session_.end()) {
+      jobs_.at(job->second)->cancel = true;
+    }
     closing = std::move(it->second);
     sessions_.erase(it);
     threads_ -= closing->query_threads();
@@ -102,22 +109,86 @@ size_t SessionManager::size() const {
   return sessions_.size();
 }
 
-absl::Status SessionManager::ReserveJobThreads(const Session& session) {
+JobLease& JobLease::operator=(JobLease&& other) noexcept {
+  if (this != &other) {
+    Release();
+    owner_ = std::exchange(other.owner_, nullptr);
+    job_ = std::move(other.job_);
+    threads_ = std::exchange(other.threads_, 0);
+  }
+  return *this;
+}
+
+void JobLease::Release() {
+  if (owner_ == nullptr) return;
+  std::exchange(owner_, nullptr)->EndJob(*job_, threads_);
+}
+
+absl::StatusOr<JobLease> SessionManager::StartJob(const std::string& session_id,
+                                                  Algorithm algorithm) {
   std::lock_guard<std::mutex> lock(mu_);
-  const int needed = session.job_threads();
+  if (draining_) return absl::UnavailableError("the server is shutting down");
+  auto session = sessions_.find(session_id);
+  if (session == sessions_.end()) {
+    return absl::NotFoundError(absl::StrCat("session_id: no session '", session_id,
+                                            "' (closed, timed out after idling, or never opened)"));
+  }
+  if (auto running = job_of_session_.find(session_id); running != job_of_session_.end()) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "session_id: session '", session_id, "' is running job '", running->second,
+        "'; wait for it or cancel it (CancelJob)"));
+  }
+  const int needed = session->second->job_threads();
   if (threads_ + needed > limits_.max_engine_threads) {
     return absl::ResourceExhaustedError(absl::StrCat(
         "engine: the job needs ", needed, " engine threads but the server's budget of ",
         limits_.max_engine_threads, " has ", limits_.max_engine_threads - threads_,
         " left; retry when other jobs end"));
   }
+  auto job = std::make_shared<Job>();
+  job->id = NewId("job");
+  job->session_id = session_id;
+  job->algorithm = algorithm;
+  job->started = absl::Now();
+  jobs_[job->id] = job;
+  job_of_session_[session_id] = job->id;
   threads_ += needed;
+  return JobLease(this, std::move(job), needed);
+}
+
+void SessionManager::EndJob(const Job& job, int threads) {
+  std::lock_guard<std::mutex> lock(mu_);
+  jobs_.erase(job.id);
+  job_of_session_.erase(job.session_id);
+  threads_ -= threads;
+}
+
+absl::Status SessionManager::CancelJob(const std::string& job_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = jobs_.find(job_id);
+  if (it == jobs_.end()) {
+    return absl::NotFoundError(
+        absl::StrCat("job_id: no running job '", job_id, "' (finished or never started)"));
+  }
+  it->second->cancel = true;
   return absl::OkStatus();
 }
 
-void SessionManager::ReleaseJobThreads(const Session& session) {
+std::string SessionManager::RunningJob(const std::string& session_id) const {
   std::lock_guard<std::mutex> lock(mu_);
-  threads_ -= session.job_threads();
+  auto it = job_of_session_.find(session_id);
+  return it == job_of_session_.end() ? std::string() : it->second;
+}
+
+int SessionManager::running_jobs() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return int(jobs_.size());
+}
+
+void SessionManager::Drain() {
+  std::lock_guard<std::mutex> lock(mu_);
+  draining_ = true;
+  for (auto& [id, job] : jobs_) job->cancel = true;
 }
 
 int SessionManager::threads_in_use() const {
@@ -132,7 +203,7 @@ void SessionManager::ReapIdle() {
     const absl::Time now = absl::Now();
     std::vector<std::shared_ptr<Session>> expired;
     for (auto it = sessions_.begin(); it != sessions_.end();) {
-      if (it->second->running_job().empty() &&
+      if (!job_of_session_.contains(it->first) &&
           now - it->second->last_used() > limits_.idle_timeout) {
         threads_ -= it->second->query_threads();
         expired.push_back(std::move(it->second));

@@ -121,7 +121,7 @@ void Fill(const LoadedMesh& mesh, int sessions, pb::MeshInfo* out) {
   out->set_partition_seconds(mesh.partition_seconds);
 }
 
-void Fill(Session& s, pb::SessionInfo* out) {
+void Fill(Session& s, const std::string& running_job, pb::SessionInfo* out) {
   out->set_session_id(s.id());
   out->set_mesh_id(s.mesh().id);
   out->set_scalar_field(s.scalar_name());
@@ -137,7 +137,7 @@ void Fill(Session& s, pb::SessionInfo* out) {
   if (o.precompute) e->set_precompute(static_cast<pb::Precompute>(int(*o.precompute) + 1));
   *out->mutable_created() = Stamp(s.created());
   *out->mutable_last_used() = Stamp(s.last_used());
-  out->set_running_job_id(s.running_job());
+  out->set_running_job_id(running_job);
 }
 
 void Fill(const EngineStats& s, pb::EngineStats* out) {

@@ -33,7 +33,8 @@ absl::StatusOr<SessionOptions> FromProto(const pb::OpenSessionRequest& request);
 PartitionOptions FromProto(const pb::PartitionOptions& p);
 
 void Fill(const LoadedMesh& mesh, int sessions, pb::MeshInfo* out);
-void Fill(Session& session, pb::SessionInfo* out);
+// `running_job`: SessionManager::RunningJob of the session.
+void Fill(Session& session, const std::string& running_job, pb::SessionInfo* out);
 void Fill(const EngineStats& stats, pb::EngineStats* out);
 void Fill(const MemoryStats& memory, pb::MemoryStats* out);
 

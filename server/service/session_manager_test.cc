@@ -1,0 +1,137 @@
+// The session manager's job leases without gRPC (so this also runs under ThreadSanitizer):
+// exactly one of many concurrent StartJob calls on a session wins, and every way a job ends
+// releases its session, its threads and its id.
+#include "server/service/session_manager.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <thread>
+#include <vector>
+
+#include "absl/strings/match.h"
+
+namespace actopo::service {
+namespace {
+
+class SessionManagerTest : public ::testing::Test {
+ protected:
+  SessionManagerTest()
+      : budget_(int64_t(4) << 30),
+        meshes_(MeshRegistryOptions{}, &budget_),
+        sessions_(SessionLimits{.max_sessions = 8, .max_engine_threads = 16}, &budget_) {}
+
+  std::shared_ptr<Session> OpenSession(StructureKind structure = StructureKind::kCompact) {
+    auto mesh = meshes_.LoadSample("jittered:6", {});
+    EXPECT_TRUE(mesh.ok()) << mesh.status();
+    auto session = sessions_.Open(*mesh, SessionOptions{.structure = structure});
+    EXPECT_TRUE(session.ok()) << session.status();
+    return *session;
+  }
+
+  MemoryBudget budget_;
+  MeshRegistry meshes_;
+  SessionManager sessions_;
+};
+
+TEST_F(SessionManagerTest, ExactlyOneOfManyConcurrentStartsWins) {
+  const std::string id = OpenSession()->id();
+  for (int round = 0; round < 5; ++round) {
+    constexpr int kAttempts = 100;
+    std::vector<absl::StatusOr<JobLease>> results;
+    for (int i = 0; i < kAttempts; ++i) results.emplace_back(absl::UnknownError("not run"));
+    std::atomic<bool> go{false};
+    std::vector<std::thread> threads;
+    for (int i = 0; i < kAttempts; ++i) {
+      threads.emplace_back([&, i] {
+        while (!go.load()) std::this_thread::yield();
+        results[i] = sessions_.StartJob(id, Algorithm::kCriticalPoints);
+      });
+    }
+    go = true;
+    for (std::thread& t : threads) t.join();
+    int winners = 0;
+    std::string winner;
+    for (const auto& r : results) {
+      if (r.ok()) winner = r->job().id, ++winners;
+    }
+    ASSERT_EQ(winners, 1) << "round " << round;
+    EXPECT_EQ(sessions_.RunningJob(id), winner);
+    for (const auto& r : results) {
+      if (r.ok()) continue;
+      EXPECT_EQ(r.status().code(), absl::StatusCode::kFailedPrecondition) << r.status();
+      EXPECT_TRUE(absl::StrContains(r.status().message(), winner)) << r.status();
+    }
+    results.clear();  // the winner's lease ends the job
+    EXPECT_EQ(sessions_.RunningJob(id), "");
+    EXPECT_EQ(sessions_.running_jobs(), 0);
+    EXPECT_EQ(sessions_.threads_in_use(), 0);
+  }
+}
+
+TEST_F(SessionManagerTest, LeaseHoldsThreadsAndEndsOnRelease) {
+  const std::string id = OpenSession(StructureKind::kActopo)->id();
+  const int idle = sessions_.threads_in_use();  // the query engine's producers
+  EXPECT_GT(idle, 0);
+  absl::StatusOr<JobLease> lease = sessions_.StartJob(id, Algorithm::kDiscreteGradient);
+  ASSERT_TRUE(lease.ok()) << lease.status();
+  EXPECT_GT(sessions_.threads_in_use(), idle);
+  const std::string job = lease->job().id;
+  ASSERT_TRUE(sessions_.CancelJob(job).ok());
+  EXPECT_TRUE(lease->job().cancel.load());
+  JobLease moved = std::move(*lease);
+  lease->Release();  // moved from: no effect
+  EXPECT_EQ(sessions_.RunningJob(id), job);
+  moved.Release();
+  moved.Release();  // idempotent
+  EXPECT_EQ(sessions_.threads_in_use(), idle);
+  EXPECT_EQ(sessions_.CancelJob(job).code(), absl::StatusCode::kNotFound);
+  EXPECT_TRUE(sessions_.StartJob(id, Algorithm::kDiscreteGradient).ok());
+}
+
+TEST_F(SessionManagerTest, ClosingTheSessionCancelsItsJob) {
+  std::shared_ptr<Session> session = OpenSession();
+  absl::StatusOr<JobLease> lease = sessions_.StartJob(session->id(), Algorithm::kMorseSmale);
+  ASSERT_TRUE(lease.ok());
+  ASSERT_TRUE(sessions_.Close(session->id()).ok());
+  EXPECT_TRUE(lease->job().cancel.load());
+  // The job still holds its lease until its thread returns; then nothing is left.
+  EXPECT_EQ(sessions_.running_jobs(), 1);
+  lease->Release();
+  EXPECT_EQ(sessions_.running_jobs(), 0);
+  EXPECT_EQ(sessions_.StartJob(session->id(), Algorithm::kMorseSmale).status().code(),
+            absl::StatusCode::kNotFound);
+}
+
+TEST_F(SessionManagerTest, DrainCancelsJobsAndRefusesNewOnes) {
+  const std::string a = OpenSession()->id(), b = OpenSession()->id();
+  absl::StatusOr<JobLease> job = sessions_.StartJob(a, Algorithm::kCriticalPoints);
+  ASSERT_TRUE(job.ok());
+  sessions_.Drain();
+  EXPECT_TRUE(job->job().cancel.load());
+  EXPECT_EQ(sessions_.StartJob(b, Algorithm::kCriticalPoints).status().code(),
+            absl::StatusCode::kUnavailable);
+}
+
+TEST_F(SessionManagerTest, ThreadBudgetRefusesAJobThatDoesNotFit) {
+  // A budget of 16 threads; two actopo sessions hold 3 query producers each and their jobs
+  // need 2 * (1 + 3) = 8 threads: one job fits (6 + 8 = 14), a second does not.
+  auto mesh = meshes_.LoadSample("jittered:6", {});
+  ASSERT_TRUE(mesh.ok());
+  std::vector<std::string> ids;
+  for (int i = 0; i < 2; ++i) {
+    auto s = sessions_.Open(*mesh, SessionOptions{.structure = StructureKind::kActopo,
+                                                  .consumers = 2, .producers = 3});
+    ASSERT_TRUE(s.ok()) << s.status();
+    ids.push_back((*s)->id());
+  }
+  absl::StatusOr<JobLease> first = sessions_.StartJob(ids[0], Algorithm::kCriticalPoints);
+  ASSERT_TRUE(first.ok());
+  absl::StatusOr<JobLease> second = sessions_.StartJob(ids[1], Algorithm::kCriticalPoints);
+  EXPECT_EQ(second.status().code(), absl::StatusCode::kResourceExhausted) << second.status();
+  first->Release();
+  EXPECT_TRUE(sessions_.StartJob(ids[1], Algorithm::kCriticalPoints).ok());
+}
+
+}  // namespace
+}  // namespace actopo::service
