@@ -29,6 +29,15 @@ struct AccessStats {
     wait_ns += o.wait_ns;
     return *this;
   }
+  // Counts since `before` (a snapshot of the same counters).
+  AccessStats Since(const AccessStats& before) const {
+    return {.requests = requests - before.requests,
+            .hits = hits - before.hits,
+            .misses = misses - before.misses,
+            .evictions = evictions - before.evictions,
+            .relations_computed = relations_computed - before.relations_computed,
+            .wait_ns = wait_ns - before.wait_ns};
+  }
 };
 
 struct MemoryStats {

@@ -8,6 +8,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <vector>
 
 #include "actopo/v1/topology_service.grpc.pb.h"
 #include "server/service/memory_budget.h"
@@ -85,6 +86,17 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
   absl::Status AnswerRelation(const std::string& session_id, v1::Relation relation,
                               const v1::Simplex& simplex, bool include_vertices,
                               std::vector<int64_t>& ids, std::vector<int64_t>* vertices);
+  // A batch by ids or vertex_tuples (exactly one non-null) answered as CSR arrays. With
+  // `failures`, an item that fails gets an empty row and an entry there; without, the first
+  // failure fails the call.
+  struct ItemFailure {
+    int64_t index;
+    absl::Status status;
+  };
+  absl::Status AnswerBatch(const std::string& session_id, v1::Relation relation,
+                           const v1::Array* ids, const v1::Array* vertex_tuples,
+                           v1::Array* offsets, v1::Array* values,
+                           std::vector<ItemFailure>* failures);
   MeshRegistry& meshes() { return *meshes_; }
   MemoryBudget& budget() { return *budget_; }
   SessionManager& sessions() { return *sessions_; }

@@ -209,8 +209,11 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
 };
 
 // ---------------------------------------------------------------------------------------------
-// StreamRelations: errors in band. Reading and writing overlap (the next request is read while
-// earlier answers are written), with at most kMaxQueued answers waiting before reading pauses.
+// StreamRelations: errors in band. A request carries one simplex or a batch (CSR answer, with
+// per-item errors). Reading and writing overlap: the next request is read and answered while
+// earlier answers are written. Flow control: reading pauses while the answers waiting to be
+// written hold kMaxQueuedBytes or kMaxQueued messages, so a client that does not read its
+// answers holds at most that much server memory.
 class StreamRelationsReactor final
     : public grpc::ServerBidiReactor<v1::StreamRelationsRequest, v1::StreamRelationsResponse> {
  public:
@@ -227,31 +230,24 @@ class StreamRelationsReactor final
   }
 
   void OnReadDone(bool ok) override {
-    std::lock_guard<std::mutex> lock(mu_);
     if (!ok) {
+      std::lock_guard<std::mutex> lock(mu_);
       reads_done_ = true;
       MaybeFinishLocked();
       return;
     }
-    v1::StreamRelationsResponse& response = queue_.emplace_back();
-    response.set_request_id(request_.request_id());
-    std::vector<int64_t> ids;
-    const absl::Status s =
-        service_->draining()
-            ? absl::UnavailableError("the server is shutting down")
-            : service_->AnswerRelation(request_.session_id(), request_.relation(),
-                                       request_.simplex(), false, ids, nullptr);
-    if (s.ok()) {
-      response.mutable_ids()->Add(ids.begin(), ids.end());
-    } else {
-      response.mutable_error()->set_code(int(s.code()));
-      response.mutable_error()->set_message(std::string(s.message()));
-    }
+    // Only one read is outstanding, so request_ is ours until the next StartRead; the answer is
+    // computed without the lock, while OnWriteDone keeps writing earlier ones.
+    v1::StreamRelationsResponse response = Answer(request_);
+    const size_t bytes = response.ByteSizeLong();
+    std::lock_guard<std::mutex> lock(mu_);
+    queue_.push_back({std::move(response), bytes});
+    queued_bytes_ += bytes;
     if (!writing_) {
       writing_ = true;
-      StartWrite(&queue_.front());
+      StartWrite(&queue_.front().message);
     }
-    if (queue_.size() < kMaxQueued) {
+    if (HasRoomLocked()) {
       StartRead(&request_);
     } else {
       read_paused_ = true;
@@ -260,6 +256,7 @@ class StreamRelationsReactor final
 
   void OnWriteDone(bool ok) override {
     std::lock_guard<std::mutex> lock(mu_);
+    queued_bytes_ -= queue_.front().bytes;
     queue_.pop_front();
     writing_ = false;
     if (!ok) {
@@ -271,9 +268,9 @@ class StreamRelationsReactor final
     }
     if (!queue_.empty()) {
       writing_ = true;
-      StartWrite(&queue_.front());
+      StartWrite(&queue_.front().message);
     }
-    if (read_paused_ && queue_.size() < kMaxQueued) {
+    if (read_paused_ && HasRoomLocked()) {
       read_paused_ = false;
       StartRead(&request_);
     }
@@ -284,6 +281,65 @@ class StreamRelationsReactor final
 
  private:
   static constexpr size_t kMaxQueued = 256;
+  static constexpr size_t kMaxQueuedBytes = size_t(32) << 20;
+
+  struct Queued {
+    v1::StreamRelationsResponse message;
+    size_t bytes;
+  };
+
+  static void SetError(const absl::Status& s, v1::ItemError* error) {
+    error->set_code(int(s.code()));
+    error->set_message(std::string(s.message()));
+  }
+
+  v1::StreamRelationsResponse Answer(const v1::StreamRelationsRequest& request) {
+    v1::StreamRelationsResponse response;
+    response.set_request_id(request.request_id());
+    if (service_->draining()) {
+      SetError(absl::UnavailableError("the server is shutting down"), response.mutable_error());
+      return response;
+    }
+    const int forms = request.has_simplex() + request.has_ids() + request.has_vertex_tuples();
+    if (forms != 1) {
+      SetError(absl::InvalidArgumentError(absl::StrCat(
+                   "simplex / ids / vertex_tuples: set exactly one of them (", forms, " set)")),
+               response.mutable_error());
+      return response;
+    }
+    if (request.has_simplex()) {
+      std::vector<int64_t> ids;
+      const absl::Status s = service_->AnswerRelation(request.session_id(), request.relation(),
+                                                      request.simplex(), false, ids, nullptr);
+      if (s.ok()) {
+        response.mutable_ids()->Add(ids.begin(), ids.end());
+      } else {
+        SetError(s, response.mutable_error());
+      }
+      return response;
+    }
+    std::vector<TopologyServiceImpl::ItemFailure> failures;
+    const absl::Status s = service_->AnswerBatch(
+        request.session_id(), request.relation(), request.has_ids() ? &request.ids() : nullptr,
+        request.has_vertex_tuples() ? &request.vertex_tuples() : nullptr,
+        response.mutable_offsets(), response.mutable_values(), &failures);
+    if (!s.ok()) {
+      response.clear_offsets();
+      response.clear_values();
+      SetError(s, response.mutable_error());
+      return response;
+    }
+    for (const auto& [index, status] : failures) {
+      v1::ItemError* error = response.add_item_errors();
+      SetError(status, error);
+      error->set_index(index);
+    }
+    return response;
+  }
+
+  bool HasRoomLocked() const {
+    return queue_.size() < kMaxQueued && queued_bytes_ < kMaxQueuedBytes;
+  }
 
   void MaybeFinishLocked() {
     if (reads_done_ && queue_.empty() && !writing_ && !finished_) {
@@ -296,7 +352,8 @@ class StreamRelationsReactor final
   TopologyServiceImpl* service_;
   v1::StreamRelationsRequest request_;
   std::mutex mu_;
-  std::deque<v1::StreamRelationsResponse> queue_;
+  std::deque<Queued> queue_;  // front: being written
+  size_t queued_bytes_ = 0;
   bool writing_ = false, reads_done_ = false, read_paused_ = false, finished_ = false;
 };
 

@@ -2,6 +2,8 @@
 #include <google/protobuf/stubs/common.h>
 #include <grpcpp/grpcpp.h>
 
+#include <chrono>
+
 #include "absl/strings/str_cat.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
@@ -186,6 +188,11 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::GetSessionStats(
     out->mutable_jobs()->set_count(s.jobs);
     out->mutable_jobs()->set_ns(s.job_ns);
     out->set_preprocess_seconds(s.preprocess_seconds);
+    v1::QueryBreakdown* b = out->mutable_query_breakdown();
+    b->set_simplices(s.query_simplices);
+    b->set_queue_ns(s.query_queue_ns);
+    b->set_compute_ns(s.query_compute_ns);
+    b->set_serialize_ns(s.query_serialize_ns);
     return absl::OkStatus();
   });
 }
@@ -212,7 +219,8 @@ absl::Status TopologyServiceImpl::AnswerRelation(const std::string& session_id,
     }
     default: return absl::InvalidArgumentError("simplex: set id or vertices");
   }
-  return session->Query(r, s, ids, include_vertices ? vertices : nullptr);
+  session->Query(r, s, ids, include_vertices ? vertices : nullptr);
+  return absl::OkStatus();
 }
 
 grpc::ServerUnaryReactor* TopologyServiceImpl::GetRelation(grpc::CallbackServerContext* c,
@@ -228,46 +236,68 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::GetRelation(grpc::CallbackServerC
   });
 }
 
+absl::Status TopologyServiceImpl::AnswerBatch(const std::string& session_id,
+                                              v1::Relation relation, const v1::Array* ids,
+                                              const v1::Array* vertex_tuples,
+                                              v1::Array* offsets_out, v1::Array* values_out,
+                                              std::vector<ItemFailure>* failures) {
+  ASSIGN_OR_RETURN(auto session, sessions_->Get(session_id));
+  ASSIGN_OR_RETURN(Relation r, FromProto(relation));
+  const int dim = SourceDimension(r);
+  const bool by_tuple = vertex_tuples != nullptr;
+  if (by_tuple == (ids != nullptr)) {
+    return absl::InvalidArgumentError("ids / vertex_tuples: set exactly one of them");
+  }
+  const char* field = by_tuple ? "vertex_tuples" : "ids";
+  ASSIGN_OR_RETURN(std::vector<int64_t> flat,
+                   UnpackIntegers(by_tuple ? *vertex_tuples : *ids, field));
+  const int k = by_tuple ? dim + 1 : 1;
+  if (by_tuple && (vertex_tuples->shape_size() != 2 || vertex_tuples->shape(1) != k)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "vertex_tuples.shape: must be (n, ", k, ") for ", RelationName(r).data()));
+  }
+  const int64_t n = int64_t(flat.size()) / k;
+  if (n > limits_.max_batch_size) {
+    return absl::ResourceExhaustedError(absl::StrCat(
+        field, ": ", n, " simplices exceed the batch limit of ", limits_.max_batch_size,
+        "; split the batch (StreamRelations takes many batches on one call)"));
+  }
+  // Resolved items are answered in runs between failed ones, one reader per run.
+  std::vector<int64_t> offsets = {0}, values;
+  offsets.reserve(n + 1);
+  std::vector<SimplexId> run;
+  run.reserve(n);
+  for (int64_t i = 0; i < n; ++i) {
+    absl::StatusOr<SimplexId> s =
+        by_tuple ? session->ResolveVertices(dim, std::span(flat).subspan(i * k, k), {field, i})
+                 : session->ResolveId(dim, flat[i], {field, i});
+    if (s.ok()) {
+      run.push_back(*s);
+      continue;
+    }
+    if (failures == nullptr) return s.status();
+    session->Query(r, run, offsets, values);
+    run.clear();
+    offsets.push_back(int64_t(values.size()));  // an empty row
+    failures->push_back({i, s.status()});
+  }
+  session->Query(r, run, offsets, values);
+  const auto start = std::chrono::steady_clock::now();
+  Pack("offsets", offsets, offsets_out);
+  Pack("values", values, values_out);
+  session->AddQuerySerializeTime(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                     std::chrono::steady_clock::now() - start)
+                                     .count());
+  return absl::OkStatus();
+}
+
 grpc::ServerUnaryReactor* TopologyServiceImpl::GetRelationBatch(
     grpc::CallbackServerContext* c, const v1::GetRelationBatchRequest* in,
     v1::GetRelationBatchResponse* out) {
-  return Unary(c, "GetRelationBatch", [&]() -> absl::Status {
-    ASSIGN_OR_RETURN(auto session, sessions_->Get(in->session_id()));
-    ASSIGN_OR_RETURN(Relation r, FromProto(in->relation()));
-    const int dim = SourceDimension(r);
-    const bool by_tuple = in->has_vertex_tuples();
-    if (by_tuple == in->has_ids()) {
-      return absl::InvalidArgumentError("ids / vertex_tuples: set exactly one of them");
-    }
-    ASSIGN_OR_RETURN(std::vector<int64_t> flat,
-                     UnpackIntegers(by_tuple ? in->vertex_tuples() : in->ids(),
-                                    by_tuple ? "vertex_tuples" : "ids"));
-    const int k = by_tuple ? dim + 1 : 1;
-    if (by_tuple && (in->vertex_tuples().shape_size() != 2 ||
-                     in->vertex_tuples().shape(1) != k)) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "vertex_tuples.shape: must be (n, ", k, ") for ", RelationName(r).data()));
-    }
-    const int64_t n = int64_t(flat.size()) / k;
-    if (n > limits_.max_batch_size) {
-      return absl::ResourceExhaustedError(absl::StrCat(
-          "ids: ", n, " simplices exceed the batch limit of ", limits_.max_batch_size,
-          "; split the batch or use StreamRelations"));
-    }
-    std::vector<int64_t> offsets = {0}, values;
-    offsets.reserve(n + 1);
-    for (int64_t i = 0; i < n; ++i) {
-      const std::string field = absl::StrCat(by_tuple ? "vertex_tuples[" : "ids[", i, "]");
-      absl::StatusOr<SimplexId> s =
-          by_tuple ? session->ResolveVertices(dim, std::span(flat).subspan(i * k, k), field)
-                   : session->ResolveId(dim, flat[i], field);
-      if (!s.ok()) return s.status();
-      RETURN_IF_ERROR(session->Query(r, *s, values, nullptr));
-      offsets.push_back(int64_t(values.size()));
-    }
-    Pack("offsets", offsets, out->mutable_offsets());
-    Pack("values", values, out->mutable_values());
-    return absl::OkStatus();
+  return Unary(c, "GetRelationBatch", [&] {
+    return AnswerBatch(in->session_id(), in->relation(), in->has_ids() ? &in->ids() : nullptr,
+                       in->has_vertex_tuples() ? &in->vertex_tuples() : nullptr,
+                       out->mutable_offsets(), out->mutable_values(), nullptr);
   });
 }
 

@@ -5,6 +5,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "server/algorithms/discrete_gradient.h"
 #include "server/algorithms/vertex_order.h"
 #include "server/core/status_macros.h"
 #include "server/service/ids.h"
@@ -24,6 +25,10 @@ constexpr std::string_view kDimensionNames[4] = {"vertex", "edge", "triangle", "
 constexpr int64_t kAllRelationsBytesPerTet = 380;
 
 }  // namespace
+
+std::string FieldRef::ToString() const {
+  return index < 0 ? std::string(name) : absl::StrCat(std::string(name), "[", index, "]");
+}
 
 std::string_view StructureName(StructureKind s) {
   switch (s) {
@@ -45,13 +50,13 @@ int64_t Session::EstimateBytes(const LoadedMesh& mesh, const SessionOptions& o) 
   return order + int64_t(o.buffer_ratio * tets * kAllRelationsBytesPerTet) + cells;
 }
 
-int Session::query_threads() const {
-  return options_.structure == StructureKind::kActopo ? options_.producers : 0;
+int Session::QueryThreads(const SessionOptions& o) {
+  return o.structure == StructureKind::kActopo ? o.query_readers * o.producers : 0;
 }
 
-int Session::job_threads() const {
-  const int producers = options_.structure == StructureKind::kActopo ? options_.producers : 0;
-  return options_.consumers * (1 + producers);
+int Session::JobThreads(const SessionOptions& o) {
+  const int producers = o.structure == StructureKind::kActopo ? o.producers : 0;
+  return o.consumers * (1 + producers);
 }
 
 ActopoStructure::Options Session::EngineOptions(Algorithm algorithm, int consumers) const {
@@ -71,6 +76,10 @@ absl::Status Session::Validate(const SessionOptions& options) {
   if (options.producers < 1 || options.producers > 64) {
     return absl::InvalidArgumentError(
         absl::StrCat("engine.producers: ", options.producers, " is outside [1, 64]"));
+  }
+  if (options.query_readers < 1 || options.query_readers > 64) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("engine.query_readers: ", options.query_readers, " is outside [1, 64]"));
   }
   if (!(options.buffer_ratio >= 0.0 && options.buffer_ratio <= 1.0)) {
     return absl::InvalidArgumentError(
@@ -110,16 +119,21 @@ absl::StatusOr<std::unique_ptr<Session>> Session::Open(std::shared_ptr<const Loa
       s->compact_ = std::make_unique<CompactStructure>(
           mesh->topology, CompactStructure::Options{.cache_ratio = options.buffer_ratio,
                                                     .consumers = options.consumers});
-      s->compact_reader_.emplace(s->compact_->NewReader());
+      s->query_compact_ = std::make_unique<CompactStructure>(
+          mesh->topology, CompactStructure::Options{.cache_ratio = options.buffer_ratio,
+                                                    .consumers = options.query_readers});
+      s->compact_readers_ = std::make_unique<ReaderPool<CompactStructure::Reader>>(
+          options.query_readers, [q = s->query_compact_.get()] { return q->NewReader(); });
       break;
     case StructureKind::kActopo: {
-      ActopoStructure::Options query{.consumers = 1,
+      ActopoStructure::Options query{.consumers = options.query_readers,
                                      .producers = options.producers,
                                      .buffer_ratio = options.buffer_ratio,
                                      .prefetch = options.prefetch.value_or(Prefetch::kSpatial),
                                      .precompute = Precompute::kRequested};
       ASSIGN_OR_RETURN(s->query_engine_, ActopoStructure::Create(mesh->topology, query));
-      s->actopo_reader_.emplace(s->query_engine_->NewReader());
+      s->actopo_readers_ = std::make_unique<ReaderPool<ActopoStructure::Reader>>(
+          options.query_readers, [q = s->query_engine_.get()] { return q->NewReader(); });
       break;
     }
   }
@@ -127,11 +141,7 @@ absl::StatusOr<std::unique_ptr<Session>> Session::Open(std::shared_ptr<const Loa
   return s;
 }
 
-Session::~Session() {
-  // Readers before their structures.
-  compact_reader_.reset();
-  actopo_reader_.reset();
-}
+Session::~Session() = default;  // reader pools before the structures they read (member order)
 
 absl::Time Session::last_used() const {
   return absl::FromUnixNanos(last_used_ns_.load(std::memory_order_relaxed));
@@ -140,11 +150,11 @@ absl::Time Session::last_used() const {
 void Session::Touch() { last_used_ns_.store(absl::GetCurrentTimeNanos(), std::memory_order_relaxed); }
 
 absl::StatusOr<SimplexId> Session::ResolveId(int dimension, int64_t id,
-                                             std::string_view field) const {
+                                             FieldRef field) const {
   const Topology& topo = *mesh_->topology;
   const int64_t n = topo.num_simplices(dimension);
   if (id < 0 || id >= n) {
-    return absl::OutOfRangeError(absl::StrCat(std::string(field), ": ",
+    return absl::OutOfRangeError(absl::StrCat(field.ToString(), ": ",
                                               std::string(kDimensionNames[dimension]), " id ", id,
                                               " is outside [0, ", n, ")"));
   }
@@ -155,17 +165,17 @@ absl::StatusOr<SimplexId> Session::ResolveId(int dimension, int64_t id,
 
 absl::StatusOr<SimplexId> Session::ResolveVertices(int dimension,
                                                    std::span<const int64_t> vertices,
-                                                   std::string_view field) {
+                                                   FieldRef field) const {
   const Topology& topo = *mesh_->topology;
   if (int(vertices.size()) != dimension + 1) {
     return absl::InvalidArgumentError(absl::StrCat(
-        std::string(field), ": a ", std::string(kDimensionNames[dimension]), " has ",
+        field.ToString(), ": a ", std::string(kDimensionNames[dimension]), " has ",
         dimension + 1, " vertices, got ", vertices.size()));
   }
   std::array<SimplexId, 4> v{};
   for (int i = 0; i <= dimension; ++i) {
     if (vertices[i] < 0 || vertices[i] >= topo.num_vertices()) {
-      return absl::OutOfRangeError(absl::StrCat(std::string(field), ": vertex id ", vertices[i],
+      return absl::OutOfRangeError(absl::StrCat(field.ToString(), ": vertex id ", vertices[i],
                                                 " is outside [0, ", topo.num_vertices(), ")"));
     }
     v[i] = topo.vertex_internal_id(SimplexId(vertices[i]));
@@ -195,7 +205,7 @@ absl::StatusOr<SimplexId> Session::ResolveVertices(int dimension,
   }
   if (found < 0) {
     return absl::NotFoundError(absl::StrCat(
-        std::string(field), ": (", absl::StrJoin(vertices, ", "), ") is not a ",
+        field.ToString(), ": (", absl::StrJoin(vertices, ", "), ") is not a ",
         std::string(kDimensionNames[dimension]), " of mesh '", mesh_->id, "'"));
   }
   return found;
@@ -205,65 +215,98 @@ absl::StatusOr<SimplexId> Session::ResolveVertices(int dimension,
 // client sees: ascending ids, faces in the lexicographic order of their input vertices (the
 // (v0v1), (v0v2), ... local orders), links in the order of their star (ascending input ids).
 template <class Reader>
-absl::Status Session::QueryWith(Reader& reader, Relation r, SimplexId s,
-                                std::vector<int64_t>& ids, std::vector<int64_t>* vertices) {
+void Session::AppendRows(Reader& reader, Relation r, std::span<const SimplexId> simplices,
+                         std::vector<int64_t>& offsets, std::vector<int64_t>& values,
+                         std::vector<int64_t>* vertices) const {
   const Topology& topo = *mesh_->topology;
   const int target = TargetDimension(r);
+  const bool link = r == Relation::kVL || r == Relation::kEL || r == Relation::kFL;
+  const Relation star_of_link = r == Relation::kVL   ? Relation::kVT
+                                : r == Relation::kEL ? Relation::kET
+                                                     : Relation::kFT;
+  const bool by_vertices = r == Relation::kFE || r == Relation::kTE || r == Relation::kTF;
   struct Item {
     std::array<int64_t, 4> key;
     int64_t id;
     SimplexId internal;
   };
-  std::vector<Item> items;
-  const auto row = reader.get(r, s);
-  std::span<const SimplexId> star;
-  if (r == Relation::kVL) star = reader.get(Relation::kVT, s);
-  if (r == Relation::kEL) star = reader.get(Relation::kET, s);
-  if (r == Relation::kFL) star = reader.get(Relation::kFT, s);
-  for (size_t i = 0; i < row.size(); ++i) {
-    const SimplexId x = row[i];
-    Item item{{-1, -1, -1, -1}, x, x};
-    if (target == 0) item.id = topo.vertex_input_id(x);
-    if (target == 3) item.id = topo.tetrahedron_input_id(x);
-    if (target < 0) {
-      item.key[0] = 0;  // a predicate: one value
-    } else if (!star.empty()) {
-      item.key[0] = topo.tetrahedron_input_id(star[i]);
-    } else if (r == Relation::kFE || r == Relation::kTE || r == Relation::kTF) {
-      const std::vector<SimplexId> v = CellInputVertices(topo, target, x);
-      std::copy(v.begin(), v.end(), item.key.begin());
-    } else {
-      item.key[0] = item.id;
+  std::vector<Item> items;  // reused across the batch
+  for (const SimplexId s : simplices) {
+    items.clear();
+    const auto row = reader.get(r, s);
+    const std::span<const SimplexId> star =
+        link ? reader.get(star_of_link, s) : std::span<const SimplexId>();
+    for (size_t i = 0; i < row.size(); ++i) {
+      const SimplexId x = row[i];
+      Item item{{-1, -1, -1, -1}, x, x};
+      if (target == 0) item.id = topo.vertex_input_id(x);
+      if (target == 3) item.id = topo.tetrahedron_input_id(x);
+      if (target < 0) {
+        item.key[0] = 0;  // a predicate: one value
+      } else if (link) {
+        item.key[0] = topo.tetrahedron_input_id(star[i]);
+      } else if (by_vertices) {
+        SimplexId v[4];
+        CellTokens(topo, target, x, v);
+        std::copy(v, v + target + 1, item.key.begin());
+      } else {
+        item.key[0] = item.id;
+      }
+      items.push_back(item);
     }
-    items.push_back(item);
-  }
-  std::stable_sort(items.begin(), items.end(),
-                   [](const Item& a, const Item& b) { return a.key < b.key; });
-  for (const Item& item : items) {
-    ids.push_back(item.id);
-    if (vertices != nullptr && (target == 1 || target == 2)) {
-      for (SimplexId v : CellInputVertices(topo, target, item.internal)) vertices->push_back(v);
+    if (items.size() > 1) {
+      std::stable_sort(items.begin(), items.end(),
+                       [](const Item& a, const Item& b) { return a.key < b.key; });
     }
+    for (const Item& item : items) {
+      values.push_back(item.id);
+      if (vertices != nullptr && (target == 1 || target == 2)) {
+        SimplexId v[4];
+        CellTokens(topo, target, item.internal, v);
+        vertices->insert(vertices->end(), v, v + target + 1);
+      }
+    }
+    offsets.push_back(int64_t(values.size()));
   }
-  return absl::OkStatus();
 }
 
-absl::Status Session::Query(Relation r, SimplexId s, std::vector<int64_t>& ids,
-                            std::vector<int64_t>* vertices) {
-  const auto start = Clock::now();
+void Session::Query(Relation r, std::span<const SimplexId> simplices,
+                    std::vector<int64_t>& offsets, std::vector<int64_t>& values,
+                    std::vector<int64_t>* vertices) {
+  const auto arrived = Clock::now();
   Touch();
-  absl::Status status;
+  auto compute_since = arrived;
   if (explicit_) {
-    auto reader = explicit_->NewReader();  // read-only: no lock
-    status = QueryWith(reader, r, s, ids, vertices);
+    auto reader = explicit_->NewReader();  // read-only: no lock, no pool
+    AppendRows(reader, r, simplices, offsets, values, vertices);
+  } else if (compact_readers_) {
+    auto reader = compact_readers_->Acquire();
+    compute_since = Clock::now();
+    const AccessStats before = reader->stats();
+    AppendRows(*reader, r, simplices, offsets, values, vertices);
+    // Pooled readers live as long as the session: count their accesses per call.
+    std::lock_guard<std::mutex> lock(stats_mu_);
+    compact_queries_ += reader->stats().Since(before);
   } else {
-    std::lock_guard<std::mutex> lock(query_mu_);
-    status = compact_reader_ ? QueryWith(*compact_reader_, r, s, ids, vertices)
-                             : QueryWith(*actopo_reader_, r, s, ids, vertices);
+    auto reader = actopo_readers_->Acquire();
+    compute_since = Clock::now();
+    AppendRows(*reader, r, simplices, offsets, values, vertices);
   }
+  const auto done = Clock::now();
+  const auto ns = [](auto d) {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(d).count();
+  };
   queries_.fetch_add(1, std::memory_order_relaxed);
-  query_ns_.fetch_add(NanosSince(start), std::memory_order_relaxed);
-  return status;
+  query_ns_.fetch_add(ns(done - arrived), std::memory_order_relaxed);
+  query_simplices_.fetch_add(int64_t(simplices.size()), std::memory_order_relaxed);
+  query_queue_ns_.fetch_add(ns(compute_since - arrived), std::memory_order_relaxed);
+  query_compute_ns_.fetch_add(ns(done - compute_since), std::memory_order_relaxed);
+}
+
+void Session::Query(Relation r, SimplexId s, std::vector<int64_t>& ids,
+                    std::vector<int64_t>* vertices) {
+  std::vector<int64_t> offsets;
+  Query(r, std::span<const SimplexId>(&s, 1), offsets, ids, vertices);
 }
 
 const ResultContext& Session::result_context() {
@@ -297,13 +340,7 @@ absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input,
     // Jobs use readers of their own; the structure totals what finished readers counted.
     const AccessStats before = compact_->stats();
     ASSIGN_OR_RETURN(out.outcome, RunAlgorithm(*compact_, input, ctx));
-    const AccessStats after = compact_->stats();
-    out.engine.access = {.requests = after.requests - before.requests,
-                         .hits = after.hits - before.hits,
-                         .misses = after.misses - before.misses,
-                         .evictions = after.evictions - before.evictions,
-                         .relations_computed = after.relations_computed - before.relations_computed,
-                         .wait_ns = after.wait_ns - before.wait_ns};
+    out.engine.access = compact_->stats().Since(before);
     out.engine.consumer_relations = out.engine.access.relations_computed;
     out.memory = compact_->memory();
   } else {
@@ -333,17 +370,27 @@ SessionStats Session::stats() const {
   {
     std::lock_guard<std::mutex> lock(stats_mu_);
     s.engine = finished_jobs_;
+    s.engine.access += compact_queries_;
     s.memory.relation_peak_bytes = relation_peak_bytes_;
   }
   if (query_engine_) s.engine += query_engine_->stats();
-  const MemoryStats now = explicit_ ? explicit_->memory()
-                          : compact_ ? compact_->memory()
-                                     : query_engine_->memory();
+  MemoryStats now = explicit_ ? explicit_->memory()
+                    : compact_ ? compact_->memory()
+                               : query_engine_->memory();
+  if (query_compact_) {
+    const MemoryStats q = query_compact_->memory();
+    now.relation_bytes += q.relation_bytes;
+    now.relation_peak_bytes += q.relation_peak_bytes;
+  }
   s.memory.static_bytes = now.static_bytes;
   s.memory.relation_bytes = now.relation_bytes;
   s.memory.relation_peak_bytes = std::max(s.memory.relation_peak_bytes, now.relation_peak_bytes);
   s.queries = queries_.load();
   s.query_ns = query_ns_.load();
+  s.query_simplices = query_simplices_.load();
+  s.query_queue_ns = query_queue_ns_.load();
+  s.query_compute_ns = query_compute_ns_.load();
+  s.query_serialize_ns = query_serialize_ns_.load();
   s.jobs = jobs_.load();
   s.job_ns = job_ns_.load();
   s.preprocess_seconds = preprocess_seconds_;

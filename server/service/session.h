@@ -30,6 +30,7 @@
 #include "server/results/run_algorithm.h"
 #include "server/service/memory_budget.h"
 #include "server/service/mesh_registry.h"
+#include "server/service/reader_pool.h"
 
 namespace actopo::service {
 
@@ -44,6 +45,16 @@ struct SessionOptions {
   double buffer_ratio = 0.2;
   std::optional<Prefetch> prefetch;      // unset: per algorithm
   std::optional<Precompute> precompute;  // unset: per algorithm
+  int query_readers = 1;  // relation calls answered at once, each with a reader of its own
+};
+
+// The request field a simplex came from, for error messages: "ids[12]" for item 12 of a batch
+// (formatted only when an error is reported).
+struct FieldRef {
+  FieldRef(const char* name, int64_t index = -1) : name(name), index(index) {}  // NOLINT
+  std::string_view name;
+  int64_t index;
+  std::string ToString() const;
 };
 
 // What a finished job hands back.
@@ -57,7 +68,10 @@ struct JobOutcome {
 struct SessionStats {
   EngineStats engine;
   MemoryStats memory;
-  int64_t queries = 0, query_ns = 0;
+  int64_t queries = 0, query_ns = 0;  // calls, and their time from arrival to answer
+  // Where query time went: waiting for a free reader, resolving and computing the rows, packing
+  // the answers into messages (the service's part); over `simplices` answered rows.
+  int64_t query_simplices = 0, query_queue_ns = 0, query_compute_ns = 0, query_serialize_ns = 0;
   int64_t jobs = 0, job_ns = 0;
   double preprocess_seconds = 0;
 };
@@ -79,21 +93,32 @@ class Session {
   absl::Time created() const { return created_; }
   absl::Time last_used() const;
   void Touch();
-  // Engine threads this session holds now and needs per job.
-  int query_threads() const;
-  int job_threads() const;
+  // Engine threads a session holds while open (its query engine's producers) and needs per job.
+  static int QueryThreads(const SessionOptions& options);
+  static int JobThreads(const SessionOptions& options);
+  int query_threads() const { return QueryThreads(options_); }
+  int job_threads() const { return JobThreads(options_); }
   static int64_t EstimateBytes(const LoadedMesh& mesh, const SessionOptions& options);
 
   // Simplex ids on the wire: input ids for vertices and tetrahedra, service (internal) ids for
   // edges and triangles. Errors name the field and value.
-  absl::StatusOr<SimplexId> ResolveId(int dimension, int64_t id, std::string_view field) const;
+  absl::StatusOr<SimplexId> ResolveId(int dimension, int64_t id, FieldRef field) const;
   absl::StatusOr<SimplexId> ResolveVertices(int dimension, std::span<const int64_t> vertices,
-                                            std::string_view field);
+                                            FieldRef field) const;
 
-  // Appends relation r of internal simplex s to `ids` in wire ids; with `vertices`, also the
-  // input vertices of each result edge or triangle. Thread-safe.
-  absl::Status Query(Relation r, SimplexId s, std::vector<int64_t>& ids,
-                     std::vector<int64_t>* vertices);
+  // Relation r of each simplex (internal ids) as CSR rows: appends the row in wire ids to
+  // `values` and its end to `offsets`; with `vertices`, also the input vertices of each result
+  // edge or triangle. Thread-safe: up to options().query_readers calls read at once (explicit:
+  // any number), the others wait for a reader. One reader serves the whole batch.
+  void Query(Relation r, std::span<const SimplexId> simplices, std::vector<int64_t>& offsets,
+             std::vector<int64_t>& values, std::vector<int64_t>* vertices = nullptr);
+  // One simplex: its row appended to `ids`.
+  void Query(Relation r, SimplexId s, std::vector<int64_t>& ids,
+             std::vector<int64_t>* vertices = nullptr);
+  // Time the service spent packing query answers (reported in the stats' breakdown).
+  void AddQuerySerializeTime(int64_t ns) {
+    query_serialize_ns_.fetch_add(ns, std::memory_order_relaxed);
+  }
 
   // Runs an algorithm. The caller holds the session's JobLease (SessionManager::StartJob).
   absl::StatusOr<JobOutcome> RunJob(const AlgorithmInput& input, const RunContext& context);
@@ -106,8 +131,9 @@ class Session {
  private:
   Session() = default;
   template <class Reader>
-  absl::Status QueryWith(Reader& reader, Relation r, SimplexId s, std::vector<int64_t>& ids,
-                         std::vector<int64_t>* vertices);
+  void AppendRows(Reader& reader, Relation r, std::span<const SimplexId> simplices,
+                  std::vector<int64_t>& offsets, std::vector<int64_t>& values,
+                  std::vector<int64_t>* vertices) const;
   ActopoStructure::Options EngineOptions(Algorithm algorithm, int consumers) const;
 
   std::string id_;
@@ -119,10 +145,12 @@ class Session {
 
   std::unique_ptr<ExplicitStructure> explicit_;
   std::unique_ptr<CompactStructure> compact_;
+  // Relation queries: compact readers over a structure of their own (its cache split among
+  // them), or the consumers of a query engine. Declared after what they read: destroyed first.
+  std::unique_ptr<CompactStructure> query_compact_;
   std::unique_ptr<ActopoStructure> query_engine_;
-  std::optional<CompactStructure::Reader> compact_reader_;
-  std::optional<ActopoStructure::Reader> actopo_reader_;
-  std::mutex query_mu_;  // the compact / actopo query reader
+  std::unique_ptr<ReaderPool<CompactStructure::Reader>> compact_readers_;
+  std::unique_ptr<ReaderPool<ActopoStructure::Reader>> actopo_readers_;
 
   AlgorithmInput base_;  // vertex order and input tetrahedra, computed once
   std::mutex result_mu_;
@@ -130,9 +158,12 @@ class Session {
 
   mutable std::mutex stats_mu_;
   EngineStats finished_jobs_;
+  AccessStats compact_queries_;  // accesses of the compact query readers
   int64_t relation_peak_bytes_ = 0;
   std::atomic<int64_t> last_used_ns_{0};
   std::atomic<int64_t> queries_{0}, query_ns_{0}, jobs_{0}, job_ns_{0};
+  std::atomic<int64_t> query_simplices_{0}, query_queue_ns_{0}, query_compute_ns_{0},
+      query_serialize_ns_{0};
   double preprocess_seconds_ = 0;
 };
 

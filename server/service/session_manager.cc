@@ -35,25 +35,24 @@ absl::StatusOr<std::shared_ptr<Session>> SessionManager::Open(
           "sessions: the server holds its maximum of ", limits_.max_sessions,
           " sessions; close one first (--max-sessions raises the limit)"));
     }
-    const int producers = options.structure == StructureKind::kActopo ? options.producers : 0;
-    const int job = options.consumers * (1 + producers);
-    if (producers + job > limits_.max_engine_threads) {
+    const int query = Session::QueryThreads(options), job = Session::JobThreads(options);
+    if (query + job > limits_.max_engine_threads) {
       return absl::InvalidArgumentError(absl::StrCat(
-          "engine: this session needs ", producers, " query producers plus ", job,
+          "engine: this session needs ", query, " query producers plus ", job,
           " threads per job, more than the server's budget of ", limits_.max_engine_threads,
-          " engine threads; use fewer consumers or producers"));
+          " engine threads; use fewer consumers, producers or query readers"));
     }
-    if (threads_ + producers > limits_.max_engine_threads) {
+    if (threads_ + query > limits_.max_engine_threads) {
       return absl::ResourceExhaustedError(absl::StrCat(
-          "engine.producers: ", producers, " more engine threads would exceed the server's ",
+          "engine.producers: ", query, " more engine threads would exceed the server's ",
           "budget of ", limits_.max_engine_threads, " (", threads_, " in use)"));
     }
-    threads_ += producers;
+    threads_ += query;
   }
   absl::StatusOr<std::unique_ptr<Session>> session = Session::Open(mesh, options, budget_);
   std::lock_guard<std::mutex> lock(mu_);
   if (!session.ok()) {
-    threads_ -= options.structure == StructureKind::kActopo ? options.producers : 0;
+    threads_ -= Session::QueryThreads(options);
     return session.status();
   }
   std::shared_ptr<Session> shared(std::move(*session));

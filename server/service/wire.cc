@@ -59,6 +59,7 @@ absl::StatusOr<SessionOptions> FromProto(const pb::OpenSessionRequest& r) {
   o.consumers = e.consumers() != 0 ? e.consumers() : plan.consumers;
   o.producers = e.producers() != 0 ? e.producers() : std::max(plan.producers, 1);
   if (e.buffer_ratio() != 0) o.buffer_ratio = e.buffer_ratio();
+  o.query_readers = e.query_readers() != 0 ? e.query_readers() : std::min(DefaultThreads(), 4);
   switch (e.prefetch()) {
     case pb::PREFETCH_UNSPECIFIED: break;
     case pb::PREFETCH_LINEAR: o.prefetch = Prefetch::kLinear; break;
@@ -133,6 +134,7 @@ void Fill(Session& s, const std::string& running_job, pb::SessionInfo* out) {
   e->set_consumers(o.consumers);
   e->set_producers(o.producers);
   e->set_buffer_ratio(o.buffer_ratio);
+  e->set_query_readers(o.query_readers);
   if (o.prefetch) e->set_prefetch(static_cast<pb::Prefetch>(int(*o.prefetch) + 1));
   if (o.precompute) e->set_precompute(static_cast<pb::Precompute>(int(*o.precompute) + 1));
   *out->mutable_created() = Stamp(s.created());
