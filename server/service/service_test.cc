@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cstring>
+#include <numeric>
 #include <thread>
 
 #include "google/protobuf/util/json_util.h"
@@ -190,6 +191,168 @@ TEST_F(ServiceTest, BatchEqualsSingles) {
     ASSERT_TRUE(stub_->GetRelation(Context().get(), q, &one).ok());
     EXPECT_EQ(std::vector<int64_t>(values.begin() + offsets[i], values.begin() + offsets[i + 1]),
               std::vector<int64_t>(one.ids().begin(), one.ids().end()));
+  }
+}
+
+v1::Array Int64Array(const std::vector<int64_t>& values, std::vector<int64_t> shape = {}) {
+  v1::Array a;
+  a.set_dtype(v1::DATA_TYPE_INT64);
+  if (shape.empty()) shape = {int64_t(values.size())};
+  for (int64_t n : shape) a.add_shape(n);
+  a.set_data(std::string(reinterpret_cast<const char*>(values.data()), values.size() * 8));
+  return a;
+}
+
+std::vector<int64_t> Int64s(const v1::Array& a) {
+  std::vector<int64_t> v(a.data().size() / 8);
+  std::memcpy(v.data(), a.data().data(), v.size() * 8);
+  return v;
+}
+
+// Rows of a CSR answer.
+std::vector<std::vector<int64_t>> Rows(const v1::Array& offsets, const v1::Array& values) {
+  const std::vector<int64_t> o = Int64s(offsets), v = Int64s(values);
+  std::vector<std::vector<int64_t>> rows;
+  for (size_t i = 0; i + 1 < o.size(); ++i) rows.emplace_back(v.begin() + o[i], v.begin() + o[i + 1]);
+  return rows;
+}
+
+std::vector<int64_t> Single(v1::TopologyService::Stub& stub, const std::string& session,
+                            v1::Relation relation, int64_t id) {
+  v1::GetRelationRequest q;
+  q.set_session_id(session);
+  q.set_relation(relation);
+  q.mutable_simplex()->set_id(id);
+  v1::GetRelationResponse one;
+  grpc::ClientContext context;
+  EXPECT_TRUE(stub.GetRelation(&context, q, &one).ok());
+  return {one.ids().begin(), one.ids().end()};
+}
+
+// Batches on a stream, written ahead of reading: every row equals the single query's answer
+// (which RelationsMatchTheCore checks against the core), bad items fail alone, by position.
+TEST_F(ServiceTest, StreamedBatchesEqualSinglesAndKeepItemErrors) {
+  const std::string mesh = LoadSample("jittered:6", 40);
+  for (v1::Structure kind : {v1::STRUCTURE_EXPLICIT, v1::STRUCTURE_COMPACT, v1::STRUCTURE_ACTOPO}) {
+    const std::string session = Open(mesh, kind);
+    auto context = Context();
+    auto stream = stub_->StreamRelations(context.get());
+    constexpr int kMessages = 40;
+    std::vector<std::vector<int64_t>> sent;
+    for (int m = 0; m < kMessages; ++m) {
+      std::vector<int64_t> ids;
+      for (int i = 0; i < 50; ++i) ids.push_back((m * 37 + i * 11) % 216);
+      if (m % 10 == 3) ids[2] = 216;  // one past the last vertex
+      v1::StreamRelationsRequest q;
+      q.set_request_id(m);
+      q.set_session_id(session);
+      q.set_relation(v1::RELATION_VERTEX_STAR);
+      *q.mutable_ids() = Int64Array(ids);
+      ASSERT_TRUE(stream->Write(q));
+      sent.push_back(ids);
+    }
+    // A batch by vertex tuples (edges), and one failing as a whole.
+    v1::StreamRelationsRequest edges;
+    edges.set_request_id(kMessages);
+    edges.set_session_id(session);
+    edges.set_relation(v1::RELATION_EDGE_TRIANGLES);
+    *edges.mutable_vertex_tuples() = Int64Array({0, 1, 0, 6, 0, 36}, {3, 2});
+    ASSERT_TRUE(stream->Write(edges));
+    v1::StreamRelationsRequest bad = edges;
+    bad.set_request_id(kMessages + 1);
+    bad.set_session_id("session-none");
+    ASSERT_TRUE(stream->Write(bad));
+    stream->WritesDone();
+
+    for (int m = 0; m < kMessages; ++m) {
+      v1::StreamRelationsResponse r;
+      ASSERT_TRUE(stream->Read(&r));
+      ASSERT_EQ(r.request_id(), m);
+      ASSERT_FALSE(r.has_error()) << r.error().message();
+      const auto rows = Rows(r.offsets(), r.values());
+      ASSERT_EQ(rows.size(), sent[m].size());
+      if (m % 10 == 3) {
+        ASSERT_EQ(r.item_errors_size(), 1);
+        EXPECT_EQ(r.item_errors(0).index(), 2);
+        EXPECT_EQ(r.item_errors(0).code(), int(grpc::StatusCode::OUT_OF_RANGE));
+        EXPECT_NE(r.item_errors(0).message().find("ids[2]: vertex id 216"), std::string::npos)
+            << r.item_errors(0).message();
+        EXPECT_TRUE(rows[2].empty());
+      } else {
+        EXPECT_EQ(r.item_errors_size(), 0);
+      }
+      for (size_t i = 0; i < rows.size(); i += 7) {
+        if (m % 10 == 3 && i == 2) continue;
+        EXPECT_EQ(rows[i], Single(*stub_, session, v1::RELATION_VERTEX_STAR, sent[m][i]))
+            << "message " << m << " item " << i;
+      }
+    }
+    v1::StreamRelationsResponse r;
+    ASSERT_TRUE(stream->Read(&r));
+    EXPECT_EQ(r.request_id(), kMessages);
+    const auto rows = Rows(r.offsets(), r.values());
+    ASSERT_EQ(rows.size(), 3u);
+    for (const auto& row : rows) EXPECT_FALSE(row.empty());  // (0,1), (0,6), (0,36) are edges
+    ASSERT_TRUE(stream->Read(&r));
+    EXPECT_EQ(r.error().code(), int(grpc::StatusCode::NOT_FOUND));
+    EXPECT_FALSE(r.has_offsets());
+    EXPECT_TRUE(stream->Finish().ok());
+  }
+}
+
+// Several calls read one session at once (each with a reader of its own) and all get the
+// explicit structure's answers; the session accounts every simplex in its query breakdown.
+TEST_F(ServiceTest, ConcurrentBatchesOnOneSession) {
+  const std::string mesh = LoadSample("jittered:10", 60);
+  const std::string reference = Open(mesh, v1::STRUCTURE_EXPLICIT);
+  std::vector<int64_t> all(1000);
+  std::iota(all.begin(), all.end(), 0);
+  const auto batch = [&](const std::string& session, v1::Relation relation) {
+    v1::GetRelationBatchRequest request;
+    request.set_session_id(session);
+    request.set_relation(relation);
+    *request.mutable_ids() = Int64Array(all);
+    v1::GetRelationBatchResponse response;
+    grpc::ClientContext context;
+    EXPECT_TRUE(stub_->GetRelationBatch(&context, request, &response).ok());
+    return Rows(response.offsets(), response.values());
+  };
+  const v1::Relation relations[] = {v1::RELATION_VERTEX_STAR, v1::RELATION_VERTEX_TRIANGLES,
+                                    v1::RELATION_VERTEX_LINK};
+  std::vector<std::vector<std::vector<int64_t>>> expected;
+  for (v1::Relation r : relations) expected.push_back(batch(reference, r));
+  for (v1::Structure kind : {v1::STRUCTURE_COMPACT, v1::STRUCTURE_ACTOPO}) {
+    v1::OpenSessionRequest open;
+    open.set_mesh_id(mesh);
+    open.set_structure(kind);
+    open.mutable_engine()->set_query_readers(3);
+    open.mutable_engine()->set_buffer_ratio(0.05);  // misses, evictions: readers really work
+    v1::OpenSessionResponse opened;
+    ASSERT_TRUE(stub_->OpenSession(Context().get(), open, &opened).ok());
+    EXPECT_EQ(opened.session().engine().query_readers(), 3);
+    const std::string session = opened.session().session_id();
+    constexpr int kThreads = 6, kCalls = 4;
+    std::vector<std::thread> threads;
+    std::atomic<int> mismatches{0};
+    for (int t = 0; t < kThreads; ++t) {
+      threads.emplace_back([&, t] {
+        for (int c = 0; c < kCalls; ++c) {
+          const int k = (t + c) % 3;
+          if (batch(session, relations[k]) != expected[k]) ++mismatches;
+        }
+      });
+    }
+    for (std::thread& t : threads) t.join();
+    EXPECT_EQ(mismatches.load(), 0) << "structure " << int(kind);
+    v1::GetSessionStatsRequest get;
+    get.set_session_id(session);
+    v1::GetSessionStatsResponse stats;
+    ASSERT_TRUE(stub_->GetSessionStats(Context().get(), get, &stats).ok());
+    EXPECT_EQ(stats.relation_queries().count(), kThreads * kCalls);
+    EXPECT_EQ(stats.query_breakdown().simplices(), int64_t(kThreads) * kCalls * 1000);
+    EXPECT_GT(stats.query_breakdown().compute_ns(), 0);
+    EXPECT_GT(stats.query_breakdown().serialize_ns(), 0);
+    EXPECT_GT(stats.engine().misses(), 0);
   }
 }
 

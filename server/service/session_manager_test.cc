@@ -133,5 +133,46 @@ TEST_F(SessionManagerTest, ThreadBudgetRefusesAJobThatDoesNotFit) {
   EXPECT_TRUE(sessions_.StartJob(ids[1], Algorithm::kCriticalPoints).ok());
 }
 
+// Readers of one session used from several threads at once answer like the explicit structure;
+// more threads than readers wait their turn.
+TEST_F(SessionManagerTest, ConcurrentQueriesShareTheSessionsReaders) {
+  auto mesh = meshes_.LoadSample("jittered:9", {.bucket_capacity = 40});
+  ASSERT_TRUE(mesh.ok());
+  const SimplexId n = (*mesh)->topology->num_vertices();
+  std::vector<SimplexId> all(n);
+  for (SimplexId v = 0; v < n; ++v) all[v] = v;
+  const auto answer = [&](Session& session, Relation r) {
+    std::vector<int64_t> offsets, values;
+    session.Query(r, all, offsets, values);
+    return std::make_pair(offsets, values);
+  };
+  auto reference = sessions_.Open(*mesh, SessionOptions{.structure = StructureKind::kExplicit});
+  ASSERT_TRUE(reference.ok());
+  const Relation relations[] = {Relation::kVT, Relation::kVE, Relation::kVL};
+  std::vector<std::pair<std::vector<int64_t>, std::vector<int64_t>>> expected;
+  for (Relation r : relations) expected.push_back(answer(**reference, r));
+  for (StructureKind kind : {StructureKind::kCompact, StructureKind::kActopo}) {
+    auto session = sessions_.Open(*mesh, SessionOptions{.structure = kind,
+                                                        .producers = 1,
+                                                        .buffer_ratio = 0.05,
+                                                        .query_readers = 2});
+    ASSERT_TRUE(session.ok()) << session.status();
+    std::atomic<int> mismatches{0};
+    std::vector<std::thread> threads;
+    for (int t = 0; t < 4; ++t) {
+      threads.emplace_back([&, t] {
+        for (int c = 0; c < 3; ++c) {
+          if (answer(**session, relations[(t + c) % 3]) != expected[(t + c) % 3]) ++mismatches;
+        }
+      });
+    }
+    for (std::thread& t : threads) t.join();
+    EXPECT_EQ(mismatches.load(), 0);
+    const SessionStats stats = (*session)->stats();
+    EXPECT_EQ(stats.queries, 12);
+    EXPECT_EQ(stats.query_simplices, 12 * int64_t(n));
+  }
+}
+
 }  // namespace
 }  // namespace actopo::service
