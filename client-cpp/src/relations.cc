@@ -1,5 +1,6 @@
 // Relation queries: one simplex, batches (split by the server's max_batch_size and merged), and
 // the bidirectional stream.
+#include <algorithm>
 #include <mutex>
 #include <thread>
 
@@ -23,16 +24,67 @@ void SetSimplex(const Simplex& simplex, v1::Simplex* out) {
   }
 }
 
+absl::Status ToStatus(const v1::ItemError& error) {
+  return absl::Status(static_cast<absl::StatusCode>(error.code()), error.message());
+}
+
+// Checks a CSR answer for `expected` simplices (the server's promises) and unpacks it.
+absl::StatusOr<RelationCsr> ToCsr(const v1::Array& offsets_array, const v1::Array& values_array,
+                                  size_t expected) {
+  RelationCsr csr;
+  ACTOPO_ASSIGN_OR_RETURN(csr.offsets, internal::UnpackInt64(offsets_array, "offsets"));
+  ACTOPO_ASSIGN_OR_RETURN(csr.values, internal::UnpackInt64(values_array, "values"));
+  const std::vector<int64_t>& o = csr.offsets;
+  if ((expected != size_t(-1) && o.size() != expected + 1) || o.empty() || o.front() != 0 ||
+      o.back() != int64_t(csr.values.size()) || !std::is_sorted(o.begin(), o.end())) {
+    return absl::InternalError(absl::StrCat(
+        "offsets: the server sent ", o.size(), " offsets ending at ", o.empty() ? 0 : o.back(),
+        " for ", expected, " simplices and ", csr.values.size(), " values"));
+  }
+  return csr;
+}
+
 StreamItem ToItem(const v1::StreamRelationsResponse& response) {
   StreamItem item;
   item.request_id = response.request_id();
   if (response.has_error() && response.error().code() != 0) {
-    item.ids = absl::Status(static_cast<absl::StatusCode>(response.error().code()),
-                            response.error().message());
+    item.ids = ToStatus(response.error());
+  } else if (response.has_offsets()) {
+    item.ids = std::vector<int64_t>();
+    absl::StatusOr<RelationCsr> rows = ToCsr(response.offsets(), response.values(), size_t(-1));
+    if (rows.ok()) {
+      item.rows = std::move(*rows);
+    } else {
+      item.ids = rows.status();
+    }
+    for (const v1::ItemError& e : response.item_errors()) {
+      item.item_errors.push_back({e.index(), ToStatus(e)});
+    }
   } else {
     item.ids = std::vector<int64_t>(response.ids().begin(), response.ids().end());
   }
   return item;
+}
+
+// `count` simplices of `values` (ids, or tuples of tuple_size ids) into a request's array.
+void SetBatch(std::span<const int64_t> part, size_t count, int tuple_size,
+              v1::StreamRelationsRequest* request) {
+  request->clear_ids();  // a reused request: PackInt64 appends to the shape
+  request->clear_vertex_tuples();
+  if (tuple_size == 0) {
+    const int64_t shape[] = {int64_t(count)};
+    internal::PackInt64(part, shape, request->mutable_ids());
+  } else {
+    const int64_t shape[] = {int64_t(count), int64_t(tuple_size)};
+    internal::PackInt64(part, shape, request->mutable_vertex_tuples());
+  }
+}
+
+// Appends `part` (the rows of simplices first, first + 1, ...) to `csr`.
+void Append(const RelationCsr& part, RelationCsr& csr) {
+  const int64_t base = int64_t(csr.values.size());
+  for (size_t i = 1; i < part.offsets.size(); ++i) csr.offsets.push_back(base + part.offsets[i]);
+  csr.values.insert(csr.values.end(), part.values.begin(), part.values.end());
 }
 
 absl::StatusOr<v1::GetRelationResponse> Single(internal::Core& core, std::string_view session_id,
@@ -47,56 +99,72 @@ absl::StatusOr<v1::GetRelationResponse> Single(internal::Core& core, std::string
   return core.Unary(&v1::TopologyService::Stub::GetRelation, request, core.QuickContext());
 }
 
-// Appends one batch answer to `csr`, checking the server kept the CSR promises.
-absl::Status Merge(const v1::GetRelationBatchResponse& response, size_t expected,
-                   RelationCsr& csr) {
-  ACTOPO_ASSIGN_OR_RETURN(std::vector<int64_t> offsets,
-                          internal::UnpackInt64(response.offsets(), "offsets"));
-  ACTOPO_ASSIGN_OR_RETURN(std::vector<int64_t> values,
-                          internal::UnpackInt64(response.values(), "values"));
-  if (offsets.size() != expected + 1 || offsets.front() != 0 ||
-      offsets.back() != int64_t(values.size())) {
-    return absl::InternalError(absl::StrCat(
-        "offsets: the server sent ", offsets.size(), " offsets ending at ",
-        offsets.empty() ? 0 : offsets.back(), " for ", expected, " simplices and ",
-        values.size(), " values"));
-  }
-  const int64_t base = int64_t(csr.values.size());
-  if (csr.offsets.empty()) csr.offsets.push_back(0);
-  for (size_t i = 1; i < offsets.size(); ++i) {
-    if (offsets[i] < offsets[i - 1]) {
-      return absl::InternalError("offsets: the server sent decreasing offsets");
-    }
-    csr.offsets.push_back(base + offsets[i]);
-  }
-  csr.values.insert(csr.values.end(), values.begin(), values.end());
-  return absl::OkStatus();
-}
+constexpr size_t kStreamChunk = 65536;
 
-// A batch of ids (tuple_size 0) or vertex tuples, `batch` simplices per request.
+// A batch of ids (tuple_size 0) or vertex tuples: one GetRelationBatch call when it fits
+// `batch`, else chunks on one stream, written by a second thread ahead of the answers.
 absl::StatusOr<RelationCsr> Batch(internal::Core& core, std::string_view session_id,
                                   v1::Relation relation, std::span<const int64_t> values,
                                   int tuple_size, size_t batch) {
   const size_t k = tuple_size == 0 ? 1 : size_t(tuple_size);
   const size_t n = values.size() / k;
-  RelationCsr csr{.offsets = {0}};
-  for (size_t first = 0; first < n; first += batch) {
-    const size_t count = std::min(n - first, batch);
+  if (n <= batch) {
     v1::GetRelationBatchRequest request;
     request.set_session_id(std::string(session_id));
     request.set_relation(relation);
-    const std::span<const int64_t> part = values.subspan(first * k, count * k);
-    if (tuple_size == 0) {
-      const int64_t shape[] = {int64_t(count)};
-      internal::PackInt64(part, shape, request.mutable_ids());
-    } else {
-      const int64_t shape[] = {int64_t(count), int64_t(k)};
-      internal::PackInt64(part, shape, request.mutable_vertex_tuples());
-    }
+    const int64_t shape[] = {int64_t(n), int64_t(k)};
+    internal::PackInt64(values, std::span<const int64_t>(shape, tuple_size == 0 ? 1 : 2),
+                        tuple_size == 0 ? request.mutable_ids() : request.mutable_vertex_tuples());
     ACTOPO_ASSIGN_OR_RETURN(v1::GetRelationBatchResponse response,
                             core.Unary(&v1::TopologyService::Stub::GetRelationBatch, request,
                                        core.QuickContext()));
-    ACTOPO_RETURN_IF_ERROR(Merge(response, count, csr));
+    return ToCsr(response.offsets(), response.values(), n);
+  }
+  const size_t chunk = std::min(batch, kStreamChunk);
+  const size_t chunks = (n + chunk - 1) / chunk;
+  std::unique_ptr<grpc::ClientContext> context = core.Context(std::chrono::milliseconds(0));
+  std::unique_ptr<Stream> stream = core.stub->StreamRelations(context.get());
+  std::thread writer([&] {
+    v1::StreamRelationsRequest request;
+    request.set_session_id(std::string(session_id));
+    request.set_relation(relation);
+    for (size_t c = 0; c < chunks; ++c) {
+      const size_t first = c * chunk, count = std::min(chunk, n - first);
+      request.set_request_id(int64_t(c));
+      SetBatch(values.subspan(first * k, count * k), count, tuple_size, &request);
+      if (!stream->Write(request)) return;  // the call ended; Finish says why
+    }
+    stream->WritesDone();
+  });
+  RelationCsr csr{.offsets = {0}};
+  absl::Status status;
+  v1::StreamRelationsResponse response;
+  for (size_t c = 0; status.ok() && c < chunks; ++c) {
+    if (!stream->Read(&response)) break;
+    const size_t first = c * chunk, count = std::min(chunk, n - first);
+    if (response.has_error() && response.error().code() != 0) {
+      status = ToStatus(response.error());
+    } else if (response.item_errors_size() > 0) {
+      const v1::ItemError& e = response.item_errors(0);
+      status = absl::Status(static_cast<absl::StatusCode>(e.code()),
+                            absl::StrCat(e.message(), " (simplex ", first + size_t(e.index()),
+                                         " of the input)"));
+    } else {
+      absl::StatusOr<RelationCsr> part = ToCsr(response.offsets(), response.values(), count);
+      if (part.ok()) Append(*part, csr);
+      status = part.status();
+    }
+  }
+  if (!status.ok()) context->TryCancel();
+  while (stream->Read(&response)) {
+  }
+  writer.join();
+  const absl::Status call = internal::FromGrpc(stream->Finish());
+  if (!status.ok()) return status;
+  if (!call.ok()) return call;
+  if (csr.size() != n) {
+    return absl::InternalError(absl::StrCat("stream: the server answered ", csr.size(), " of ",
+                                            n, " simplices"));
   }
   return csr;
 }
@@ -209,6 +277,22 @@ struct RelationStream::Impl {
   bool write_failed = false;
   bool reads_done = false;
   std::optional<absl::Status> final_status;
+
+  absl::Status Send(const v1::StreamRelationsRequest& request) {
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      if (writes_done || write_failed) {
+        return absl::FailedPreconditionError(
+            "stream: no more writes (WritesDone was called or the call ended; Finish says why)");
+      }
+    }
+    if (!stream->Write(request)) {
+      std::lock_guard<std::mutex> lock(mu);
+      write_failed = true;
+      return absl::FailedPreconditionError("stream: the call ended; Finish says why");
+    }
+    return absl::OkStatus();
+  }
 };
 
 RelationStream::RelationStream(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -220,24 +304,29 @@ RelationStream::~RelationStream() {
 absl::Status RelationStream::Write(int64_t request_id, std::string_view session_id,
                                    std::string_view relation, const Simplex& simplex) {
   ACTOPO_ASSIGN_OR_RETURN(v1::Relation r, internal::RelationFromName(relation));
-  {
-    std::lock_guard<std::mutex> lock(impl_->mu);
-    if (impl_->writes_done || impl_->write_failed) {
-      return absl::FailedPreconditionError(
-          "stream: no more writes (WritesDone was called or the call ended; Finish says why)");
-    }
-  }
   v1::StreamRelationsRequest request;
   request.set_request_id(request_id);
   request.set_session_id(std::string(session_id));
   request.set_relation(r);
   SetSimplex(simplex, request.mutable_simplex());
-  if (!impl_->stream->Write(request)) {
-    std::lock_guard<std::mutex> lock(impl_->mu);
-    impl_->write_failed = true;
-    return absl::FailedPreconditionError("stream: the call ended; Finish says why");
+  return impl_->Send(request);
+}
+
+absl::Status RelationStream::WriteBatch(int64_t request_id, std::string_view session_id,
+                                        std::string_view relation,
+                                        std::span<const int64_t> values, int tuple_size) {
+  ACTOPO_ASSIGN_OR_RETURN(v1::Relation r, internal::RelationFromName(relation));
+  if (tuple_size < 0 || tuple_size > 4 || (tuple_size > 0 && values.size() % tuple_size != 0)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("values: ", values.size(), " vertex ids do not make tuples of ",
+                     tuple_size, " (0 for ids, 1 to 4 vertices per simplex)"));
   }
-  return absl::OkStatus();
+  v1::StreamRelationsRequest request;
+  request.set_request_id(request_id);
+  request.set_session_id(std::string(session_id));
+  request.set_relation(r);
+  SetBatch(values, values.size() / std::max(tuple_size, 1), tuple_size, &request);
+  return impl_->Send(request);
 }
 
 absl::Status RelationStream::WritesDone() {

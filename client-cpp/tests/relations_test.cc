@@ -118,6 +118,50 @@ TEST_F(RelationsTest, BatchErrors) {
                        StatusCode::kNotFound));
 }
 
+TEST_F(RelationsTest, StreamedBatchErrorNamesTheInputPosition) {
+  std::vector<int64_t> ids(200);
+  for (int64_t i = 0; i < 200; ++i) ids[i] = i;
+  ids[130] = 5000;  // in the third request of 64
+  EXPECT_TRUE(HasError(client().RelationBatch(session_, "vertex_star", ids),
+                       StatusCode::kOutOfRange, "simplex 130 of the input"));
+}
+
+TEST_F(RelationsTest, StreamBatchesByHandKeepItemErrors) {
+  absl::StatusOr<std::unique_ptr<RelationStream>> opened = client().OpenRelationStream();
+  ASSERT_OK(opened);
+  RelationStream& stream = **opened;
+  const std::vector<int64_t> ids = {4, 9, -3, 17};
+  ASSERT_OK(stream.WriteBatch(1, session_, "vertex_edges", ids));
+  const std::vector<int64_t> edge = Single("edge_vertices", 3);
+  ASSERT_OK(stream.WriteBatch(2, session_, "edge_triangles", edge, 2));
+  ASSERT_OK(stream.WriteBatch(3, "session-guess", "vertex_edges", ids));
+  EXPECT_TRUE(HasError(stream.WriteBatch(4, session_, "edge_triangles", ids, 3),
+                       StatusCode::kInvalidArgument, "tuples of 3"));
+  ASSERT_OK(stream.WritesDone());
+  std::optional<StreamItem> item = stream.Read();
+  ASSERT_TRUE(item.has_value());
+  ASSERT_OK(item->ids);
+  ASSERT_EQ(item->rows.size(), ids.size());
+  ASSERT_EQ(item->item_errors.size(), 1u);
+  EXPECT_EQ(item->item_errors[0].index, 2);
+  EXPECT_TRUE(HasError(item->item_errors[0].status, StatusCode::kOutOfRange, "ids[2]"));
+  EXPECT_TRUE(item->rows[2].empty());
+  for (size_t i : {0, 1, 3}) {
+    EXPECT_EQ(std::vector<int64_t>(item->rows[i].begin(), item->rows[i].end()),
+              Single("vertex_edges", ids[i]));
+  }
+  item = stream.Read();
+  ASSERT_TRUE(item.has_value());
+  ASSERT_EQ(item->rows.size(), 1u);
+  EXPECT_EQ(std::vector<int64_t>(item->rows[0].begin(), item->rows[0].end()),
+            Single("edge_triangles", 3));
+  item = stream.Read();
+  ASSERT_TRUE(item.has_value());
+  EXPECT_TRUE(HasError(item->ids.status(), StatusCode::kNotFound, "session-guess"));
+  EXPECT_FALSE(stream.Read().has_value());
+  EXPECT_OK(stream.Finish());
+}
+
 TEST_F(RelationsTest, StreamKeepsGoingAfterBadItems) {
   const std::vector<int64_t> ids = {3, -1, 4, 99999, 5};
   std::vector<StreamItem> items;

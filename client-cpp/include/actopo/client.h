@@ -331,11 +331,23 @@ struct RelationCsr {
   }
 };
 
+// An item of a batch that failed: its position in the request and why.
+struct ItemError {
+  int64_t index = 0;
+  absl::Status status;
+};
+
 // One answer of a relation stream: the request's id and its result, or its own error (the
-// stream goes on after a bad item).
+// stream goes on after a bad request).
 struct StreamItem {
   int64_t request_id = 0;
+  // A single simplex's result (Write), or the request's error (also for a batch that failed as
+  // a whole: unknown session, bad array).
   absl::StatusOr<std::vector<int64_t>> ids;
+  // A batch's answer (WriteBatch): one row per simplex; a failed item's row is empty and the
+  // item is listed in item_errors, the others are answered.
+  RelationCsr rows;
+  std::vector<ItemError> item_errors;
 };
 
 // A bidirectional relation stream (Client::OpenRelationStream). Write requests from one
@@ -363,6 +375,12 @@ class RelationStream {
   // FAILED_PRECONDITION once the stream is broken or WritesDone was called (Finish says why).
   absl::Status Write(int64_t request_id, std::string_view session_id, std::string_view relation,
                      const Simplex& simplex);
+  // Sends many simplices in one request: ids (tuple_size 0) or vertex tuples of `tuple_size`
+  // input ids each; the answer's rows and item_errors are filled. At most the server's
+  // max_batch_size simplices per request.
+  absl::Status WriteBatch(int64_t request_id, std::string_view session_id,
+                          std::string_view relation, std::span<const int64_t> values,
+                          int tuple_size = 0);
   // Tells the server no more requests follow.
   absl::Status WritesDone();
   // Blocks for the next answer; nullopt when the stream has ended (then call Finish).
@@ -539,8 +557,9 @@ class Client {
   absl::StatusOr<RelationResult> RelationWithVertices(std::string_view session_id,
                                                       std::string_view relation,
                                                       const Simplex& simplex);
-  // One relation of many simplices by id. Inputs larger than the server's max_batch_size are
-  // split into several requests and the answers merged.
+  // One relation of many simplices by id. An input that fits one request goes in a
+  // GetRelationBatch call; larger ones go over one stream, in requests of up to 65536 simplices
+  // written ahead of the answers, which are merged. The first failing simplex fails the call.
   absl::StatusOr<RelationCsr> RelationBatch(std::string_view session_id,
                                             std::string_view relation,
                                             std::span<const int64_t> ids);
