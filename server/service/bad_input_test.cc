@@ -147,6 +147,15 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
          grpc::ClientContext c;
          return stub.OpenSession(&c, r, &out);
        }},
+      {"bad query readers", C::INVALID_ARGUMENT, "engine.query_readers: -1",
+       [](auto*, auto& stub, auto& mesh, auto&) {
+         v1::OpenSessionRequest r;
+         r.set_mesh_id(mesh);
+         r.mutable_engine()->set_query_readers(-1);
+         v1::OpenSessionResponse out;
+         grpc::ClientContext c;
+         return stub.OpenSession(&c, r, &out);
+       }},
       {"bad buffer ratio", C::INVALID_ARGUMENT, "engine.buffer_ratio: -2",
        [](auto*, auto& stub, auto& mesh, auto&) {
          v1::OpenSessionRequest r;
