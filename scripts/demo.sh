@@ -41,7 +41,7 @@ step "relation queries: the star of vertex 0, the triangles around edge (0,1), v
 "$actopo" relation --mesh-id "$mesh" vertex_on_boundary 7
 
 step "the three structures on the same job: time, consumer wait and memory"
-"$actopo" bench --mesh-id "$mesh" --algorithm critical-points
+"$actopo" compare --mesh-id "$mesh" --algorithm critical-points
 
 step "statistics of the sessions still open"
 "$actopo" stats

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
+from collections import deque
 from collections.abc import (
     AsyncIterator,
     Awaitable,
     Coroutine,
     Generator,
     Iterable,
+    Iterator,
     Mapping,
     Sequence,
 )
@@ -18,7 +21,8 @@ import grpc
 import grpc.aio
 import numpy as np
 
-from actopo import _convert, _requests
+from actopo import _batches, _convert, _requests
+from actopo._batches import Piece
 from actopo._channel import (
     DEFAULT_TIMEOUT,
     MESH_TIMEOUT,
@@ -27,7 +31,7 @@ from actopo._channel import (
     client_metadata,
     resolve_target,
 )
-from actopo._errors import error_for_number, translate, translated
+from actopo._errors import ActopoError, error_for_number, translate, translated
 from actopo._mesh import MeshLike, mesh_arrays
 from actopo._progress import ProgressArg, make_progress
 from actopo._proto import pb, pb_grpc
@@ -149,10 +153,10 @@ class AsyncClient:
     def open_session(self, mesh: MeshRef, *, scalar: str | None = None,
                      structure: str = "actopo", consumers: int = 0, producers: int = 0,
                      buffer_ratio: float = 0.0, prefetch: str = "auto",
-                     precompute: str = "auto") -> _SessionOpener:
+                     precompute: str = "auto", query_readers: int = 0) -> _SessionOpener:
         """See Client.open_session(). Await it, or use ``async with`` to close it at the end."""
         request = _requests.open_session(mesh, scalar, structure, consumers, producers,
-                                         buffer_ratio, prefetch, precompute)
+                                         buffer_ratio, prefetch, precompute, query_readers)
         return _SessionOpener(self._open(request))
 
     async def _open(self, request: pb.OpenSessionRequest) -> AsyncSession:
@@ -236,11 +240,50 @@ class AsyncSession:
         self.info = await self._client.get_session(self._id())
         return self.info
 
-    async def relation(self, name: str, ids: Any) -> RelationBatch:
+    async def relation(self, name: str, ids: Any, *, raise_errors: bool = True) -> RelationBatch:
         """See Session.relation()."""
-        requests = _requests.batches(self._id(), name, ids, await self._client._batch_size())
-        return _requests.merge([await self._client._call("GetRelationBatch", r)
-                                for r in requests])
+        values = _requests.simplex_array(ids)
+        chunk = _batches.chunk_size(None, await self._client._batch_size())
+        if raise_errors and len(values) <= chunk:
+            request = pb.GetRelationBatchRequest(session_id=self._id(),
+                                                 relation=_requests.relation(name),
+                                                 **_requests.simplices(values))
+            return _requests.merge([await self._client._call("GetRelationBatch", request)])
+        batches = [b async for b in self.relation_batches(name, [values],
+                                                          raise_errors=raise_errors)]
+        return batches[0]
+
+    async def relation_batches(self, name: str, arrays: Iterable[Any], *,
+                               chunk_size: int | None = None,
+                               window: int = _batches.STREAM_WINDOW,
+                               raise_errors: bool = False) -> AsyncIterator[RelationBatch]:
+        """See Session.relation_batches(); an async iterator. `arrays` is a plain iterable,
+        read by a task that writes the messages while this one reads the answers."""
+        chunk = _batches.chunk_size(chunk_size, await self._client._batch_size())
+        messages = _batches.messages(self._id(), _requests.relation(name), arrays, chunk)
+        slots = asyncio.Semaphore(_batches.window_size(window))
+        pieces: deque[Piece] = deque()
+        failed: list[Exception] = []
+        collector = _batches.Collector(raise_errors)
+        call = self._client._stub.StreamRelations(metadata=self._client._metadata)
+        writer = asyncio.ensure_future(_write(call, messages, slots, pieces, failed))
+        try:
+            while (response := await call.read()) is not grpc.aio.EOF:
+                if not pieces:
+                    raise ActopoError("StreamRelations: an answer to no request")
+                slots.release()
+                batch = collector.add(pieces.popleft(), response)
+                if batch is not None:
+                    yield batch
+        except grpc.RpcError as e:
+            if failed:
+                raise failed[0] from None
+            raise translate(e) from None
+        finally:
+            writer.cancel()
+            call.cancel()
+        if failed:
+            raise failed[0]
 
     async def query(self, name: str, simplex: SimplexArg, *,
                     include_vertices: bool = False) -> SimplexRelation:
@@ -289,6 +332,29 @@ class AsyncSession:
         """See Session.stats()."""
         request = pb.GetSessionStatsRequest(session_id=self._id())
         return _convert.session_stats(await self._client._call("GetSessionStats", request))
+
+
+async def _write(call: Any, messages: Iterator[tuple[pb.StreamRelationsRequest, Piece]],
+                 slots: asyncio.Semaphore, pieces: deque[Piece], failed: list[Exception]) -> None:
+    """The sending side of AsyncSession.relation_batches(): writes the messages, each once a
+    place in the window is free, noting what each carries; an error of the caller's arrays
+    goes to `failed` and ends the sending (the reader raises it)."""
+    while True:
+        try:
+            request, piece = next(messages)
+        except StopIteration:
+            break
+        except Exception as e:  # noqa: BLE001 - raised to the caller by the reader
+            failed.append(e)
+            break
+        await slots.acquire()
+        pieces.append(piece)
+        try:
+            await call.write(request)
+        except (grpc.RpcError, asyncio.InvalidStateError):
+            return  # the call ended: the reader sees why
+    with contextlib.suppress(grpc.RpcError, asyncio.InvalidStateError):
+        await call.done_writing()
 
 
 class AsyncJob:

@@ -1,10 +1,11 @@
 """The `actopo` command line: a thin layer over Client.
 
     actopo --server HOST:PORT info | meshes | load | upload | delete | sessions | open | close
-                              | run | relation | stats | bench
+                              | run | relation | stats | compare | bench
 
-`--server` defaults to $ACTOPO_SERVER. Every listing command takes --json. Exit status: 0 on
-success, 1 on a service error, 2 on a usage error, 130 on Ctrl-C (the running job is cancelled).
+`--server` (or `--target`, before or after the command) defaults to $ACTOPO_SERVER. Every
+listing command takes --json. Exit status: 0 on success, 1 on a service error, 2 on a usage
+error, 130 on Ctrl-C (the running job is cancelled).
 """
 
 from __future__ import annotations
@@ -21,8 +22,9 @@ from pathlib import Path
 from typing import Any
 
 from actopo import _names
+from actopo._bench import MODES, ORDERS, Bench, Load
 from actopo._client import Client, Session
-from actopo._errors import ActopoError
+from actopo._errors import ActopoError, InvalidArgumentError
 from actopo._mesh import MeshArrays, mesh_arrays
 from actopo._results import JobResult
 from actopo._types import MeshInfo, SessionInfo, SessionStats, plain
@@ -53,13 +55,16 @@ def _mib(n: int) -> str:
     return f"{n / 2**20:.1f} MiB"
 
 
-# Mesh and session sources shared by run, relation and bench.
+# Mesh and session sources shared by run, relation, compare and bench.
 
 
-def _add_mesh_source(p: argparse.ArgumentParser, session: bool = False) -> None:
-    g = p.add_mutually_exclusive_group(required=True)
+def _add_mesh_source(p: argparse.ArgumentParser, session: bool = False,
+                     required: bool = True) -> None:
+    g = p.add_mutually_exclusive_group(required=required)
     g.add_argument("--mesh", metavar="NAME",
                    help="a file under the server's data directory, or sample:NAME")
+    g.add_argument("--sample", metavar="NAME",
+                   help="a built-in sample, e.g. wavelet:40 (the same as --mesh sample:NAME)")
     g.add_argument("--upload", metavar="FILE", help="a local mesh file to upload")
     g.add_argument("--mesh-id", metavar="ID", help="a mesh already loaded on the server")
     if session:
@@ -81,6 +86,9 @@ def _add_engine(p: argparse.ArgumentParser, structure: bool = True) -> None:
                    help="cache/buffer capacity as a fraction of the blocks (default 0.2)")
     p.add_argument("--prefetch", default="auto", choices=list(_names.PREFETCH))
     p.add_argument("--precompute", default="auto", choices=list(_names.PRECOMPUTE))
+    p.add_argument("--query-readers", type=int, default=0,
+                   help="relation calls the session answers at once (default: one per server "
+                        "core, at most 4)")
 
 
 class _Mesh:
@@ -102,7 +110,8 @@ def _mesh(client: Client, args: argparse.Namespace) -> Iterator[_Mesh]:
         local = mesh_arrays(args.upload, Path(args.upload).name)
         info = client.upload_mesh(local, block_size=args.block_size)
     else:
-        info = client.load_mesh(args.mesh, block_size=args.block_size)
+        source = args.mesh or f"sample:{args.sample}"
+        info = client.load_mesh(source, block_size=args.block_size)
     try:
         yield _Mesh(info, local)
     finally:
@@ -116,7 +125,7 @@ def _open(client: Client, mesh: MeshInfo, args: argparse.Namespace,
     return client.open_session(mesh, scalar=args.scalar, structure=structure or args.structure,
                                consumers=args.consumers, producers=args.producers,
                                buffer_ratio=args.buffer_ratio, prefetch=args.prefetch,
-                               precompute=args.precompute)
+                               precompute=args.precompute, query_readers=args.query_readers)
 
 
 def _geometry(args: argparse.Namespace, mesh: _Mesh) -> Any:
@@ -326,7 +335,7 @@ def cmd_stats(client: Client, args: argparse.Namespace) -> None:
                   "RELATIONS_PEAK", "RSS"])
 
 
-def cmd_bench(client: Client, args: argparse.Namespace) -> None:
+def cmd_compare(client: Client, args: argparse.Namespace) -> None:
     structures = [s.strip() for s in args.structures.split(",") if s.strip()]
     for s in structures:
         _names.lookup(_names.STRUCTURES, s, "structure")
@@ -366,11 +375,137 @@ def cmd_bench(client: Client, args: argparse.Namespace) -> None:
             "RELATIONS_PEAK", "RSS", "SAME_RESULT"])
 
 
+# bench: load from concurrent clients.
+
+DEFAULT_BENCH_SAMPLE = "wavelet:30"
+
+
+def _list(convert: Any, choices: Sequence[str] | None = None) -> Any:
+    """An argparse type: comma-separated values, each converted and checked."""
+    def parse(text: str) -> list[Any]:
+        values = [convert(v.strip()) for v in text.split(",") if v.strip()]
+        if not values:
+            raise argparse.ArgumentTypeError("empty list")
+        for v in values:
+            if choices is not None and v not in choices:
+                raise argparse.ArgumentTypeError(f"unknown '{v}'; choose from "
+                                                 f"{', '.join(choices)}")
+        return values
+    return parse
+
+
+def _positive(convert: Any) -> Any:
+    """An argparse type: a positive number."""
+    def parse(text: str) -> Any:
+        try:
+            value = convert(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: '{text}'") from None
+        if value <= 0:
+            raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+        return value
+    return parse
+
+
+def _bench_connect(client: Client, args: argparse.Namespace) -> Any:
+    """A factory of clients with channels (and connections) of their own, reaching the same
+    server replica as `client` (the same affinity key)."""
+    def connect() -> Client:
+        return Client(client.target, token=args.token, tls=args.tls, timeout=args.timeout,
+                      affinity_key=client.affinity_key,
+                      options=[("grpc.use_local_subchannel_pool", 1)])
+    return connect
+
+
+def _number(value: float | None, digits: int = 0) -> str:
+    return "-" if value is None else f"{value:,.{digits}f}"
+
+
+def _bench_rows(rows: Sequence[dict[str, Any]]) -> None:
+    table = []
+    for r in rows:
+        server, latency = r["server"], r["latency_ms"]
+        job = r["mode"] == "job"
+        per = server.get("per_simplex_ns", {})
+        table.append((
+            r["structure"], r["mode"], r["clients"], r["requests"], r["errors"],
+            _number(r["requests_per_s"], 1), _number(r["simplices_per_s"]),
+            *(_number(latency[k], 3) for k in ("p50", "p90", "p99", "p99.9")),
+            server["jobs"]["count"] if job else server["relation_queries"]["count"],
+            *(_number(None if job else per[k], 1) for k in ("queue", "compute", "serialize"))))
+    _table(table, ["STRUCTURE", "MODE", "CLIENTS", "REQUESTS", "ERRORS", "REQ/S", "SIMPLICES/S",
+                   "P50_MS", "P90_MS", "P99_MS", "P99.9_MS", "SERVER_CALLS", "QUEUE_NS",
+                   "COMPUTE_NS", "SERIALIZE_NS"])
+
+
+def cmd_bench(client: Client, args: argparse.Namespace) -> None:
+    if args.structures or args.repeat:  # how `compare` was called before it had its name
+        print("actopo: note: `bench --structures/--repeat` is now `actopo compare`",
+              file=sys.stderr)
+        args.structures = args.structures or ",".join(STRUCTURES)
+        args.repeat = args.repeat or 1
+        return cmd_compare(client, args)
+    if not (args.mesh or args.upload or args.mesh_id or args.sample):
+        args.sample = DEFAULT_BENCH_SAMPLE
+    limit = client.server_info().limits.max_batch_size
+    if "batch" in args.modes and limit and args.batch_size > limit:
+        raise InvalidArgumentError(f"--batch-size: {args.batch_size} is over the server's "
+                                   f"max_batch_size of {limit}")
+    load = Load(relation=args.relation, seconds=args.duration, requests=args.requests or 0,
+                batch_size=args.batch_size, stream_size=args.stream_size,
+                chunk_size=args.chunk_size, window=args.window, order=args.order,
+                algorithm=args.algorithm, parameters=_parameters(args))
+    rows: list[dict[str, Any]] = []
+    with _mesh(client, args) as mesh:
+        bench = Bench(_bench_connect(client, args),
+                      lambda c, structure: _open(c, mesh.info, args, structure), mesh.info, load)
+        for structure in args.structure:
+            with contextlib.ExitStack() as stack:
+                shared = None
+                if any(m != "job" for m in args.modes):
+                    shared = stack.enter_context(_open(client, mesh.info, args, structure))
+                for clients in args.clients:
+                    for mode in args.modes:
+                        rows.append(bench.run(structure, mode, clients, shared))
+                        if _progress(args):
+                            r = rows[-1]
+                            print(f"actopo bench: {structure} {mode} x{clients}: "
+                                  f"{_number(r['requests_per_s'], 1)} req/s", file=sys.stderr)
+    m = mesh.info
+    report = {
+        "target": client.target,
+        "mesh": {"mesh_id": m.mesh_id, "name": m.name, "source": m.source,
+                 "vertices": m.vertices, "edges": m.edges, "triangles": m.triangles,
+                 "tetrahedra": m.tetrahedra, "blocks": m.blocks},
+        "config": {"relation": args.relation, "order": args.order,
+                   "duration_s": None if args.requests else args.duration,
+                   "requests_per_client": args.requests, "batch_size": args.batch_size,
+                   "stream_size": args.stream_size, "chunk_size": args.chunk_size,
+                   "window": args.window, "algorithm": args.algorithm,
+                   "parameters": load.parameters, "query_readers": args.query_readers},
+        "runs": rows,
+    }
+    if args.json:
+        return _print_json(report)
+    span = f"{args.requests} requests per client" if args.requests else f"{args.duration:g} s"
+    print(f"{args.relation} on {m.name}: {m.vertices} vertices, {m.tetrahedra} tetrahedra, "
+          f"{m.blocks} blocks; {span} per mode, {args.order} ids, batch {args.batch_size}, "
+          f"stream arrays of {args.stream_size}; jobs: {args.algorithm}")
+    _bench_rows(rows)
+    print("REQ/S: calls (unary, batch), arrays (stream) or jobs per second; latencies in ms.\n"
+          "SERVER_CALLS: the server's relation calls (jobs for job); QUEUE_NS, COMPUTE_NS, "
+          "SERIALIZE_NS: its time per simplex.")
+    errors = [r for r in rows if r["first_error"]]
+    for r in errors:
+        print(f"{r['structure']} {r['mode']} x{r['clients']}: first error: {r['first_error']}",
+              file=sys.stderr)
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="actopo", description="Client of the ACTOPO topology "
                                 "service: meshes, sessions, relations and algorithm jobs.")
-    p.add_argument("--server", default=os.environ.get("ACTOPO_SERVER"),
-                   help="HOST:PORT of actopo-server (default: $ACTOPO_SERVER)")
+    p.add_argument("--server", "--target", default=os.environ.get("ACTOPO_SERVER"),
+                   metavar="HOST:PORT", help="actopo-server's address (default: $ACTOPO_SERVER)")
     p.add_argument("--token", default=os.environ.get("ACTOPO_TOKEN"),
                    help="bearer token (default: $ACTOPO_TOKEN)")
     p.add_argument("--affinity-key", default=os.environ.get("ACTOPO_AFFINITY_KEY"),
@@ -384,6 +519,8 @@ def parser() -> argparse.ArgumentParser:
     def command(name: str, func: Any, help: str, json_flag: bool = True) -> Any:
         c = sub.add_parser(name, help=help, description=help)
         c.set_defaults(func=func)
+        c.add_argument("--server", "--target", default=argparse.SUPPRESS, metavar="HOST:PORT",
+                       help="actopo-server's address (also accepted before the command)")
         if json_flag:
             c.add_argument("--json", action="store_true", help="print JSON")
         return c
@@ -435,7 +572,7 @@ def parser() -> argparse.ArgumentParser:
     c = command("stats", cmd_stats, "statistics of one session, or of all")
     c.add_argument("--session", metavar="ID")
 
-    c = command("bench", cmd_bench,
+    c = command("compare", cmd_compare,
                 "run an algorithm on several structures and compare time, wait and memory")
     _add_mesh_source(c)
     c.add_argument("--algorithm", required=True, choices=ALGORITHMS)
@@ -446,6 +583,44 @@ def parser() -> argparse.ArgumentParser:
     c.add_argument("--boundary-rule", choices=["ttk", "none"], help="critical-points")
     c.add_argument("--param", action="append", metavar="NAME=VALUE")
     c.add_argument("--no-progress", action="store_true")
+
+    c = command("bench", cmd_bench,
+                "load a server from concurrent clients: unary, batched and streamed relation "
+                "queries and jobs; throughput, latency percentiles and the server's own time "
+                "breakdown")
+    _add_mesh_source(c, required=False)
+    c.add_argument("--structure", type=_list(str, STRUCTURES), default=["actopo"],
+                   help="comma-separated structures, one session each (default actopo)")
+    c.add_argument("--modes", type=_list(str, MODES), default=list(MODES),
+                   help=f"comma-separated, of {', '.join(MODES)} (default: all)")
+    c.add_argument("--clients", type=_list(_positive(int)), default=[1],
+                   help="concurrent clients, threads with a channel each; comma-separated for "
+                        "a sweep, e.g. 1,4 (default 1)")
+    c.add_argument("--duration", "--seconds", type=_positive(float), default=5.0,
+                   metavar="SECONDS", help="per mode (default 5)")
+    c.add_argument("--requests", type=_positive(int), metavar="N",
+                   help="requests per client and mode, instead of a duration")
+    c.add_argument("--relation", default="vertex_star", choices=list(_names.RELATIONS),
+                   metavar="NAME", help="the relation asked (default vertex_star), one of "
+                   f"{', '.join(_names.RELATIONS)}")
+    c.add_argument("--order", default="sequential", choices=ORDERS,
+                   help="ids in order from a different start per client, or at random")
+    c.add_argument("--batch-size", type=_positive(int), default=4096,
+                   help="simplices per GetRelationBatch (default 4096)")
+    c.add_argument("--stream-size", type=_positive(int), default=65536,
+                   help="simplices per streamed array (default 65536)")
+    c.add_argument("--chunk-size", type=_positive(int),
+                   help="simplices per StreamRelations message (default 65536)")
+    c.add_argument("--window", type=_positive(int), default=4,
+                   help="StreamRelations messages in flight per client (default 4)")
+    c.add_argument("--algorithm", default="critical-points", choices=ALGORITHMS,
+                   help="the job of the job mode (default critical-points)")
+    c.add_argument("--boundary-rule", choices=["ttk", "none"], help="critical-points")
+    c.add_argument("--param", action="append", metavar="NAME=VALUE")
+    _add_engine(c, structure=False)
+    c.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
+    c.add_argument("--structures", help=argparse.SUPPRESS)  # now `compare`
+    c.add_argument("--repeat", type=int, help=argparse.SUPPRESS)
     return p
 
 

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import threading
+from collections import deque
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import Any
 
 import grpc
 import numpy as np
 
-from actopo import _convert, _requests
+from actopo import _batches, _convert, _requests
+from actopo._batches import Piece
 from actopo._channel import (
     DEFAULT_TIMEOUT,
     MESH_TIMEOUT,
@@ -18,7 +20,7 @@ from actopo._channel import (
     resolve_target,
     sync_channel,
 )
-from actopo._errors import error_for_number, translate, translated
+from actopo._errors import ActopoError, error_for_number, translate, translated
 from actopo._mesh import MeshLike, mesh_arrays
 from actopo._progress import ProgressArg, make_progress
 from actopo._proto import pb, pb_grpc
@@ -174,14 +176,16 @@ class Client:
     def open_session(self, mesh: MeshRef, *, scalar: str | None = None,
                      structure: str = "actopo", consumers: int = 0, producers: int = 0,
                      buffer_ratio: float = 0.0, prefetch: str = "auto",
-                     precompute: str = "auto") -> Session:
+                     precompute: str = "auto", query_readers: int = 0) -> Session:
         """Opens a session: a structure ("explicit", "compact" or "actopo") on a mesh and a
         scalar field (default: the mesh's first floating-point field). 0 means the server's
         default (1 consumer, 2 producers per consumer, buffer ratio 0.2); prefetch "auto",
         "linear", "spatial" or "adaptive"; precompute "auto", "requested" or "declared".
-        Use it as a context manager to close it."""
+        `query_readers`: relation calls answered at once on the session, each with a reader of
+        its own (0: the server's default, one per server core, at most 4; the server allows
+        1 to 64). Use it as a context manager to close it."""
         request = _requests.open_session(mesh, scalar, structure, consumers, producers,
-                                         buffer_ratio, prefetch, precompute)
+                                         buffer_ratio, prefetch, precompute, query_readers)
         response = self._call("OpenSession", request, timeout=self._mesh_timeout)
         return Session(self, _convert.session_info(response.session))
 
@@ -250,13 +254,18 @@ class Session:
             raise ValueError("the session is closed")
         return self.session_id
 
-    def relation(self, name: str, ids: Any) -> RelationBatch:
+    def relation(self, name: str, ids: Any, *, raise_errors: bool = True) -> RelationBatch:
         """A relation of many simplices, as CSR numpy arrays ``(offsets, values)``.
 
         `name`: e.g. "vertex_edges", "edge_triangles", "tetrahedron_neighbors", "vertex_link";
         `ids`: simplex ids (vertices and tetrahedra: input ids; edges and triangles: the
-        service's ids), or an (n, k) array of vertex tuples. Large inputs are split into batches
-        of the server's max_batch_size.
+        service's ids), or an (n, k) array of vertex tuples; int32 ids travel as int32. Up to
+        one message of simplices (65536, or the server's max_batch_size if smaller) go in one
+        GetRelationBatch call; more go over one StreamRelations call (see relation_batches()).
+
+        A bad simplex raises (OutOfRangeError, NotFoundError, ...), unless `raise_errors` is
+        False: then the others are answered, the failed ones get empty rows and are listed in
+        ``errors`` by position.
 
         On two tetrahedra (0, 1, 2, 3) and (1, 2, 3, 4):
 
@@ -265,9 +274,57 @@ class Session:
         array([0, 1, 3])
         >>> values[offsets[1]:offsets[2]]  # the tetrahedra around vertex 1
         array([0, 1])
+        >>> batch = session.relation("vertex_star", [4, 7, 0], raise_errors=False)
+        >>> batch.offsets, batch.errors[0].index, batch.errors[0].message
+        (array([0, 1, 1, 2]), 1, 'ids[1]: vertex id 7 is outside [0, 5)')
         """
-        requests = _requests.batches(self._id(), name, ids, self._client._batch_size())
-        return _requests.merge([self._client._call("GetRelationBatch", r) for r in requests])
+        values = _requests.simplex_array(ids)
+        if raise_errors and len(values) <= _batches.chunk_size(None, self._client._batch_size()):
+            request = pb.GetRelationBatchRequest(session_id=self._id(),
+                                                 relation=_requests.relation(name),
+                                                 **_requests.simplices(values))
+            return _requests.merge([self._client._call("GetRelationBatch", request)])
+        [batch] = self.relation_batches(name, [values], raise_errors=raise_errors)
+        return batch
+
+    def relation_batches(self, name: str, arrays: Iterable[Any], *,
+                         chunk_size: int | None = None, window: int = _batches.STREAM_WINDOW,
+                         raise_errors: bool = False) -> Iterator[RelationBatch]:
+        """Streams one relation over many arrays of simplices on one StreamRelations call,
+        yielding one RelationBatch per input array, in order, as its answers arrive.
+
+        `arrays`: an iterable (possibly lazy, read from gRPC's sending thread) of numpy arrays
+        of ids (int32 or int64; other integers are sent as int64) or of (n, k) vertex tuples.
+        Each array is cut into messages of `chunk_size` simplices (default 65536, at most the
+        server's max_batch_size); up to `window` messages are written ahead of the answers.
+
+        A simplex that fails gets an empty row and a FailedItem in its batch's ``errors``, by
+        position in its array, and the stream goes on; with `raise_errors` the first one
+        raises instead. A message that fails as a whole (closed session, unknown relation,
+        bad array) raises.
+
+        >>> for batch in session.relation_batches("vertex_star", [[0, 1], np.array([4], np.int32)]):
+        ...     print(batch.offsets, batch.values)
+        [0 1 3] [0 0 1]
+        [0 1] [1]
+        """
+        chunk = _batches.chunk_size(chunk_size, self._client._batch_size())
+        messages = _batches.messages(self._id(), _requests.relation(name), arrays, chunk)
+        feeder = _Feeder(messages, _batches.window_size(window))
+        collector = _batches.Collector(raise_errors)
+        call = self._client._stub.StreamRelations(iter(feeder), metadata=self._client._metadata)
+        try:
+            for response in call:
+                batch = collector.add(feeder.answered(), response)
+                if batch is not None:
+                    yield batch
+        except grpc.RpcError as e:
+            feeder.check()
+            raise translate(e) from None
+        finally:
+            feeder.close()
+            call.cancel()
+        feeder.check()
 
     def query(self, name: str, simplex: SimplexArg, *,
               include_vertices: bool = False) -> SimplexRelation:
@@ -336,6 +393,60 @@ class Session:
         """Cumulative statistics of the session (diff two snapshots for an interval)."""
         request = pb.GetSessionStatsRequest(session_id=self._id())
         return _convert.session_stats(self._client._call("GetSessionStats", request))
+
+
+class _Feeder:
+    """The sending side of a pipelined StreamRelations call. gRPC's sending thread iterates it;
+    it holds that thread while `window` messages are unanswered, keeps what each message
+    carries for the reader, and keeps an error of the caller's arrays for check() (an error
+    raised in gRPC's thread would only cancel the call)."""
+
+    def __init__(self, messages: Iterator[tuple[pb.StreamRelationsRequest, Piece]],
+                 window: int) -> None:
+        self._messages = messages
+        self._window = window
+        self._pieces: deque[Piece] = deque()
+        self._changed = threading.Condition()
+        self._closed = False
+        self._error: Exception | None = None
+
+    def __iter__(self) -> Iterator[pb.StreamRelationsRequest]:
+        while True:
+            with self._changed:
+                self._changed.wait_for(
+                    lambda: self._closed or len(self._pieces) < self._window)
+                if self._closed:
+                    return
+            try:
+                request, piece = next(self._messages)
+            except StopIteration:
+                return
+            except Exception as e:  # noqa: BLE001 - raised to the caller by check()
+                self._error = e
+                return
+            with self._changed:
+                self._pieces.append(piece)
+            yield request
+
+    def answered(self) -> Piece:
+        """What the answer just read answers (answers come in order); frees a place."""
+        with self._changed:
+            if not self._pieces:
+                raise ActopoError("StreamRelations: an answer to no request")
+            piece = self._pieces.popleft()
+            self._changed.notify_all()
+        return piece
+
+    def close(self) -> None:
+        """Stops sending (wakes the sending thread if it waits)."""
+        with self._changed:
+            self._closed = True
+            self._changed.notify_all()
+
+    def check(self) -> None:
+        """Raises the error that reading the caller's arrays raised, if any."""
+        if self._error is not None:
+            raise self._error
 
 
 class Job:

@@ -18,6 +18,7 @@ from actopo._types import (
     JobStats,
     MemoryStats,
     MeshInfo,
+    QueryBreakdown,
     ServerInfo,
     ServerLimits,
     SessionInfo,
@@ -57,7 +58,8 @@ def session_info(s: pb.SessionInfo) -> SessionInfo:
     engine = EngineOptions(consumers=e.consumers, producers=e.producers,
                            buffer_ratio=e.buffer_ratio,
                            prefetch=_names.name_of(_names.PREFETCH, e.prefetch, "auto"),
-                           precompute=_names.name_of(_names.PRECOMPUTE, e.precompute, "auto"))
+                           precompute=_names.name_of(_names.PRECOMPUTE, e.precompute, "auto"),
+                           query_readers=e.query_readers)
     return SessionInfo(session_id=s.session_id, mesh_id=s.mesh_id, scalar_field=s.scalar_field,
                        structure=_names.name_of(_names.STRUCTURES, s.structure, "actopo"),
                        engine=engine, created=_time(s, "created"),
@@ -76,7 +78,8 @@ def memory_stats(m: pb.MemoryStats) -> MemoryStats:
 def session_stats(r: pb.GetSessionStatsResponse) -> SessionStats:
     return SessionStats(engine=engine_stats(r.engine), memory=memory_stats(r.memory),
                         relation_queries=_fields(r.relation_queries, Counter),
-                        jobs=_fields(r.jobs, Counter), preprocess_seconds=r.preprocess_seconds)
+                        jobs=_fields(r.jobs, Counter), preprocess_seconds=r.preprocess_seconds,
+                        query_breakdown=_fields(r.query_breakdown, QueryBreakdown))
 
 
 def job_stats(s: pb.JobStats) -> JobStats:

@@ -90,9 +90,14 @@ def error_for(code: grpc.StatusCode, details: str, *, mesh: bool = False) -> Act
     return cls(details or code.name.lower().replace("_", " "), code)
 
 
+def status_code(number: int) -> grpc.StatusCode:
+    """The grpc.StatusCode of a google.rpc.Code number (UNKNOWN for numbers it does not know)."""
+    return _CODE_BY_NUMBER.get(number, grpc.StatusCode.UNKNOWN)
+
+
 def error_for_number(code: int, details: str) -> ActopoError:
     """The exception for a google.rpc.Code number (per-item errors of streams)."""
-    return error_for(_CODE_BY_NUMBER.get(code, grpc.StatusCode.UNKNOWN), details)
+    return error_for(status_code(code), details)
 
 
 def translate(error: grpc.RpcError, *, mesh: bool = False) -> ActopoError:

@@ -41,13 +41,27 @@ def load(source: str, block_size: int = 0, block_label_field: str = "") -> pb.Lo
     return pb.LoadMeshRequest(path=source, partition=options)
 
 
+def engine_count(what: str, value: int) -> int:
+    """A thread or reader count of the engine options: an integer in [0, 2^31 - 1], 0 meaning
+    the server's default (the server checks the range it allows, e.g. [1, 64])."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InvalidArgumentError(f"engine.{what}: {value!r} is not an integer")
+    if not 0 <= value <= 2**31 - 1:
+        raise InvalidArgumentError(f"engine.{what}: {value} is negative or too large "
+                                   "(0 means the server's default)")
+    return int(value)
+
+
 def open_session(mesh: MeshRef, scalar: str | None, structure: str, consumers: int,
                  producers: int, buffer_ratio: float, prefetch: str,
-                 precompute: str) -> pb.OpenSessionRequest:
-    engine = pb.EngineOptions(consumers=consumers, producers=producers, buffer_ratio=buffer_ratio,
+                 precompute: str, query_readers: int = 0) -> pb.OpenSessionRequest:
+    engine = pb.EngineOptions(consumers=engine_count("consumers", consumers),
+                              producers=engine_count("producers", producers),
+                              buffer_ratio=buffer_ratio,
                               prefetch=_names.lookup(_names.PREFETCH, prefetch, "prefetch"),
                               precompute=_names.lookup(_names.PRECOMPUTE, precompute,
-                                                       "precompute"))
+                                                       "precompute"),
+                              query_readers=engine_count("query_readers", query_readers))
     return pb.OpenSessionRequest(
         mesh_id=mesh_id(mesh), scalar_field=scalar or "",
         structure=_names.lookup(_names.STRUCTURES, structure, "structure"), engine=engine)
@@ -79,13 +93,10 @@ def single_result(r: pb.GetRelationResponse) -> SimplexRelation:
     return SimplexRelation(ids, vertices)
 
 
-def batches(session: str, name: str, ids: Any,
-            max_batch: int) -> list[pb.GetRelationBatchRequest]:
-    """GetRelationBatch requests of at most `max_batch` simplices each.
-
-    `ids`: one id, a 1-D sequence of ids, or an (n, k) array of vertex tuples.
-    """
-    code = relation(name)
+def simplex_array(ids: Any) -> np.ndarray:
+    """`ids` as the service takes them: one id, 1-D ids, or an (n, k) array of vertex tuples;
+    int32 stays int32, other integers become int64; little-endian and C-contiguous (no copy
+    when they already are)."""
     values = np.asarray(ids)
     if values.ndim == 0:
         values = values.reshape(1)
@@ -94,18 +105,28 @@ def batches(session: str, name: str, ids: Any,
     if values.ndim not in (1, 2):
         raise InvalidArgumentError(f"ids: must be 1-D ids or (n, k) vertex tuples, got shape "
                                    f"{values.shape}")
-    values = little_endian(values, np.int64)
+    int32 = values.dtype.kind == "i" and values.dtype.itemsize == 4
+    return little_endian(values, np.int32 if int32 else np.int64)
+
+
+def simplices(values: np.ndarray) -> dict[str, pb.Array]:
+    """The ``ids`` (1-D) or ``vertex_tuples`` (2-D) field of a batch request."""
+    field = "ids" if values.ndim == 1 else "vertex_tuples"
+    return {field: to_array(values, field)}
+
+
+def batches(session: str, name: str, ids: Any,
+            max_batch: int) -> list[pb.GetRelationBatchRequest]:
+    """GetRelationBatch requests of at most `max_batch` simplices each.
+
+    `ids`: one id, a 1-D sequence of ids, or an (n, k) array of vertex tuples.
+    """
+    code = relation(name)
+    values = simplex_array(ids)
     step = max(max_batch, 1)
-    requests = []
-    for start in range(0, max(len(values), 1), step):
-        piece = values[start:start + step]
-        if values.ndim == 1:
-            requests.append(pb.GetRelationBatchRequest(
-                session_id=session, relation=code, ids=to_array(piece, "ids")))
-        else:
-            requests.append(pb.GetRelationBatchRequest(
-                session_id=session, relation=code, vertex_tuples=to_array(piece, "vertex_tuples")))
-    return requests
+    return [pb.GetRelationBatchRequest(session_id=session, relation=code,
+                                       **simplices(values[start:start + step]))
+            for start in range(0, max(len(values), 1), step)]
 
 
 def merge(responses: Sequence[pb.GetRelationBatchResponse]) -> RelationBatch:

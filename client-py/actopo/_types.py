@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Iterable
+from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any, NamedTuple
 
+import grpc
 import numpy as np
 
-from actopo._errors import ActopoError
+from actopo._errors import ActopoError, error_for
 
 
 @dataclass(frozen=True)
@@ -76,6 +78,8 @@ class EngineOptions:
     buffer_ratio: float
     prefetch: str
     precompute: str
+    query_readers: int = 0
+    """Relation calls the session answers at once (each with a reader of its own)."""
 
 
 @dataclass(frozen=True)
@@ -143,6 +147,33 @@ class MemoryStats:
 
 
 @dataclass(frozen=True)
+class QueryBreakdown:
+    """Server-side time of a session's relation calls (unary, batch and streamed), summed.
+
+    ``simplices`` counts the simplices answered (a batch of n counts n, failed items not);
+    ``queue_ns`` is the time calls waited for a free query reader, ``compute_ns`` the time spent
+    reading or computing the rows, ``serialize_ns`` the time packing them into messages.
+    """
+
+    simplices: int = 0
+    queue_ns: int = 0
+    compute_ns: int = 0
+    serialize_ns: int = 0
+
+    @property
+    def queue_seconds(self) -> float:
+        return self.queue_ns / 1e9
+
+    @property
+    def compute_seconds(self) -> float:
+        return self.compute_ns / 1e9
+
+    @property
+    def serialize_seconds(self) -> float:
+        return self.serialize_ns / 1e9
+
+
+@dataclass(frozen=True)
 class SessionStats:
     """Cumulative statistics of a session (Session.stats())."""
 
@@ -151,6 +182,7 @@ class SessionStats:
     relation_queries: Counter
     jobs: Counter
     preprocess_seconds: float
+    query_breakdown: QueryBreakdown = field(default_factory=QueryBreakdown)
 
 
 @dataclass(frozen=True)
@@ -162,12 +194,47 @@ class JobStats:
     memory: MemoryStats
 
 
-class RelationBatch(NamedTuple):
-    """A relation of many simplices in CSR form: the values of simplex i are
-    ``values[offsets[i]:offsets[i + 1]]``. Unpacks as ``offsets, values = batch``."""
+@dataclass(frozen=True)
+class FailedItem:
+    """A simplex of a batch that the server could not answer: its position in the input array,
+    the gRPC status code and the server's message (naming the field and value)."""
 
+    index: int
+    code: grpc.StatusCode
+    message: str
+
+    @property
+    def error(self) -> ActopoError:
+        """The exception this failure raises (OutOfRangeError, NotFoundError, ...)."""
+        return error_for(self.code, self.message)
+
+
+class _CSR(NamedTuple):
     offsets: np.ndarray
     values: np.ndarray
+
+
+class RelationBatch(_CSR):
+    """A relation of many simplices in CSR form: the values of simplex i are
+    ``values[offsets[i]:offsets[i + 1]]``. Unpacks as ``offsets, values = batch``.
+
+    ``errors`` lists the simplices that failed, by position, when they were not raised
+    (``raise_errors=False``); their rows are empty. It is an attribute, not part of the tuple.
+    """
+
+    errors: tuple[FailedItem, ...] = ()
+
+    def __new__(cls, offsets: np.ndarray, values: np.ndarray,
+                errors: Iterable[FailedItem] = ()) -> RelationBatch:
+        batch = super().__new__(cls, offsets, values)
+        failed = tuple(errors)
+        if failed:
+            batch.errors = failed
+        return batch
+
+    def __repr__(self) -> str:
+        text = super().__repr__()
+        return f"{text[:-1]}, errors={list(self.errors)!r})" if self.errors else text
 
     @property
     def num_simplices(self) -> int:

@@ -131,16 +131,69 @@ def test_run_writes_files_for_paraview(cli, data_dir, tmp_path, monkeypatch):
     assert status == 0 and "segmentation not written" in err
 
 
-def test_bench_compares_structures(cli):
-    report = _json(cli, "bench", "--mesh", "sample:jittered:8", "--algorithm",
+def test_compare_structures(cli):
+    report = _json(cli, "compare", "--mesh", "sample:jittered:8", "--algorithm",
                    "discrete-gradient", "--structures", "explicit,compact,actopo")
     rows = report["structures"]
     assert [r["structure"] for r in rows] == ["explicit", "compact", "actopo"]
     assert all(r["same_result"] and r["run_s"] > 0 for r in rows)
     assert rows[0]["result"] == rows[1]["result"] == rows[2]["result"]
-    status, out, _ = cli("bench", "--mesh", "sample:jittered:6", "--algorithm", "critical-points",
+    status, out, _ = cli("compare", "--sample", "jittered:6", "--algorithm", "critical-points",
                          "--structures", "compact,actopo", "--repeat", "2")
     assert status == 0 and "STRUCTURE" in out and "actopo" in out and "DIFFERENT" not in out
+    # The comparison's former name still works when called as before.
+    status, out, err = cli("bench", "--mesh", "sample:jittered:6", "--algorithm",
+                           "critical-points", "--structures", "compact", "--no-progress")
+    assert status == 0 and "SAME_RESULT" in out and "actopo compare" in err
+
+
+def test_bench_load_json(cli):
+    """A short load run: every mode, two clients, a few requests each; the server's breakdown
+    counts exactly the simplices the clients were answered."""
+    report = _json(cli, "bench", "--sample", "jittered:6", "--structure", "compact",
+                   "--clients", "2", "--requests", "3", "--batch-size", "50",
+                   "--stream-size", "300", "--chunk-size", "128", "--query-readers", "2")
+    assert report["mesh"]["source"] == "sample:jittered:6"
+    assert report["config"]["relation"] == "vertex_star"
+    runs = {r["mode"]: r for r in report["runs"]}
+    assert list(runs) == ["unary", "batch", "stream", "job"]
+    for mode, r in runs.items():
+        assert r["structure"] == "compact" and r["clients"] == 2
+        assert r["requests"] == 6 and r["errors"] == 0 and r["first_error"] is None, r
+        assert r["requests_per_s"] > 0 and r["seconds"] > 0
+        assert set(r["latency_ms"]) == {"p50", "p90", "p99", "p99.9", "mean", "max"}
+        assert 0 < r["latency_ms"]["p50"] <= r["latency_ms"]["p99.9"] <= r["latency_ms"]["max"]
+    sent = {"unary": 6, "batch": 6 * 50, "stream": 6 * 300}
+    for mode, simplices in sent.items():
+        r = runs[mode]
+        assert r["simplices"] == simplices and r["simplices_per_s"] > 0
+        server = r["server"]
+        assert server["query_breakdown"]["simplices"] == simplices, mode
+        assert server["relation_queries"]["count"] >= r["requests"]
+        assert server["per_simplex_ns"]["compute"] > 0
+        assert set(server["per_call_us"]) == {"queue", "compute", "serialize"}
+    assert runs["batch"]["server"]["relation_queries"]["count"] == 6
+    assert runs["stream"]["server"]["relation_queries"]["count"] == 6 * 3  # 3 messages each
+    job = runs["job"]
+    assert job["simplices"] is None and job["server"]["jobs"]["count"] == 6
+    assert job["server"]["run_s"]["p50"] > 0
+
+
+def test_bench_table_and_errors(cli, server, capsys):
+    status, out, err = cli("bench", "--target", server, "--sample", "jittered:5",
+                           "--structure", "explicit,actopo", "--modes", "batch,stream",
+                           "--clients", "1,2", "--duration", "0.2", "--no-progress")
+    assert status == 0, err
+    lines = out.splitlines()
+    assert "SIMPLICES/S" in lines[1] and "P99.9_MS" in lines[1] and "SERIALIZE_NS" in lines[1]
+    assert len([line for line in lines if line.startswith(("explicit", "actopo"))]) == 8
+    with pytest.raises(SystemExit) as usage:
+        cli("bench", "--modes", "unary,warp")
+    assert usage.value.code == 2 and "warp" in capsys.readouterr().err
+    status, _, err = cli("bench", "--sample", "jittered:4", "--batch-size", "100000000")
+    assert status == 1 and "max_batch_size" in err
+    status, _, err = cli("bench", "--mesh-id", "mesh-nope", "--duration", "0.1")
+    assert status == 1 and "NOT_FOUND" in err
 
 
 def test_errors_exit_with_a_message(cli, data_dir, monkeypatch, capsys):

@@ -30,7 +30,7 @@ def test_docstring_examples(client):
 
 def test_readme_examples(server, monkeypatch, capsys):
     blocks = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
-    assert len(blocks) == 3
+    assert len(blocks) == 4
     monkeypatch.setenv("ACTOPO_SERVER", server)
     monkeypatch.chdir(README.parents[1])
     for code in blocks:
@@ -38,3 +38,4 @@ def test_readme_examples(server, monkeypatch, capsys):
     out = capsys.readouterr().out
     assert "14570 60948 ['eigenfunction4', 'height']" in out
     assert "found cell types: 36290 triangle; hint:" in out
+    assert "True\n1 ids[1]: vertex id 1000000000 is outside [0, 8000)\nTrue\nTrue\n" in out
