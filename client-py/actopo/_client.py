@@ -179,7 +179,8 @@ class Client:
                      precompute: str = "auto", query_readers: int = 0) -> Session:
         """Opens a session: a structure ("explicit", "compact" or "actopo") on a mesh and a
         scalar field (default: the mesh's first floating-point field). 0 means the server's
-        default (1 consumer, 2 producers per consumer, buffer ratio 0.2); prefetch "auto",
+        default (consumers and producers from the server's cores, as actopo-server --consumers
+        0 documents; buffer ratio 0.2); prefetch "auto",
         "linear", "spatial" or "adaptive"; precompute "auto", "requested" or "declared".
         `query_readers`: relation calls answered at once on the session, each with a reader of
         its own (0: the server's default, one per server core, at most 4; the server allows
