@@ -99,6 +99,52 @@ absl::StatusOr<v1::GetRelationResponse> Single(internal::Core& core, std::string
   return core.Unary(&v1::TopologyService::Stub::GetRelation, request, core.QuickContext());
 }
 
+// Sends requests 0..n-1 on a writer thread (`fill` sets what each carries besides its id, session
+// and relation) and hands the answers to `on_response` on this one, until it returns false (the
+// call is then cancelled). The status is the call's; CANCELLED after a stop.
+absl::Status StreamRequests(
+    internal::Core& core, std::string_view session_id, v1::Relation relation, size_t n,
+    const std::function<void(size_t, v1::StreamRelationsRequest*)>& fill,
+    const std::function<bool(const v1::StreamRelationsResponse&)>& on_response) {
+  if (n == 0) return absl::OkStatus();
+  std::unique_ptr<grpc::ClientContext> context = core.Context(std::chrono::milliseconds(0));
+  std::unique_ptr<Stream> stream = core.stub->StreamRelations(context.get());
+  std::thread writer([&] {
+    v1::StreamRelationsRequest request;
+    request.set_session_id(std::string(session_id));
+    request.set_relation(relation);
+    for (size_t i = 0; i < n; ++i) {
+      request.set_request_id(int64_t(i));
+      fill(i, &request);
+      if (!stream->Write(request)) return;  // the call ended; Finish says why
+    }
+    stream->WritesDone();
+  });
+  // Stops the call and the writer (before the stack unwinds, on an exception from on_response).
+  const auto stop = [&] {
+    context->TryCancel();
+    v1::StreamRelationsResponse ignored;
+    while (stream->Read(&ignored)) {
+    }
+  };
+  v1::StreamRelationsResponse response;
+  try {
+    while (stream->Read(&response)) {
+      if (!on_response(response)) {
+        stop();
+        break;
+      }
+    }
+  } catch (...) {
+    stop();
+    writer.join();
+    stream->Finish();
+    throw;
+  }
+  writer.join();
+  return internal::FromGrpc(stream->Finish());
+}
+
 constexpr size_t kStreamChunk = 65536;
 
 // A batch of ids (tuple_size 0) or vertex tuples: one GetRelationBatch call when it fits
@@ -122,44 +168,31 @@ absl::StatusOr<RelationCsr> Batch(internal::Core& core, std::string_view session
   }
   const size_t chunk = std::min(batch, kStreamChunk);
   const size_t chunks = (n + chunk - 1) / chunk;
-  std::unique_ptr<grpc::ClientContext> context = core.Context(std::chrono::milliseconds(0));
-  std::unique_ptr<Stream> stream = core.stub->StreamRelations(context.get());
-  std::thread writer([&] {
-    v1::StreamRelationsRequest request;
-    request.set_session_id(std::string(session_id));
-    request.set_relation(relation);
-    for (size_t c = 0; c < chunks; ++c) {
-      const size_t first = c * chunk, count = std::min(chunk, n - first);
-      request.set_request_id(int64_t(c));
-      SetBatch(values.subspan(first * k, count * k), count, tuple_size, &request);
-      if (!stream->Write(request)) return;  // the call ended; Finish says why
-    }
-    stream->WritesDone();
-  });
   RelationCsr csr{.offsets = {0}};
-  absl::Status status;
-  v1::StreamRelationsResponse response;
-  for (size_t c = 0; status.ok() && c < chunks; ++c) {
-    if (!stream->Read(&response)) break;
-    const size_t first = c * chunk, count = std::min(chunk, n - first);
-    if (response.has_error() && response.error().code() != 0) {
-      status = ToStatus(response.error());
-    } else if (response.item_errors_size() > 0) {
-      const v1::ItemError& e = response.item_errors(0);
-      status = absl::Status(static_cast<absl::StatusCode>(e.code()),
-                            absl::StrCat(e.message(), " (simplex ", first + size_t(e.index()),
-                                         " of the input)"));
-    } else {
-      absl::StatusOr<RelationCsr> part = ToCsr(response.offsets(), response.values(), count);
-      if (part.ok()) Append(*part, csr);
-      status = part.status();
-    }
-  }
-  if (!status.ok()) context->TryCancel();
-  while (stream->Read(&response)) {
-  }
-  writer.join();
-  const absl::Status call = internal::FromGrpc(stream->Finish());
+  absl::Status status;  // of the first chunk that failed
+  size_t answered = 0;  // chunks
+  const absl::Status call = StreamRequests(
+      core, session_id, relation, chunks,
+      [&](size_t c, v1::StreamRelationsRequest* request) {
+        const size_t first = c * chunk, count = std::min(chunk, n - first);
+        SetBatch(values.subspan(first * k, count * k), count, tuple_size, request);
+      },
+      [&](const v1::StreamRelationsResponse& response) {
+        const size_t first = answered++ * chunk, count = std::min(chunk, n - first);
+        if (response.has_error() && response.error().code() != 0) {
+          status = ToStatus(response.error());
+        } else if (response.item_errors_size() > 0) {
+          const v1::ItemError& e = response.item_errors(0);
+          status = absl::Status(static_cast<absl::StatusCode>(e.code()),
+                                absl::StrCat(e.message(), " (simplex ", first + size_t(e.index()),
+                                             " of the input)"));
+        } else {
+          absl::StatusOr<RelationCsr> part = ToCsr(response.offsets(), response.values(), count);
+          if (part.ok()) Append(*part, csr);
+          status = part.status();
+        }
+        return status.ok();
+      });
   if (!status.ok()) return status;
   if (!call.ok()) return call;
   if (csr.size() != n) {
@@ -169,41 +202,22 @@ absl::StatusOr<RelationCsr> Batch(internal::Core& core, std::string_view session
   return csr;
 }
 
-// Sends requests 0..n-1 (`fill` sets each simplex) on a writer thread and hands the answers to
-// `on_item` on this one.
+// One simplex per request (`fill` sets each), answers to `on_item`.
 absl::Status StreamAll(internal::Core& core, std::string_view session_id,
                        std::string_view relation, size_t n,
                        const std::function<void(size_t, v1::Simplex*)>& fill,
                        const std::function<void(StreamItem)>& on_item) {
   ACTOPO_ASSIGN_OR_RETURN(v1::Relation r, internal::RelationFromName(relation));
-  if (n == 0) return absl::OkStatus();
-  std::unique_ptr<grpc::ClientContext> context = core.Context(std::chrono::milliseconds(0));
-  std::unique_ptr<Stream> stream = core.stub->StreamRelations(context.get());
-  std::thread writer([&] {
-    v1::StreamRelationsRequest request;
-    request.set_session_id(std::string(session_id));
-    request.set_relation(r);
-    for (size_t i = 0; i < n; ++i) {
-      request.set_request_id(int64_t(i));
-      request.clear_simplex();
-      fill(i, request.mutable_simplex());
-      if (!stream->Write(request)) return;  // the call ended; Finish says why
-    }
-    stream->WritesDone();
-  });
-  v1::StreamRelationsResponse response;
-  try {
-    while (stream->Read(&response)) on_item(ToItem(response));
-  } catch (...) {  // from on_item: stop the call and the writer before the stack unwinds
-    context->TryCancel();
-    while (stream->Read(&response)) {
-    }
-    writer.join();
-    stream->Finish();
-    throw;
-  }
-  writer.join();
-  return internal::FromGrpc(stream->Finish());
+  return StreamRequests(
+      core, session_id, r, n,
+      [&](size_t i, v1::StreamRelationsRequest* request) {
+        request->clear_simplex();
+        fill(i, request->mutable_simplex());
+      },
+      [&](const v1::StreamRelationsResponse& response) {
+        on_item(ToItem(response));
+        return true;
+      });
 }
 
 }  // namespace
