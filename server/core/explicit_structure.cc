@@ -5,6 +5,7 @@
 
 #include "server/core/block_relations.h"
 #include "server/core/parallel.h"
+#include "server/core/status_macros.h"
 
 namespace actopo {
 
@@ -16,21 +17,27 @@ void ExplicitStructure::Reader::MissingRelation(Relation r) {
 }
 
 absl::StatusOr<std::unique_ptr<ExplicitStructure>> ExplicitStructure::Build(
-    std::shared_ptr<const Topology> topology, const Options& options) {
+    std::shared_ptr<const Topology> topology, const Options& options, const Progress& progress) {
+  constexpr std::string_view kPhase = "precompute";
   auto structure = std::unique_ptr<ExplicitStructure>(new ExplicitStructure(topology));
   structure->relations_ = options.relations;
   const Topology& topo = *topology;
   const int threads = options.threads > 0 ? options.threads : DefaultThreads();
   const int32_t nb = topo.num_blocks();
   std::vector<BlockScratch> scratch(threads);
+  int computed = 0, to_compute = 0;
+  for (Relation r : AllRelations()) to_compute += options.relations.Contains(r) && !IsStatic(r);
   // One relation at a time: compute every block, then concatenate, so the transient copy is
   // never more than one relation.
   for (Relation r : AllRelations()) {
     if (!options.relations.Contains(r) || IsStatic(r)) continue;
+    RETURN_IF_ERROR(progress.Update(kPhase, double(computed++) / to_compute));
     std::vector<RelationBlock> blocks(nb);
     ParallelFor(nb, threads, [&](int64_t b, int thread) {
+      if (progress.stopped()) return;  // the blocks left are never read
       blocks[b] = ComputeBlockRelation(topo, r, static_cast<int32_t>(b), scratch[thread]);
     });
+    RETURN_IF_ERROR(progress.status(kPhase));
     Stored& st = structure->stored_[Index(r)];
     st.present = true;
     std::vector<int64_t> value_begin(nb + 1, 0);
@@ -56,6 +63,7 @@ absl::StatusOr<std::unique_ptr<ExplicitStructure>> ExplicitStructure::Build(
   for (Relation r : AllRelations()) {
     if (IsStatic(r)) structure->stored_[Index(r)].present = true;
   }
+  RETURN_IF_ERROR(progress.Update(kPhase, 1));
   return structure;
 }
 

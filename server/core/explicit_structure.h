@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "server/core/progress.h"
 #include "server/core/relation.h"
 #include "server/core/stats.h"
 #include "server/core/structure.h"
@@ -29,8 +30,11 @@ class ExplicitStructure {
     int threads = 0;  // preprocessing threads; 0: DefaultThreads()
   };
 
+  // Reports phase "precompute" per relation and stops between relations (CANCELLED or
+  // DEADLINE_EXCEEDED, nothing kept) when `progress` says so.
   static absl::StatusOr<std::unique_ptr<ExplicitStructure>> Build(
-      std::shared_ptr<const Topology> topology, const Options& options);
+      std::shared_ptr<const Topology> topology, const Options& options,
+      const Progress& progress = {});
 
   class Reader : public ReaderBase<Reader> {
    public:

@@ -4,6 +4,9 @@
 #include <unistd.h>
 
 #include <cstdio>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 namespace actopo {
 
@@ -20,6 +23,12 @@ int64_t CurrentRssBytes() {
   const int n = std::fscanf(f, "%lld %lld", &pages_total, &pages_resident);
   std::fclose(f);
   return n == 2 ? pages_resident * int64_t(sysconf(_SC_PAGESIZE)) : 0;
+}
+
+void ReleaseFreeMemory() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
 }
 
 }  // namespace actopo

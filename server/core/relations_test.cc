@@ -1,5 +1,7 @@
 // Every relation of every simplex, for both structures and several block sizes, against the
 // brute-force oracle.
+#include <algorithm>
+#include <atomic>
 #include <thread>
 
 #include "gtest/gtest.h"
@@ -116,6 +118,35 @@ TEST(BlockRelations, RowsCoverExactlyTheBlocksSimplices) {
       }
     }
   }
+}
+
+}  // namespace
+}  // namespace actopo
+
+namespace actopo {
+namespace {
+
+TEST(ExplicitProgress, ReportsPerRelationAndStopsBetweenThem) {
+  const Mesh m = testing::Lattice(8, 7, 6, 3);
+  auto topo = *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 20}));
+  std::vector<double> fractions;
+  std::atomic<bool> cancel{false};
+  const Progress progress({.cancel = &cancel, .report = [&](std::string_view phase, double f) {
+                             EXPECT_EQ(phase, "precompute");
+                             fractions.push_back(f);
+                             if (fractions.size() == 3) cancel = true;
+                           }});
+  const auto stopped = ExplicitStructure::Build(topo, {.threads = 2}, progress);
+  EXPECT_EQ(stopped.status().code(), absl::StatusCode::kCancelled);
+  EXPECT_EQ(fractions.size(), 3u);
+
+  fractions.clear();
+  cancel = false;
+  const Progress watching({.report = [&](std::string_view, double f) { fractions.push_back(f); }});
+  ASSERT_TRUE(ExplicitStructure::Build(topo, {.threads = 2}, watching).ok());
+  EXPECT_EQ(fractions.back(), 1);
+  EXPECT_TRUE(std::is_sorted(fractions.begin(), fractions.end()));
+  EXPECT_GT(fractions.size(), 5u);  // one per computed relation, and the end
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "server/core/parallel.h"
+#include "server/core/status_macros.h"
 
 namespace actopo {
 namespace {
@@ -171,7 +172,9 @@ TopologyBytes Topology::bytes() const {
 }
 
 absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
-    const Mesh& mesh, std::span<const int32_t> vertex_block, const TopologyOptions& options) {
+    const Mesh& mesh, std::span<const int32_t> vertex_block, const TopologyOptions& options,
+    const Progress& progress) {
+  constexpr std::string_view kPhase = "encode";
   const SimplexId nv = mesh.num_vertices();
   const SimplexId nt = mesh.num_tetrahedra();
   const int threads = options.threads > 0 ? options.threads : DefaultThreads();
@@ -188,6 +191,7 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     num_blocks = std::max(num_blocks, vertex_block[v] + 1);
   }
 
+  RETURN_IF_ERROR(progress.Update(kPhase, 0));
   auto topo = std::shared_ptr<Topology>(new Topology());
   Topology& t = *topo;
   t.num_vertices_ = nv;
@@ -260,6 +264,8 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     });
   }
 
+  RETURN_IF_ERROR(progress.Update(kPhase, 0.15));
+
   // External tetrahedra: a tetrahedron is external to every later block holding one of its
   // vertices. Its sorted vertices have non-decreasing blocks, so distinct blocks are adjacent.
   {
@@ -302,6 +308,8 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   t.triangle_boundary_.reserve((4 * size_t(nt) + 63) / 64);
   t.vertex_edge_begin_.assign(nv + 1, 0);
   for (int32_t window = 0; window < num_blocks; window += kWindow) {
+    // Edges and triangles are about three quarters of the time.
+    RETURN_IF_ERROR(progress.Update(kPhase, 0.2 + 0.75 * window / num_blocks));
     const int32_t window_size = std::min(kWindow, num_blocks - window);
     ParallelFor(window_size, threads, [&](int64_t index, int thread) {
       const int32_t b = window + static_cast<int32_t>(index);
@@ -422,6 +430,7 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     }
   }
   faces.clear();
+  RETURN_IF_ERROR(progress.Update(kPhase, 0.95));
 
   // Ids are 32-bit (SimplexId); the sums below would overflow first.
   if (t.triangle_third_.size() > size_t(INT32_MAX)) {
@@ -449,6 +458,7 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   for (const auto& n : neighbors) {
     t.block_neighbors_.insert(t.block_neighbors_.end(), n.begin(), n.end());
   }
+  RETURN_IF_ERROR(progress.Update(kPhase, 1));
   return topo;
 }
 

@@ -37,6 +37,7 @@
 
 #include "absl/status/statusor.h"
 #include "server/core/mesh.h"
+#include "server/core/progress.h"
 
 namespace actopo {
 
@@ -92,9 +93,11 @@ class RunLookup {
 class Topology {
  public:
   // `vertex_block` gives the block of each input vertex (dense ids 0..B-1, e.g. OctreeBlocks).
-  // The mesh must be valid (ValidateMesh).
+  // The mesh must be valid (ValidateMesh). Reports phase "encode" and stops (CANCELLED or
+  // DEADLINE_EXCEEDED, nothing kept) between its steps when `progress` says so.
   static absl::StatusOr<std::shared_ptr<const Topology>> Build(
-      const Mesh& mesh, std::span<const int32_t> vertex_block, const TopologyOptions& options = {});
+      const Mesh& mesh, std::span<const int32_t> vertex_block, const TopologyOptions& options = {},
+      const Progress& progress = {});
 
   SimplexId num_vertices() const { return num_vertices_; }
   SimplexId num_edges() const { return static_cast<SimplexId>(edge_upper_.size()); }

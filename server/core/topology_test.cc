@@ -193,3 +193,57 @@ TEST(Topology, RejectsBadBlockArrays) {
 
 }  // namespace
 }  // namespace actopo
+
+namespace actopo {
+namespace {
+
+// Reports of one phase, in order, and a cancel flag set after the `stop_after`-th report.
+struct Recorder {
+  std::vector<double> fractions;
+  std::atomic<bool> cancel{false};
+  int stop_after = -1;
+  Progress progress() {
+    return Progress({.cancel = &cancel, .report = [this](std::string_view, double f) {
+                       fractions.push_back(f);
+                       if (int(fractions.size()) == stop_after) cancel = true;
+                     }});
+  }
+};
+
+TEST(TopologyProgress, ReportsFromZeroToOneInOrder) {
+  const Mesh m = testing::Lattice(12, 11, 10, 5);
+  Recorder recorder;
+  ASSERT_TRUE(
+      Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 3}), {}, recorder.progress())
+          .ok());
+  ASSERT_GE(recorder.fractions.size(), 4u);
+  EXPECT_EQ(recorder.fractions.front(), 0);
+  EXPECT_EQ(recorder.fractions.back(), 1);
+  EXPECT_TRUE(std::is_sorted(recorder.fractions.begin(), recorder.fractions.end()));
+}
+
+TEST(TopologyProgress, StopsAtEveryStepWhenCancelled) {
+  const Mesh m = testing::Lattice(12, 11, 10, 5);
+  const std::vector<int32_t> blocks = OctreeBlocks(m.points, {.bucket_capacity = 3});
+  Recorder all;
+  ASSERT_TRUE(Topology::Build(m, blocks, {}, all.progress()).ok());
+  // Cancelled after each report in turn: the build stops right there, whatever the step.
+  for (int k = 1; k <= int(all.fractions.size()); ++k) {
+    Recorder recorder;
+    recorder.stop_after = k;
+    const auto built = Topology::Build(m, blocks, {}, recorder.progress());
+    EXPECT_EQ(built.status().code(), absl::StatusCode::kCancelled) << "after report " << k;
+    EXPECT_EQ(int(recorder.fractions.size()), k);
+    EXPECT_THAT(built.status().message(), ::testing::HasSubstr("'encode'"));
+  }
+}
+
+TEST(TopologyProgress, APassedDeadlineStopsTheBuild) {
+  const Mesh m = testing::Lattice(4, 4, 4, 1);
+  const Progress late({.deadline = Progress::Clock::now() - std::chrono::seconds(1)});
+  EXPECT_EQ(Topology::Build(m, OctreeBlocks(m.points, {}), {}, late).status().code(),
+            absl::StatusCode::kDeadlineExceeded);
+}
+
+}  // namespace
+}  // namespace actopo

@@ -16,6 +16,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "server/core/status_macros.h"
 #include "server/io/internal/vtk_bridge.h"
 
 namespace actopo::io {
@@ -46,14 +47,18 @@ absl::StatusOr<Mesh> Convert(const std::string& path, vtkUnstructuredGrid* grid)
   return mesh;
 }
 
-absl::StatusOr<Mesh> ReadXmlUnstructuredGrid(const std::string& path) {
+constexpr char kPhase[] = "read";
+
+absl::StatusOr<Mesh> ReadXmlUnstructuredGrid(const std::string& path, const Progress& progress) {
   constexpr char kFormat[] = "a VTK XML unstructured grid (.vtu)";
   vtkNew<vtkXMLUnstructuredGridReader> reader;
   internal::VtkErrorCollector errors(reader);
   // CanReadFile checks the XML header and the data set type (a .vtu holding poly data fails).
   if (!reader->CanReadFile(path.c_str())) return Unreadable(path, kFormat, errors);
   reader->SetFileName(path.c_str());
+  internal::VtkProgressRelay relay(reader, progress, kPhase, 0, 0.9);
   reader->Update();
+  RETURN_IF_ERROR(relay.status());
   if (errors.has_error()) return Unreadable(path, kFormat, errors);
   return Convert(path, reader->GetOutput());
 }
@@ -67,7 +72,8 @@ const char* LegacyDataSetKind(vtkUnstructuredGridReader& reader) {
   return nullptr;
 }
 
-absl::StatusOr<Mesh> ReadLegacyUnstructuredGrid(const std::string& path) {
+absl::StatusOr<Mesh> ReadLegacyUnstructuredGrid(const std::string& path,
+                                                const Progress& progress) {
   constexpr char kFormat[] = "a legacy VTK unstructured grid (.vtk)";
   vtkNew<vtkUnstructuredGridReader> reader;
   internal::VtkErrorCollector errors(reader);
@@ -82,12 +88,14 @@ absl::StatusOr<Mesh> ReadLegacyUnstructuredGrid(const std::string& path) {
   // By default the legacy reader keeps only the first SCALARS section of each attribute block.
   reader->ReadAllScalarsOn();
   reader->ReadAllFieldsOn();
+  internal::VtkProgressRelay relay(reader, progress, kPhase, 0, 0.9);
   reader->Update();
+  RETURN_IF_ERROR(relay.status());
   if (errors.has_error()) return Unreadable(path, kFormat, errors);
   return Convert(path, reader->GetOutput());
 }
 
-absl::StatusOr<Mesh> ReadXmlImageData(const std::string& path) {
+absl::StatusOr<Mesh> ReadXmlImageData(const std::string& path, const Progress& progress) {
   constexpr char kFormat[] = "VTK XML image data (.vti)";
   vtkNew<vtkXMLImageDataReader> reader;
   internal::VtkErrorCollector reader_errors(reader);
@@ -98,7 +106,10 @@ absl::StatusOr<Mesh> ReadXmlImageData(const std::string& path) {
   vtkNew<vtkDataSetTriangleFilter> tetrahedralize;
   tetrahedralize->SetInputConnection(reader->GetOutputPort());
   internal::VtkErrorCollector filter_errors(tetrahedralize);
+  internal::VtkProgressRelay read_relay(reader, progress, kPhase, 0, 0.3);
+  internal::VtkProgressRelay split_relay(tetrahedralize, progress, kPhase, 0.3, 0.9);
   tetrahedralize->Update();
+  RETURN_IF_ERROR(split_relay.status());
   if (reader_errors.has_error()) return Unreadable(path, kFormat, reader_errors);
   if (filter_errors.has_error()) return Unreadable(path, kFormat, filter_errors);
   return Convert(path, tetrahedralize->GetOutput());
@@ -106,7 +117,8 @@ absl::StatusOr<Mesh> ReadXmlImageData(const std::string& path) {
 
 }  // namespace
 
-absl::StatusOr<Mesh> ReadMesh(const std::string& path, const ReadOptions& /*options*/) {
+absl::StatusOr<Mesh> ReadMesh(const std::string& path, const ReadOptions& /*options*/,
+                              const Progress& progress) {
   const std::string extension =
       absl::AsciiStrToLower(std::filesystem::path(path).extension().string());
   if (extension != ".vtu" && extension != ".vtk" && extension != ".vti") {
@@ -124,9 +136,11 @@ absl::StatusOr<Mesh> ReadMesh(const std::string& path, const ReadOptions& /*opti
   if (std::filesystem::is_directory(status)) {
     return absl::InvalidArgumentError(absl::StrCat(path, ": is a directory, not a file"));
   }
-  if (extension == ".vtu") return ReadXmlUnstructuredGrid(path);
-  if (extension == ".vtk") return ReadLegacyUnstructuredGrid(path);
-  return ReadXmlImageData(path);
+  absl::StatusOr<Mesh> mesh = extension == ".vtu"   ? ReadXmlUnstructuredGrid(path, progress)
+                              : extension == ".vtk" ? ReadLegacyUnstructuredGrid(path, progress)
+                                                    : ReadXmlImageData(path, progress);
+  if (mesh.ok()) RETURN_IF_ERROR(progress.Update(kPhase, 1));
+  return mesh;
 }
 
 std::string VtkVersion() { return vtkVersion::GetVTKVersion(); }

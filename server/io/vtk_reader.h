@@ -12,6 +12,8 @@
 //
 // Errors: NotFound when the file does not exist; InvalidArgument for an unsupported extension, a
 // file VTK cannot read, non-tetrahedral cells or an invalid mesh. Messages start with the path.
+// With a `progress`, reading reports phase "read" and stops (CANCELLED or DEADLINE_EXCEEDED)
+// within one decoded block of the file once `progress` says so.
 #ifndef ACTOPO_SERVER_IO_VTK_READER_H_
 #define ACTOPO_SERVER_IO_VTK_READER_H_
 
@@ -19,6 +21,7 @@
 
 #include "absl/status/statusor.h"
 #include "server/core/mesh.h"
+#include "server/core/progress.h"
 
 namespace actopo::io {
 
@@ -28,7 +31,8 @@ struct ReadOptions {};
 // The VTK library version, e.g. "9.1.0" (for server info).
 std::string VtkVersion();
 
-absl::StatusOr<Mesh> ReadMesh(const std::string& path, const ReadOptions& options = {});
+absl::StatusOr<Mesh> ReadMesh(const std::string& path, const ReadOptions& options = {},
+                              const Progress& progress = {});
 
 }  // namespace actopo::io
 

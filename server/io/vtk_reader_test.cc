@@ -1,5 +1,7 @@
 #include "server/io/vtk_reader.h"
 
+#include <algorithm>
+#include <atomic>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -125,6 +127,32 @@ TEST_F(DataTest, TetrahedralizesFloatImage) {
   EXPECT_EQ(mesh->num_vertices(), 64 * 64 * 64);
   EXPECT_EQ(mesh->num_tetrahedra(), 63 * 63 * 63 * 5);
   EXPECT_THAT(FieldNames(*mesh), ElementsAre("ImageFile"));
+}
+
+TEST_F(DataTest, ReportsReadingAndStopsWhenCancelled) {
+  for (const char* file : {"isabel02_s2_tet.vtu", "isabel_02.vti"}) {
+    std::vector<double> fractions;
+    const Progress watching({.report = [&](std::string_view phase, double f) {
+      EXPECT_EQ(phase, "read");
+      fractions.push_back(f);
+    }});
+    ASSERT_TRUE(ReadMesh(DataFile(file), {}, watching).ok()) << file;
+    ASSERT_GE(fractions.size(), 2u) << file;
+    EXPECT_EQ(fractions.back(), 1) << file;
+    EXPECT_TRUE(std::is_sorted(fractions.begin(), fractions.end()))
+        << file << ": " << ::testing::PrintToString(fractions);
+
+    // Cancelled at the reader's first report: VTK aborts the read and nothing is returned.
+    std::atomic<bool> cancel{false};
+    int reports = 0;
+    const Progress cancelling({.cancel = &cancel, .report = [&](std::string_view, double) {
+      ++reports;
+      cancel = true;
+    }});
+    absl::StatusOr<Mesh> stopped = ReadMesh(DataFile(file), {}, cancelling);
+    EXPECT_EQ(stopped.status().code(), absl::StatusCode::kCancelled) << file;
+    EXPECT_LT(reports, int(fractions.size())) << file;
+  }
 }
 
 TEST_F(DataTest, RefusesTruncatedFile) {

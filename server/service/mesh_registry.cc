@@ -5,6 +5,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_replace.h"
+#include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
 #include "server/io/samples.h"
 #include "server/io/vtk_reader.h"
@@ -48,7 +49,7 @@ absl::Status MeshRegistry::CheckCapacity() const {
 }
 
 absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFile(
-    const std::string& path, const PartitionOptions& partition) {
+    const std::string& path, const PartitionOptions& partition, const Progress& progress) {
   RETURN_IF_ERROR(CheckCapacity());
   namespace fs = std::filesystem;
   if (path.empty()) return absl::InvalidArgumentError("path: empty");
@@ -71,7 +72,7 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFile(
   RETURN_IF_ERROR(budget_->Reserve(file_bytes * 4, absl::StrCat("reading '", path, "'")));
   Reservation reading(budget_, file_bytes * 4);
   const auto start = std::chrono::steady_clock::now();
-  absl::StatusOr<Mesh> read = io::ReadMesh(full.string());
+  absl::StatusOr<Mesh> read = io::ReadMesh(full.string(), {}, progress);
   if (!read.ok()) {
     // Name the file as the client did, not by the server's own directory layout.
     return absl::Status(read.status().code(),
@@ -79,20 +80,22 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFile(
   }
   Mesh mesh = std::move(*read);
   return Add(full.filename().string(), "file:" + path, std::move(mesh), SecondsSince(start),
-             partition);
+             partition, progress);
 }
 
 absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadSample(
-    const std::string& name, const PartitionOptions& partition) {
+    const std::string& name, const PartitionOptions& partition, const Progress& progress) {
   RETURN_IF_ERROR(CheckCapacity());
   const auto start = std::chrono::steady_clock::now();
+  RETURN_IF_ERROR(progress.Update("read", 0));
   ASSIGN_OR_RETURN(Mesh mesh, io::MakeSample(name));
-  return Add(name, "sample:" + name, std::move(mesh), SecondsSince(start), partition);
+  RETURN_IF_ERROR(progress.Update("read", 1));
+  return Add(name, "sample:" + name, std::move(mesh), SecondsSince(start), partition, progress);
 }
 
 absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Add(
     std::string name, std::string source, Mesh mesh, double load_seconds,
-    const PartitionOptions& partition) {
+    const PartitionOptions& partition, const Progress& progress) {
   RETURN_IF_ERROR(CheckCapacity());
   RETURN_IF_ERROR(ValidateMesh(mesh));
   const int64_t estimate = EstimateBytes(mesh.num_vertices(), mesh.num_tetrahedra());
@@ -102,8 +105,10 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Add(
   const auto start = std::chrono::steady_clock::now();
   PartitionOptions effective = partition;
   if (effective.bucket_capacity == 0) effective.bucket_capacity = 1000;
+  RETURN_IF_ERROR(progress.Update("partition", 0));
   ASSIGN_OR_RETURN(std::vector<int32_t> blocks, ComputeBlocks(mesh, effective));
-  ASSIGN_OR_RETURN(loaded->topology, Topology::Build(mesh, blocks));
+  RETURN_IF_ERROR(progress.Update("partition", 1));
+  ASSIGN_OR_RETURN(loaded->topology, Topology::Build(mesh, blocks, {}, progress));
   loaded->partition_seconds = SecondsSince(start);
   loaded->id = NewId("mesh");
   loaded->name = std::move(name);
@@ -122,7 +127,11 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Insert(
     return absl::ResourceExhaustedError(
         absl::StrCat("meshes: the server holds its maximum of ", options_.max_meshes, " meshes"));
   }
-  std::shared_ptr<const LoadedMesh> shared(std::move(mesh));
+  // Its memory goes back to the system when the last session on it closes.
+  std::shared_ptr<const LoadedMesh> shared(mesh.release(), [](const LoadedMesh* m) {
+    delete m;
+    ReleaseFreeMemory();
+  });
   meshes_[shared->id] = shared;
   return shared;
 }

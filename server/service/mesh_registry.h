@@ -17,6 +17,7 @@
 #include "absl/time/time.h"
 #include "server/core/mesh.h"
 #include "server/core/partition.h"
+#include "server/core/progress.h"
 #include "server/core/topology.h"
 #include "server/service/memory_budget.h"
 
@@ -46,15 +47,22 @@ class MeshRegistry {
  public:
   MeshRegistry(MeshRegistryOptions options, MemoryBudget* budget);
 
+  // Loading reports phases "read", "partition" and "encode" to `progress` and stops between and
+  // inside them when it says so (CANCELLED or DEADLINE_EXCEEDED); everything read or built is
+  // freed and the budget released before the call returns.
+  //
   // `path` is relative to the data directory; anything resolving outside it is refused.
   absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadFile(const std::string& path,
-                                                             const PartitionOptions& partition);
+                                                             const PartitionOptions& partition,
+                                                             const Progress& progress = {});
   absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadSample(const std::string& name,
-                                                               const PartitionOptions& partition);
+                                                               const PartitionOptions& partition,
+                                                               const Progress& progress = {});
   // A mesh assembled elsewhere (an upload): validated and partitioned here.
   absl::StatusOr<std::shared_ptr<const LoadedMesh>> Add(std::string name, std::string source,
                                                         Mesh mesh, double load_seconds,
-                                                        const PartitionOptions& partition);
+                                                        const PartitionOptions& partition,
+                                                        const Progress& progress = {});
 
   absl::StatusOr<std::shared_ptr<const LoadedMesh>> Get(const std::string& id) const;
   std::vector<std::shared_ptr<const LoadedMesh>> List() const;

@@ -101,6 +101,8 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& o) {
 
 int Server::metrics_port() const { return state_->metrics->port(); }
 
+int64_t Server::memory_budget_used_bytes() const { return state_->budget->used(); }
+
 std::shared_ptr<grpc::Channel> Server::InProcessChannel() {
   return state_->server->InProcessChannel(grpc::ChannelArguments());
 }

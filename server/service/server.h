@@ -42,6 +42,8 @@ class Server {
 
   int port() const { return port_; }
   int metrics_port() const;
+  // Bytes of the memory budget held by meshes, sessions, uploads and loads in progress.
+  int64_t memory_budget_used_bytes() const;
   std::shared_ptr<grpc::Channel> InProcessChannel();
   // Health turns NOT_SERVING, new calls get UNAVAILABLE, running jobs are cancelled; the
   // server keeps answering health checks.

@@ -1,5 +1,7 @@
 // The actopo.v1.TopologyService implementation (gRPC callback API): one reactor per streaming
-// RPC, unary RPCs answered inline.
+// RPC; cheap unary RPCs answered inline (service_unary.cc); loading, uploading and opening
+// sessions in the background work, cancellable (service_meshes.cc); relation and job streams in
+// service_streams.cc.
 #ifndef ACTOPO_SERVER_SERVICE_SERVICE_H_
 #define ACTOPO_SERVER_SERVICE_SERVICE_H_
 
@@ -11,6 +13,8 @@
 #include <vector>
 
 #include "actopo/v1/topology_service.grpc.pb.h"
+#include "server/core/progress.h"
+#include "server/service/background.h"
 #include "server/service/memory_budget.h"
 #include "server/service/mesh_registry.h"
 #include "server/service/metrics.h"
@@ -45,6 +49,8 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
                                           v1::GetServerInfoResponse*) override;
   grpc::ServerUnaryReactor* LoadMesh(grpc::CallbackServerContext*, const v1::LoadMeshRequest*,
                                      v1::LoadMeshResponse*) override;
+  grpc::ServerWriteReactor<v1::LoadMeshWithProgressResponse>* LoadMeshWithProgress(
+      grpc::CallbackServerContext*, const v1::LoadMeshRequest*) override;
   grpc::ServerReadReactor<v1::UploadMeshRequest>* UploadMesh(grpc::CallbackServerContext*,
                                                              v1::UploadMeshResponse*) override;
   grpc::ServerUnaryReactor* ListMeshes(grpc::CallbackServerContext*, const v1::ListMeshesRequest*,
@@ -97,6 +103,10 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
                            const v1::Array* ids, const v1::Array* vertex_tuples,
                            v1::Array* offsets, v1::Array* values,
                            std::vector<ItemFailure>* failures);
+  // The mesh a LoadMesh request names, loaded, partitioned and registered.
+  absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadRequested(
+      const v1::LoadMeshRequest& request, const Progress& progress);
+  BackgroundWork& background() { return background_; }
   MeshRegistry& meshes() { return *meshes_; }
   MemoryBudget& budget() { return *budget_; }
   SessionManager& sessions() { return *sessions_; }
@@ -105,9 +115,16 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
   void RefreshGauges();
 
  private:
+  // Answers inline, on the gRPC thread: for calls that take microseconds.
   template <class Fn>
   grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* context, std::string_view rpc,
                                   Fn&& fn);
+  // Answers from the background work: fn(const Progress&) -> absl::Status, where the progress
+  // stops when the call is cancelled, its deadline passes or the server drains. fn must capture
+  // the request and response pointers by value.
+  template <class Fn>
+  grpc::ServerUnaryReactor* Background(grpc::CallbackServerContext* context, std::string_view rpc,
+                                       Fn fn);
 
   MeshRegistry* meshes_;
   SessionManager* sessions_;
@@ -116,7 +133,13 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
   const ServiceLimits limits_;
   const std::string token_;
   std::atomic<bool> draining_{false};
+  // Loads, uploads and session openings; a few run at once (each is itself multi-threaded),
+  // the rest wait in order. Declared last: destroyed first, waiting for its tasks.
+  BackgroundWork background_;
 };
+
+// A call's deadline on the steady clock (time_point::max() when it has none).
+Progress::Clock::time_point SteadyDeadline(const grpc::CallbackServerContext& context);
 
 }  // namespace actopo::service
 

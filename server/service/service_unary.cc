@@ -1,4 +1,4 @@
-// The unary RPCs of TopologyServiceImpl.
+// The unary RPCs of TopologyServiceImpl that answer at once (the slow ones: service_meshes.cc).
 #include <google/protobuf/stubs/common.h>
 #include <grpcpp/grpcpp.h>
 
@@ -13,6 +13,13 @@
 #include "server/service/wire.h"
 
 namespace actopo::service {
+namespace {
+
+// Loads and session openings run at once; each uses every core inside (partitioning, encoding,
+// precomputing), so more would only share them. Further ones wait their turn.
+constexpr int kBackgroundThreads = 4;
+
+}  // namespace
 
 TopologyServiceImpl::TopologyServiceImpl(MeshRegistry* meshes, SessionManager* sessions,
                                          MemoryBudget* budget, Metrics* metrics,
@@ -22,11 +29,13 @@ TopologyServiceImpl::TopologyServiceImpl(MeshRegistry* meshes, SessionManager* s
       budget_(budget),
       metrics_(metrics),
       limits_(limits),
-      token_(std::move(token)) {}
+      token_(std::move(token)),
+      background_(kBackgroundThreads) {}
 
 void TopologyServiceImpl::Drain() {
   draining_ = true;
   sessions_->Drain();
+  background_.CancelAll();
 }
 
 absl::Status TopologyServiceImpl::Admit(grpc::CallbackServerContext* context) const {
@@ -87,23 +96,6 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::GetServerInfo(grpc::CallbackServe
   });
 }
 
-grpc::ServerUnaryReactor* TopologyServiceImpl::LoadMesh(grpc::CallbackServerContext* c,
-                                                        const v1::LoadMeshRequest* in,
-                                                        v1::LoadMeshResponse* out) {
-  return Unary(c, "LoadMesh", [&]() -> absl::Status {
-    const PartitionOptions partition = FromProto(in->partition());
-    absl::StatusOr<std::shared_ptr<const LoadedMesh>> mesh;
-    switch (in->source_case()) {
-      case v1::LoadMeshRequest::kPath: mesh = meshes_->LoadFile(in->path(), partition); break;
-      case v1::LoadMeshRequest::kSample: mesh = meshes_->LoadSample(in->sample(), partition); break;
-      default: return absl::InvalidArgumentError("source: set path or sample");
-    }
-    if (!mesh.ok()) return mesh.status();
-    Fill(**mesh, 0, out->mutable_mesh());
-    return absl::OkStatus();
-  });
-}
-
 grpc::ServerUnaryReactor* TopologyServiceImpl::ListMeshes(grpc::CallbackServerContext* c,
                                                           const v1::ListMeshesRequest*,
                                                           v1::ListMeshesResponse* out) {
@@ -130,18 +122,6 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::DeleteMesh(grpc::CallbackServerCo
                                                           v1::DeleteMeshResponse*) {
   // Sessions keep their mesh alive: its memory is freed when the last one closes.
   return Unary(c, "DeleteMesh", [&] { return meshes_->Delete(in->mesh_id()); });
-}
-
-grpc::ServerUnaryReactor* TopologyServiceImpl::OpenSession(grpc::CallbackServerContext* c,
-                                                           const v1::OpenSessionRequest* in,
-                                                           v1::OpenSessionResponse* out) {
-  return Unary(c, "OpenSession", [&]() -> absl::Status {
-    ASSIGN_OR_RETURN(auto mesh, meshes_->Get(in->mesh_id()));
-    ASSIGN_OR_RETURN(SessionOptions options, FromProto(*in));
-    ASSIGN_OR_RETURN(auto session, sessions_->Open(mesh, options));
-    Fill(*session, /*running_job=*/"", out->mutable_session());
-    return absl::OkStatus();
-  });
 }
 
 grpc::ServerUnaryReactor* TopologyServiceImpl::GetSession(grpc::CallbackServerContext* c,

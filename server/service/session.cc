@@ -90,7 +90,8 @@ absl::Status Session::Validate(const SessionOptions& options) {
 
 absl::StatusOr<std::unique_ptr<Session>> Session::Open(std::shared_ptr<const LoadedMesh> mesh,
                                                        const SessionOptions& options,
-                                                       MemoryBudget* budget) {
+                                                       MemoryBudget* budget,
+                                                       const Progress& progress) {
   RETURN_IF_ERROR(Validate(options));
   auto s = std::unique_ptr<Session>(new Session());
   const Mesh& m = mesh->mesh;
@@ -108,11 +109,12 @@ absl::StatusOr<std::unique_ptr<Session>> Session::Open(std::shared_ptr<const Loa
   s->Touch();
 
   const auto start = Clock::now();
+  RETURN_IF_ERROR(progress.Update("precompute", 0));
   s->base_.order = VertexOrder(*mesh->topology, m.point_fields[field].values);
   s->base_.input_tetrahedra = m.tetrahedra;
   switch (options.structure) {
     case StructureKind::kExplicit: {
-      ASSIGN_OR_RETURN(s->explicit_, ExplicitStructure::Build(mesh->topology, {}));
+      ASSIGN_OR_RETURN(s->explicit_, ExplicitStructure::Build(mesh->topology, {}, progress));
       break;
     }
     case StructureKind::kCompact:
@@ -138,6 +140,7 @@ absl::StatusOr<std::unique_ptr<Session>> Session::Open(std::shared_ptr<const Loa
     }
   }
   s->preprocess_seconds_ = std::chrono::duration<double>(Clock::now() - start).count();
+  RETURN_IF_ERROR(progress.Update("precompute", 1));
   return s;
 }
 

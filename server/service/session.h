@@ -80,9 +80,12 @@ class Session {
  public:
   // Ranges of the engine options; errors name the option and value.
   static absl::Status Validate(const SessionOptions& options);
+  // Preprocessing (the vertex order, an explicit structure's relations) reports phase
+  // "precompute" to `progress` and stops when it says so.
   static absl::StatusOr<std::unique_ptr<Session>> Open(std::shared_ptr<const LoadedMesh> mesh,
                                                        const SessionOptions& options,
-                                                       MemoryBudget* budget);
+                                                       MemoryBudget* budget,
+                                                       const Progress& progress = {});
   ~Session();
 
   const std::string& id() const { return id_; }

@@ -3,6 +3,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
 #include "server/service/ids.h"
 
@@ -26,7 +27,8 @@ SessionManager::~SessionManager() {
 }
 
 absl::StatusOr<std::shared_ptr<Session>> SessionManager::Open(
-    std::shared_ptr<const LoadedMesh> mesh, const SessionOptions& options) {
+    std::shared_ptr<const LoadedMesh> mesh, const SessionOptions& options,
+    const Progress& progress) {
   RETURN_IF_ERROR(Session::Validate(options));
   {
     std::lock_guard<std::mutex> lock(mu_);
@@ -49,13 +51,17 @@ absl::StatusOr<std::shared_ptr<Session>> SessionManager::Open(
     }
     threads_ += query;
   }
-  absl::StatusOr<std::unique_ptr<Session>> session = Session::Open(mesh, options, budget_);
+  absl::StatusOr<std::unique_ptr<Session>> session = Session::Open(mesh, options, budget_, progress);
   std::lock_guard<std::mutex> lock(mu_);
   if (!session.ok()) {
     threads_ -= Session::QueryThreads(options);
     return session.status();
   }
-  std::shared_ptr<Session> shared(std::move(*session));
+  // A session holds hundreds of MiB on big meshes: hand them back to the system when it goes.
+  std::shared_ptr<Session> shared(session->release(), [](Session* s) {
+    delete s;
+    ReleaseFreeMemory();
+  });
   sessions_[shared->id()] = shared;
   return shared;
 }

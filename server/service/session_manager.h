@@ -82,7 +82,8 @@ class SessionManager {
   ~SessionManager();  // closes every session; jobs' leases must be gone
 
   absl::StatusOr<std::shared_ptr<Session>> Open(std::shared_ptr<const LoadedMesh> mesh,
-                                                const SessionOptions& options);
+                                                const SessionOptions& options,
+                                                const Progress& progress = {});
   absl::StatusOr<std::shared_ptr<Session>> Get(const std::string& id) const;
   std::vector<std::shared_ptr<Session>> List() const;
   // Cancels the session's running job (if any) and forgets the session; it is freed when the

@@ -243,6 +243,49 @@ std::string VtkErrorCollector::message() const {
   return std::string(TrimWhitespace(std::string_view(first).substr(0, first.find('\n'))));
 }
 
+class ProgressCommand : public vtkCommand {
+ public:
+  static ProgressCommand* New() { return new ProgressCommand; }
+
+  void Execute(vtkObject* caller, unsigned long, void* call_data) override {
+    const double fraction = call_data != nullptr ? *static_cast<double*>(call_data) : 0;
+    if (progress == nullptr) return;
+    // Readers go from 0 to 1 more than once (information pass, then data): report the furthest.
+    reached = std::max(reached, from + (to - from) * fraction);
+    if (!progress->Update(phase, reached).ok()) {
+      vtkAlgorithm::SafeDownCast(caller)->SetAbortExecute(1);
+    }
+  }
+
+  const Progress* progress = nullptr;
+  std::string phase;
+  double from = 0, to = 1;
+  double reached = 0;
+};
+
+struct VtkProgressRelay::Impl {
+  vtkSmartPointer<vtkAlgorithm> algorithm;
+  vtkSmartPointer<ProgressCommand> command = vtkSmartPointer<ProgressCommand>::New();
+  unsigned long tag = 0;
+};
+
+VtkProgressRelay::VtkProgressRelay(vtkAlgorithm* algorithm, const Progress& progress,
+                                   std::string_view phase, double from, double to)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->algorithm = algorithm;
+  impl_->command->progress = &progress;
+  impl_->command->phase = std::string(phase);
+  impl_->command->from = from;
+  impl_->command->to = to;
+  impl_->tag = algorithm->AddObserver(vtkCommand::ProgressEvent, impl_->command);
+}
+
+VtkProgressRelay::~VtkProgressRelay() { impl_->algorithm->RemoveObserver(impl_->tag); }
+
+absl::Status VtkProgressRelay::status() const {
+  return impl_->command->progress->status(impl_->command->phase);
+}
+
 absl::StatusOr<Mesh> UnstructuredGridToMesh(vtkUnstructuredGrid& grid) {
   Mesh mesh;
   RETURN_IF_ERROR(CopyPoints(grid, mesh.points));

@@ -15,6 +15,7 @@
 
 #include "absl/status/statusor.h"
 #include "server/core/mesh.h"
+#include "server/core/progress.h"
 
 class vtkAlgorithm;
 class vtkUnstructuredGrid;
@@ -34,6 +35,25 @@ class VtkErrorCollector {
   bool has_error() const;
   // The error texts joined by "; ", without VTK's source-file and object-address prefixes.
   std::string message() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// While alive, forwards an algorithm's progress events to `progress` as phase `phase` (weighted
+// into [from, to] of it), and asks the algorithm to abort once `progress` is stopped. XML readers
+// check for the abort between the blocks they decode, so a large read stops within a block.
+// After Update, `status()` says whether the output is to be thrown away.
+class VtkProgressRelay {
+ public:
+  VtkProgressRelay(vtkAlgorithm* algorithm, const Progress& progress, std::string_view phase,
+                   double from = 0, double to = 1);
+  ~VtkProgressRelay();
+  VtkProgressRelay(const VtkProgressRelay&) = delete;
+  VtkProgressRelay& operator=(const VtkProgressRelay&) = delete;
+
+  absl::Status status() const;
 
  private:
   struct Impl;

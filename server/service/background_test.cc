@@ -1,0 +1,93 @@
+// BackgroundWork without gRPC (so this also runs under ThreadSanitizer): tasks run off the
+// caller's thread, in order, a few at once; cancelling reaches queued, running and later tasks.
+#include "server/service/background.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace actopo::service {
+namespace {
+
+BackgroundWork::CancelFlag Flag() { return std::make_shared<std::atomic<bool>>(false); }
+
+void WaitFor(const std::function<bool()>& done) {
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (!done() && std::chrono::steady_clock::now() < give_up) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+}
+
+TEST(BackgroundWork, RunsEveryTaskInOrderWithAtMostItsThreads) {
+  std::mutex mu;
+  std::vector<int> started;
+  std::atomic<int> running{0}, most{0}, done{0};
+  {
+    BackgroundWork work(2);
+    for (int i = 0; i < 20; ++i) {
+      work.Run(Flag(), [&, i] {
+        {
+          std::lock_guard<std::mutex> lock(mu);
+          started.push_back(i);
+        }
+        const int now = ++running;
+        for (int m = most; now > m && !most.compare_exchange_weak(m, now);) {
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+        --running;
+        ++done;
+      });
+    }
+    WaitFor([&] { return done == 20; });
+    EXPECT_EQ(work.pending(), 0);
+  }
+  EXPECT_EQ(done, 20);
+  EXPECT_LE(most, 2);
+  // Started in the order given (each thread takes the next from one queue).
+  ASSERT_EQ(started.size(), 20u);
+  for (int i = 0; i < 20; ++i) EXPECT_EQ(started[i], i);
+}
+
+TEST(BackgroundWork, CancelAllReachesRunningQueuedAndLaterTasks) {
+  BackgroundWork work(1);
+  std::atomic<bool> release{false}, first_started{false};
+  const auto running = Flag(), queued = Flag(), later = Flag();
+  std::atomic<int> finished{0};
+  work.Run(running, [&] {
+    first_started = true;
+    while (!running->load() && !release) std::this_thread::yield();
+    ++finished;
+  });
+  work.Run(queued, [&] { ++finished; });
+  WaitFor([&] { return first_started.load(); });
+  EXPECT_EQ(work.pending(), 2);
+  work.CancelAll();
+  EXPECT_TRUE(running->load());
+  EXPECT_TRUE(queued->load());
+  work.Run(later, [&] { ++finished; });
+  EXPECT_TRUE(later->load());
+  // Cancelled tasks still run, to finish their calls.
+  WaitFor([&] { return finished == 3; });
+  EXPECT_EQ(finished, 3);
+}
+
+TEST(BackgroundWork, DestructorCancelsAndWaits) {
+  std::atomic<int> finished{0};
+  const auto flag = Flag();
+  {
+    BackgroundWork work(1);
+    work.Run(flag, [&] {
+      while (!flag->load()) std::this_thread::yield();
+      ++finished;
+    });
+    work.Run(Flag(), [&] { ++finished; });
+  }
+  EXPECT_EQ(finished, 2);
+}
+
+}  // namespace
+}  // namespace actopo::service

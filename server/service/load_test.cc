@@ -1,0 +1,168 @@
+// Loads and session openings run in the background: progress, cancellation by the client, by the
+// deadline and by draining, each leaving nothing behind (no mesh, no budget held).
+#include <chrono>
+#include <thread>
+
+#include "server/service/testing/service_fixture.h"
+
+namespace actopo::service {
+namespace {
+
+using testing::ServiceTest;
+
+// Big enough that a load takes a good fraction of a second on any machine (about 3M tetrahedra).
+constexpr char kSlowSample[] = "jittered:80";
+
+class LoadTest : public ServiceTest {
+ protected:
+  // What a stopped load leaves: the server frees it after the client already has its status.
+  void ExpectNothingLeftBehind() {
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (server_->memory_budget_used_bytes() != 0 && std::chrono::steady_clock::now() < give_up) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    EXPECT_EQ(server_->memory_budget_used_bytes(), 0);
+    v1::ListMeshesResponse meshes;
+    ASSERT_TRUE(stub_->ListMeshes(Context().get(), {}, &meshes).ok());
+    EXPECT_EQ(meshes.meshes_size(), 0);
+  }
+
+  std::unique_ptr<grpc::ClientReader<v1::LoadMeshWithProgressResponse>> StartLoad(
+      grpc::ClientContext* context, const std::string& sample) {
+    v1::LoadMeshRequest request;
+    request.set_sample(sample);
+    return stub_->LoadMeshWithProgress(context, request);
+  }
+};
+
+TEST_F(LoadTest, ProgressGoesThroughThePhasesThenGivesTheMesh) {
+  auto context = Context();
+  auto reader = StartLoad(context.get(), "jittered:20");
+  std::vector<std::string> phases;
+  double last_fraction = 0, last_elapsed = 0;
+  v1::LoadMeshWithProgressResponse message;
+  v1::MeshInfo mesh;
+  while (reader->Read(&message)) {
+    ASSERT_TRUE(mesh.mesh_id().empty()) << "a message after the mesh";
+    if (message.has_mesh()) {
+      mesh = message.mesh();
+      continue;
+    }
+    const v1::LoadProgress& p = message.progress();
+    if (phases.empty() || phases.back() != p.phase()) {
+      phases.push_back(p.phase());
+      last_fraction = 0;
+    }
+    EXPECT_GE(p.fraction(), last_fraction) << p.phase();
+    EXPECT_LE(p.fraction(), 1.0);
+    EXPECT_GE(p.elapsed_seconds(), last_elapsed);
+    last_fraction = p.fraction();
+    last_elapsed = p.elapsed_seconds();
+  }
+  ASSERT_TRUE(reader->Finish().ok());
+  EXPECT_EQ(phases, (std::vector<std::string>{"read", "partition", "encode"}));
+  // The same mesh as a plain LoadMesh of the sample.
+  v1::GetMeshRequest get;
+  get.set_mesh_id(LoadSample("jittered:20", 1000));
+  v1::GetMeshResponse plain;
+  ASSERT_TRUE(stub_->GetMesh(Context().get(), get, &plain).ok());
+  EXPECT_FALSE(mesh.mesh_id().empty());
+  EXPECT_EQ(mesh.tetrahedra(), plain.mesh().tetrahedra());
+  EXPECT_EQ(mesh.triangles(), plain.mesh().triangles());
+  EXPECT_EQ(mesh.blocks(), plain.mesh().blocks());
+}
+
+TEST_F(LoadTest, CancellingMidLoadStopsItAndFreesEverything) {
+  auto context = Context();
+  auto reader = StartLoad(context.get(), kSlowSample);
+  v1::LoadMeshWithProgressResponse message;
+  // Cancel once the mesh is read and being partitioned or encoded: the most memory is held then.
+  while (reader->Read(&message)) {
+    ASSERT_FALSE(message.has_mesh()) << "the load ended before it could be cancelled";
+    if (message.progress().phase() != "read") break;
+  }
+  context->TryCancel();
+  while (reader->Read(&message)) {
+  }
+  EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
+  ExpectNothingLeftBehind();
+}
+
+TEST_F(LoadTest, DeadlineStopsAPlainLoad) {
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(100));
+  v1::LoadMeshRequest request;
+  request.set_sample(kSlowSample);
+  v1::LoadMeshResponse response;
+  EXPECT_EQ(stub_->LoadMesh(&context, request, &response).error_code(),
+            grpc::StatusCode::DEADLINE_EXCEEDED);
+  ExpectNothingLeftBehind();
+}
+
+TEST_F(LoadTest, OtherCallsAreAnsweredWhileALoadRuns) {
+  auto context = Context();
+  auto reader = StartLoad(context.get(), kSlowSample);
+  v1::LoadMeshWithProgressResponse message;
+  ASSERT_TRUE(reader->Read(&message));
+  ASSERT_TRUE(message.has_progress());
+  // Cheap calls, and a small load and session, go through while the big load is still running.
+  v1::GetServerInfoResponse info;
+  EXPECT_TRUE(stub_->GetServerInfo(Context().get(), {}, &info).ok());
+  const std::string small = LoadSample("jittered:4");
+  EXPECT_FALSE(Open(small, v1::STRUCTURE_COMPACT).empty());
+  v1::ListMeshesResponse meshes;
+  ASSERT_TRUE(stub_->ListMeshes(Context().get(), {}, &meshes).ok());
+  EXPECT_EQ(meshes.meshes_size(), 1) << "the big load should still be running";
+  bool got_mesh = false;
+  while (reader->Read(&message)) got_mesh = message.has_mesh();
+  ASSERT_TRUE(reader->Finish().ok());
+  EXPECT_TRUE(got_mesh);
+}
+
+TEST_F(LoadTest, DrainingCancelsLoadsInProgress) {
+  auto context = Context();
+  auto reader = StartLoad(context.get(), kSlowSample);
+  v1::LoadMeshWithProgressResponse message;
+  ASSERT_TRUE(reader->Read(&message));
+  server_->Drain();
+  bool got_mesh = false;
+  while (reader->Read(&message)) got_mesh = message.has_mesh();
+  EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
+  EXPECT_FALSE(got_mesh);
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (server_->memory_budget_used_bytes() != 0 && std::chrono::steady_clock::now() < give_up) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(server_->memory_budget_used_bytes(), 0);
+}
+
+TEST_F(LoadTest, ADeadlineStopsOpeningAnExplicitSession) {
+  const std::string mesh = LoadSample("jittered:60", 1000);
+  const int64_t mesh_only = server_->memory_budget_used_bytes();
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(50));
+  v1::OpenSessionRequest request;
+  request.set_mesh_id(mesh);
+  request.set_structure(v1::STRUCTURE_EXPLICIT);
+  v1::OpenSessionResponse response;
+  EXPECT_EQ(stub_->OpenSession(&context, request, &response).error_code(),
+            grpc::StatusCode::DEADLINE_EXCEEDED);
+  // Once its precomputation has stopped, only the mesh is left in the budget.
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (server_->memory_budget_used_bytes() != mesh_only &&
+         std::chrono::steady_clock::now() < give_up) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(server_->memory_budget_used_bytes(), mesh_only);
+  v1::ListSessionsResponse sessions;
+  ASSERT_TRUE(stub_->ListSessions(Context().get(), {}, &sessions).ok());
+  EXPECT_EQ(sessions.sessions_size(), 0);
+  v1::DeleteMeshRequest del;
+  del.set_mesh_id(mesh);
+  v1::DeleteMeshResponse deleted;
+  ASSERT_TRUE(stub_->DeleteMesh(Context().get(), del, &deleted).ok());
+  ExpectNothingLeftBehind();
+}
+
+}  // namespace
+}  // namespace actopo::service

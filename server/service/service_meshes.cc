@@ -1,0 +1,417 @@
+// The mesh and session RPCs of TopologyServiceImpl that take seconds on big meshes: LoadMesh,
+// LoadMeshWithProgress, UploadMesh and OpenSession. Their work runs in the service's
+// BackgroundWork, never on a gRPC thread, and stops when the call is cancelled, its deadline
+// passes or the server drains; what it had built is freed and its budget released.
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <cstring>
+#include <deque>
+#include <mutex>
+
+#include "absl/strings/str_cat.h"
+#include "server/algorithms/digest.h"
+#include "server/core/process_memory.h"
+#include "server/core/status_macros.h"
+#include "server/service/service.h"
+#include "server/service/wire.h"
+
+namespace actopo::service {
+namespace {
+
+// The cancel flag of a unary call handled in the background: set when the client cancels, the
+// deadline passes or the server shuts down.
+class BackgroundUnaryReactor final : public grpc::ServerUnaryReactor {
+ public:
+  void OnCancel() override { cancel_->store(true); }
+  void OnDone() override { delete this; }
+  const BackgroundWork::CancelFlag& cancel() const { return cancel_; }
+
+ private:
+  const BackgroundWork::CancelFlag cancel_ = std::make_shared<std::atomic<bool>>(false);
+};
+
+// ---------------------------------------------------------------------------------------------
+// UploadMesh: header, then raw chunks; assembled, checked against the header's counts and
+// SHA-256, converted and handed to the registry. Completing (hashing, decoding, validating,
+// partitioning) runs in the background work, stopping when the call is cancelled or its deadline
+// passes.
+class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest> {
+ public:
+  UploadReactor(TopologyServiceImpl* service, grpc::CallbackServerContext* context,
+                v1::UploadMeshResponse* response)
+      : service_(service),
+        response_(response),
+        deadline_(SteadyDeadline(*context)),
+        cancel_(std::make_shared<std::atomic<bool>>(false)) {
+    const absl::Status admitted = service_->Admit(context);
+    if (!admitted.ok()) {
+      Done(admitted);
+      return;
+    }
+    start_ = std::chrono::steady_clock::now();
+    StartRead(&message_);
+  }
+
+  void OnReadDone(bool ok) override {
+    if (!ok) {  // the client finished sending, or went away (then cancel_ is set)
+      service_->background().Run(cancel_, [this] {
+        const absl::Status status =
+            Complete(Progress({.cancel = cancel_.get(), .deadline = deadline_}));
+        if (!status.ok()) {
+          std::string().swap(data_);
+          ReleaseFreeMemory();
+        }
+        Done(status);
+      });
+      return;
+    }
+    const absl::Status s = Consume();
+    if (!s.ok()) {
+      Done(s);
+      return;
+    }
+    StartRead(&message_);
+  }
+
+  void OnCancel() override { cancel_->store(true); }
+  void OnDone() override { delete this; }
+
+ private:
+  absl::Status Consume() {
+    if (!have_header_) {
+      if (message_.payload_case() != v1::UploadMeshRequest::kHeader) {
+        return absl::InvalidArgumentError("header: the first message of an upload must be the header");
+      }
+      header_ = message_.header();
+      have_header_ = true;
+      return CheckHeader();
+    }
+    if (message_.payload_case() != v1::UploadMeshRequest::kChunk) {
+      return absl::InvalidArgumentError("chunk: only one header per upload; then send chunks");
+    }
+    if (data_.size() + message_.chunk().size() > expected_) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "chunk: received more than the ", expected_, " bytes the header announced"));
+    }
+    data_.append(message_.chunk());
+    return absl::OkStatus();
+  }
+
+  absl::Status CheckHeader() {
+    const int64_t nv = header_.num_vertices(), nt = header_.num_tetrahedra();
+    if (nv <= 0 || nv > INT32_MAX) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("header.num_vertices: ", nv, " is outside [1, 2^31 - 1]"));
+    }
+    if (nt <= 0 || nt > INT32_MAX) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("header.num_tetrahedra: ", nt, " is outside [1, 2^31 - 1]"));
+    }
+    if (header_.points_dtype() != v1::DATA_TYPE_FLOAT32 &&
+        header_.points_dtype() != v1::DATA_TYPE_FLOAT64) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "header.points_dtype: ", v1::DataType_Name(header_.points_dtype()),
+          " is not FLOAT32 or FLOAT64"));
+    }
+    if (header_.tetrahedra_dtype() != v1::DATA_TYPE_INT32 &&
+        header_.tetrahedra_dtype() != v1::DATA_TYPE_INT64) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "header.tetrahedra_dtype: ", v1::DataType_Name(header_.tetrahedra_dtype()),
+          " is not INT32 or INT64"));
+    }
+    expected_ = size_t(nv) * 3 * DataTypeSize(header_.points_dtype()) +
+                size_t(nt) * 4 * DataTypeSize(header_.tetrahedra_dtype());
+    for (int i = 0; i < header_.fields_size(); ++i) {
+      const v1::UploadField& f = header_.fields(i);
+      if (f.name().empty()) {
+        return absl::InvalidArgumentError(absl::StrCat("header.fields[", i, "].name: empty"));
+      }
+      const v1::DataType t = f.dtype();
+      if (t != v1::DATA_TYPE_FLOAT32 && t != v1::DATA_TYPE_FLOAT64 && t != v1::DATA_TYPE_INT32 &&
+          t != v1::DATA_TYPE_INT64) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "header.fields[", i, "].dtype: ", v1::DataType_Name(t),
+            " is not FLOAT32, FLOAT64, INT32 or INT64"));
+      }
+      expected_ += size_t(nv) * DataTypeSize(t);
+    }
+    if (header_.sha256().size() != 64) {
+      return absl::InvalidArgumentError(
+          "header.sha256: expected 64 lowercase hex digits (SHA-256 of all array bytes)");
+    }
+    RETURN_IF_ERROR(service_->meshes().CheckCapacity());
+    // The raw bytes are held until the mesh is built: reserve them for the upload's duration.
+    RETURN_IF_ERROR(service_->budget().Reserve(int64_t(expected_), "the upload's raw data"));
+    reservation_ = Reservation(&service_->budget(), int64_t(expected_));
+    data_.reserve(expected_);
+    return absl::OkStatus();
+  }
+
+  template <class T>
+  static T Read(const char* p) {
+    T v;
+    std::memcpy(&v, p, sizeof(T));
+    return v;
+  }
+
+  absl::Status Complete(const Progress& progress) {
+    if (!have_header_) return absl::InvalidArgumentError("header: the upload was empty");
+    if (data_.size() != expected_) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "chunk: the upload ended after ", data_.size(), " of ", expected_,
+          " bytes (truncated)"));
+    }
+    RETURN_IF_ERROR(progress.Update("read", 0));
+    const std::string digest = Sha256Hex(data_);
+    if (digest != header_.sha256()) {
+      return absl::DataLossError(absl::StrCat("header.sha256: the data hashes to ", digest,
+                                              ", not ", header_.sha256(), " (corrupted upload)"));
+    }
+    Mesh mesh;
+    const int64_t nv = header_.num_vertices(), nt = header_.num_tetrahedra();
+    const char* p = data_.data();
+    mesh.points.resize(size_t(nv) * 3);
+    const bool f32 = header_.points_dtype() == v1::DATA_TYPE_FLOAT32;
+    for (size_t i = 0; i < mesh.points.size(); ++i) {
+      mesh.points[i] = f32 ? Read<float>(p + 4 * i) : Read<double>(p + 8 * i);
+    }
+    p += mesh.points.size() * (f32 ? 4 : 8);
+    mesh.tetrahedra.resize(size_t(nt) * 4);
+    const bool i32 = header_.tetrahedra_dtype() == v1::DATA_TYPE_INT32;
+    for (size_t i = 0; i < mesh.tetrahedra.size(); ++i) {
+      const int64_t v = i32 ? Read<int32_t>(p + 4 * i) : Read<int64_t>(p + 8 * i);
+      if (v < 0 || v >= nv) {
+        return absl::OutOfRangeError(absl::StrCat("tetrahedra: tetrahedron ", i / 4,
+                                                  " has vertex id ", v, " outside [0, ", nv,
+                                                  ")"));
+      }
+      mesh.tetrahedra[i] = SimplexId(v);
+    }
+    p += mesh.tetrahedra.size() * (i32 ? 4 : 8);
+    for (const v1::UploadField& f : header_.fields()) {
+      PointField field{f.name(), std::vector<double>(nv)};
+      field.is_integer = f.dtype() == v1::DATA_TYPE_INT32 || f.dtype() == v1::DATA_TYPE_INT64;
+      field.source_bytes = int8_t(DataTypeSize(f.dtype()));
+      for (int64_t i = 0; i < nv; ++i) {
+        switch (f.dtype()) {
+          case v1::DATA_TYPE_FLOAT32: field.values[i] = Read<float>(p + 4 * i); break;
+          case v1::DATA_TYPE_FLOAT64: field.values[i] = Read<double>(p + 8 * i); break;
+          case v1::DATA_TYPE_INT32: field.values[i] = Read<int32_t>(p + 4 * i); break;
+          default: field.values[i] = double(Read<int64_t>(p + 8 * i)); break;
+        }
+      }
+      p += size_t(nv) * DataTypeSize(f.dtype());
+      mesh.point_fields.push_back(std::move(field));
+    }
+    data_.clear();
+    data_.shrink_to_fit();
+    RETURN_IF_ERROR(progress.Update("read", 1));
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    ASSIGN_OR_RETURN(auto loaded,
+                     service_->meshes().Add(header_.name().empty() ? "upload" : header_.name(),
+                                            "upload", std::move(mesh), seconds,
+                                            FromProto(header_.partition()), progress));
+    Fill(*loaded, 0, response_->mutable_mesh());
+    return absl::OkStatus();
+  }
+
+  void Done(const absl::Status& status) {
+    service_->Count("UploadMesh", status);
+    service_->RefreshGauges();
+    Finish(ToGrpcStatus(status));
+  }
+
+  TopologyServiceImpl* service_;
+  v1::UploadMeshResponse* response_;
+  const Progress::Clock::time_point deadline_;
+  const BackgroundWork::CancelFlag cancel_;
+  v1::UploadMeshRequest message_;
+  v1::UploadMeshHeader header_;
+  bool have_header_ = false;
+  size_t expected_ = 0;
+  std::string data_;
+  Reservation reservation_;
+  std::chrono::steady_clock::time_point start_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// LoadMeshWithProgress: the load reports to this reactor from its background thread; at most one
+// message is being written at a time, and a report arriving meanwhile replaces the waiting one of
+// its phase, so a slow client sees fewer updates but every phase. The mesh (or the error) ends
+// the stream.
+class LoadProgressReactor final : public grpc::ServerWriteReactor<v1::LoadMeshWithProgressResponse> {
+ public:
+  LoadProgressReactor(TopologyServiceImpl* service, grpc::CallbackServerContext* context,
+                      const v1::LoadMeshRequest* request)
+      : service_(service), start_(Progress::Clock::now()) {
+    if (absl::Status admitted = service_->Admit(context); !admitted.ok()) {
+      service_->Count("LoadMeshWithProgress", admitted);
+      Finish(ToGrpcStatus(admitted));
+      return;
+    }
+    const Progress::Clock::time_point deadline = SteadyDeadline(*context);
+    service_->background().Run(cancel_, [this, request, deadline] {
+      const Progress progress({.cancel = cancel_.get(),
+                               .deadline = deadline,
+                               .report = [this](std::string_view phase, double fraction) {
+                                 Report(phase, fraction);
+                               }});
+      absl::StatusOr<std::shared_ptr<const LoadedMesh>> mesh =
+          service_->LoadRequested(*request, progress);
+      absl::Status status = mesh.status();
+      if (!status.ok()) ReleaseFreeMemory();
+      service_->Count("LoadMeshWithProgress", status);
+      service_->RefreshGauges();
+      std::unique_lock<std::mutex> lock(mu_);
+      if (mesh.ok()) Fill(**mesh, 0, final_message_.mutable_mesh());
+      final_ = std::move(status);
+      have_final_ = true;
+      if (!writing_) FinishLocked(lock);  // else OnWriteDone finishes
+    });
+  }
+
+  void OnWriteDone(bool) override {
+    std::unique_lock<std::mutex> lock(mu_);
+    writing_ = false;
+    if (have_final_) {
+      FinishLocked(lock);
+    } else if (!waiting_.empty()) {
+      WriteWaitingLocked(lock);
+    }
+  }
+  void OnCancel() override { cancel_->store(true); }
+  void OnDone() override { delete this; }
+
+ private:
+  // A report is sent when the phase changes, or after 1% of it or 0.2 s.
+  void Report(std::string_view phase, double fraction) {
+    const auto now = Progress::Clock::now();
+    std::unique_lock<std::mutex> lock(mu_);
+    if (phase == phase_ && fraction < 1 && fraction - sent_fraction_ < 0.01 &&
+        now - sent_at_ < std::chrono::milliseconds(200)) {
+      return;
+    }
+    phase_ = std::string(phase);
+    sent_fraction_ = fraction;
+    sent_at_ = now;
+    if (waiting_.empty() || waiting_.back().progress().phase() != phase) waiting_.emplace_back();
+    v1::LoadProgress* p = waiting_.back().mutable_progress();
+    p->set_phase(phase_);
+    p->set_fraction(fraction);
+    p->set_elapsed_seconds(std::chrono::duration<double>(now - start_).count());
+    if (!writing_) WriteWaitingLocked(lock);
+  }
+
+  void WriteWaitingLocked(std::unique_lock<std::mutex>& lock) {
+    last_.Swap(&waiting_.front());
+    waiting_.pop_front();
+    writing_ = true;
+    lock.unlock();  // last_ is ours until OnWriteDone: no one else writes while writing_
+    StartWrite(&last_);
+  }
+
+  // Called once, after the last write completed. Nothing touches `this` after Finish, which may
+  // run OnDone (delete this) on another thread at once.
+  void FinishLocked(std::unique_lock<std::mutex>& lock) {
+    const absl::Status status = final_;
+    lock.unlock();
+    if (status.ok()) {
+      StartWriteAndFinish(&final_message_, grpc::WriteOptions(), grpc::Status::OK);
+    } else {
+      Finish(ToGrpcStatus(status));
+    }
+  }
+
+  TopologyServiceImpl* service_;
+  const Progress::Clock::time_point start_;
+  const BackgroundWork::CancelFlag cancel_ = std::make_shared<std::atomic<bool>>(false);
+  std::mutex mu_;
+  v1::LoadMeshWithProgressResponse last_;  // the report being written
+  std::deque<v1::LoadMeshWithProgressResponse> waiting_;  // the newest report of each phase
+  v1::LoadMeshWithProgressResponse final_message_;        // the mesh
+  bool writing_ = false;
+  bool have_final_ = false;
+  absl::Status final_;
+  std::string phase_;
+  double sent_fraction_ = 0;
+  Progress::Clock::time_point sent_at_;
+};
+
+}  // namespace
+
+Progress::Clock::time_point SteadyDeadline(const grpc::CallbackServerContext& context) {
+  const auto left = context.deadline() - std::chrono::system_clock::now();
+  // No deadline is a time centuries away; so is anything we need not watch.
+  if (left > std::chrono::hours(24 * 365)) return Progress::Clock::time_point::max();
+  return Progress::Clock::now() +
+         std::chrono::duration_cast<Progress::Clock::duration>(std::max(left, left.zero()));
+}
+
+template <class Fn>
+grpc::ServerUnaryReactor* TopologyServiceImpl::Background(grpc::CallbackServerContext* context,
+                                                          std::string_view rpc, Fn fn) {
+  auto* reactor = new BackgroundUnaryReactor();
+  if (absl::Status admitted = Admit(context); !admitted.ok()) {
+    Count(rpc, admitted);
+    reactor->Finish(ToGrpcStatus(admitted));
+    return reactor;
+  }
+  const Progress::Clock::time_point deadline = SteadyDeadline(*context);
+  background_.Run(reactor->cancel(), [this, reactor, rpc, deadline, fn = std::move(fn)] {
+    const absl::Status status =
+        fn(Progress({.cancel = reactor->cancel().get(), .deadline = deadline}));
+    if (!status.ok()) ReleaseFreeMemory();  // what a failed or stopped load had built
+    Count(rpc, status);
+    RefreshGauges();
+    reactor->Finish(ToGrpcStatus(status));
+  });
+  return reactor;
+}
+
+absl::StatusOr<std::shared_ptr<const LoadedMesh>> TopologyServiceImpl::LoadRequested(
+    const v1::LoadMeshRequest& request, const Progress& progress) {
+  const PartitionOptions partition = FromProto(request.partition());
+  switch (request.source_case()) {
+    case v1::LoadMeshRequest::kPath: return meshes_->LoadFile(request.path(), partition, progress);
+    case v1::LoadMeshRequest::kSample:
+      return meshes_->LoadSample(request.sample(), partition, progress);
+    default: return absl::InvalidArgumentError("source: set path or sample");
+  }
+}
+
+grpc::ServerUnaryReactor* TopologyServiceImpl::LoadMesh(grpc::CallbackServerContext* c,
+                                                        const v1::LoadMeshRequest* in,
+                                                        v1::LoadMeshResponse* out) {
+  return Background(c, "LoadMesh", [this, in, out](const Progress& progress) -> absl::Status {
+    ASSIGN_OR_RETURN(auto mesh, LoadRequested(*in, progress));
+    Fill(*mesh, 0, out->mutable_mesh());
+    return absl::OkStatus();
+  });
+}
+
+grpc::ServerWriteReactor<v1::LoadMeshWithProgressResponse>*
+TopologyServiceImpl::LoadMeshWithProgress(grpc::CallbackServerContext* context,
+                                          const v1::LoadMeshRequest* request) {
+  return new LoadProgressReactor(this, context, request);
+}
+
+grpc::ServerReadReactor<v1::UploadMeshRequest>* TopologyServiceImpl::UploadMesh(
+    grpc::CallbackServerContext* context, v1::UploadMeshResponse* response) {
+  return new UploadReactor(this, context, response);
+}
+
+grpc::ServerUnaryReactor* TopologyServiceImpl::OpenSession(grpc::CallbackServerContext* c,
+                                                           const v1::OpenSessionRequest* in,
+                                                           v1::OpenSessionResponse* out) {
+  return Background(c, "OpenSession", [this, in, out](const Progress& progress) -> absl::Status {
+    ASSIGN_OR_RETURN(auto mesh, meshes_->Get(in->mesh_id()));
+    ASSIGN_OR_RETURN(SessionOptions options, FromProto(*in));
+    ASSIGN_OR_RETURN(auto session, sessions_->Open(mesh, options, progress));
+    Fill(*session, /*running_job=*/"", out->mutable_session());
+    return absl::OkStatus();
+  });
+}
+
+}  // namespace actopo::service
