@@ -45,8 +45,10 @@ absl::StatusOr<int64_t> Client::MaxBatchSize() {
 // ---------------------------------------------------------------------------------------------
 // Meshes.
 
-absl::StatusOr<MeshInfo> Client::LoadMesh(std::string_view path,
-                                          const PartitionOptions& partition) {
+namespace {
+
+absl::StatusOr<v1::LoadMeshRequest> LoadRequest(std::string_view path,
+                                                const PartitionOptions& partition) {
   if (partition.block_size < 0) {
     return absl::InvalidArgumentError(
         absl::StrCat("partition.block_size: ", partition.block_size, " is negative"));
@@ -59,10 +61,54 @@ absl::StatusOr<MeshInfo> Client::LoadMesh(std::string_view path,
     request.set_path(std::string(path));
   }
   *request.mutable_partition() = ToProto(partition);
+  return request;
+}
+
+}  // namespace
+
+absl::StatusOr<MeshInfo> Client::LoadMesh(std::string_view path,
+                                          const PartitionOptions& partition) {
+  ACTOPO_ASSIGN_OR_RETURN(v1::LoadMeshRequest request, LoadRequest(path, partition));
   ACTOPO_ASSIGN_OR_RETURN(
       v1::LoadMeshResponse response,
       core_->Unary(&v1::TopologyService::Stub::LoadMesh, request, core_->MeshContext()));
   return FromProto(response.mesh());
+}
+
+absl::StatusOr<MeshInfo> Client::LoadMeshWithProgress(std::string_view path,
+                                                      const LoadOptions& options) {
+  ACTOPO_ASSIGN_OR_RETURN(v1::LoadMeshRequest request, LoadRequest(path, options.partition));
+  if (options.cancel.cancelled()) return absl::CancelledError("load: cancelled before it started");
+  std::unique_ptr<grpc::ClientContext> context = core_->Context(
+      options.timeout.count() > 0 ? options.timeout : core_->options.mesh_timeout);
+  grpc::ClientContext* raw = context.get();
+  std::shared_ptr<CancelToken::Registration> registration =
+      options.cancel.OnCancel([raw] { raw->TryCancel(); });
+  std::unique_ptr<grpc::ClientReader<v1::LoadMeshWithProgressResponse>> reader =
+      core_->stub->LoadMeshWithProgress(raw, request);
+  std::optional<MeshInfo> mesh;
+  v1::LoadMeshWithProgressResponse response;
+  try {
+    while (reader->Read(&response)) {
+      if (response.has_mesh()) {
+        mesh = FromProto(response.mesh());
+      } else if (response.has_progress() && options.progress) {
+        const v1::LoadProgress& p = response.progress();
+        options.progress({p.phase(), p.fraction(), p.elapsed_seconds()});
+      }
+    }
+  } catch (...) {  // from the callback: stop the load before the stack unwinds
+    raw->TryCancel();
+    while (reader->Read(&response)) {
+    }
+    reader->Finish();
+    throw;
+  }
+  const grpc::Status status = reader->Finish();
+  registration.reset();  // before the context goes
+  ACTOPO_RETURN_IF_ERROR(internal::FromGrpc(status));
+  if (!mesh) return absl::DataLossError("load: the stream ended without the mesh");
+  return *std::move(mesh);
 }
 
 absl::StatusOr<std::vector<MeshInfo>> Client::ListMeshes() {

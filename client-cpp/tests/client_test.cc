@@ -83,6 +83,51 @@ TEST_F(ServerTest, MeshLifecycle) {
   EXPECT_TRUE(HasError(client().DeleteMesh(sample->mesh_id), StatusCode::kNotFound));
 }
 
+TEST_F(ServerTest, LoadWithProgressReportsEachPhaseThenGivesTheMesh) {
+  std::vector<std::string> phases;
+  double last = 0;
+  LoadOptions options;
+  options.partition.block_size = 500;
+  options.progress = [&](const LoadProgress& p) {
+    if (phases.empty() || phases.back() != p.phase) {
+      phases.push_back(p.phase);
+      last = 0;
+    }
+    EXPECT_GE(p.fraction, last);
+    EXPECT_LE(p.fraction, 1.0);
+    last = p.fraction;
+  };
+  absl::StatusOr<MeshInfo> mesh = client().LoadMeshWithProgress("fertility_tet.vtu", options);
+  ASSERT_OK(mesh);
+  meshes_.push_back(mesh->mesh_id);
+  EXPECT_EQ(phases, (std::vector<std::string>{"read", "partition", "encode"}));
+  EXPECT_EQ(mesh->tetrahedra, 60948);
+  EXPECT_EQ(mesh->triangles, 130983);
+  EXPECT_EQ(mesh->block_size, 500);
+}
+
+TEST_F(ServerTest, CancellingALoadLeavesNoMesh) {
+  constexpr char kBig[] = "sample:jittered:80";  // about 3M tetrahedra
+  // By the token, once encoding started.
+  LoadOptions by_token;
+  by_token.progress = [&](const LoadProgress& p) {
+    if (p.phase == "encode") by_token.cancel.Cancel();
+  };
+  absl::StatusOr<MeshInfo> stopped = client().LoadMeshWithProgress(kBig, by_token);
+  EXPECT_EQ(stopped.status().code(), StatusCode::kCancelled) << stopped.status();
+  // By a callback that throws.
+  LoadOptions throwing;
+  throwing.progress = [](const LoadProgress& p) {
+    if (p.phase == "partition") throw 7;
+  };
+  EXPECT_THROW(client().LoadMeshWithProgress(kBig, throwing).IgnoreError(), int);
+  // The server goes on serving and holds neither load.
+  EXPECT_FALSE(LoadSample("jittered:3").empty());
+  absl::StatusOr<std::vector<MeshInfo>> list = client().ListMeshes();
+  ASSERT_OK(list);
+  for (const MeshInfo& m : *list) EXPECT_NE(m.source, kBig);
+}
+
 TEST_F(ServerTest, SessionLifecycleAndStats) {
   const std::string mesh = LoadSample("jittered:6");
   for (Structure structure : {Structure::kExplicit, Structure::kCompact, Structure::kActopo}) {

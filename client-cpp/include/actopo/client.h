@@ -432,6 +432,26 @@ struct JobOptions {
   std::chrono::milliseconds timeout{0};
 };
 
+// How far a load has got (Client::LoadMeshWithProgress).
+struct LoadProgress {
+  std::string phase;  // "read", "partition" (the octree) or "encode" (the static encoding)
+  double fraction = 0;  // of the phase, 0 to 1
+  double elapsed_seconds = 0;
+};
+
+// Options of Client::LoadMeshWithProgress.
+struct LoadOptions {
+  PartitionOptions partition;
+  // Called as the server reports, on the calling thread; each phase at least once. An exception
+  // thrown here cancels the load on the server and propagates.
+  std::function<void(const LoadProgress&)> progress;
+  // Cancel() on (a copy of) this token stops the load on the server, which frees what it read;
+  // the call then returns CANCELLED.
+  CancelToken cancel;
+  // Deadline of the load; 0: ClientOptions::mesh_timeout. The server stops at the deadline.
+  std::chrono::milliseconds timeout{0};
+};
+
 // Timings and statistics of a job.
 struct JobStats {
   double run_seconds = 0;
@@ -515,6 +535,15 @@ class Client {
   // Loads a file under the server's data directory, or a built-in sample as "sample:NAME"
   // (e.g. "sample:jittered:32", "sample:wavelet:64").
   absl::StatusOr<MeshInfo> LoadMesh(std::string_view path, const PartitionOptions& partition = {});
+  // The same, reporting progress and cancellable:
+  //
+  //   actopo::CancelToken cancel;   // cancel.Cancel() from any thread stops the load
+  //   auto mesh = client->LoadMeshWithProgress("big.vtu", {
+  //       .progress = [](const actopo::LoadProgress& p) {
+  //         std::cerr << p.phase << " " << int(100 * p.fraction) << "%\r";
+  //       },
+  //       .cancel = cancel});
+  absl::StatusOr<MeshInfo> LoadMeshWithProgress(std::string_view path, const LoadOptions& options);
   // Uploads a mesh: `points` holds x, y, z per vertex, `tetrahedra` 4 vertex ids (0-based
   // indices into the points) per tetrahedron, each field one value per vertex. Shapes are
   // checked before anything is sent; the data goes as a header with its SHA-256 and chunks.
