@@ -6,6 +6,8 @@
 #include <prometheus/histogram.h>
 #include <prometheus/registry.h>
 
+#include <mutex>
+
 #include "absl/strings/str_cat.h"
 
 namespace actopo::service {
@@ -21,6 +23,39 @@ struct Metrics::Families {
   prometheus::Gauge* budget_used;
   prometheus::Gauge* rss;
   prometheus::Gauge* threads;
+};
+
+// The registry as the exposer sees it: the gauges are set from the source, then collected.
+class Metrics::ScrapeTimeGauges : public prometheus::Collectable {
+ public:
+  ScrapeTimeGauges(std::shared_ptr<prometheus::Registry> registry, const Families* families)
+      : registry_(std::move(registry)), f_(families) {}
+
+  void SetSource(std::function<GaugeValues()> source) {
+    std::lock_guard<std::mutex> lock(mu_);
+    source_ = std::move(source);
+  }
+
+  std::vector<prometheus::MetricFamily> Collect() const override {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (source_) {
+        const GaugeValues v = source_();
+        f_->meshes->Set(v.meshes);
+        f_->sessions->Set(v.sessions);
+        f_->budget_used->Set(double(v.budget_used_bytes));
+        f_->rss->Set(double(v.process_rss_bytes));
+        f_->threads->Set(v.engine_threads);
+      }
+    }
+    return registry_->Collect();
+  }
+
+ private:
+  const std::shared_ptr<prometheus::Registry> registry_;
+  const Families* f_;
+  mutable std::mutex mu_;
+  std::function<GaugeValues()> source_;
 };
 
 absl::StatusOr<std::unique_ptr<Metrics>> Metrics::Create(const std::string& host, int port) {
@@ -60,6 +95,7 @@ absl::StatusOr<std::unique_ptr<Metrics>> Metrics::Create(const std::string& host
                              "Bytes reserved by meshes and sessions in the memory budget");
   m->f_->rss = gauge("actopo_process_resident_bytes", "Resident memory of the server");
   m->f_->threads = gauge("actopo_engine_threads", "Engine threads reserved");
+  m->collectable_ = std::make_shared<ScrapeTimeGauges>(m->registry_, m->f_.get());
   if (port > 0) {
     try {
       m->exposer_ = std::make_unique<prometheus::Exposer>(absl::StrCat(host, ":", port));
@@ -67,7 +103,7 @@ absl::StatusOr<std::unique_ptr<Metrics>> Metrics::Create(const std::string& host
       return absl::UnavailableError(
           absl::StrCat("metrics port ", port, ": cannot listen (", e.what(), ")"));
     }
-    m->exposer_->RegisterCollectable(m->registry_);
+    m->exposer_->RegisterCollectable(m->collectable_);
     m->port_ = int(m->exposer_->GetListeningPorts().front());
   }
   return m;
@@ -92,13 +128,8 @@ void Metrics::Job(std::string_view algorithm, std::string_view structure, double
   f_->wait_seconds->Increment(engine.access.wait_ns * 1e-9);
 }
 
-void Metrics::Gauges(int meshes, int sessions, int64_t budget_used_bytes,
-                     int64_t process_rss_bytes, int engine_threads) {
-  f_->meshes->Set(meshes);
-  f_->sessions->Set(sessions);
-  f_->budget_used->Set(double(budget_used_bytes));
-  f_->rss->Set(double(process_rss_bytes));
-  f_->threads->Set(engine_threads);
+void Metrics::SetGaugeSource(std::function<GaugeValues()> source) {
+  collectable_->SetSource(std::move(source));
 }
 
 }  // namespace actopo::service

@@ -3,6 +3,7 @@
 #ifndef ACTOPO_SERVER_SERVICE_METRICS_H_
 #define ACTOPO_SERVER_SERVICE_METRICS_H_
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -17,6 +18,15 @@ class Registry;
 
 namespace actopo::service {
 
+// The gauges, read when Prometheus scrapes (never on the request path).
+struct GaugeValues {
+  int meshes = 0;
+  int sessions = 0;
+  int64_t budget_used_bytes = 0;
+  int64_t process_rss_bytes = 0;
+  int engine_threads = 0;
+};
+
 class Metrics {
  public:
   // port 0: metrics are counted but not served.
@@ -26,13 +36,15 @@ class Metrics {
   void Request(std::string_view rpc, int grpc_code);
   void Job(std::string_view algorithm, std::string_view structure, double seconds,
            const EngineStats& engine);
-  void Gauges(int meshes, int sessions, int64_t budget_used_bytes, int64_t process_rss_bytes,
-              int engine_threads);
+  // Called on the exposer's thread at each scrape; nullptr stops it (before what it reads goes).
+  void SetGaugeSource(std::function<GaugeValues()> source);
   int port() const { return port_; }
 
  private:
   Metrics() = default;
   struct Families;
+  class ScrapeTimeGauges;
+  std::shared_ptr<ScrapeTimeGauges> collectable_;
   std::shared_ptr<prometheus::Registry> registry_;
   std::unique_ptr<prometheus::Exposer> exposer_;
   std::unique_ptr<Families> f_;

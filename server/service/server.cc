@@ -95,7 +95,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& o) {
         absl::StrCat("--port: cannot listen on ", o.host, ":", o.port, " (in use?)"));
   }
   s.server->GetHealthCheckService()->SetServingStatus(true);
-  s.service->RefreshGauges();
+  s.metrics->SetGaugeSource([service = s.service.get()] { return service->Gauges(); });
   return server;
 }
 
@@ -121,6 +121,7 @@ void Server::Shutdown(absl::Duration grace) {
   Drain();
   s.server->Shutdown(std::chrono::system_clock::now() + absl::ToChronoSeconds(grace));
   s.server->Wait();
+  s.metrics->SetGaugeSource(nullptr);  // the service goes before the metrics
 }
 
 void Server::Wait() { state_->server->Wait(); }

@@ -112,7 +112,8 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
   SessionManager& sessions() { return *sessions_; }
   Metrics& metrics() { return *metrics_; }
   const ServiceLimits& limits() const { return limits_; }
-  void RefreshGauges();
+  // The metrics' gauges now (Metrics reads them at each scrape).
+  GaugeValues Gauges() const;
 
  private:
   // Answers inline, on the gRPC thread: for calls that take microseconds.

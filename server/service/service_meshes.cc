@@ -219,7 +219,6 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
 
   void Done(const absl::Status& status) {
     service_->Count("UploadMesh", status);
-    service_->RefreshGauges();
     Finish(ToGrpcStatus(status));
   }
 
@@ -263,7 +262,6 @@ class LoadProgressReactor final : public grpc::ServerWriteReactor<v1::LoadMeshWi
       absl::Status status = mesh.status();
       if (!status.ok()) ReleaseFreeMemory();
       service_->Count("LoadMeshWithProgress", status);
-      service_->RefreshGauges();
       std::unique_lock<std::mutex> lock(mu_);
       if (mesh.ok()) Fill(**mesh, 0, final_message_.mutable_mesh());
       final_ = std::move(status);
@@ -364,7 +362,6 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::Background(grpc::CallbackServerCo
         fn(Progress({.cancel = reactor->cancel().get(), .deadline = deadline}));
     if (!status.ok()) ReleaseFreeMemory();  // what a failed or stopped load had built
     Count(rpc, status);
-    RefreshGauges();
     reactor->Finish(ToGrpcStatus(status));
   });
   return reactor;

@@ -55,9 +55,12 @@ void TopologyServiceImpl::Count(std::string_view rpc, const absl::Status& status
   metrics_->Request(rpc, int(status.code()));
 }
 
-void TopologyServiceImpl::RefreshGauges() {
-  metrics_->Gauges(int(meshes_->size()), int(sessions_->size()), budget_->used(),
-                   CurrentRssBytes(), sessions_->threads_in_use());
+GaugeValues TopologyServiceImpl::Gauges() const {
+  return {.meshes = int(meshes_->size()),
+          .sessions = int(sessions_->size()),
+          .budget_used_bytes = budget_->used(),
+          .process_rss_bytes = CurrentRssBytes(),
+          .engine_threads = sessions_->threads_in_use()};
 }
 
 template <class Fn>
@@ -67,7 +70,6 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::Unary(grpc::CallbackServerContext
   absl::Status status = Admit(context);
   if (status.ok()) status = fn();
   Count(rpc, status);
-  RefreshGauges();
   reactor->Finish(ToGrpcStatus(status));
   return reactor;
 }
