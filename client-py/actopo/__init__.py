@@ -41,6 +41,7 @@ from actopo._types import (
                             FailedItem,
                             FieldInfo,
                             JobStats,
+                            LoadProgress,
                             MemoryStats,
                             MeshInfo,
                             QueryBreakdown,
@@ -59,8 +60,8 @@ __all__ = [
     "ActopoError", "AsyncClient", "AsyncJob", "AsyncSession", "AuthenticationError",
     "CancelledError", "Client", "Counter", "DeadlineExceededError", "EngineOptions",
     "EngineStats", "FailedItem", "FailedPreconditionError", "FieldInfo", "InvalidArgumentError",
-    "InvalidMeshError", "Job", "JobResult", "JobStats", "MemoryStats", "MeshInfo",
-    "NotFoundError", "OutOfRangeError", "QueryBreakdown", "RelationBatch",
+    "InvalidMeshError", "Job", "JobResult", "JobStats", "LoadProgress", "MemoryStats",
+    "MeshInfo", "NotFoundError", "OutOfRangeError", "QueryBreakdown", "RelationBatch",
     "ResourceExhaustedError", "ServerInfo", "ServerLimits", "Session", "SessionInfo",
     "SessionStats", "SimplexRelation", "StreamItem", "UnavailableError", "__version__",
 ]

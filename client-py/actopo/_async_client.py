@@ -33,11 +33,18 @@ from actopo._channel import (
 )
 from actopo._errors import ActopoError, error_for_number, translate, translated
 from actopo._mesh import MeshLike, mesh_arrays
-from actopo._progress import ProgressArg, make_progress
+from actopo._progress import (
+    LoadProgressArg,
+    Progress,
+    ProgressArg,
+    make_load_progress,
+    make_progress,
+)
 from actopo._proto import pb, pb_grpc
 from actopo._requests import MeshRef, SimplexArg
 from actopo._results import Assembler, JobResult
 from actopo._types import (
+    LoadProgress,
     MeshInfo,
     RelationBatch,
     ServerInfo,
@@ -54,8 +61,8 @@ _UNSET: Any = object()
 class AsyncClient:
     """The asyncio twin of Client: same arguments, same methods, as coroutines.
 
-    Create it inside the event loop that uses it. Cancelling the task that awaits a job (or
-    Ctrl-C under asyncio.run) cancels the job on the server.
+    Create it inside the event loop that uses it. Cancelling the task that awaits a job or a
+    load (or Ctrl-C under asyncio.run) cancels it on the server.
 
     Example::
 
@@ -114,16 +121,35 @@ class AsyncClient:
             await self.server_info()
         return self._max_batch or _requests.DEFAULT_BATCH
 
-    async def load_mesh(self, path: str, *, block_size: int = 0,
-                        block_label_field: str = "") -> MeshInfo:
-        """See Client.load_mesh()."""
+    async def load_mesh(self, path: str, *, block_size: int = 0, block_label_field: str = "",
+                        progress: LoadProgressArg = None) -> MeshInfo:
+        """See Client.load_mesh(). Cancelling the awaiting task stops the load on the server."""
         request = _requests.load(path, block_size, block_label_field)
+        if progress:
+            return await self._load_reporting(request,
+                                              make_load_progress(progress, f"load {path}"))
         response = await self._call("LoadMesh", request, timeout=self._mesh_timeout, mesh=True)
         return _convert.mesh_info(response.mesh)
 
-    async def sample(self, name: str, *, block_size: int = 0) -> MeshInfo:
+    async def _load_reporting(self, request: pb.LoadMeshRequest,
+                              bar: Progress[LoadProgress]) -> MeshInfo:
+        """See Client._load_reporting()."""
+        stream = _requests.LoadStream(bar.update)
+        call = self._stub.LoadMeshWithProgress(request, timeout=self._mesh_timeout,
+                                               metadata=self._metadata)
+        try:
+            with translated(mesh=True):
+                while (response := await call.read()) is not grpc.aio.EOF:
+                    stream.feed(response)
+        finally:
+            call.cancel()  # stops the load after cancellation or a raising callback
+            bar.close()
+        return stream.mesh()
+
+    async def sample(self, name: str, *, block_size: int = 0,
+                     progress: LoadProgressArg = None) -> MeshInfo:
         """See Client.sample()."""
-        return await self.load_mesh(f"sample:{name}", block_size=block_size)
+        return await self.load_mesh(f"sample:{name}", block_size=block_size, progress=progress)
 
     async def upload_mesh(self, mesh: MeshLike, *, name: str | None = None, block_size: int = 0,
                           block_label_field: str = "") -> MeshInfo:

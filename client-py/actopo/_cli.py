@@ -5,7 +5,7 @@
 
 `--server` (or `--target`, before or after the command) defaults to $ACTOPO_SERVER. Every
 listing command takes --json. Exit status: 0 on success, 1 on a service error, 2 on a usage
-error, 130 on Ctrl-C (the running job is cancelled).
+error, 130 on Ctrl-C (the running load or job is cancelled on the server).
 """
 
 from __future__ import annotations
@@ -111,7 +111,7 @@ def _mesh(client: Client, args: argparse.Namespace) -> Iterator[_Mesh]:
         info = client.upload_mesh(local, block_size=args.block_size)
     else:
         source = args.mesh or f"sample:{args.sample}"
-        info = client.load_mesh(source, block_size=args.block_size)
+        info = client.load_mesh(source, block_size=args.block_size, progress=_progress(args))
     try:
         yield _Mesh(info, local)
     finally:
@@ -176,7 +176,7 @@ def cmd_meshes(client: Client, args: argparse.Namespace) -> None:
 
 def cmd_load(client: Client, args: argparse.Namespace) -> None:
     info = client.load_mesh(args.source, block_size=args.block_size,
-                            block_label_field=args.block_labels or "")
+                            block_label_field=args.block_labels or "", progress=_progress(args))
     _print_json(info) if args.json else _mesh_rows([info])
 
 
@@ -216,8 +216,14 @@ def cmd_close(client: Client, args: argparse.Namespace) -> None:
         client.close_session(session_id)
 
 
+def _add_progress(p: argparse.ArgumentParser, what: str) -> None:
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction,
+                   help=f"show {what} on stderr (default: when stderr is a terminal)")
+
+
 def _progress(args: argparse.Namespace) -> bool:
-    return not args.no_progress and sys.stderr.isatty()
+    """--progress, --no-progress, else whether stderr is a terminal."""
+    return sys.stderr.isatty() if args.progress is None else args.progress
 
 
 def _report(mesh: MeshInfo, session: Session, result: JobResult, stats: SessionStats,
@@ -532,6 +538,7 @@ def parser() -> argparse.ArgumentParser:
                    "(e.g. sample:jittered:32)")
     c.add_argument("--block-size", type=int, default=0)
     c.add_argument("--block-labels", metavar="FIELD")
+    _add_progress(c, "a progress bar per phase (read, partition, encode)")
     c = command("upload", cmd_upload, "upload a local mesh file (read with pyvista or meshio)")
     c.add_argument("file")
     c.add_argument("--name")
@@ -558,7 +565,7 @@ def parser() -> argparse.ArgumentParser:
     c.add_argument("--geometry", metavar="FILE",
                    help="the mesh as a local file, for PREFIX_segmentation.vtu with --mesh "
                    "(default: NAME under the current directory or $ACTOPO_DATA_DIR, if there)")
-    c.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_progress(c, "the load's and the job's progress bars")
 
     c = command("relation", cmd_relation, "a relation of some simplices")
     c.add_argument("relation", help=", ".join(_names.RELATIONS))
@@ -568,6 +575,7 @@ def parser() -> argparse.ArgumentParser:
                    help="also print the vertices of result edges and triangles")
     _add_mesh_source(c, session=True)
     _add_engine(c)
+    _add_progress(c, "the load's progress bars")
 
     c = command("stats", cmd_stats, "statistics of one session, or of all")
     c.add_argument("--session", metavar="ID")
@@ -582,7 +590,7 @@ def parser() -> argparse.ArgumentParser:
     _add_engine(c, structure=False)
     c.add_argument("--boundary-rule", choices=["ttk", "none"], help="critical-points")
     c.add_argument("--param", action="append", metavar="NAME=VALUE")
-    c.add_argument("--no-progress", action="store_true")
+    _add_progress(c, "the load's and the jobs' progress bars")
 
     c = command("bench", cmd_bench,
                 "load a server from concurrent clients: unary, batched and streamed relation "
@@ -618,7 +626,7 @@ def parser() -> argparse.ArgumentParser:
     c.add_argument("--boundary-rule", choices=["ttk", "none"], help="critical-points")
     c.add_argument("--param", action="append", metavar="NAME=VALUE")
     _add_engine(c, structure=False)
-    c.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
+    _add_progress(c, "the load's progress bars and a line per run")
     c.add_argument("--structures", help=argparse.SUPPRESS)  # now `compare`
     c.add_argument("--repeat", type=int, help=argparse.SUPPRESS)
     return p

@@ -22,11 +22,18 @@ from actopo._channel import (
 )
 from actopo._errors import ActopoError, error_for_number, translate, translated
 from actopo._mesh import MeshLike, mesh_arrays
-from actopo._progress import ProgressArg, make_progress
+from actopo._progress import (
+    LoadProgressArg,
+    Progress,
+    ProgressArg,
+    make_load_progress,
+    make_progress,
+)
 from actopo._proto import pb, pb_grpc
 from actopo._requests import MeshRef, SimplexArg
 from actopo._results import Assembler, JobResult
 from actopo._types import (
+    LoadProgress,
     MeshInfo,
     RelationBatch,
     ServerInfo,
@@ -118,20 +125,49 @@ class Client:
 
     # Meshes.
 
-    def load_mesh(self, path: str, *, block_size: int = 0,
-                  block_label_field: str = "") -> MeshInfo:
+    def load_mesh(self, path: str, *, block_size: int = 0, block_label_field: str = "",
+                  progress: LoadProgressArg = None) -> MeshInfo:
         """Loads a file under the server's data directory ("sample:NAME" loads a sample).
 
         block_size: octree bucket capacity (max vertices per block; 0: the server's 1000);
         block_label_field: partition by this integer point field instead.
+        progress: True for a bar on stderr per phase of the load ("read", "partition",
+        "encode"), or a callable receiving a LoadProgress(phase, fraction, elapsed_seconds);
+        None or False for no progress. Ctrl-C, or an exception raised by the callable, stops
+        the load on the server (which frees what it built) and propagates.
+
+        >>> reports = []
+        >>> info = client.load_mesh("sample:jittered:4", progress=reports.append)
+        >>> list(dict.fromkeys(r.phase for r in reports))  # the phases, in order
+        ['read', 'partition', 'encode']
+        >>> client.delete_mesh(info)
         """
         request = _requests.load(path, block_size, block_label_field)
+        if progress:
+            return self._load_reporting(request, make_load_progress(progress, f"load {path}"))
         response = self._call("LoadMesh", request, timeout=self._mesh_timeout, mesh=True)
         return _convert.mesh_info(response.mesh)
 
-    def sample(self, name: str, *, block_size: int = 0) -> MeshInfo:
-        """Loads a built-in sample, e.g. "wavelet:64" or "jittered:100"."""
-        return self.load_mesh(f"sample:{name}", block_size=block_size)
+    def _load_reporting(self, request: pb.LoadMeshRequest,
+                        bar: Progress[LoadProgress]) -> MeshInfo:
+        """LoadMeshWithProgress: reports each progress message to `bar`."""
+        stream = _requests.LoadStream(bar.update)
+        call = self._stub.LoadMeshWithProgress(request, timeout=self._mesh_timeout,
+                                               metadata=self._metadata)
+        try:
+            with translated(mesh=True):
+                for response in call:
+                    stream.feed(response)
+        finally:
+            call.cancel()  # stops the load after Ctrl-C or a raising callback; else a no-op
+            bar.close()
+        return stream.mesh()
+
+    def sample(self, name: str, *, block_size: int = 0,
+               progress: LoadProgressArg = None) -> MeshInfo:
+        """Loads a built-in sample, e.g. "wavelet:64" or "jittered:100"; `progress` as for
+        load_mesh()."""
+        return self.load_mesh(f"sample:{name}", block_size=block_size, progress=progress)
 
     def upload_mesh(self, mesh: MeshLike, *, name: str | None = None, block_size: int = 0,
                     block_label_field: str = "") -> MeshInfo:

@@ -16,6 +16,7 @@ from actopo._types import (
     EngineStats,
     FieldInfo,
     JobStats,
+    LoadProgress,
     MemoryStats,
     MeshInfo,
     QueryBreakdown,
@@ -51,6 +52,10 @@ def mesh_info(m: pb.MeshInfo) -> MeshInfo:
                     blocks=m.blocks, block_size=m.block_size, fields=fields, bytes=m.bytes,
                     sessions=m.sessions, created=_time(m, "created"),
                     load_seconds=m.load_seconds, partition_seconds=m.partition_seconds)
+
+
+def load_progress(p: pb.LoadProgress) -> LoadProgress:
+    return LoadProgress(phase=p.phase, fraction=p.fraction, elapsed_seconds=p.elapsed_seconds)
 
 
 def session_info(s: pb.SessionInfo) -> SessionInfo:

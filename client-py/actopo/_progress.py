@@ -1,34 +1,45 @@
-"""Progress display for jobs: tqdm if installed, else rich, else a plain line on stderr."""
+"""Progress of jobs and loads: the caller's callable, or a bar on stderr (tqdm if installed, else
+rich, else a plain line)."""
 
 from __future__ import annotations
 
 import sys
 from collections.abc import Callable
-from typing import Any, Protocol, TypeAlias
+from typing import Any, Generic, Protocol, TypeAlias, TypeVar
+
+from actopo._types import LOAD_PHASES, LoadProgress
 
 ProgressArg: TypeAlias = bool | None | Callable[[float], Any]
+"""Of jobs: False/None for nothing, True for a bar, or a callable(fraction)."""
+LoadProgressArg: TypeAlias = bool | None | Callable[[LoadProgress], Any]
+"""Of loads: False/None for nothing, True for a bar per phase, or a callable(LoadProgress)."""
+
+_T = TypeVar("_T")
+_T_contra = TypeVar("_T_contra", contravariant=True)
 
 
-class Progress(Protocol):
-    def update(self, fraction: float) -> None: ...
+class Progress(Protocol[_T_contra]):
+    """Where the reports of a call go."""
+
+    def update(self, report: _T_contra) -> None: ...
 
     def close(self) -> None: ...
 
 
 class _Silent:
-    def update(self, fraction: float) -> None:
+    def update(self, report: object) -> None:
         pass
 
     def close(self) -> None:
         pass
 
 
-class _Callback:
-    def __init__(self, callback: Callable[[float], Any]) -> None:
+class _Callback(Generic[_T]):
+    def __init__(self, callback: Callable[[_T], Any]) -> None:
         self._callback = callback
 
-    def update(self, fraction: float) -> None:
-        self._callback(fraction)
+    def update(self, report: _T) -> None:
+        self._callback(report)
 
     def close(self) -> None:
         pass
@@ -54,9 +65,10 @@ class _Tqdm:
 
 class _Rich:
     def __init__(self, description: str) -> None:
+        from rich.console import Console
         from rich.progress import Progress as RichProgress
 
-        self._progress = RichProgress(transient=True)
+        self._progress = RichProgress(console=Console(stderr=True), transient=True)
         self._task = self._progress.add_task(description, total=1.0)
         self._progress.start()
 
@@ -85,15 +97,57 @@ class _Plain:
             sys.stderr.flush()
 
 
-def make_progress(progress: ProgressArg, description: str) -> Progress:
-    """`progress`: False/None for nothing, True for a bar on stderr, or a callable(fraction)."""
-    if not progress:
-        return _Silent()
-    if callable(progress):
-        return _Callback(progress)
+def _bar(description: str) -> Progress[float]:
+    """A bar on stderr: tqdm if installed, else rich, else a plain line."""
     for bar in (_Tqdm, _Rich):
         try:
             return bar(description)
         except ImportError:
             continue
     return _Plain(description)
+
+
+class _PhaseBars:
+    """A load's bars: one per phase, each replacing the previous one, named after the phase
+    ("load sample:wavelet:64 (partition 2/3)") and filled by the phase's fraction."""
+
+    def __init__(self, description: str) -> None:
+        self._description = description
+        self._phase: str | None = None
+        self._bar: Progress[float] = _Silent()
+
+    def update(self, report: LoadProgress) -> None:
+        if report.phase != self._phase:
+            self._bar.close()
+            self._phase = report.phase
+            self._bar = _bar(f"{self._description} ({_step(report.phase)})")
+        self._bar.update(report.fraction)
+
+    def close(self) -> None:
+        self._bar.close()
+
+
+def _step(phase: str) -> str:
+    """"encode 3/3" for a phase the client knows, the phase's name for any other."""
+    if phase not in LOAD_PHASES:
+        return phase
+    return f"{phase} {LOAD_PHASES.index(phase) + 1}/{len(LOAD_PHASES)}"
+
+
+def _choose(progress: bool | None | Callable[[_T], Any],
+            bar: Callable[[], Progress[_T]]) -> Progress[_T]:
+    if not progress:
+        return _Silent()
+    if callable(progress):
+        return _Callback(progress)
+    return bar()
+
+
+def make_progress(progress: ProgressArg, description: str) -> Progress[float]:
+    """Of a job: nothing, a bar named `description`, or the caller's callable(fraction)."""
+    return _choose(progress, lambda: _bar(description))
+
+
+def make_load_progress(progress: LoadProgressArg, description: str) -> Progress[LoadProgress]:
+    """Of a load: nothing, a bar per phase, or the caller's callable(LoadProgress)."""
+    return _choose(progress, lambda: _PhaseBars(description))

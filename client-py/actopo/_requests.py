@@ -2,16 +2,16 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import Any, TypeAlias
 
 import numpy as np
 
-from actopo import _names
+from actopo import _convert, _names
 from actopo._arrays import little_endian, to_array, to_numpy
-from actopo._errors import InvalidArgumentError
+from actopo._errors import ActopoError, InvalidArgumentError
 from actopo._proto import pb
-from actopo._types import MeshInfo, RelationBatch, SimplexRelation
+from actopo._types import LoadProgress, MeshInfo, RelationBatch, SimplexRelation
 
 MeshRef: TypeAlias = MeshInfo | str
 SimplexArg: TypeAlias = int | Sequence[int] | np.ndarray
@@ -39,6 +39,27 @@ def load(source: str, block_size: int = 0, block_label_field: str = "") -> pb.Lo
     if source.startswith("sample:"):
         return pb.LoadMeshRequest(sample=source[len("sample:"):], partition=options)
     return pb.LoadMeshRequest(path=source, partition=options)
+
+
+class LoadStream:
+    """Takes the answers of LoadMeshWithProgress: each progress message goes to `report` (which
+    may raise, to stop the load), the mesh, which ends the stream, is kept for mesh()."""
+
+    def __init__(self, report: Callable[[LoadProgress], Any]) -> None:
+        self._report = report
+        self._mesh: MeshInfo | None = None
+
+    def feed(self, response: pb.LoadMeshWithProgressResponse) -> None:
+        event = response.WhichOneof("event")
+        if event == "progress":
+            self._report(_convert.load_progress(response.progress))
+        elif event == "mesh":
+            self._mesh = _convert.mesh_info(response.mesh)
+
+    def mesh(self) -> MeshInfo:
+        if self._mesh is None:
+            raise ActopoError("LoadMeshWithProgress: the stream ended without the mesh")
+        return self._mesh
 
 
 def engine_count(what: str, value: int) -> int:

@@ -69,6 +69,24 @@ class MeshInfo:
     partition_seconds: float
 
 
+LOAD_PHASES = ("read", "partition", "encode")
+"""The phases of a load, in the order the server goes through them."""
+
+
+@dataclass(frozen=True)
+class LoadProgress:
+    """How far a load has got (what a ``progress`` callable of load_mesh() receives).
+
+    phase: "read" (the file or sample), "partition" (the octree) or "encode" (the static
+    encoding), in that order, each reported at least once; fraction: how much of that phase is
+    done, 0 to 1, not decreasing within the phase; elapsed_seconds: since the load started.
+    """
+
+    phase: str
+    fraction: float
+    elapsed_seconds: float
+
+
 @dataclass(frozen=True)
 class EngineOptions:
     """Engine configuration of a session as the server resolved it."""

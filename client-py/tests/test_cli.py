@@ -92,6 +92,37 @@ def test_info_meshes_sessions(cli):
     assert mesh["mesh_id"] not in [m["mesh_id"] for m in _json(cli, "meshes")]
 
 
+def test_load_progress_goes_to_stderr(cli):
+    """--progress: a bar per phase on stderr, the mesh alone on stdout; by default only on a
+    terminal (stderr is not one here)."""
+    status, out, err = cli("load", "sample:jittered:20", "--progress")
+    assert status == 0, err
+    for step in ("read 1/3", "partition 2/3", "encode 3/3"):
+        assert f"load sample:jittered:20 ({step})" in err
+    header, row = out.splitlines()
+    assert header.split()[:2] == ["MESH", "NAME"] and row.split()[1] == "jittered:20"
+    status, out, err = cli("load", "sample:jittered:20", "--progress", "--json")
+    assert status == 0 and "encode 3/3" in err
+    mesh = json.loads(out)
+    assert mesh["name"] == "jittered:20" and mesh["tetrahedra"] == 41154
+    for flags in ((), ("--no-progress",)):
+        status, out, err = cli("load", "sample:jittered:4", "--json", *flags)
+        assert status == 0 and err == "" and json.loads(out)["tetrahedra"] == 162
+    assert cli("delete", row.split()[0], mesh["mesh_id"])[0] == 0
+
+
+def test_commands_show_the_load_of_their_mesh(cli):
+    report = _json(cli, "run", "--sample", "jittered:6", "--algorithm", "critical-points")
+    status, out, err = cli("run", "--sample", "jittered:6", "--algorithm", "critical-points",
+                           "--progress", "--json")
+    assert status == 0 and json.loads(out)["result"] == report["result"]
+    assert "load sample:jittered:6 (encode 3/3)" in err
+    status, out, err = cli("relation", "vertex_star", "0", "--sample", "jittered:4",
+                           "--progress")
+    assert status == 0 and out.startswith("vertex_star(0): ")
+    assert "load sample:jittered:4 (read 1/3)" in err
+
+
 def test_relation_on_a_temporary_mesh(cli):
     before = _json(cli, "meshes")
     answer = _json(cli, "relation", "tetrahedron_vertices", "0", "--mesh", "sample:jittered:3")

@@ -30,7 +30,7 @@ def test_docstring_examples(client):
 
 def test_readme_examples(server, monkeypatch, capsys):
     blocks = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
-    assert len(blocks) == 4
+    assert len(blocks) == 5
     monkeypatch.setenv("ACTOPO_SERVER", server)
     monkeypatch.chdir(README.parents[1])
     for code in blocks:
@@ -39,3 +39,4 @@ def test_readme_examples(server, monkeypatch, capsys):
     assert "14570 60948 ['eigenfunction4', 'height']" in out
     assert "found cell types: 36290 triangle; hint:" in out
     assert "True\n1 ids[1]: vertex id 1000000000 is outside [0, 8000)\nTrue\nTrue\n" in out
+    assert "['read', 'partition', 'encode'] 355914\nstopped in partition\n" in out

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import sys
 
 import grpc
 import numpy as np
@@ -11,6 +12,7 @@ import pytest
 import actopo
 from actopo import _mesh, _names, _requests, _upload
 from actopo._errors import error_for, error_for_number, translate
+from actopo._progress import make_load_progress
 from actopo._proto import pb
 from actopo._results import Assembler
 
@@ -172,6 +174,40 @@ def test_assembler_joins_pieces_in_any_order():
     np.testing.assert_array_equal(result.segmentation["AscendingManifold"], values)
     assert result.summary == {"critical_cells": [1, 2, 0, 0], "digest": "ab"}
     assert isinstance(result.summary["critical_cells"][0], int)
+
+
+def test_load_stream_reports_progress_and_keeps_the_mesh():
+    reports = []
+    stream = _requests.LoadStream(reports.append)
+    stream.feed(pb.LoadMeshWithProgressResponse(
+        progress=pb.LoadProgress(phase="read", fraction=0.5, elapsed_seconds=0.25)))
+    with pytest.raises(actopo.ActopoError, match="ended without the mesh"):
+        stream.mesh()
+    stream.feed(pb.LoadMeshWithProgressResponse(mesh=pb.MeshInfo(mesh_id="m1", tetrahedra=2)))
+    assert reports == [actopo.LoadProgress(phase="read", fraction=0.5, elapsed_seconds=0.25)]
+    assert stream.mesh().mesh_id == "m1" and stream.mesh().tetrahedra == 2
+
+
+def test_load_progress_choices(monkeypatch, capsys):
+    reports = []
+    for progress in (None, False, reports.append):
+        sink = make_load_progress(progress, "load x")
+        sink.update(actopo.LoadProgress("read", 1.0, 0.5))
+        sink.close()
+    assert reports == [actopo.LoadProgress("read", 1.0, 0.5)]
+    assert capsys.readouterr().err == ""
+    monkeypatch.setitem(sys.modules, "tqdm.auto", None)  # neither tqdm nor rich: plain lines
+    monkeypatch.setitem(sys.modules, "rich.progress", None)
+    bars = make_load_progress(True, "load x")
+    for phase, fraction in [("read", 0.0), ("read", 1.0), ("partition", 0.5), ("encode", 0.25),
+                            ("stitch", 1.0)]:
+        bars.update(actopo.LoadProgress(phase, fraction, 0.0))
+    bars.close()
+    err = capsys.readouterr().err
+    for line in ("load x (read 1/3): 100%", "load x (partition 2/3):  50%",
+                 "load x (encode 3/3):  25%", "load x (stitch): 100%"):
+        assert f"\r{line}" in err
+    assert err.endswith(" \r")  # a bar clears its line when the next one starts, and at the end
 
 
 def test_client_needs_a_target(monkeypatch):
