@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <numeric>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
@@ -228,47 +229,100 @@ void Session::AppendRows(Reader& reader, Relation r, std::span<const SimplexId> 
                                 : r == Relation::kEL ? Relation::kET
                                                      : Relation::kFT;
   const bool by_vertices = r == Relation::kFE || r == Relation::kTE || r == Relation::kTF;
+  // Rows are reported in canonical order (SEMANTICS.md): by the result's own id for most
+  // relations, by the input id of the star tetrahedron at the same position for links, by
+  // vertex tuple for the faces of triangles and tetrahedra. Keys within a row are distinct, so
+  // an unstable sort gives the one order.
+  const bool by_own_id = target >= 0 && !link && !by_vertices;
   struct Item {
     std::array<int64_t, 4> key;
     int64_t id;
     SimplexId internal;
   };
-  std::vector<Item> items;  // reused across the batch
+  std::vector<Item> items;  // reused across the batch (links and tuple-ordered faces)
   for (const SimplexId s : simplices) {
-    items.clear();
     const auto row = reader.get(r, s);
-    const std::span<const SimplexId> star =
-        link ? reader.get(star_of_link, s) : std::span<const SimplexId>();
-    for (size_t i = 0; i < row.size(); ++i) {
-      const SimplexId x = row[i];
-      Item item{{-1, -1, -1, -1}, x, x};
-      if (target == 0) item.id = topo.vertex_input_id(x);
-      if (target == 3) item.id = topo.tetrahedron_input_id(x);
-      if (target < 0) {
-        item.key[0] = 0;  // a predicate: one value
-      } else if (link) {
-        item.key[0] = topo.tetrahedron_input_id(star[i]);
-      } else if (by_vertices) {
-        SimplexId v[4];
-        CellTokens(topo, target, x, v);
-        std::copy(v, v + target + 1, item.key.begin());
-      } else {
-        item.key[0] = item.id;
+    const size_t begin = values.size();
+    if (target < 0) {  // a predicate: one value
+      values.insert(values.end(), row.begin(), row.end());
+    } else if (by_own_id) {
+      // The common case, kept to plain integers: map to reported ids and sort them in place.
+      values.resize(begin + row.size());
+      int64_t* out = values.data() + begin;
+      for (size_t i = 0; i < row.size(); ++i) {
+        const SimplexId x = row[i];
+        out[i] = target == 0   ? topo.vertex_input_id(x)
+                 : target == 3 ? topo.tetrahedron_input_id(x)
+                               : x;
       }
-      items.push_back(item);
-    }
-    if (items.size() > 1) {
-      std::stable_sort(items.begin(), items.end(),
-                       [](const Item& a, const Item& b) { return a.key < b.key; });
-    }
-    for (const Item& item : items) {
-      values.push_back(item.id);
+      std::sort(out, out + row.size());
       if (vertices != nullptr && (target == 1 || target == 2)) {
-        SimplexId v[4];
-        CellTokens(topo, target, item.internal, v);
-        vertices->insert(vertices->end(), v, v + target + 1);
+        for (size_t i = 0; i < row.size(); ++i) {  // edge and triangle ids are internal
+          SimplexId v[4];
+          CellTokens(topo, target, SimplexId(out[i]), v);
+          vertices->insert(vertices->end(), v, v + target + 1);
+        }
+      }
+    } else {
+      items.clear();
+      const std::span<const SimplexId> star =
+          link ? reader.get(star_of_link, s) : std::span<const SimplexId>();
+      for (size_t i = 0; i < row.size(); ++i) {
+        const SimplexId x = row[i];
+        Item item{{-1, -1, -1, -1}, x, x};
+        if (target == 0) item.id = topo.vertex_input_id(x);
+        if (target == 3) item.id = topo.tetrahedron_input_id(x);
+        if (link) {
+          item.key[0] = topo.tetrahedron_input_id(star[i]);
+        } else {
+          SimplexId v[4];
+          CellTokens(topo, target, x, v);
+          std::copy(v, v + target + 1, item.key.begin());
+        }
+        items.push_back(item);
+      }
+      std::sort(items.begin(), items.end(),
+                [](const Item& a, const Item& b) { return a.key < b.key; });
+      for (const Item& item : items) {
+        values.push_back(item.id);
+        if (vertices != nullptr && (target == 1 || target == 2)) {
+          SimplexId v[4];
+          CellTokens(topo, target, item.internal, v);
+          vertices->insert(vertices->end(), v, v + target + 1);
+        }
       }
     }
+    offsets.push_back(int64_t(values.size()));
+  }
+}
+
+template <class Reader>
+void Session::AppendRowsInBlockOrder(Reader& reader, Relation r,
+                                     std::span<const SimplexId> simplices,
+                                     std::vector<int64_t>& offsets,
+                                     std::vector<int64_t>& values,
+                                     std::vector<int64_t>* vertices) const {
+  if (vertices != nullptr || std::is_sorted(simplices.begin(), simplices.end())) {
+    AppendRows(reader, r, simplices, offsets, values, vertices);
+    return;
+  }
+  const size_t n = simplices.size();
+  std::vector<uint32_t> order(n);
+  std::iota(order.begin(), order.end(), 0u);
+  std::sort(order.begin(), order.end(),
+            [&](uint32_t a, uint32_t b) { return simplices[a] < simplices[b]; });
+  std::vector<SimplexId> sorted(n);
+  for (size_t k = 0; k < n; ++k) sorted[k] = simplices[order[k]];
+  std::vector<int64_t> sorted_offsets = {0}, sorted_values;
+  sorted_offsets.reserve(n + 1);
+  AppendRows(reader, r, sorted, sorted_offsets, sorted_values, nullptr);
+  std::vector<uint32_t> position(n);  // input item -> its row among the sorted ones
+  for (size_t k = 0; k < n; ++k) position[order[k]] = uint32_t(k);
+  values.reserve(values.size() + sorted_values.size());
+  for (size_t i = 0; i < n; ++i) {
+    const size_t k = position[i];
+    values.insert(values.end(), sorted_values.begin() + sorted_offsets[k],
+                  sorted_values.begin() + sorted_offsets[k + 1]);
     offsets.push_back(int64_t(values.size()));
   }
 }
@@ -286,14 +340,14 @@ void Session::Query(Relation r, std::span<const SimplexId> simplices,
     auto reader = compact_readers_->Acquire();
     compute_since = Clock::now();
     const AccessStats before = reader->stats();
-    AppendRows(*reader, r, simplices, offsets, values, vertices);
+    AppendRowsInBlockOrder(*reader, r, simplices, offsets, values, vertices);
     // Pooled readers live as long as the session: count their accesses per call.
     std::lock_guard<std::mutex> lock(stats_mu_);
     compact_queries_ += reader->stats().Since(before);
   } else {
     auto reader = actopo_readers_->Acquire();
     compute_since = Clock::now();
-    AppendRows(*reader, r, simplices, offsets, values, vertices);
+    AppendRowsInBlockOrder(*reader, r, simplices, offsets, values, vertices);
   }
   const auto done = Clock::now();
   const auto ns = [](auto d) {

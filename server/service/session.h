@@ -137,6 +137,14 @@ class Session {
   void AppendRows(Reader& reader, Relation r, std::span<const SimplexId> simplices,
                   std::vector<int64_t>& offsets, std::vector<int64_t>& values,
                   std::vector<int64_t>* vertices) const;
+  // The same rows, computed in block order (internal ids) and put back in the caller's order:
+  // a computing structure then builds each block's relation once per batch, whatever the
+  // order of the input ids (which rarely follows the blocks). With `vertices` (single
+  // simplices), in the given order.
+  template <class Reader>
+  void AppendRowsInBlockOrder(Reader& reader, Relation r, std::span<const SimplexId> simplices,
+                              std::vector<int64_t>& offsets, std::vector<int64_t>& values,
+                              std::vector<int64_t>* vertices) const;
   ActopoStructure::Options EngineOptions(Algorithm algorithm, int consumers) const;
 
   std::string id_;
