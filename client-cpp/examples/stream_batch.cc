@@ -2,7 +2,7 @@
 // id, errors in band), batched (CSR arrays) and streamed in batches (CSR arrays per message, bad
 // items reported by position), with their throughput.
 //
-//   stream_batch [HOST:PORT] [SAMPLE]      (default SAMPLE: jittered:24)
+//   stream_batch [HOST:PORT] [SAMPLE] [STRUCTURE]   (defaults: jittered:24, actopo)
 #include <algorithm>
 #include <chrono>
 #include <iostream>
@@ -35,7 +35,12 @@ int main(int argc, char** argv) {
     std::cerr << mesh.status() << "\n";
     return 1;
   }
-  absl::StatusOr<actopo::SessionInfo> session = client.OpenSession(mesh->mesh_id);
+  const std::string structure = argc > 3 ? argv[3] : "actopo";
+  actopo::SessionOptions options;
+  options.structure = structure == "explicit"  ? actopo::Structure::kExplicit
+                      : structure == "compact" ? actopo::Structure::kCompact
+                                               : actopo::Structure::kActopo;
+  absl::StatusOr<actopo::SessionInfo> session = client.OpenSession(mesh->mesh_id, options);
   if (!session.ok()) {
     std::cerr << session.status() << "\n";
     return 1;
@@ -74,9 +79,9 @@ int main(int argc, char** argv) {
     std::cerr << "batch: " << batch.status() << "\n";
   }
 
-  // Batches of 16384 on one stream, written ahead of the answers; the last one holds a bad id.
+  // Batches of 65536 on one stream, written ahead of the answers; the last one holds a bad id.
   ids.push_back(int64_t(ids.size()));
-  constexpr size_t kChunk = 16384;
+  constexpr size_t kChunk = 65536;
   absl::StatusOr<std::unique_ptr<actopo::RelationStream>> stream = client.OpenRelationStream();
   if (!stream.ok()) {
     std::cerr << stream.status() << "\n";

@@ -147,14 +147,15 @@ absl::Status StreamRequests(
 
 constexpr size_t kStreamChunk = 65536;
 
-// A batch of ids (tuple_size 0) or vertex tuples: one GetRelationBatch call when it fits
-// `batch`, else chunks on one stream, written by a second thread ahead of the answers.
+// A batch of ids (tuple_size 0) or vertex tuples: one GetRelationBatch call when it fits one
+// stream chunk and `batch` (a larger answer could pass the message limit), else chunks on one
+// stream, written by a second thread ahead of the answers.
 absl::StatusOr<RelationCsr> Batch(internal::Core& core, std::string_view session_id,
                                   v1::Relation relation, std::span<const int64_t> values,
                                   int tuple_size, size_t batch) {
   const size_t k = tuple_size == 0 ? 1 : size_t(tuple_size);
   const size_t n = values.size() / k;
-  if (n <= batch) {
+  if (n <= std::min(batch, kStreamChunk)) {
     v1::GetRelationBatchRequest request;
     request.set_session_id(std::string(session_id));
     request.set_relation(relation);

@@ -199,6 +199,27 @@ TEST_F(ServiceTest, BatchEqualsSingles) {
   }
 }
 
+TEST_F(ServiceTest, AnAnswerOverTheMessageLimitIsRefusedWithAdvice) {
+  options_.max_message_bytes = 1 << 20;
+  StartServer();
+  const std::string session = Open(LoadSample("jittered:30"), v1::STRUCTURE_COMPACT);
+  std::vector<int64_t> ids(30 * 30 * 30);
+  std::iota(ids.begin(), ids.end(), 0);
+  v1::GetRelationBatchRequest batch;
+  batch.set_session_id(session);
+  batch.set_relation(v1::RELATION_VERTEX_STAR);
+  batch.mutable_ids()->set_dtype(v1::DATA_TYPE_INT64);
+  batch.mutable_ids()->add_shape(int64_t(ids.size()));
+  batch.mutable_ids()->set_data(std::string(reinterpret_cast<const char*>(ids.data()),
+                                            ids.size() * sizeof(int64_t)));
+  v1::GetRelationBatchResponse response;
+  const grpc::Status s = stub_->GetRelationBatch(Context().get(), batch, &response);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_NE(s.error_message().find("message limit of 1 MiB"), std::string::npos)
+      << s.error_message();
+  EXPECT_NE(s.error_message().find("StreamRelations"), std::string::npos);
+}
+
 v1::Array Int64Array(const std::vector<int64_t>& values, std::vector<int64_t> shape = {}) {
   v1::Array a;
   a.set_dtype(v1::DATA_TYPE_INT64);

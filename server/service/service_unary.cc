@@ -264,6 +264,14 @@ absl::Status TopologyServiceImpl::AnswerBatch(const std::string& session_id,
     failures->push_back({i, s.status()});
   }
   session->Query(r, run, offsets, values);
+  // Refused here with a message that says what to do, not by gRPC's "larger than max".
+  const int64_t answer_bytes = int64_t(offsets.size() + values.size()) * int64_t(sizeof(int64_t));
+  if (answer_bytes > limits_.max_message_bytes) {
+    return absl::ResourceExhaustedError(absl::StrCat(
+        field, ": the answer for these ", n, " simplices takes ", answer_bytes >> 20,
+        " MiB, more than the server's message limit of ", limits_.max_message_bytes >> 20,
+        " MiB; send fewer per call (StreamRelations takes many batches on one call)"));
+  }
   const auto start = std::chrono::steady_clock::now();
   Pack("offsets", offsets, offsets_out);
   Pack("values", values, values_out);
