@@ -1,10 +1,13 @@
-// The same relation over every vertex, streamed one simplex per message (one answer per request
-// id, errors in band), batched (CSR arrays) and streamed in batches (CSR arrays per message, bad
-// items reported by position), with their throughput.
+// The same relation asked one simplex per call (latency), then over every vertex: streamed one
+// simplex per message (one answer per request id, errors in band), batched (CSR arrays) and
+// streamed in batches (CSR arrays per message, bad items reported by position), with their
+// throughput.
 //
-//   stream_batch [HOST:PORT] [SAMPLE] [STRUCTURE]   (defaults: jittered:24, actopo)
+//   stream_batch [HOST:PORT] [SAMPLE] [STRUCTURE] [CLIENTS]
+//   (defaults: jittered:24, actopo, 1 thread asking one per call)
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <iostream>
 #include <numeric>
 #include <span>
@@ -45,6 +48,33 @@ int main(int argc, char** argv) {
     std::cerr << session.status() << "\n";
     return 1;
   }
+
+  // One per call: the round trip of a single query, 5000 vertices from each of CLIENTS threads
+  // sharing the client (it is thread-safe).
+  const int clients = argc > 4 ? std::max(1, std::atoi(argv[4])) : 1;
+  std::vector<std::vector<double>> per_thread(clients);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < clients; ++t) {
+    threads.emplace_back([&, t] {
+      for (int64_t i = 0; i < std::min<int64_t>(mesh->vertices, 5000); ++i) {
+        const int64_t v = (i + 5000 * t) % mesh->vertices;
+        const auto sent = std::chrono::steady_clock::now();
+        if (!client.Relation(session->session_id, "vertex_star", v).ok()) return;
+        per_thread[t].push_back(1e6 * SecondsSince(sent));
+      }
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  std::vector<double> latencies_us;
+  for (const auto& l : per_thread) latencies_us.insert(latencies_us.end(), l.begin(), l.end());
+  if (latencies_us.empty()) return 1;
+  std::sort(latencies_us.begin(), latencies_us.end());
+  const auto percentile = [&](double p) {
+    return int64_t(latencies_us[std::min(latencies_us.size() - 1, size_t(p * latencies_us.size()))]);
+  };
+  std::cout << "one per call: " << clients << " thread(s), " << latencies_us.size()
+            << " calls, p50 " << percentile(0.5)
+            << " us, p99 " << percentile(0.99) << " us\n";
 
   // Every vertex, plus one id past the end to show an error in the stream.
   std::vector<int64_t> ids(size_t(mesh->vertices) + 1);
