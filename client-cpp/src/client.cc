@@ -77,7 +77,8 @@ absl::StatusOr<MeshInfo> Client::LoadMesh(std::string_view path,
 
 absl::StatusOr<MeshInfo> Client::LoadMeshWithProgress(std::string_view path,
                                                       const LoadOptions& options) {
-  ACTOPO_ASSIGN_OR_RETURN(v1::LoadMeshRequest request, LoadRequest(path, options.partition));
+  v1::LoadMeshWithProgressRequest request;
+  ACTOPO_ASSIGN_OR_RETURN(*request.mutable_load(), LoadRequest(path, options.partition));
   if (options.cancel.cancelled()) return absl::CancelledError("load: cancelled before it started");
   std::unique_ptr<grpc::ClientContext> context = core_->Context(
       options.timeout.count() > 0 ? options.timeout : core_->options.mesh_timeout);

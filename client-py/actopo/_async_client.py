@@ -135,7 +135,8 @@ class AsyncClient:
                               bar: Progress[LoadProgress]) -> MeshInfo:
         """See Client._load_reporting()."""
         stream = _requests.LoadStream(bar.update)
-        call = self._stub.LoadMeshWithProgress(request, timeout=self._mesh_timeout,
+        call = self._stub.LoadMeshWithProgress(pb.LoadMeshWithProgressRequest(load=request),
+                                               timeout=self._mesh_timeout,
                                                metadata=self._metadata)
         try:
             with translated(mesh=True):

@@ -152,7 +152,8 @@ class Client:
                         bar: Progress[LoadProgress]) -> MeshInfo:
         """LoadMeshWithProgress: reports each progress message to `bar`."""
         stream = _requests.LoadStream(bar.update)
-        call = self._stub.LoadMeshWithProgress(request, timeout=self._mesh_timeout,
+        call = self._stub.LoadMeshWithProgress(pb.LoadMeshWithProgressRequest(load=request),
+                                               timeout=self._mesh_timeout,
                                                metadata=self._metadata)
         try:
             with translated(mesh=True):

@@ -29,8 +29,8 @@ class LoadTest : public ServiceTest {
 
   std::unique_ptr<grpc::ClientReader<v1::LoadMeshWithProgressResponse>> StartLoad(
       grpc::ClientContext* context, const std::string& sample) {
-    v1::LoadMeshRequest request;
-    request.set_sample(sample);
+    v1::LoadMeshWithProgressRequest request;
+    request.mutable_load()->set_sample(sample);
     return stub_->LoadMeshWithProgress(context, request);
   }
 };

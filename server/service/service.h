@@ -50,7 +50,7 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
   grpc::ServerUnaryReactor* LoadMesh(grpc::CallbackServerContext*, const v1::LoadMeshRequest*,
                                      v1::LoadMeshResponse*) override;
   grpc::ServerWriteReactor<v1::LoadMeshWithProgressResponse>* LoadMeshWithProgress(
-      grpc::CallbackServerContext*, const v1::LoadMeshRequest*) override;
+      grpc::CallbackServerContext*, const v1::LoadMeshWithProgressRequest*) override;
   grpc::ServerReadReactor<v1::UploadMeshRequest>* UploadMesh(grpc::CallbackServerContext*,
                                                              v1::UploadMeshResponse*) override;
   grpc::ServerUnaryReactor* ListMeshes(grpc::CallbackServerContext*, const v1::ListMeshesRequest*,
