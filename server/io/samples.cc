@@ -146,19 +146,8 @@ Mesh MakeJittered(int n) {
   return mesh;
 }
 
-}  // namespace
-
-std::vector<std::string> SampleNames() {
-  std::vector<std::string> names;
-  for (const SampleKind& kind : kSamples) {
-    names.push_back(absl::StrCat(kind.name, ":N  ", kind.description, "; ", kind.min_n,
-                                 " <= N <= ", kind.max_n, ", plain '", kind.name, "' is ",
-                                 kind.name, ":", kind.default_n));
-  }
-  return names;
-}
-
-absl::StatusOr<Mesh> MakeSample(std::string_view name) {
+// The kind and N a sample name gives.
+absl::StatusOr<std::pair<const SampleKind*, int>> ParseSample(std::string_view name) {
   const size_t colon = name.find(':');
   const std::string_view base = name.substr(0, colon);
   for (const SampleKind& kind : kSamples) {
@@ -174,10 +163,40 @@ absl::StatusOr<Mesh> MakeSample(std::string_view name) {
       return BadSample(name, absl::StrCat("N = ", n, " is outside [", kind.min_n, ", ",
                                           kind.max_n, "]"));
     }
-    if (std::string_view(kind.name) == "wavelet") return MakeWavelet(n);
-    return MakeJittered(n);
+    return std::make_pair(&kind, n);
   }
   return BadSample(name, "unknown sample");
+}
+
+}  // namespace
+
+std::vector<std::string> SampleNames() {
+  std::vector<std::string> names;
+  for (const SampleKind& kind : kSamples) {
+    names.push_back(absl::StrCat(kind.name, ":N  ", kind.description, "; ", kind.min_n,
+                                 " <= N <= ", kind.max_n, ", plain '", kind.name, "' is ",
+                                 kind.name, ":", kind.default_n));
+  }
+  return names;
+}
+
+absl::StatusOr<Mesh> MakeSample(std::string_view name) {
+  absl::StatusOr<std::pair<const SampleKind*, int>> sample = ParseSample(name);
+  if (!sample.ok()) return sample.status();
+  const auto [kind, n] = *sample;
+  if (std::string_view(kind->name) == "wavelet") return MakeWavelet(n);
+  return MakeJittered(n);
+}
+
+absl::StatusOr<MeshCounts> SampleCounts(std::string_view name) {
+  absl::StatusOr<std::pair<const SampleKind*, int>> sample = ParseSample(name);
+  if (!sample.ok()) return sample.status();
+  const auto [kind, n] = *sample;
+  const int64_t cubes = int64_t(n - 1) * (n - 1) * (n - 1);
+  const bool wavelet = std::string_view(kind->name) == "wavelet";
+  return MeshCounts{.vertices = int64_t(n) * n * n,
+                    .tetrahedra = (wavelet ? 5 : 6) * cubes,
+                    .point_fields = wavelet ? 1 : 2};
 }
 
 }  // namespace actopo::io

@@ -21,11 +21,14 @@
 
 #include "absl/status/statusor.h"
 #include "server/core/mesh.h"
+#include "server/io/mesh_header.h"
 
 namespace actopo::io {
 
 // InvalidArgument, naming the value and listing the samples, for an unknown name or a bad N.
 absl::StatusOr<Mesh> MakeSample(std::string_view name);
+// The size of MakeSample(name), without making it (errors as MakeSample's).
+absl::StatusOr<MeshCounts> SampleCounts(std::string_view name);
 
 // One line per sample, "name:N  description", for --help and server info.
 std::vector<std::string> SampleNames();

@@ -31,6 +31,8 @@ class MemoryBudget {
 class Reservation {
  public:
   Reservation() = default;
+  // An empty reservation can be resized too, once it knows its budget.
+  explicit Reservation(MemoryBudget* budget) : budget_(budget) {}
   Reservation(MemoryBudget* budget, int64_t bytes) : budget_(budget), bytes_(bytes) {}
   Reservation(Reservation&& o) noexcept : budget_(o.budget_), bytes_(o.bytes_) { o.budget_ = nullptr; }
   Reservation& operator=(Reservation&& o) noexcept {
@@ -44,6 +46,17 @@ class Reservation {
   }
   ~Reservation() { Reset(); }
   int64_t bytes() const { return budget_ ? bytes_ : 0; }
+  // Grows (reserving the difference, or failing with nothing changed) or shrinks to `bytes`.
+  absl::Status Resize(int64_t bytes, const std::string& what) {
+    if (budget_ == nullptr) return absl::FailedPreconditionError("reservation without a budget");
+    if (bytes > bytes_) {
+      if (absl::Status s = budget_->Reserve(bytes - bytes_, what); !s.ok()) return s;
+    } else {
+      budget_->Release(bytes_ - bytes);
+    }
+    bytes_ = bytes;
+    return absl::OkStatus();
+  }
 
  private:
   void Reset() {

@@ -7,6 +7,7 @@
 #include "absl/strings/str_replace.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
+#include "server/io/mesh_header.h"
 #include "server/io/samples.h"
 #include "server/io/vtk_reader.h"
 #include "server/service/ids.h"
@@ -30,12 +31,12 @@ int64_t LoadedMesh::bytes() const {
 MeshRegistry::MeshRegistry(MeshRegistryOptions options, MemoryBudget* budget)
     : options_(std::move(options)), budget_(budget) {}
 
-int64_t MeshRegistry::EstimateBytes(int64_t vertices, int64_t tetrahedra) {
+int64_t MeshRegistry::EstimateBytes(int64_t vertices, int64_t tetrahedra, int point_fields) {
   // Measured: the static encoding is about 49 bytes per tetrahedron (wavelet128, jittered:256),
   // the mesh itself 24 + 8 per field per vertex and 16 per tetrahedron; faces are appended into
   // their final arrays, never copied. jittered:256 (99.5M tetrahedra) peaks at 67 bytes per
   // tetrahedron besides its vertices; 80 covers it with a margin.
-  return vertices * 48 + tetrahedra * 80;
+  return vertices * (48 + 8 * std::max(point_fields - 3, 0)) + tetrahedra * 80;
 }
 
 absl::Status MeshRegistry::CheckCapacity() const {
@@ -67,10 +68,20 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFile(
   if (!fs::exists(full)) {
     return absl::NotFoundError(absl::StrCat("path: '", path, "' not found in the data directory"));
   }
-  // Compressed files expand: refuse before reading what could not fit anyway.
-  const int64_t file_bytes = int64_t(fs::file_size(full, ec));
-  RETURN_IF_ERROR(budget_->Reserve(file_bytes * 4, absl::StrCat("reading '", path, "'")));
-  Reservation reading(budget_, file_bytes * 4);
+  // The budget is held before anything is read: what the mesh and its encoding will take, by
+  // the counts its header announces (reading peaks below that: VTK's copy and ours, about 48
+  // bytes per vertex and 57 per tetrahedron); else, for a header without counts, a bound from
+  // the file's size (compressed files expand).
+  absl::StatusOr<io::MeshCounts> counts = io::ReadMeshCounts(full.string());
+  const int64_t need = counts.ok() ? EstimateBytes(counts->vertices, counts->tetrahedra,
+                                                   counts->point_fields)
+                                   : int64_t(fs::file_size(full, ec)) * 4;
+  RETURN_IF_ERROR(budget_->Reserve(
+      need, counts.ok() ? absl::StrCat("loading '", path, "' (", counts->vertices,
+                                       " vertices and ", counts->tetrahedra,
+                                       " tetrahedra by its header)")
+                        : absl::StrCat("loading '", path, "'")));
+  Reservation reading(budget_, need);
   const auto start = std::chrono::steady_clock::now();
   absl::StatusOr<Mesh> read = io::ReadMesh(full.string(), {}, progress);
   if (!read.ok()) {
@@ -80,28 +91,35 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFile(
   }
   Mesh mesh = std::move(*read);
   return Add(full.filename().string(), "file:" + path, std::move(mesh), SecondsSince(start),
-             partition, progress);
+             partition, progress, std::move(reading));
 }
 
 absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadSample(
     const std::string& name, const PartitionOptions& partition, const Progress& progress) {
   RETURN_IF_ERROR(CheckCapacity());
+  ASSIGN_OR_RETURN(const io::MeshCounts counts, io::SampleCounts(name));
+  const int64_t need = EstimateBytes(counts.vertices, counts.tetrahedra, counts.point_fields);
+  RETURN_IF_ERROR(budget_->Reserve(need, absl::StrCat("sample '", name, "'")));
+  Reservation making(budget_, need);
   const auto start = std::chrono::steady_clock::now();
   RETURN_IF_ERROR(progress.Update("read", 0));
   ASSIGN_OR_RETURN(Mesh mesh, io::MakeSample(name));
   RETURN_IF_ERROR(progress.Update("read", 1));
-  return Add(name, "sample:" + name, std::move(mesh), SecondsSince(start), partition, progress);
+  return Add(name, "sample:" + name, std::move(mesh), SecondsSince(start), partition, progress,
+             std::move(making));
 }
 
 absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Add(
     std::string name, std::string source, Mesh mesh, double load_seconds,
-    const PartitionOptions& partition, const Progress& progress) {
+    const PartitionOptions& partition, const Progress& progress, Reservation reserved) {
   RETURN_IF_ERROR(CheckCapacity());
   RETURN_IF_ERROR(ValidateMesh(mesh));
-  const int64_t estimate = EstimateBytes(mesh.num_vertices(), mesh.num_tetrahedra());
-  RETURN_IF_ERROR(budget_->Reserve(estimate, absl::StrCat("mesh '", name, "'")));
+  const int64_t estimate = EstimateBytes(mesh.num_vertices(), mesh.num_tetrahedra(),
+                                         int(mesh.point_fields.size()));
+  if (reserved.bytes() == 0) reserved = Reservation(budget_);
+  RETURN_IF_ERROR(reserved.Resize(estimate, absl::StrCat("mesh '", name, "'")));
   auto loaded = std::make_unique<LoadedMesh>();
-  loaded->reservation = Reservation(budget_, estimate);
+  loaded->reservation = std::move(reserved);
   const auto start = std::chrono::steady_clock::now();
   PartitionOptions effective = partition;
   if (effective.bucket_capacity == 0) effective.bucket_capacity = 1000;

@@ -58,11 +58,14 @@ class MeshRegistry {
   absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadSample(const std::string& name,
                                                                const PartitionOptions& partition,
                                                                const Progress& progress = {});
-  // A mesh assembled elsewhere (an upload): validated and partitioned here.
+  // A mesh assembled elsewhere (an upload): validated and partitioned here. `reserved` (budget
+  // taken before the mesh was read, possibly none) becomes the mesh's reservation, resized to
+  // its estimate.
   absl::StatusOr<std::shared_ptr<const LoadedMesh>> Add(std::string name, std::string source,
                                                         Mesh mesh, double load_seconds,
                                                         const PartitionOptions& partition,
-                                                        const Progress& progress = {});
+                                                        const Progress& progress = {},
+                                                        Reservation reserved = {});
 
   absl::StatusOr<std::shared_ptr<const LoadedMesh>> Get(const std::string& id) const;
   std::vector<std::shared_ptr<const LoadedMesh>> List() const;
@@ -70,7 +73,7 @@ class MeshRegistry {
   size_t size() const;
 
   // Bytes a mesh of this size will take with its static encodings (for the budget).
-  static int64_t EstimateBytes(int64_t vertices, int64_t tetrahedra);
+  static int64_t EstimateBytes(int64_t vertices, int64_t tetrahedra, int point_fields = 1);
   // Fails early when `count` more meshes would exceed the limit.
   absl::Status CheckCapacity() const;
 

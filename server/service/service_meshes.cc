@@ -81,7 +81,8 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
   absl::Status Consume() {
     if (!have_header_) {
       if (message_.payload_case() != v1::UploadMeshRequest::kHeader) {
-        return absl::InvalidArgumentError("header: the first message of an upload must be the header");
+        return absl::InvalidArgumentError(
+            "header: the first message of an upload must be the header");
       }
       header_ = message_.header();
       have_header_ = true;
@@ -141,9 +142,15 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
           "header.sha256: expected 64 lowercase hex digits (SHA-256 of all array bytes)");
     }
     RETURN_IF_ERROR(service_->meshes().CheckCapacity());
-    // The raw bytes are held until the mesh is built: reserve them for the upload's duration.
-    RETURN_IF_ERROR(service_->budget().Reserve(int64_t(expected_), "the upload's raw data"));
+    // Everything is reserved before a byte arrives: the raw bytes, held until the mesh is
+    // decoded, and the mesh with its encodings, handed to the registry.
+    const int64_t mesh_bytes =
+        MeshRegistry::EstimateBytes(nv, nt, header_.fields_size());
+    RETURN_IF_ERROR(service_->budget().Reserve(
+        int64_t(expected_) + mesh_bytes,
+        absl::StrCat("uploading ", nv, " vertices and ", nt, " tetrahedra (raw data and mesh)")));
     reservation_ = Reservation(&service_->budget(), int64_t(expected_));
+    mesh_reservation_ = Reservation(&service_->budget(), mesh_bytes);
     data_.reserve(expected_);
     return absl::OkStatus();
   }
@@ -204,15 +211,16 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
       p += size_t(nv) * DataTypeSize(f.dtype());
       mesh.point_fields.push_back(std::move(field));
     }
-    data_.clear();
-    data_.shrink_to_fit();
+    std::string().swap(data_);
+    reservation_ = Reservation();  // the raw bytes are gone
     RETURN_IF_ERROR(progress.Update("read", 1));
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
     ASSIGN_OR_RETURN(auto loaded,
                      service_->meshes().Add(header_.name().empty() ? "upload" : header_.name(),
                                             "upload", std::move(mesh), seconds,
-                                            FromProto(header_.partition()), progress));
+                                            FromProto(header_.partition()), progress,
+                                            std::move(mesh_reservation_)));
     Fill(*loaded, 0, response_->mutable_mesh());
     return absl::OkStatus();
   }
@@ -231,7 +239,8 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
   bool have_header_ = false;
   size_t expected_ = 0;
   std::string data_;
-  Reservation reservation_;
+  Reservation reservation_;       // the raw bytes
+  Reservation mesh_reservation_;  // the mesh they make
   std::chrono::steady_clock::time_point start_;
 };
 
@@ -240,10 +249,11 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
 // message is being written at a time, and a report arriving meanwhile replaces the waiting one of
 // its phase, so a slow client sees fewer updates but every phase. The mesh (or the error) ends
 // the stream.
-class LoadProgressReactor final : public grpc::ServerWriteReactor<v1::LoadMeshWithProgressResponse> {
+class LoadProgressReactor final
+    : public grpc::ServerWriteReactor<v1::LoadMeshWithProgressResponse> {
  public:
   LoadProgressReactor(TopologyServiceImpl* service, grpc::CallbackServerContext* context,
-                      const v1::LoadMeshRequest* request)
+                      const v1::LoadMeshWithProgressRequest* request)
       : service_(service), start_(Progress::Clock::now()) {
     if (absl::Status admitted = service_->Admit(context); !admitted.ok()) {
       service_->Count("LoadMeshWithProgress", admitted);
@@ -258,7 +268,7 @@ class LoadProgressReactor final : public grpc::ServerWriteReactor<v1::LoadMeshWi
                                  Report(phase, fraction);
                                }});
       absl::StatusOr<std::shared_ptr<const LoadedMesh>> mesh =
-          service_->LoadRequested(*request, progress);
+          service_->LoadRequested(request->load(), progress);
       absl::Status status = mesh.status();
       if (!status.ok()) ReleaseFreeMemory();
       service_->Count("LoadMeshWithProgress", status);
@@ -390,7 +400,7 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::LoadMesh(grpc::CallbackServerCont
 
 grpc::ServerWriteReactor<v1::LoadMeshWithProgressResponse>*
 TopologyServiceImpl::LoadMeshWithProgress(grpc::CallbackServerContext* context,
-                                          const v1::LoadMeshRequest* request) {
+                                          const v1::LoadMeshWithProgressRequest* request) {
   return new LoadProgressReactor(this, context, request);
 }
 

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cstring>
+#include <fstream>
 #include <numeric>
 #include <thread>
 
@@ -702,6 +703,46 @@ TEST_F(ServiceTest, MemoryBudgetRefusesWhatWouldNotFit) {
   v1::OpenSessionResponse opened;
   EXPECT_EQ(stub_->OpenSession(Context().get(), open, &opened).error_code(),
             grpc::StatusCode::RESOURCE_EXHAUSTED);
+}
+
+// Refused before anything is read or made: a file's header, a sample's name and an upload's
+// header give the size. The file below claims a mesh it does not hold; were it read, VTK would
+// fail on it with INVALID_ARGUMENT instead.
+TEST_F(ServiceTest, MemoryBudgetRefusesBeforeReading) {
+  options_.memory_budget_bytes = int64_t(64) << 20;
+  StartServer();
+  std::ofstream(data_dir_ / "claims.vtu")
+      << "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid>"
+         "<Piece NumberOfPoints=\"2000000\" NumberOfCells=\"10000000\">";
+  v1::LoadMeshRequest file;
+  file.set_path("claims.vtu");
+  v1::LoadMeshResponse loaded;
+  grpc::Status s = stub_->LoadMesh(Context().get(), file, &loaded);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << s.error_message();
+  EXPECT_NE(s.error_message().find("2000000 vertices and 10000000 tetrahedra by its header"),
+            std::string::npos)
+      << s.error_message();
+  v1::LoadMeshRequest sample;
+  sample.set_sample("wavelet:512");  // 670M tetrahedra: refused at once, nothing made
+  s = stub_->LoadMesh(Context().get(), sample, &loaded);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << s.error_message();
+  EXPECT_NE(s.error_message().find("sample 'wavelet:512'"), std::string::npos);
+  // An upload is refused at its header, before any chunk.
+  auto context = Context();
+  v1::UploadMeshResponse uploaded;
+  auto writer = stub_->UploadMesh(context.get(), &uploaded);
+  v1::UploadMeshRequest header;
+  header.mutable_header()->set_num_vertices(2000000);
+  header.mutable_header()->set_num_tetrahedra(10000000);
+  header.mutable_header()->set_points_dtype(v1::DATA_TYPE_FLOAT64);
+  header.mutable_header()->set_tetrahedra_dtype(v1::DATA_TYPE_INT32);
+  header.mutable_header()->set_sha256(std::string(64, '0'));
+  writer->Write(header);
+  writer->WritesDone();
+  s = writer->Finish();
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << s.error_message();
+  EXPECT_NE(s.error_message().find("uploading 2000000 vertices"), std::string::npos);
+  EXPECT_EQ(server_->memory_budget_used_bytes(), 0);
 }
 
 TEST_F(ServiceTest, TokenIsRequiredWhenSet) {

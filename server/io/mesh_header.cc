@@ -1,0 +1,222 @@
+#include "server/io/mesh_header.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "absl/strings/ascii.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/match.h"
+#include "absl/strings/str_split.h"
+#include "absl/strings/string_view.h"
+
+namespace actopo::io {
+namespace {
+
+absl::Status NoCounts(const std::string& path, absl::string_view why) {
+  return absl::InvalidArgumentError(absl::StrCat(path, ": no counts in the header: ", why));
+}
+
+// The value of attribute `name` in an XML start tag ("<Piece NumberOfPoints=\"8\" ...>").
+std::optional<absl::string_view> Attribute(absl::string_view tag, absl::string_view name) {
+  for (size_t at = tag.find(name); at != absl::string_view::npos; at = tag.find(name, at + 1)) {
+    // A whole attribute name: preceded by a space, followed by ="
+    if (at == 0 || tag[at - 1] != ' ' || tag.substr(at + name.size(), 2) != "=\"") continue;
+    const size_t begin = at + name.size() + 2;
+    const size_t end = tag.find('"', begin);
+    if (end == absl::string_view::npos) return std::nullopt;
+    return tag.substr(begin, end - begin);
+  }
+  return std::nullopt;
+}
+
+std::optional<int64_t> IntAttribute(absl::string_view tag, absl::string_view name) {
+  const std::optional<absl::string_view> text = Attribute(tag, name);
+  int64_t value = 0;
+  if (!text || !absl::SimpleAtoi(*text, &value) || value < 0) return std::nullopt;
+  return value;
+}
+
+// Calls fn(tag) for every start or end tag of a VTK XML file, in order, until fn returns false
+// or the raw appended data begins. Inline data between tags holds no '<' (ASCII numbers or
+// base64), so it is skipped as text. Reads the file in blocks; nothing is kept whole.
+template <class Fn>
+absl::Status ForEachXmlTag(const std::string& path, Fn&& fn) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::NotFoundError(absl::StrCat(path, ": cannot open"));
+  constexpr size_t kBlock = 1 << 20;
+  std::string text;
+  std::unique_ptr<char[]> block(new char[kBlock]);
+  while (in) {
+    in.read(block.get(), kBlock);
+    text.append(block.get(), size_t(in.gcount()));
+    size_t at = 0;
+    while (true) {
+      const size_t open = text.find('<', at);
+      if (open == std::string::npos) {
+        at = text.size();
+        break;
+      }
+      const size_t close = text.find('>', open);
+      if (close == std::string::npos) {  // the tag goes on in the next block
+        at = open;
+        break;
+      }
+      const absl::string_view tag(text.data() + open, close + 1 - open);
+      if (absl::StartsWith(tag, "<AppendedData") || !fn(tag)) return absl::OkStatus();
+      at = close + 1;
+    }
+    text.erase(0, at);
+    if (text.size() > kBlock) return NoCounts(path, "a tag longer than 1 MiB");
+  }
+  return absl::OkStatus();
+}
+
+// Counts the 1-component DataArray elements of the first PointData element.
+struct PointFieldCounter {
+  int fields = 0;
+  int state = 0;  // 0: before the first PointData, 1: inside it, 2: after it
+
+  void See(absl::string_view tag) {
+    if (state == 0 && absl::StartsWith(tag, "<PointData")) {
+      state = absl::EndsWith(tag, "/>") ? 2 : 1;
+    } else if (state == 1 && absl::StartsWith(tag, "</PointData")) {
+      state = 2;
+    } else if (state == 1 && absl::StartsWith(tag, "<DataArray")) {
+      const std::optional<int64_t> components = IntAttribute(tag, "NumberOfComponents");
+      fields += !components || *components == 1;
+    }
+  }
+};
+
+absl::StatusOr<MeshCounts> UnstructuredGridCounts(const std::string& path) {
+  MeshCounts counts;
+  int pieces = 0;
+  PointFieldCounter fields;
+  absl::Status bad;
+  const absl::Status read = ForEachXmlTag(path, [&](absl::string_view tag) {
+    fields.See(tag);
+    if (!absl::StartsWith(tag, "<Piece")) return true;
+    const std::optional<int64_t> points = IntAttribute(tag, "NumberOfPoints");
+    const std::optional<int64_t> cells = IntAttribute(tag, "NumberOfCells");
+    if (!points || !cells) {
+      bad = NoCounts(path, "a Piece without NumberOfPoints and NumberOfCells");
+      return false;
+    }
+    counts.vertices += *points;
+    counts.tetrahedra += *cells;
+    ++pieces;
+    return true;
+  });
+  if (!read.ok()) return read;
+  if (!bad.ok()) return bad;
+  if (pieces == 0) return NoCounts(path, "no Piece element");
+  counts.point_fields = fields.fields;
+  return counts;
+}
+
+absl::StatusOr<MeshCounts> ImageDataCounts(const std::string& path) {
+  std::optional<MeshCounts> counts;
+  PointFieldCounter fields;
+  const absl::Status read = ForEachXmlTag(path, [&](absl::string_view tag) {
+    fields.See(tag);
+    if (!counts && absl::StartsWith(tag, "<ImageData")) {
+      const std::optional<absl::string_view> extent = Attribute(tag, "WholeExtent");
+      if (!extent) return false;
+      const std::vector<absl::string_view> parts =
+          absl::StrSplit(*extent, ' ', absl::SkipEmpty());
+      int64_t e[6];
+      if (parts.size() != 6) return false;
+      for (int i = 0; i < 6; ++i) {
+        if (!absl::SimpleAtoi(parts[i], &e[i])) return false;
+      }
+      counts = MeshCounts();
+      counts->vertices = 1;
+      counts->tetrahedra = 5;
+      for (int axis = 0; axis < 3; ++axis) {
+        const int64_t cells = std::max<int64_t>(e[2 * axis + 1] - e[2 * axis], 0);
+        counts->vertices *= cells + 1;
+        counts->tetrahedra *= cells;
+      }
+    }
+    return true;
+  });
+  if (!read.ok()) return read;
+  if (!counts) return NoCounts(path, "no ImageData element with a WholeExtent");
+  counts->point_fields = fields.fields;
+  return *counts;
+}
+
+// Bytes of one value of a legacy type name ("float", "double", "int", "vtktypeint64", ...).
+int LegacyTypeBytes(absl::string_view type) {
+  const std::string t = absl::AsciiStrToLower(type);
+  if (t == "float" || t == "int" || t == "unsigned_int" || t == "vtktypeint32") return 4;
+  if (t == "double" || t == "long" || t == "unsigned_long" || t == "vtktypeint64" ||
+      t == "vtkidtype") {
+    return 8;
+  }
+  if (t == "short" || t == "unsigned_short") return 2;
+  if (t == "char" || t == "unsigned_char" || t == "bit") return 1;
+  return 0;
+}
+
+absl::StatusOr<MeshCounts> LegacyCounts(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::NotFoundError(absl::StrCat(path, ": cannot open"));
+  std::string line;
+  std::getline(in, line);  // # vtk DataFile Version x.y
+  std::getline(in, line);  // title
+  std::getline(in, line);
+  const bool binary = absl::StripAsciiWhitespace(line) == "BINARY";
+  MeshCounts counts;
+  bool have_points = false;
+  while (std::getline(in, line)) {
+    const std::vector<absl::string_view> words =
+        absl::StrSplit(absl::StripAsciiWhitespace(line), ' ', absl::SkipEmpty());
+    if (words.empty()) continue;
+    if (words[0] == "FIELD" && !have_points) {
+      return NoCounts(path, "field data before the points");
+    }
+    if (words[0] == "POINTS" && words.size() == 3) {
+      if (!absl::SimpleAtoi(words[1], &counts.vertices) || counts.vertices < 0) break;
+      have_points = true;
+      if (binary) {
+        const int bytes = LegacyTypeBytes(words[2]);
+        if (bytes == 0) return NoCounts(path, "an unknown point type");
+        in.seekg(counts.vertices * 3 * bytes, std::ios::cur);
+      }
+      continue;
+    }
+    if (words[0] == "CELLS" && words.size() == 3 && have_points) {
+      int64_t cells = 0;
+      if (!absl::SimpleAtoi(words[1], &cells) || cells < 0) break;
+      // Version 5 files give the offsets' count (cells + 1), followed by an OFFSETS section.
+      std::string next;
+      std::getline(in, next);
+      counts.tetrahedra = absl::StartsWith(next, "OFFSETS") ? std::max<int64_t>(cells - 1, 0) : cells;
+      return counts;
+    }
+  }
+  return NoCounts(path, have_points ? "no CELLS line after the points" : "no POINTS line");
+}
+
+}  // namespace
+
+absl::StatusOr<MeshCounts> ReadMeshCounts(const std::string& path) {
+  std::error_code error;
+  if (!std::filesystem::is_regular_file(path, error)) {
+    return absl::NotFoundError(absl::StrCat(path, ": no such file"));
+  }
+  const std::string extension =
+      absl::AsciiStrToLower(std::filesystem::path(path).extension().string());
+  if (extension == ".vtu") return UnstructuredGridCounts(path);
+  if (extension == ".vti") return ImageDataCounts(path);
+  if (extension == ".vtk") return LegacyCounts(path);
+  return NoCounts(path, absl::StrCat("unsupported extension '", extension, "'"));
+}
+
+}  // namespace actopo::io
