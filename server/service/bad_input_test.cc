@@ -1,8 +1,9 @@
-// A corpus of bad requests, each answered with its expected code and a message naming the
+// A corpus of bad requests and hostile meshes, each answered with its expected code and a message
+// naming the offending field or value, while the server keeps serving a good request after each.
 #include <cmath>
 #include <fstream>
 #include <functional>
-// offending field or value, while the server keeps serving a good request after each.
+#include <tuple>
 #include "server/algorithms/digest.h"
 #include "server/service/testing/service_fixture.h"
 
@@ -364,6 +365,391 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
     EXPECT_NE(s.error_message().find(c.message), std::string::npos) << s.error_message();
     // Still serving, the same session included.
     EXPECT_TRUE(Relation(session, v1::RELATION_VERTEX_STAR, 3).ok());
+  }
+}
+
+// A legacy VTK file: points (x y z per line), cells (one "n v0 v1 ..." per line) and their types.
+std::string Legacy(const std::vector<std::string>& points, const std::vector<std::string>& cells,
+                   const std::vector<int>& types) {
+  std::string text = "# vtk DataFile Version 3.0\nhostile\nASCII\nDATASET UNSTRUCTURED_GRID\n";
+  text += "POINTS " + std::to_string(points.size()) + " double\n";
+  for (const std::string& p : points) text += p + "\n";
+  size_t size = 0;
+  for (const std::string& c : cells) size += 1 + std::count(c.begin(), c.end(), ' ');
+  text += "CELLS " + std::to_string(cells.size()) + " " + std::to_string(size) + "\n";
+  for (const std::string& c : cells) text += c + "\n";
+  text += "CELL_TYPES " + std::to_string(types.size()) + "\n";
+  for (int t : types) text += std::to_string(t) + "\n";
+  text += "POINT_DATA " + std::to_string(points.size()) + "\nSCALARS s double 1\n"
+          "LOOKUP_TABLE default\n";
+  for (size_t i = 0; i < points.size(); ++i) text += std::to_string(i) + " ";
+  return text + "\n";
+}
+
+// A VTK XML unstructured grid of tetrahedra with raw appended data: any bit pattern goes in.
+std::string RawVtu(const std::vector<double>& points, const std::vector<int64_t>& tetrahedra) {
+  std::string data;
+  std::vector<size_t> offsets;
+  const auto append = [&](const void* bytes, size_t n) {
+    offsets.push_back(data.size());
+    const uint32_t size = uint32_t(n);
+    data.append(reinterpret_cast<const char*>(&size), 4);
+    data.append(static_cast<const char*>(bytes), n);
+  };
+  const size_t cells = tetrahedra.size() / 4;
+  std::vector<int64_t> ends(cells);
+  for (size_t c = 0; c < cells; ++c) ends[c] = int64_t(4 * (c + 1));
+  const std::vector<uint8_t> types(cells, 10);
+  append(points.data(), points.size() * 8);
+  append(tetrahedra.data(), tetrahedra.size() * 8);
+  append(ends.data(), ends.size() * 8);
+  append(types.data(), types.size());
+  const auto array = [&](const char* type, const char* name, int k, size_t offset) {
+    return std::string("<DataArray type=\"") + type + "\" Name=\"" + name +
+           "\" NumberOfComponents=\"" + std::to_string(k) + "\" format=\"appended\" offset=\"" +
+           std::to_string(offset) + "\"/>";
+  };
+  return "<?xml version=\"1.0\"?><VTKFile type=\"UnstructuredGrid\" version=\"1.0\" "
+         "byte_order=\"LittleEndian\" header_type=\"UInt32\"><UnstructuredGrid><Piece "
+         "NumberOfPoints=\"" + std::to_string(points.size() / 3) + "\" NumberOfCells=\"" +
+         std::to_string(cells) + "\"><Points>" + array("Float64", "Points", 3, offsets[0]) +
+         "</Points><Cells>" + array("Int64", "connectivity", 1, offsets[1]) +
+         array("Int64", "offsets", 1, offsets[2]) + array("UInt8", "types", 1, offsets[3]) +
+         "</Cells></Piece></UnstructuredGrid><AppendedData encoding=\"raw\">_" + data +
+         "</AppendedData></VTKFile>";
+}
+
+const std::vector<std::string> kCorners = {"0 0 0", "1 0 0", "0 1 0", "0 0 1", "1 1 1"};
+constexpr int kTet = 10, kTriangle = 5;
+
+grpc::Status OpenWith(v1::TopologyService::Stub& stub, const std::string& mesh,
+                      const std::function<void(v1::OpenSessionRequest&)>& set) {
+  v1::OpenSessionRequest r;
+  r.set_mesh_id(mesh);
+  set(r);
+  v1::OpenSessionResponse out;
+  grpc::ClientContext c;
+  return stub.OpenSession(&c, r, &out);
+}
+
+grpc::Status BatchWith(v1::TopologyService::Stub& stub, const std::string& session,
+                       const std::function<void(v1::GetRelationBatchRequest&)>& set) {
+  v1::GetRelationBatchRequest r;
+  r.set_session_id(session);
+  r.set_relation(v1::RELATION_VERTEX_STAR);
+  set(r);
+  v1::GetRelationBatchResponse out;
+  grpc::ClientContext c;
+  return stub.GetRelationBatch(&c, r, &out);
+}
+
+grpc::Status LoadWith(v1::TopologyService::Stub& stub,
+                      const std::function<void(v1::LoadMeshRequest&)>& set) {
+  v1::LoadMeshRequest r;
+  set(r);
+  v1::LoadMeshResponse out;
+  grpc::ClientContext c;
+  return stub.LoadMesh(&c, r, &out);
+}
+
+void SetInt64s(v1::Array* a, const std::vector<int64_t>& values, std::vector<int64_t> shape) {
+  a->set_dtype(v1::DATA_TYPE_INT64);
+  for (int64_t n : shape) a->add_shape(n);
+  a->set_data(std::string(reinterpret_cast<const char*>(values.data()), values.size() * 8));
+}
+
+TEST_F(BadInputTest, HostileMeshesAndMoreRequests) {
+  const auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(data_dir_ / name) << text;
+  };
+  // VTK's legacy ASCII reader rejects "nan" as a word: non-finite points come in binary XML.
+  write("nan.vtu", RawVtu({0, 0, 0, std::nan(""), 0, 0, 0, 1, 0, 0, 0, 1}, {0, 1, 2, 3}));
+  write("inf.vtu", RawVtu({0, 0, 0, 1, 0, 0, 0, INFINITY, 0, 0, 0, 1}, {0, 1, 2, 3}));
+  write("mixed.vtk", Legacy(kCorners, {"4 0 1 2 3", "3 1 2 4"}, {kTet, kTriangle}));
+  write("flat.vtk", Legacy(kCorners, {"3 0 1 2", "3 1 2 4"}, {kTriangle, kTriangle}));
+  write("badid.vtk", Legacy(kCorners, {"4 0 1 2 99"}, {kTet}));
+  write("repeat.vtk", Legacy(kCorners, {"4 0 1 1 3"}, {kTet}));
+  write("truncated.vtk", Legacy(kCorners, {"4 0 1 2 3"}, {kTet}).substr(0, 150));
+  write("claims.vtu",
+        "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid>"
+        "<Piece NumberOfPoints=\"900000000\" NumberOfCells=\"5000000000\">");
+  write("empty.vtu", "");
+  std::filesystem::create_directories(data_dir_ / "folder.vtu");
+  std::filesystem::create_symlink("/etc/passwd", data_dir_ / "escape.vtk");
+  // Good enough to load, but degenerate: inverted, flat (coplanar) and duplicated tetrahedra and
+  // coincident points. These are served, not refused: topology does not need volume.
+  write("degenerate.vtk",
+        Legacy({"0 0 0", "1 0 0", "0 1 0", "0 0 1", "1 1 0", "0 0 0"},
+               {"4 0 2 1 3", "4 0 1 2 4", "4 0 1 2 3", "4 5 1 2 4"}, {kTet, kTet, kTet, kTet}));
+
+  const std::string mesh = LoadSample("jittered:5");
+  const std::string session = Open(mesh, v1::STRUCTURE_COMPACT);
+  using C = grpc::StatusCode;
+  auto load = [](std::string path) {
+    return [path](auto* t, auto&, auto&, auto&) { return static_cast<BadInputTest*>(t)->Load(path); };
+  };
+  std::vector<Case> cases = {
+      {"file: NaN coordinate", C::INVALID_ARGUMENT, "vertex 1 has a non-finite coordinate x = nan", load("nan.vtu")},
+      {"file: infinite coordinate", C::INVALID_ARGUMENT, "vertex 2 has a non-finite coordinate y = inf",
+       load("inf.vtu")},
+      {"file: mixed cell types", C::INVALID_ARGUMENT, "only tetrahedral", load("mixed.vtk")},
+      {"file: triangles only", C::INVALID_ARGUMENT, "only tetrahedral", load("flat.vtk")},
+      {"file: vertex id out of range", C::INVALID_ARGUMENT, "badid.vtk", load("badid.vtk")},
+      {"file: repeated vertex", C::INVALID_ARGUMENT, "repeats vertex 1", load("repeat.vtk")},
+      {"file: truncated", C::INVALID_ARGUMENT, "truncated.vtk", load("truncated.vtk")},
+      {"file: huge counts in the header", C::RESOURCE_EXHAUSTED, "by its header",
+       load("claims.vtu")},
+      {"file: empty", C::INVALID_ARGUMENT, "empty.vtu", load("empty.vtu")},
+      {"file: a directory", C::INVALID_ARGUMENT, "directory", load("folder.vtu")},
+      {"file: symlink out of the data dir", C::INVALID_ARGUMENT, "outside", load("escape.vtk")},
+      {"file: dot-dot inside the path", C::INVALID_ARGUMENT, "outside", load("sub/../../x.vtu")},
+      {"partition: negative block size", C::INVALID_ARGUMENT, "block size: -5",
+       [](auto*, auto& stub, auto&, auto&) {
+         return LoadWith(stub, [](auto& r) {
+           r.set_sample("jittered:4");
+           r.mutable_partition()->set_block_size(-5);
+         });
+       }},
+      {"partition: missing label field", C::NOT_FOUND, "point field 'labels' not found",
+       [](auto*, auto& stub, auto&, auto&) {
+         return LoadWith(stub, [](auto& r) {
+           r.set_sample("jittered:4");
+           r.mutable_partition()->set_block_label_field("labels");
+         });
+       }},
+      {"partition: labels that are not integers", C::INVALID_ARGUMENT, "not a 32-bit integer",
+       [](auto*, auto& stub, auto&, auto&) {
+         return LoadWith(stub, [](auto& r) {
+           r.set_sample("jittered:4");
+           r.mutable_partition()->set_block_label_field("scalar");
+         });
+       }},
+      {"sample: N out of range", C::INVALID_ARGUMENT, "N = 1 is outside",
+       [](auto*, auto& stub, auto&, auto&) {
+         return LoadWith(stub, [](auto& r) { r.set_sample("jittered:1"); });
+       }},
+      {"sample: N not a number", C::INVALID_ARGUMENT, "N 'big' is not an integer",
+       [](auto*, auto& stub, auto&, auto&) {
+         return LoadWith(stub, [](auto& r) { r.set_sample("wavelet:big"); });
+       }},
+      {"sample: too big for the budget", C::RESOURCE_EXHAUSTED, "sample 'wavelet:512'",
+       [](auto*, auto& stub, auto&, auto&) {
+         return LoadWith(stub, [](auto& r) { r.set_sample("wavelet:512"); });
+       }},
+      {"session: consumers over the range", C::INVALID_ARGUMENT, "engine.consumers: 1000",
+       [](auto*, auto& stub, auto& m, auto&) {
+         return OpenWith(stub, m, [](auto& r) { r.mutable_engine()->set_consumers(1000); });
+       }},
+      {"session: prefetch out of the enum", C::INVALID_ARGUMENT, "engine.prefetch: 17",
+       [](auto*, auto& stub, auto& m, auto&) {
+         return OpenWith(stub, m, [](auto& r) {
+           r.mutable_engine()->set_prefetch(static_cast<v1::Prefetch>(17));
+         });
+       }},
+      {"session: precompute out of the enum", C::INVALID_ARGUMENT, "engine.precompute: 9",
+       [](auto*, auto& stub, auto& m, auto&) {
+         return OpenWith(stub, m, [](auto& r) {
+           r.mutable_engine()->set_precompute(static_cast<v1::Precompute>(9));
+         });
+       }},
+      {"session: NaN buffer ratio", C::INVALID_ARGUMENT, "engine.buffer_ratio: nan",
+       [](auto*, auto& stub, auto& m, auto&) {
+         return OpenWith(stub, m, [](auto& r) { r.mutable_engine()->set_buffer_ratio(std::nan("")); });
+       }},
+      {"batch: tuples of the wrong width", C::INVALID_ARGUMENT, "vertex_tuples.shape",
+       [](auto*, auto& stub, auto&, auto& s) {
+         return BatchWith(stub, s, [](auto& r) {
+           r.set_relation(v1::RELATION_EDGE_STAR);
+           SetInt64s(r.mutable_vertex_tuples(), {0, 1, 2}, {1, 3});
+         });
+       }},
+      {"batch: ids and tuples both", C::INVALID_ARGUMENT, "set exactly one",
+       [](auto*, auto& stub, auto&, auto& s) {
+         return BatchWith(stub, s, [](auto& r) {
+           SetInt64s(r.mutable_ids(), {0}, {1});
+           SetInt64s(r.mutable_vertex_tuples(), {0}, {1, 1});
+         });
+       }},
+      {"batch: neither ids nor tuples", C::INVALID_ARGUMENT, "set exactly one",
+       [](auto*, auto& stub, auto&, auto& s) { return BatchWith(stub, s, [](auto&) {}); }},
+      {"batch: a negative id", C::OUT_OF_RANGE, "ids[1]: vertex id -4",
+       [](auto*, auto& stub, auto&, auto& s) {
+         return BatchWith(stub, s, [](auto& r) { SetInt64s(r.mutable_ids(), {0, -4}, {2}); });
+       }},
+      {"batch: over the batch limit", C::RESOURCE_EXHAUSTED, "batch limit",
+       [](auto*, auto& stub, auto&, auto& s) {
+         return BatchWith(stub, s, [](auto& r) {
+           SetInt64s(r.mutable_ids(), std::vector<int64_t>((1 << 20) + 1, 0), {(1 << 20) + 1});
+         });
+       }},
+      {"relation: simplex not set", C::INVALID_ARGUMENT, "simplex: set id or vertices",
+       [](auto*, auto& stub, auto&, auto& s) {
+         v1::GetRelationRequest q;
+         q.set_session_id(s);
+         q.set_relation(v1::RELATION_VERTEX_STAR);
+         v1::GetRelationResponse out;
+         grpc::ClientContext c;
+         return stub.GetRelation(&c, q, &out);
+       }},
+      {"relation: edge id past the end", C::OUT_OF_RANGE, "edge id 100000",
+       [](auto* t, auto&, auto&, auto& s) {
+         return static_cast<BadInputTest*>(t)->Relation(s, v1::RELATION_EDGE_STAR, 100000);
+       }},
+      {"relation: triangle given as an edge tuple", C::INVALID_ARGUMENT,
+       "a triangle has 3 vertices, got 4",
+       [](auto* t, auto&, auto&, auto& s) {
+         return static_cast<BadInputTest*>(t)->Tuple(s, v1::RELATION_TRIANGLE_EDGES, {0, 1, 2, 3});
+       }},
+      {"job: unknown session", C::NOT_FOUND, "session-none",
+       [](auto*, auto& stub, auto&, auto&) {
+         v1::RunJobRequest r;
+         r.set_session_id("session-none");
+         r.set_algorithm(v1::ALGORITHM_CRITICAL_POINTS);
+         grpc::ClientContext c;
+         auto reader = stub.RunJob(&c, r);
+         v1::RunJobResponse m;
+         while (reader->Read(&m)) {
+         }
+         return reader->Finish();
+       }},
+      {"job: algorithm out of the enum", C::INVALID_ARGUMENT, "algorithm: 99",
+       [](auto*, auto& stub, auto&, auto& s) {
+         v1::RunJobRequest r;
+         r.set_session_id(s);
+         r.set_algorithm(static_cast<v1::Algorithm>(99));
+         grpc::ClientContext c;
+         auto reader = stub.RunJob(&c, r);
+         v1::RunJobResponse m;
+         while (reader->Read(&m)) {
+         }
+         return reader->Finish();
+       }},
+      {"stats: unknown session", C::NOT_FOUND, "session-none",
+       [](auto*, auto& stub, auto&, auto&) {
+         v1::GetSessionStatsRequest r;
+         r.set_session_id("session-none");
+         v1::GetSessionStatsResponse out;
+         grpc::ClientContext c;
+         return stub.GetSessionStats(&c, r, &out);
+       }},
+      {"close: unknown session", C::NOT_FOUND, "session-none",
+       [](auto*, auto& stub, auto&, auto&) {
+         v1::CloseSessionRequest r;
+         r.set_session_id("session-none");
+         v1::CloseSessionResponse out;
+         grpc::ClientContext c;
+         return stub.CloseSession(&c, r, &out);
+       }},
+      {"delete: unknown mesh", C::NOT_FOUND, "mesh-none",
+       [](auto*, auto& stub, auto&, auto&) {
+         v1::DeleteMeshRequest r;
+         r.set_mesh_id("mesh-none");
+         v1::DeleteMeshResponse out;
+         grpc::ClientContext c;
+         return stub.DeleteMesh(&c, r, &out);
+       }},
+      {"a deadline already passed", C::DEADLINE_EXCEEDED, "",
+       [](auto*, auto& stub, auto&, auto&) {
+         grpc::ClientContext c;
+         c.set_deadline(std::chrono::system_clock::now() - std::chrono::seconds(1));
+         v1::GetServerInfoResponse out;
+         return stub.GetServerInfo(&c, {}, &out);
+       }},
+      {"upload: nothing sent", C::INVALID_ARGUMENT, "the upload was empty",
+       [](auto*, auto& stub, auto&, auto&) {
+         v1::UploadMeshResponse out;
+         grpc::ClientContext c;
+         auto w = stub.UploadMesh(&c, &out);
+         w->WritesDone();
+         return w->Finish();
+       }},
+      {"upload: two headers", C::INVALID_ARGUMENT, "only one header",
+       [](auto*, auto& stub, auto&, auto&) {
+         TinyUpload u;
+         v1::UploadMeshResponse out;
+         grpc::ClientContext c;
+         auto w = stub.UploadMesh(&c, &out);
+         v1::UploadMeshRequest h;
+         *h.mutable_header() = u.header;
+         w->Write(h);
+         w->Write(h);
+         w->WritesDone();
+         return w->Finish();
+       }},
+      {"upload: negative vertex count", C::INVALID_ARGUMENT, "header.num_vertices: -4",
+       [](auto* t, auto&, auto&, auto&) {
+         TinyUpload u;
+         u.header.set_num_vertices(-4);
+         return static_cast<BadInputTest*>(t)->Upload(u.header, {u.bytes});
+       }},
+      {"upload: huge counts", C::RESOURCE_EXHAUSTED, "uploading 2000000000 vertices",
+       [](auto* t, auto&, auto&, auto&) {
+         TinyUpload u;
+         u.header.set_num_vertices(2000000000);
+         u.header.set_num_tetrahedra(2000000000);
+         return static_cast<BadInputTest*>(t)->Upload(u.header, {u.bytes});
+       }},
+      {"upload: field of a bad dtype", C::INVALID_ARGUMENT, "header.fields[0].dtype",
+       [](auto* t, auto&, auto&, auto&) {
+         TinyUpload u;
+         u.header.mutable_fields(0)->set_dtype(v1::DATA_TYPE_UINT8);
+         return static_cast<BadInputTest*>(t)->Upload(u.header, {u.bytes});
+       }},
+      {"upload: field without a name", C::INVALID_ARGUMENT, "header.fields[0].name: empty",
+       [](auto* t, auto&, auto&, auto&) {
+         TinyUpload u;
+         u.header.mutable_fields(0)->set_name("");
+         return static_cast<BadInputTest*>(t)->Upload(u.header, {u.bytes});
+       }},
+      {"upload: checksum of the wrong length", C::INVALID_ARGUMENT, "header.sha256",
+       [](auto* t, auto&, auto&, auto&) {
+         TinyUpload u;
+         u.header.set_sha256("abc");
+         return static_cast<BadInputTest*>(t)->Upload(u.header, {u.bytes});
+       }},
+      {"upload: infinite scalar refused at session open", C::INVALID_ARGUMENT, "non-finite",
+       [](auto*, auto& stub, auto&, auto&) {
+         TinyUpload u(INFINITY);
+         v1::UploadMeshResponse out;
+         grpc::ClientContext c;
+         auto w = stub.UploadMesh(&c, &out);
+         v1::UploadMeshRequest h;
+         *h.mutable_header() = u.header;
+         w->Write(h);
+         v1::UploadMeshRequest m;
+         m.set_chunk(u.bytes);
+         w->Write(m);
+         w->WritesDone();
+         grpc::Status s = w->Finish();
+         if (!s.ok()) return s;
+         return OpenWith(stub, out.mesh().mesh_id(), [](auto&) {});
+       }},
+  };
+  ASSERT_GE(cases.size(), 40u);
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const grpc::Status s = c.call(this, *stub_, mesh, session);
+    EXPECT_EQ(s.error_code(), c.code) << s.error_message();
+    EXPECT_NE(s.error_message().find(c.message), std::string::npos) << s.error_message();
+    EXPECT_TRUE(Relation(session, v1::RELATION_VERTEX_STAR, 3).ok());
+  }
+  // The degenerate mesh is served, and every algorithm runs on it.
+  v1::LoadMeshRequest r;
+  r.set_path("degenerate.vtk");
+  v1::LoadMeshResponse loaded;
+  ASSERT_TRUE(stub_->LoadMesh(Context().get(), r, &loaded).ok());
+  const std::string degenerate = Open(loaded.mesh().mesh_id(), v1::STRUCTURE_ACTOPO);
+  for (v1::Algorithm a : {v1::ALGORITHM_CRITICAL_POINTS, v1::ALGORITHM_DISCRETE_GRADIENT,
+                          v1::ALGORITHM_MORSE_SMALE, v1::ALGORITHM_TOPO_RELATIONS}) {
+    v1::RunJobRequest job;
+    job.set_session_id(degenerate);
+    job.set_algorithm(a);
+    auto context = Context();
+    auto reader = stub_->RunJob(context.get(), job);
+    v1::RunJobResponse m;
+    while (reader->Read(&m)) {
+    }
+    EXPECT_TRUE(reader->Finish().ok()) << v1::Algorithm_Name(a);
   }
 }
 
