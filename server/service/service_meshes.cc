@@ -5,15 +5,14 @@
 #include <grpcpp/grpcpp.h>
 
 #include <chrono>
-#include <cstring>
 #include <deque>
 #include <mutex>
 
 #include "absl/strings/str_cat.h"
-#include "server/algorithms/digest.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
 #include "server/service/service.h"
+#include "server/service/upload_decoder.h"
 #include "server/service/wire.h"
 
 namespace actopo::service {
@@ -100,47 +99,8 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
   }
 
   absl::Status CheckHeader() {
+    ASSIGN_OR_RETURN(expected_, CheckUploadHeader(header_));
     const int64_t nv = header_.num_vertices(), nt = header_.num_tetrahedra();
-    if (nv <= 0 || nv > INT32_MAX) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("header.num_vertices: ", nv, " is outside [1, 2^31 - 1]"));
-    }
-    if (nt <= 0 || nt > INT32_MAX) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("header.num_tetrahedra: ", nt, " is outside [1, 2^31 - 1]"));
-    }
-    if (header_.points_dtype() != v1::DATA_TYPE_FLOAT32 &&
-        header_.points_dtype() != v1::DATA_TYPE_FLOAT64) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "header.points_dtype: ", v1::DataType_Name(header_.points_dtype()),
-          " is not FLOAT32 or FLOAT64"));
-    }
-    if (header_.tetrahedra_dtype() != v1::DATA_TYPE_INT32 &&
-        header_.tetrahedra_dtype() != v1::DATA_TYPE_INT64) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "header.tetrahedra_dtype: ", v1::DataType_Name(header_.tetrahedra_dtype()),
-          " is not INT32 or INT64"));
-    }
-    expected_ = size_t(nv) * 3 * DataTypeSize(header_.points_dtype()) +
-                size_t(nt) * 4 * DataTypeSize(header_.tetrahedra_dtype());
-    for (int i = 0; i < header_.fields_size(); ++i) {
-      const v1::UploadField& f = header_.fields(i);
-      if (f.name().empty()) {
-        return absl::InvalidArgumentError(absl::StrCat("header.fields[", i, "].name: empty"));
-      }
-      const v1::DataType t = f.dtype();
-      if (t != v1::DATA_TYPE_FLOAT32 && t != v1::DATA_TYPE_FLOAT64 && t != v1::DATA_TYPE_INT32 &&
-          t != v1::DATA_TYPE_INT64) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "header.fields[", i, "].dtype: ", v1::DataType_Name(t),
-            " is not FLOAT32, FLOAT64, INT32 or INT64"));
-      }
-      expected_ += size_t(nv) * DataTypeSize(t);
-    }
-    if (header_.sha256().size() != 64) {
-      return absl::InvalidArgumentError(
-          "header.sha256: expected 64 lowercase hex digits (SHA-256 of all array bytes)");
-    }
     RETURN_IF_ERROR(service_->meshes().CheckCapacity());
     // Everything is reserved before a byte arrives: the raw bytes, held until the mesh is
     // decoded, and the mesh with its encodings, handed to the registry.
@@ -155,62 +115,10 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
     return absl::OkStatus();
   }
 
-  template <class T>
-  static T Read(const char* p) {
-    T v;
-    std::memcpy(&v, p, sizeof(T));
-    return v;
-  }
-
   absl::Status Complete(const Progress& progress) {
     if (!have_header_) return absl::InvalidArgumentError("header: the upload was empty");
-    if (data_.size() != expected_) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "chunk: the upload ended after ", data_.size(), " of ", expected_,
-          " bytes (truncated)"));
-    }
     RETURN_IF_ERROR(progress.Update("read", 0));
-    const std::string digest = Sha256Hex(data_);
-    if (digest != header_.sha256()) {
-      return absl::DataLossError(absl::StrCat("header.sha256: the data hashes to ", digest,
-                                              ", not ", header_.sha256(), " (corrupted upload)"));
-    }
-    Mesh mesh;
-    const int64_t nv = header_.num_vertices(), nt = header_.num_tetrahedra();
-    const char* p = data_.data();
-    mesh.points.resize(size_t(nv) * 3);
-    const bool f32 = header_.points_dtype() == v1::DATA_TYPE_FLOAT32;
-    for (size_t i = 0; i < mesh.points.size(); ++i) {
-      mesh.points[i] = f32 ? Read<float>(p + 4 * i) : Read<double>(p + 8 * i);
-    }
-    p += mesh.points.size() * (f32 ? 4 : 8);
-    mesh.tetrahedra.resize(size_t(nt) * 4);
-    const bool i32 = header_.tetrahedra_dtype() == v1::DATA_TYPE_INT32;
-    for (size_t i = 0; i < mesh.tetrahedra.size(); ++i) {
-      const int64_t v = i32 ? Read<int32_t>(p + 4 * i) : Read<int64_t>(p + 8 * i);
-      if (v < 0 || v >= nv) {
-        return absl::OutOfRangeError(absl::StrCat("tetrahedra: tetrahedron ", i / 4,
-                                                  " has vertex id ", v, " outside [0, ", nv,
-                                                  ")"));
-      }
-      mesh.tetrahedra[i] = SimplexId(v);
-    }
-    p += mesh.tetrahedra.size() * (i32 ? 4 : 8);
-    for (const v1::UploadField& f : header_.fields()) {
-      PointField field{f.name(), std::vector<double>(nv)};
-      field.is_integer = f.dtype() == v1::DATA_TYPE_INT32 || f.dtype() == v1::DATA_TYPE_INT64;
-      field.source_bytes = int8_t(DataTypeSize(f.dtype()));
-      for (int64_t i = 0; i < nv; ++i) {
-        switch (f.dtype()) {
-          case v1::DATA_TYPE_FLOAT32: field.values[i] = Read<float>(p + 4 * i); break;
-          case v1::DATA_TYPE_FLOAT64: field.values[i] = Read<double>(p + 8 * i); break;
-          case v1::DATA_TYPE_INT32: field.values[i] = Read<int32_t>(p + 4 * i); break;
-          default: field.values[i] = double(Read<int64_t>(p + 8 * i)); break;
-        }
-      }
-      p += size_t(nv) * DataTypeSize(f.dtype());
-      mesh.point_fields.push_back(std::move(field));
-    }
+    ASSIGN_OR_RETURN(Mesh mesh, DecodeUpload(header_, data_));
     std::string().swap(data_);
     reservation_ = Reservation();  // the raw bytes are gone
     RETURN_IF_ERROR(progress.Update("read", 1));
