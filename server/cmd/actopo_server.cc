@@ -3,13 +3,16 @@
 //   actopo-server --port 50051 --data-dir ../shared/data --metrics-port 9464
 //
 // SIGTERM or SIGINT drains: health turns NOT_SERVING, new calls get UNAVAILABLE, running jobs
-// are cancelled, then the server waits up to --grace-s for calls to end and exits.
+// and loads are cancelled; after a moment (a quarter of --grace-s, at most 1 s) the server stops
+// taking calls, waits up to --grace-s for calls to end and exits.
 #include <signal.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
+#include <thread>
 
 #include "absl/strings/str_cat.h"
 #include "server/cmd/flags.h"
@@ -80,6 +83,11 @@ int main(int argc, char** argv) {
   sigwait(&signals, &received);
   std::fprintf(stderr, "actopo-server: %s received, draining\n",
                received == SIGTERM ? "SIGTERM" : "SIGINT");
+  // Draining first, for a moment, before gRPC stops taking calls: meanwhile new calls get
+  // UNAVAILABLE (which clients retry elsewhere) and health checks see NOT_SERVING. Stopping at
+  // once, calls arriving in the same instant were cancelled by gRPC instead.
+  (*server)->Drain();
+  std::this_thread::sleep_for(std::chrono::milliseconds(std::min(grace_s * 1000 / 4, 1000)));
   (*server)->Shutdown(absl::Seconds(grace_s));
   std::fprintf(stderr, "actopo-server: stopped\n");
   return 0;

@@ -8,7 +8,9 @@
 #include <vtkXMLImageDataReader.h>
 #include <vtkXMLUnstructuredGridReader.h>
 
+#include <exception>
 #include <filesystem>
+#include <new>
 #include <string>
 #include <string_view>
 #include <system_error>
@@ -136,9 +138,21 @@ absl::StatusOr<Mesh> ReadMesh(const std::string& path, const ReadOptions& /*opti
   if (std::filesystem::is_directory(status)) {
     return absl::InvalidArgumentError(absl::StrCat(path, ": is a directory, not a file"));
   }
-  absl::StatusOr<Mesh> mesh = extension == ".vtu"   ? ReadXmlUnstructuredGrid(path, progress)
-                              : extension == ".vtk" ? ReadLegacyUnstructuredGrid(path, progress)
-                                                    : ReadXmlImageData(path, progress);
+  // VTK's parsers throw on some corrupt files (a compressed block header promising an absurd
+  // size ends in std::length_error or std::bad_alloc): a bad file, not a reason to stop the
+  // process. Whatever VTK built is released as the stack unwinds.
+  absl::StatusOr<Mesh> mesh;
+  try {
+    mesh = extension == ".vtu"   ? ReadXmlUnstructuredGrid(path, progress)
+           : extension == ".vtk" ? ReadLegacyUnstructuredGrid(path, progress)
+                                 : ReadXmlImageData(path, progress);
+  } catch (const std::bad_alloc&) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat(path, ": VTK ran out of memory reading it (corrupt sizes in the file?)"));
+  } catch (const std::exception& e) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(path, ": cannot read: VTK failed with '", e.what(), "' (corrupt file?)"));
+  }
   if (mesh.ok()) RETURN_IF_ERROR(progress.Update(kPhase, 1));
   return mesh;
 }

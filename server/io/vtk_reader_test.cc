@@ -155,6 +155,18 @@ TEST_F(DataTest, ReportsReadingAndStopsWhenCancelled) {
   }
 }
 
+// Found by fuzz/mesh_file_fuzzer: a compressed block header promising an absurd block count
+// made VTK's parser throw std::length_error, which ended the process.
+TEST(ReadMeshTest, ACorruptCompressionHeaderIsAnErrorNotACrash) {
+  const std::string path = std::string(ACTOPO_SOURCE_DIR) +
+                           "/server/io/testdata/compressed_header_overflow.vtu";
+  absl::StatusOr<Mesh> mesh = ReadMesh(path);
+  ASSERT_FALSE(mesh.ok());
+  EXPECT_THAT(mesh.status().code(), ::testing::AnyOf(absl::StatusCode::kInvalidArgument,
+                                                   absl::StatusCode::kResourceExhausted));
+  EXPECT_THAT(mesh.status().message(), HasSubstr("compressed_header_overflow.vtu"));
+}
+
 TEST_F(DataTest, RefusesTruncatedFile) {
   const std::filesystem::path dir = MakeTempDir("truncated");
   std::ifstream in(DataFile("fertility_tet.vtu"), std::ios::binary);
