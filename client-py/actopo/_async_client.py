@@ -81,9 +81,9 @@ class AsyncClient:
     def __init__(self, target: str | None = None, *, token: str | None = None,
                  affinity_key: str | None = None,
                  tls: TlsArg = False, timeout: float | None = DEFAULT_TIMEOUT,
-                 options: Sequence[tuple[str, Any]] = ()) -> None:
+                 options: Sequence[tuple[str, Any]] = (), retries: bool = True) -> None:
         self.target = resolve_target(target)
-        self._channel = async_channel(self.target, tls, options)
+        self._channel = async_channel(self.target, tls, options, retries)
         self._stub = pb_grpc.TopologyServiceStub(self._channel)
         self.affinity_key, self._metadata = client_metadata(token, affinity_key)
         self._timeout = timeout

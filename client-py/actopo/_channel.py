@@ -1,7 +1,33 @@
-"""Channels: target resolution, TLS, keepalive, message sizes and deadlines."""
+"""Channels: target resolution, TLS, keepalive, message sizes, deadlines and retries.
+
+Retries. Every channel carries a gRPC service config ("grpc.service_config", with
+"grpc.enable_retries" 1) whose retryPolicy retries the idempotent unary reads of
+actopo.v1.TopologyService, RETRIED_METHODS (GetServerInfo, ListMeshes, GetMesh, ListSessions,
+GetSession, GetSessionStats, GetRelation, GetRelationBatch), when an attempt ends UNAVAILABLE:
+no connection (the server is restarting, or not there yet), a connection lost before the
+answer, or a draining server ("shutting down; retry elsewhere"). Up to 5 attempts, the retries
+after 0.2, 0.4, 0.8 and 1.6 s (each +-20%, gRPC's jitter), so about 3 s in all, within the
+call's deadline. Nothing that creates, changes or deletes state is retried (LoadMesh,
+UploadMesh, OpenSession, RunJob, CancelJob, DeleteMesh, CloseSession), nor any stream
+(LoadMeshWithProgress, StreamRelations, RunJob); such a call fails with UNAVAILABLE at once.
+
+wait_for_ready is not set, neither on the channel nor per method: a read of a server that does
+not come back fails with UNAVAILABLE after its ~3 s of attempts, rather than hanging until its
+deadline. To let those attempts meet a restarted server, a lost or refused connection is
+retried after 0.1 s, then at most every second (RECONNECT_OPTIONS; gRPC's defaults are 1 s,
+growing to 2 min). So a read made while the server restarts succeeds when the server listens
+again within about 2 s; the server's state (meshes, sessions, jobs) is gone, and reads of the
+old ids end NOT_FOUND. A retried request is kept until answered, up to RETRY_BUFFER_BYTES (the
+largest GetRelationBatch the clients send is 2 MiB); a larger one is sent once.
+
+`retries=False` (Client, AsyncClient) leaves all of this out. Channel options given by the
+caller replace these by name, e.g. ``("grpc.enable_retries", 0)`` or a "grpc.service_config"
+of one's own.
+"""
 
 from __future__ import annotations
 
+import json
 import os
 import uuid
 from collections.abc import Sequence
@@ -30,6 +56,42 @@ _OPTIONS: list[tuple[str, Any]] = [
 ]
 
 
+SERVICE = "actopo.v1.TopologyService"
+RETRIED_METHODS: tuple[str, ...] = (
+    "GetServerInfo", "ListMeshes", "GetMesh", "ListSessions", "GetSession", "GetSessionStats",
+    "GetRelation", "GetRelationBatch",
+)
+"""The idempotent unary reads that the service config retries on UNAVAILABLE."""
+RETRY_POLICY: dict[str, Any] = {
+    "maxAttempts": 5,  # gRPC's most
+    "initialBackoff": "0.2s",
+    "maxBackoff": "2s",
+    "backoffMultiplier": 2,
+    "retryableStatusCodes": ["UNAVAILABLE"],
+}
+# Reconnection after a lost or refused connection: gRPC waits 1 s, then 1.6 times longer each
+# time up to 2 min, and a read's attempts fail at once while it waits; 0.1 s, then at most 1 s,
+# keeps a restarted server within reach of the ~3 s of attempts.
+RECONNECT_OPTIONS: list[tuple[str, Any]] = [
+    ("grpc.initial_reconnect_backoff_ms", 100),
+    ("grpc.max_reconnect_backoff_ms", 1_000),
+]
+RETRY_BUFFER_BYTES = 4 << 20
+"""Largest request kept for retrying (gRPC's default, 256 KiB, is less than a batch)."""
+
+
+def service_config() -> str:
+    """The JSON service config that retries RETRIED_METHODS (see the module docstring)."""
+    names = [{"service": SERVICE, "method": method} for method in RETRIED_METHODS]
+    return json.dumps({"methodConfig": [{"name": names, "retryPolicy": RETRY_POLICY}]})
+
+
+def retry_options() -> list[tuple[str, Any]]:
+    """The channel options that turn the retries on."""
+    return [("grpc.enable_retries", 1), ("grpc.service_config", service_config()),
+            ("grpc.per_rpc_retry_buffer_size", RETRY_BUFFER_BYTES), *RECONNECT_OPTIONS]
+
+
 def resolve_target(target: str | None) -> str:
     """`target`, else $ACTOPO_SERVER; "host:port" (a scheme such as dns:/// is kept)."""
     resolved = target or os.environ.get("ACTOPO_SERVER", "")
@@ -44,24 +106,31 @@ def _credentials(tls: TlsArg) -> grpc.ChannelCredentials | None:
     return grpc.ssl_channel_credentials() if tls else None
 
 
-def _options(extra: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
+def channel_options(extra: Sequence[tuple[str, Any]],
+                    retries: bool = True) -> list[tuple[str, Any]]:
+    """The defaults (with the retry options unless `retries` is False), then `extra`, which
+    replaces any default of the same name."""
     names = {name for name, _ in extra}
-    return [o for o in _OPTIONS if o[0] not in names] + list(extra)
+    defaults = _OPTIONS + (retry_options() if retries else [])
+    return [o for o in defaults if o[0] not in names] + list(extra)
 
 
-def sync_channel(target: str, tls: TlsArg, options: Sequence[tuple[str, Any]]) -> grpc.Channel:
+def sync_channel(target: str, tls: TlsArg, options: Sequence[tuple[str, Any]],
+                 retries: bool = True) -> grpc.Channel:
     credentials = _credentials(tls)
+    merged = channel_options(options, retries)
     if credentials is None:
-        return grpc.insecure_channel(target, options=_options(options))
-    return grpc.secure_channel(target, credentials, options=_options(options))
+        return grpc.insecure_channel(target, options=merged)
+    return grpc.secure_channel(target, credentials, options=merged)
 
 
-def async_channel(target: str, tls: TlsArg,
-                  options: Sequence[tuple[str, Any]]) -> grpc.aio.Channel:
+def async_channel(target: str, tls: TlsArg, options: Sequence[tuple[str, Any]],
+                  retries: bool = True) -> grpc.aio.Channel:
     credentials = _credentials(tls)
+    merged = channel_options(options, retries)
     if credentials is None:
-        return grpc.aio.insecure_channel(target, options=_options(options))
-    return grpc.aio.secure_channel(target, credentials, options=_options(options))
+        return grpc.aio.insecure_channel(target, options=merged)
+    return grpc.aio.secure_channel(target, credentials, options=merged)
 
 
 AFFINITY_HEADER = "x-actopo-session"

@@ -61,7 +61,13 @@ class Client:
             ``grpc.ChannelCredentials``.
         timeout: deadline in seconds of quick calls; loading, uploading and opening sessions get
             600 s, jobs none (Ctrl-C cancels them). None: no deadlines at all.
-        options: extra gRPC channel options, e.g. ``[("grpc.max_receive_message_length", n)]``.
+        options: extra gRPC channel options, e.g. ``[("grpc.max_receive_message_length", n)]``;
+            they replace the client's own of the same name.
+        retries: True (the default) retries the idempotent reads (server_info, list_meshes,
+            get_mesh, list_sessions, get_session, and on a session stats, query and relation
+            up to one batch) when they end UNAVAILABLE, e.g. while the server restarts:
+            5 attempts over about 3 s, within the call's deadline. Nothing else is retried.
+            False: no retries (see actopo._channel).
 
     Example::
 
@@ -77,9 +83,9 @@ class Client:
     def __init__(self, target: str | None = None, *, token: str | None = None,
                  affinity_key: str | None = None,
                  tls: TlsArg = False, timeout: float | None = DEFAULT_TIMEOUT,
-                 options: Sequence[tuple[str, Any]] = ()) -> None:
+                 options: Sequence[tuple[str, Any]] = (), retries: bool = True) -> None:
         self.target = resolve_target(target)
-        self._channel = sync_channel(self.target, tls, options)
+        self._channel = sync_channel(self.target, tls, options, retries)
         self._stub = pb_grpc.TopologyServiceStub(self._channel)
         self.affinity_key, self._metadata = client_metadata(token, affinity_key)
         self._timeout = timeout

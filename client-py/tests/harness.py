@@ -5,10 +5,16 @@ from __future__ import annotations
 import contextlib
 import os
 import queue
+import signal
+import socket
 import subprocess
 import threading
-from collections.abc import Iterator
+import time
+import urllib.request
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TypeVar
 
 import pytest
 
@@ -18,6 +24,16 @@ SERVER_BIN = Path(os.environ.get("ACTOPO_SERVER_BIN", BUILD / "server/cmd/actopo
 BENCH_BIN = Path(os.environ.get("ACTOPO_BENCH_BIN", BUILD / "server/cmd/actopo-bench"))
 DATA_DIR = Path(os.environ.get("ACTOPO_DATA_DIR") or REPO.parent / "shared" / "data")
 STARTUP_SECONDS = 30
+STOP_SECONDS = 15
+
+T = TypeVar("T")
+
+
+def free_port() -> int:
+    """A loopback port that was free a moment ago."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
 
 
 def _read_lines(stream, lines: queue.Queue) -> None:
@@ -26,36 +42,114 @@ def _read_lines(stream, lines: queue.Queue) -> None:
     lines.put(None)
 
 
-@contextlib.contextmanager
-def running_server(*flags: str) -> Iterator[str]:
-    """Starts actopo-server on a free loopback port; yields its "127.0.0.1:PORT"."""
+@dataclass
+class ServerProcess:
+    """A running actopo-server child: its target, and readings of the process."""
+
+    process: subprocess.Popen
+    target: str = ""
+    metrics_port: int = 0
+    stderr: list[str] = field(default_factory=list)
+
+    @property
+    def pid(self) -> int:
+        return self.process.pid
+
+    @property
+    def port(self) -> int:
+        return int(self.target.rsplit(":", 1)[1])
+
+    def threads(self) -> int:
+        """The process's thread count (/proc/PID/status)."""
+        status = Path(f"/proc/{self.pid}/status").read_text()
+        return int(next(line.split()[1] for line in status.splitlines()
+                        if line.startswith("Threads:")))
+
+    def metric(self, name: str) -> float:
+        """The value of an unlabelled metric on the Prometheus endpoint (--metrics-port)."""
+        if not self.metrics_port:
+            raise RuntimeError("the server was started without --metrics-port")
+        url = f"http://127.0.0.1:{self.metrics_port}/metrics"
+        with urllib.request.urlopen(url, timeout=10) as response:
+            text = response.read().decode()
+        for line in text.splitlines():
+            parts = line.split()
+            if len(parts) == 2 and parts[0] == name:
+                return float(parts[1])
+        raise KeyError(f"{name} not in {url}")
+
+    def signal(self, number: signal.Signals) -> None:
+        self.process.send_signal(number)
+
+    def stop(self) -> int:
+        """SIGTERM, then SIGKILL after STOP_SECONDS; the exit code."""
+        if self.process.poll() is None:
+            self.process.terminate()
+        try:
+            return self.process.wait(timeout=STOP_SECONDS)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            return self.process.wait()
+
+
+def start_server(*flags: str, port: int = 0) -> ServerProcess:
+    """Starts actopo-server on 127.0.0.1:`port` (0: a free one) serving DATA_DIR, and waits
+    until it says where it listens (and where its metrics are, with --metrics-port)."""
     if not SERVER_BIN.is_file():
         pytest.skip(f"actopo-server not built ({SERVER_BIN}); set ACTOPO_SERVER_BIN")
     if not DATA_DIR.is_dir():
         pytest.skip(f"test meshes not found ({DATA_DIR}); set ACTOPO_DATA_DIR")
     process = subprocess.Popen(
-        [str(SERVER_BIN), "--port", "0", "--host", "127.0.0.1", "--data-dir", str(DATA_DIR),
-         *flags], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        [str(SERVER_BIN), "--port", str(port), "--host", "127.0.0.1", "--data-dir",
+         str(DATA_DIR), *flags], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    server = ServerProcess(process)
     lines: queue.Queue = queue.Queue()
     threading.Thread(target=_read_lines, args=(process.stdout, lines), daemon=True).start()
-    errors: list[str] = []
-    threading.Thread(target=lambda: errors.extend(process.stderr), daemon=True).start()
-    target = None
+    threading.Thread(target=lambda: server.stderr.extend(process.stderr), daemon=True).start()
+    wants_metrics = "--metrics-port" in flags and flags[flags.index("--metrics-port") + 1] != "0"
     try:
-        while target is None:
+        while not server.target or (wants_metrics and not server.metrics_port):
             line = lines.get(timeout=STARTUP_SECONDS)
             if line is None:
-                raise RuntimeError(f"actopo-server exited ({process.wait()}): {''.join(errors)}")
+                raise RuntimeError(
+                    f"actopo-server exited ({process.wait()}): {''.join(server.stderr)}")
             if line.startswith("actopo-server listening on "):
-                target = line.split(" on ", 1)[1].strip()
-        yield target
-    except queue.Empty:
-        raise RuntimeError(
-            f"actopo-server did not say 'listening on' in {STARTUP_SECONDS} s") from None
+                server.target = line.split(" on ", 1)[1].strip()
+            elif line.startswith("actopo-server metrics on "):
+                address = line.split(" on ", 1)[1].strip().split("/", 1)[0]
+                server.metrics_port = int(address.rsplit(":", 1)[1])
+    except BaseException as e:
+        server.stop()
+        if isinstance(e, queue.Empty):
+            raise RuntimeError(
+                f"actopo-server did not say 'listening on' in {STARTUP_SECONDS} s") from None
+        raise
+    return server
+
+
+@contextlib.contextmanager
+def server_process(*flags: str, port: int = 0) -> Iterator[ServerProcess]:
+    """start_server() for the duration of a with block; stops it (if still running) after."""
+    server = start_server(*flags, port=port)
+    try:
+        yield server
     finally:
-        process.terminate()
-        try:
-            process.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+        server.stop()
+
+
+@contextlib.contextmanager
+def running_server(*flags: str) -> Iterator[str]:
+    """Starts actopo-server on a free loopback port; yields its "127.0.0.1:PORT"."""
+    with server_process(*flags) as server:
+        yield server.target
+
+
+def wait_for(condition: Callable[[], T], seconds: float, interval: float = 0.1) -> T:
+    """Polls `condition` until it returns something true, and returns that; after `seconds`
+    returns its last value (false) so the caller's assert shows it."""
+    deadline = time.monotonic() + seconds
+    while True:
+        value = condition()
+        if value or time.monotonic() >= deadline:
+            return value
+        time.sleep(interval)

@@ -99,7 +99,7 @@ def test_resource_exhausted_and_authentication(strict_server):
 
 
 def test_unavailable():
-    with actopo.Client("127.0.0.1:9", timeout=5) as client:
+    with actopo.Client("127.0.0.1:9", timeout=10) as client:  # > ~3 s of retries
         with pytest.raises(actopo.UnavailableError) as e:
             client.list_meshes()
         assert e.value.code == grpc.StatusCode.UNAVAILABLE
@@ -145,6 +145,6 @@ def test_tls_with_token(tmp_path):
         with actopo.Client(target, tls=credentials) as client:
             with pytest.raises(actopo.AuthenticationError):
                 client.list_meshes()
-        with actopo.Client(target, timeout=5) as plaintext:
+        with actopo.Client(target, timeout=10) as plaintext:
             with pytest.raises(actopo.UnavailableError):
                 plaintext.list_meshes()
