@@ -86,6 +86,16 @@ struct TinyUpload {
   }
 };
 
+// A RunJob call read to its end: its final status.
+grpc::Status RunToEnd(v1::TopologyService::Stub& stub, const v1::RunJobRequest& request) {
+  grpc::ClientContext c;
+  auto reader = stub.RunJob(&c, request);
+  v1::RunJobResponse m;
+  while (reader->Read(&m)) {
+  }
+  return reader->Finish();
+}
+
 TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
   std::filesystem::copy_file("/etc/hostname", data_dir_ / "notamesh.txt");
   {
@@ -234,12 +244,7 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
        [](auto*, auto& stub, auto&, auto& s) {
          v1::RunJobRequest r;
          r.set_session_id(s);
-         grpc::ClientContext c;
-         auto reader = stub.RunJob(&c, r);
-         v1::RunJobResponse m;
-         while (reader->Read(&m)) {
-         }
-         return reader->Finish();
+         return RunToEnd(stub, r);
        }},
       {"unknown algorithm parameter", C::INVALID_ARGUMENT, "unknown parameter 'speed'",
        [](auto*, auto& stub, auto&, auto& s) {
@@ -247,12 +252,7 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
          r.set_session_id(s);
          r.set_algorithm(v1::ALGORITHM_MORSE_SMALE);
          (*r.mutable_parameters())["speed"] = "fast";
-         grpc::ClientContext c;
-         auto reader = stub.RunJob(&c, r);
-         v1::RunJobResponse m;
-         while (reader->Read(&m)) {
-         }
-         return reader->Finish();
+         return RunToEnd(stub, r);
        }},
       {"bad boundary rule", C::INVALID_ARGUMENT, "boundary_rule: unknown value 'maybe'",
        [](auto*, auto& stub, auto&, auto& s) {
@@ -260,12 +260,7 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
          r.set_session_id(s);
          r.set_algorithm(v1::ALGORITHM_CRITICAL_POINTS);
          (*r.mutable_parameters())["boundary_rule"] = "maybe";
-         grpc::ClientContext c;
-         auto reader = stub.RunJob(&c, r);
-         v1::RunJobResponse m;
-         while (reader->Read(&m)) {
-         }
-         return reader->Finish();
+         return RunToEnd(stub, r);
        }},
       {"unknown job", C::NOT_FOUND, "job-x",
        [](auto*, auto& stub, auto&, auto&) {
@@ -605,24 +600,14 @@ TEST_F(BadInputTest, HostileMeshesAndMoreRequests) {
          v1::RunJobRequest r;
          r.set_session_id("session-none");
          r.set_algorithm(v1::ALGORITHM_CRITICAL_POINTS);
-         grpc::ClientContext c;
-         auto reader = stub.RunJob(&c, r);
-         v1::RunJobResponse m;
-         while (reader->Read(&m)) {
-         }
-         return reader->Finish();
+         return RunToEnd(stub, r);
        }},
       {"job: algorithm out of the enum", C::INVALID_ARGUMENT, "algorithm: 99",
        [](auto*, auto& stub, auto&, auto& s) {
          v1::RunJobRequest r;
          r.set_session_id(s);
          r.set_algorithm(static_cast<v1::Algorithm>(99));
-         grpc::ClientContext c;
-         auto reader = stub.RunJob(&c, r);
-         v1::RunJobResponse m;
-         while (reader->Read(&m)) {
-         }
-         return reader->Finish();
+         return RunToEnd(stub, r);
        }},
       {"stats: unknown session", C::NOT_FOUND, "session-none",
        [](auto*, auto& stub, auto&, auto&) {
