@@ -1,5 +1,6 @@
 # ACTOPO service images, Debian 12 (bookworm) only, apt only (no network but the Debian mirror).
-#   server (default target): actopo-server, its runtime libraries, a health check
+#   server (default target): actopo-server and its mesh reader, their runtime libraries, a
+#                            health check
 #   client:                  the Python client and `actopo` CLI, from wheels built outside
 #                            (scripts/deploy-check.sh: pip wheel ./client-py -w build/wheels)
 # Build: podman build --format docker --pull=never --target server -t actopo-server .
@@ -19,9 +20,9 @@ COPY proto proto
 COPY server server
 COPY tests tests
 RUN cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
- && cmake --build build -j "${JOBS}" --target actopo-server \
+ && cmake --build build -j "${JOBS}" --target actopo-server actopo-read-mesh \
  && install -d /out \
- && install -s -m 0755 build/server/cmd/actopo-server /out/
+ && install -s -m 0755 build/server/cmd/actopo-server build/server/cmd/actopo-read-mesh /out/
 
 ########## client: Python client + CLI (`actopo`), installed offline from copied wheels
 FROM debian:bookworm-slim AS client
@@ -65,7 +66,7 @@ RUN groupadd --gid 10001 actopo \
       --shell /usr/sbin/nologin actopo \
  && install -d -o actopo -g actopo -m 0755 /data \
  && chmod 0755 /usr/local/bin/actopo-health \
- && for b in /usr/local/bin/actopo-server; do \
+ && for b in /usr/local/bin/actopo-server /usr/local/bin/actopo-read-mesh; do \
       if ldd "$b" | grep 'not found'; then echo "missing libraries for $b" >&2; exit 1; fi; \
     done
 USER 10001:10001

@@ -12,7 +12,7 @@ SOAK_CLIENTS ?= 16
 FUZZ_SECONDS ?= 600
 FUZZERS = upload_fuzzer mesh_file_fuzzer partition_fuzzer request_fuzzer
 
-.PHONY: all deps build test test-unit test-client-cpp test-asan test-tsan test-soak soak test-fuzz fuzz lint-proto demo bench deploy-check clean
+.PHONY: all deps build test test-unit test-client-cpp test-asan test-tsan test-asan-server test-soak soak test-fuzz fuzz lint-proto demo bench deploy-check clean
 
 all: build
 
@@ -25,9 +25,10 @@ $(BUILD)/build.ninja: | deps
 build: deps $(BUILD)/build.ninja
 	cmake --build $(BUILD) -j $(JOBS)
 
-# API lint, unit, service and fidelity tests, then the core and algorithm tests again under
-# ASan+UBSan and TSan.
-test: lint-proto test-unit test-client-cpp test-soak test-asan test-tsan test-fuzz
+# API lint, unit, service and fidelity tests; the core and algorithm tests again under ASan+UBSan,
+# and with the service's logic under TSan; the server under ASan+UBSan for the service and client
+# suites; the fuzzers.
+test: lint-proto test-unit test-client-cpp test-soak test-asan test-tsan test-asan-server test-fuzz
 	@echo "make test: all suites passed"
 
 # The C++ client as a user gets it: built, installed, tested against the real server, and its
@@ -67,11 +68,15 @@ fuzz: deps build-fuzz/build.ninja
 test-fuzz:
 	$(MAKE) fuzz FUZZ_SECONDS=60
 
-# Sanitizer builds cover server/core and server/algorithms only (no VTK, no gRPC) to stay fast.
+# Sanitizer trees build less to stay fast: ASan+UBSan the core and algorithms (no VTK, no gRPC);
+# TSan those and the service's logic without gRPC (sessions, job leases, limits, background work);
+# the ASan+UBSan server tree only the server and the service's tests.
 build-asan/build.ninja: | deps
 	cmake -S . -B build-asan $(CMAKE_FLAGS) -DACTOPO_SANITIZE=address -DACTOPO_CORE_ONLY=ON
 build-tsan/build.ninja: | deps
-	cmake -S . -B build-tsan $(CMAKE_FLAGS) -DACTOPO_SANITIZE=thread -DACTOPO_CORE_ONLY=ON
+	cmake -S . -B build-tsan $(CMAKE_FLAGS) -DACTOPO_SANITIZE=thread -DACTOPO_WITH_GRPC=OFF
+build-asan-server/build.ninja: | deps
+	cmake -S . -B build-asan-server $(CMAKE_FLAGS) -DACTOPO_SANITIZE=address
 
 test-asan: deps build-asan/build.ninja
 	cmake --build build-asan -j $(JOBS)
@@ -83,6 +88,23 @@ test-tsan: deps build-tsan/build.ninja
 	cmake --build build-tsan -j $(JOBS)
 	TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1" \
 	  setarch $$(uname -m) -R ctest --test-dir build-tsan --output-on-failure -j $(JOBS)
+
+# The server under ASan+UBSan: its own service tests, then the Python and C++ client suites
+# against it (gRPC and VTK themselves are not instrumented; leaks are checked at each exit).
+ASAN_SERVER_TESTS = actopo-server actopo_service_test actopo_session_manager_test
+test-asan-server: build build-asan-server/build.ninja
+	cmake --build build-asan-server -j $(JOBS) --target $(ASAN_SERVER_TESTS)
+	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
+	  ACTOPO_DATA_DIR=$(DATA_DIR) \
+	  ctest --test-dir build-asan-server --output-on-failure -j $(JOBS) -E '_NOT_BUILT$$'
+	ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+	  ACTOPO_SERVER_BIN=$(abspath build-asan-server)/server/cmd/actopo-server \
+	  ACTOPO_BUILD=$(abspath $(BUILD)) ACTOPO_DATA_DIR=$(DATA_DIR) \
+	  .venv/bin/python -m pytest -q client-py/tests
+	ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+	  ACTOPO_SERVER_BIN=$(abspath build-asan-server)/server/cmd/actopo-server \
+	  ACTOPO_BENCH_BIN=$(abspath $(BUILD))/server/cmd/actopo-bench ACTOPO_DATA_DIR=$(DATA_DIR) \
+	  ctest --test-dir $(BUILD)/client --output-on-failure
 
 # Starts the server on a built-in sample, runs jobs and relation queries through the Python
 # CLI, prints results and statistics, stops the server.
@@ -98,4 +120,4 @@ bench: build
 	bash bench/compare_structures.sh
 
 clean:
-	rm -rf build build-asan build-tsan build-fuzz
+	rm -rf build build-asan build-tsan build-asan-server build-fuzz

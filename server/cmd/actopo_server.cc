@@ -6,12 +6,14 @@
 // and loads are cancelled; after a moment (a quarter of --grace-s, at most 1 s) the server stops
 // taking calls, waits up to --grace-s for calls to end and exits.
 #include <signal.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
+#include <filesystem>
 #include <thread>
 
 #include "absl/strings/str_cat.h"
@@ -24,12 +26,21 @@ int main(int argc, char** argv) {
   // A default session runs a consumer and a producer per core: leave room for several.
   o.max_engine_threads = std::max(o.max_engine_threads, 4 * actopo::DefaultThreads());
   int memory_budget_mib = 0, max_message_mib = 64, idle_timeout_s = 1800, grace_s = 10;
+  // Mesh files are read by actopo-read-mesh, installed beside this executable.
+  std::error_code ec;
+  std::string mesh_reader =
+      (std::filesystem::read_symlink("/proc/self/exe", ec).parent_path() / "actopo-read-mesh")
+          .string();
   if (const char* token = std::getenv("ACTOPO_TOKEN")) o.token = token;
   actopo::FlagParser flags("actopo-server",
                            "serves the ACTOPO topology API (actopo.v1.TopologyService)");
   flags.Add("host", &o.host, "address to listen on");
   flags.Add("port", &o.port, "gRPC port (0: pick a free one; the chosen port is printed)");
   flags.Add("data-dir", &o.data_dir, "directory LoadMesh paths are relative to");
+  flags.Add("mesh-reader", &mesh_reader,
+            "actopo-read-mesh, which reads mesh files in a child process limited to the load's "
+            "memory budget ('in-process': read in the server, where a file VTK crashes on ends "
+            "the server)");
   flags.Add("metrics-port", &o.metrics_port, "Prometheus metrics port (0: off)");
   flags.Add("max-meshes", &o.max_meshes, "meshes held at once");
   flags.Add("max-sessions", &o.max_sessions, "sessions open at once");
@@ -56,6 +67,15 @@ int main(int argc, char** argv) {
   if (o.port < 0 || o.port > 65535) {
     std::cerr << "actopo-server: --port: " << o.port << " is outside [0, 65535]\n";
     return 2;
+  }
+  if (mesh_reader != "in-process") {
+    if (!o.data_dir.empty() && ::access(mesh_reader.c_str(), X_OK) != 0) {
+      std::cerr << "actopo-server: --mesh-reader: no executable at '" << mesh_reader
+                << "'; install actopo-read-mesh beside actopo-server, give its path, or pass "
+                   "--mesh-reader in-process\n";
+      return 2;
+    }
+    o.mesh_reader = mesh_reader;
   }
   o.memory_budget_bytes = int64_t(memory_budget_mib) << 20;
   o.max_message_bytes = int64_t(max_message_mib) << 20;

@@ -7,6 +7,7 @@
 #include "absl/strings/str_replace.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
+#include "server/io/isolated_reader.h"
 #include "server/io/mesh_header.h"
 #include "server/io/samples.h"
 #include "server/io/vtk_reader.h"
@@ -14,6 +15,10 @@
 
 namespace actopo::service {
 namespace {
+
+// What actopo-read-mesh's data segment holds besides the mesh: VTK's XML parser buffers, its
+// libraries' writable data and a few thread stacks.
+constexpr int64_t kReaderOverheadBytes = int64_t(128) << 20;
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -83,7 +88,24 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFile(
                         : absl::StrCat("loading '", path, "'")));
   Reservation reading(budget_, need);
   const auto start = std::chrono::steady_clock::now();
-  absl::StatusOr<Mesh> read = io::ReadMesh(full.string(), {}, progress);
+  absl::StatusOr<Mesh> read = absl::UnknownError("not read");
+  if (options_.reader.empty()) {
+    read = io::ReadMesh(full.string(), {}, progress);
+  } else {
+    // The child may use the reservation and room for VTK's parser and libraries; what it sends
+    // back is admitted against the budget before this process allocates for it.
+    const io::IsolatedReadOptions isolated{
+        .reader = options_.reader,
+        .memory_limit_bytes = need + kReaderOverheadBytes,
+        .admit = [&](const io::MeshShape& shape) {
+          const int64_t bytes = EstimateBytes(shape.vertices, shape.tetrahedra, shape.point_fields);
+          if (bytes <= reading.bytes()) return absl::OkStatus();
+          return reading.Resize(bytes, absl::StrCat("loading '", path, "' (", shape.vertices,
+                                                    " vertices and ", shape.tetrahedra,
+                                                    " tetrahedra, more than its header said)"));
+        }};
+    read = io::ReadMeshIsolated(full.string(), isolated, progress);
+  }
   if (!read.ok()) {
     // Name the file as the client did, not by the server's own directory layout.
     return absl::Status(read.status().code(),

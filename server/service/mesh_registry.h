@@ -41,6 +41,9 @@ struct LoadedMesh {
 struct MeshRegistryOptions {
   std::string data_dir;
   int max_meshes = 16;
+  // actopo-read-mesh, to read files in a child process limited to the load's reservation (a
+  // file VTK crashes on then fails the load, not the server); empty: read in this process.
+  std::string reader;
 };
 
 class MeshRegistry {

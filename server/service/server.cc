@@ -54,7 +54,9 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& o) {
                                                                       : DefaultBudget());
   ASSIGN_OR_RETURN(s.metrics, Metrics::Create(o.host, o.metrics_port));
   s.meshes = std::make_unique<MeshRegistry>(
-      MeshRegistryOptions{.data_dir = o.data_dir, .max_meshes = o.max_meshes}, s.budget.get());
+      MeshRegistryOptions{
+          .data_dir = o.data_dir, .max_meshes = o.max_meshes, .reader = o.mesh_reader},
+      s.budget.get());
   s.sessions = std::make_unique<SessionManager>(
       SessionLimits{.max_sessions = o.max_sessions,
                     .max_engine_threads = o.max_engine_threads,

@@ -23,6 +23,7 @@ struct ServerOptions {
   std::string host = "0.0.0.0";
   int port = 50051;                  // 0: pick a free port (see Server::port())
   std::string data_dir;              // LoadMesh paths are relative to it; empty: no files
+  std::string mesh_reader;           // actopo-read-mesh: files read in a child; empty: in process
   int metrics_port = 0;              // Prometheus /metrics; 0: off
   int max_meshes = 16;
   int max_sessions = 64;

@@ -174,5 +174,76 @@ TEST_F(SessionManagerTest, ConcurrentQueriesShareTheSessionsReaders) {
   }
 }
 
+// Many threads loading, opening, querying, closing and deleting against limits that cannot hold
+// them all: each refusal is RESOURCE_EXHAUSTED naming what did not fit, the budget and counts
+// never exceed their limits, and everything is released at the end.
+TEST(ServiceLimits, HoldUnderConcurrentLoadsOpensAndCloses) {
+  // The sizes of one sample mesh and one explicit session on it, measured with room to spare.
+  int64_t mesh_bytes = 0, session_bytes = 0;
+  {
+    MemoryBudget roomy(int64_t(1) << 30);
+    MeshRegistry meshes(MeshRegistryOptions{}, &roomy);
+    SessionManager sessions(SessionLimits{}, &roomy);
+    auto mesh = meshes.LoadSample("jittered:6", {});
+    ASSERT_TRUE(mesh.ok()) << mesh.status();
+    mesh_bytes = roomy.used();
+    ASSERT_TRUE(sessions.Open(*mesh, SessionOptions{.structure = StructureKind::kExplicit}).ok());
+    session_bytes = roomy.used() - mesh_bytes;
+  }
+  ASSERT_GT(mesh_bytes, 0);
+  ASSERT_GT(session_bytes, 0);
+
+  // Room for two meshes with a session each; eight threads want one of each at once.
+  MemoryBudget budget(2 * (mesh_bytes + session_bytes));
+  MeshRegistry meshes(MeshRegistryOptions{.max_meshes = 3}, &budget);
+  SessionManager sessions(SessionLimits{.max_sessions = 2, .max_engine_threads = 16}, &budget);
+  std::atomic<int> completed{0}, refused{0}, unexpected{0}, over_limit{0};
+  const auto check_limits = [&] {
+    if (budget.used() > budget.limit() || meshes.size() > 3 || sessions.size() > 2) ++over_limit;
+  };
+  const auto refusal = [&](const absl::Status& status) {
+    if (status.code() == absl::StatusCode::kResourceExhausted) {
+      ++refused;
+    } else {
+      ++unexpected;
+      ADD_FAILURE() << status;
+    }
+  };
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 8; ++t) {
+    threads.emplace_back([&, t] {
+      for (int round = 0; round < 25; ++round) {
+        auto mesh = meshes.LoadSample("jittered:6", {});
+        check_limits();
+        if (!mesh.ok()) {
+          refusal(mesh.status());
+          continue;
+        }
+        const StructureKind kind = (t + round) % 2 ? StructureKind::kExplicit : StructureKind::kCompact;
+        auto session = sessions.Open(*mesh, SessionOptions{.structure = kind});
+        check_limits();
+        if (session.ok()) {
+          std::vector<int64_t> offsets = {0}, values;  // Query appends each row's end
+          (*session)->Query(Relation::kVT, std::vector<SimplexId>{0, 1, 2}, offsets, values);
+          if (offsets.size() != 4 || values.empty()) ++unexpected;
+          if (absl::Status s = sessions.Close((*session)->id()); !s.ok()) ++unexpected;
+          ++completed;
+        } else {
+          refusal(session.status());
+        }
+        if (absl::Status s = meshes.Delete((*mesh)->id); !s.ok()) ++unexpected;
+      }
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  EXPECT_EQ(unexpected.load(), 0);
+  EXPECT_EQ(over_limit.load(), 0);
+  EXPECT_GT(completed.load(), 0);
+  EXPECT_EQ(completed.load() + refused.load(), 8 * 25);
+  EXPECT_EQ(meshes.size(), 0u);
+  EXPECT_EQ(sessions.size(), 0u);
+  EXPECT_EQ(budget.used(), 0);
+}
+
 }  // namespace
 }  // namespace actopo::service

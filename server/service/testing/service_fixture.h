@@ -32,6 +32,7 @@ class ServiceTest : public ::testing::Test {
     options_.port = 0;
     options_.host = "127.0.0.1";
     options_.data_dir = data_dir_.string();
+    options_.mesh_reader = ACTOPO_READER_BIN;  // files are read in a child, as by actopo-server
     options_.memory_budget_bytes = int64_t(4) << 30;
     StartServer();
   }
