@@ -90,21 +90,27 @@ test-tsan: deps build-tsan/build.ninja
 	  setarch $$(uname -m) -R ctest --test-dir build-tsan --output-on-failure -j $(JOBS)
 
 # The server under ASan+UBSan: its own service tests, then the Python and C++ client suites
-# against it (gRPC and VTK themselves are not instrumented; leaks are checked at each exit).
-ASAN_SERVER_TESTS = actopo-server actopo_service_test actopo_session_manager_test
+# against it (gRPC and VTK themselves are not instrumented). The servers the client suites start
+# write any report (a memory error, undefined behaviour, a leak at exit) into ASAN_REPORTS; the
+# target fails if one is there, except the reader children's crashes on corrupt files.
+ASAN_SERVER_TESTS = actopo-server actopo-read-mesh actopo_service_test actopo_session_manager_test
+ASAN_REPORTS = $(abspath build-asan-server)/reports
+ASAN_SERVER_ENV = ASAN_OPTIONS=detect_leaks=1:log_path=$(ASAN_REPORTS)/asan \
+  UBSAN_OPTIONS=print_stacktrace=1:log_path=$(ASAN_REPORTS)/ubsan \
+  ACTOPO_SERVER_BIN=$(abspath build-asan-server)/server/cmd/actopo-server \
+  ACTOPO_BENCH_BIN=$(abspath $(BUILD))/server/cmd/actopo-bench ACTOPO_DATA_DIR=$(DATA_DIR)
 test-asan-server: build build-asan-server/build.ninja
 	cmake --build build-asan-server -j $(JOBS) --target $(ASAN_SERVER_TESTS)
 	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
 	  ACTOPO_DATA_DIR=$(DATA_DIR) \
 	  ctest --test-dir build-asan-server --output-on-failure -j $(JOBS) -E '_NOT_BUILT$$'
-	ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-	  ACTOPO_SERVER_BIN=$(abspath build-asan-server)/server/cmd/actopo-server \
-	  ACTOPO_BUILD=$(abspath $(BUILD)) ACTOPO_DATA_DIR=$(DATA_DIR) \
-	  .venv/bin/python -m pytest -q client-py/tests
-	ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-	  ACTOPO_SERVER_BIN=$(abspath build-asan-server)/server/cmd/actopo-server \
-	  ACTOPO_BENCH_BIN=$(abspath $(BUILD))/server/cmd/actopo-bench ACTOPO_DATA_DIR=$(DATA_DIR) \
-	  ctest --test-dir $(BUILD)/client --output-on-failure
+	rm -rf $(ASAN_REPORTS) && mkdir -p $(ASAN_REPORTS)
+	$(ASAN_SERVER_ENV) ACTOPO_BUILD=$(abspath $(BUILD)) .venv/bin/python -m pytest -q client-py/tests
+	test -d $(BUILD)/client || $(MAKE) test-client-cpp
+	$(ASAN_SERVER_ENV) ctest --test-dir $(BUILD)/client --output-on-failure
+	@reports=$$(grep -L actopo-read-mesh $(ASAN_REPORTS)/* 2>/dev/null); \
+	  if [ -n "$$reports" ]; then cat $$reports; echo "test-asan-server: reports in $(ASAN_REPORTS)"; exit 1; fi
+	@echo "test-asan-server: no ASan/UBSan report from the server"
 
 # Starts the server on a built-in sample, runs jobs and relation queries through the Python
 # CLI, prints results and statistics, stops the server.

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 #include "tests/testing/fixture.h"
 
@@ -246,6 +247,45 @@ TEST_F(ServerTest, TokenAndLimits) {
                               [&](StreamItem item) { answered += item.ids.ok(); }));
   EXPECT_EQ(answered, 3);
   ASSERT_OK(c.RunJob(sessions->front().session_id, "critical-points"));
+}
+
+// Reads made while the server restarts on the same port are retried until it is back (the
+// server's state is gone: old ids are NOT_FOUND); without retries they fail at once. Calls that
+// change state are never retried.
+TEST_F(ServerTest, ReadsRideOutARestartAndNothingElseIsRetried) {
+  auto first = ServerProcess::Start(ServerBinary(), DataDir());
+  ASSERT_OK(first);
+  const int port = (*first)->port();
+  auto client = Client::Connect((*first)->target());
+  ASSERT_OK(client);
+  auto once = Client::Connect((*first)->target(), {.retries = false});
+  ASSERT_OK(once);
+  absl::StatusOr<MeshInfo> mesh = (*client)->LoadMesh("sample:jittered:4");
+  ASSERT_OK(mesh);
+  ASSERT_OK((*once)->GetServerInfo());
+
+  first->reset();  // SIGTERM; the port is free once this returns
+  EXPECT_TRUE(HasError((*once)->GetServerInfo(), StatusCode::kUnavailable));
+  EXPECT_TRUE(HasError((*client)->LoadMesh("sample:jittered:4"), StatusCode::kUnavailable));
+
+  // The read runs on another thread: the server must be started from this one, as it dies with
+  // the thread that started it (PR_SET_PDEATHSIG).
+  absl::StatusOr<ServerInfo> info = absl::UnknownError("not asked");
+  std::chrono::steady_clock::duration waited{};
+  std::thread reader([&] {
+    const auto asked = std::chrono::steady_clock::now();
+    info = (*client)->GetServerInfo();
+    waited = std::chrono::steady_clock::now() - asked;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  auto second = ServerProcess::Start(ServerBinary(), DataDir(), {"--port", std::to_string(port)});
+  reader.join();
+  ASSERT_OK(second);
+  EXPECT_OK(info) << "after "
+                  << std::chrono::duration_cast<std::chrono::milliseconds>(waited).count()
+                  << " ms";
+  EXPECT_GE(waited, std::chrono::milliseconds(400));  // it did wait for the restart
+  EXPECT_TRUE(HasError((*client)->GetMesh(mesh->mesh_id), StatusCode::kNotFound));
 }
 
 // A third server over TLS with a self-signed certificate for 127.0.0.1.

@@ -512,6 +512,14 @@ struct ClientOptions {
   std::chrono::milliseconds connect_timeout{0};
   // Largest message sent or received.
   int max_message_bytes = 256 << 20;
+  // Retry the idempotent reads (GetServerInfo, ListMeshes, GetMesh, ListSessions, GetSession,
+  // GetSessionStats, GetRelation, GetRelationBatch) when an attempt ends UNAVAILABLE: no
+  // connection yet, a connection lost before the answer, or a draining server. Up to 5
+  // attempts, after 0.2, 0.4, 0.8 and 1.6 s (gRPC's service config, +-20% jitter); a lost
+  // connection is retried after 0.1 s, then at most every second, so a read made while the
+  // server restarts succeeds once it listens again within about 2 s. Nothing that creates,
+  // changes or deletes state is retried, nor any stream. False: every call is tried once.
+  bool retries = true;
 };
 
 // A connection to an actopo-server. Create with Connect; thread-safe.

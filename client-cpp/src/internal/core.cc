@@ -5,6 +5,23 @@
 #include "absl/strings/str_cat.h"
 
 namespace actopo::internal {
+namespace {
+
+// The retry policy of ClientOptions::retries, the same as the Python client's.
+std::string RetryServiceConfig() {
+  std::string names;
+  for (const char* method : {"GetServerInfo", "ListMeshes", "GetMesh", "ListSessions",
+                             "GetSession", "GetSessionStats", "GetRelation", "GetRelationBatch"}) {
+    absl::StrAppend(&names, names.empty() ? "" : ",", "{\"service\":\"",
+                    v1::TopologyService::service_full_name(), "\",\"method\":\"", method, "\"}");
+  }
+  return absl::StrCat(
+      "{\"methodConfig\":[{\"name\":[", names,
+      "],\"retryPolicy\":{\"maxAttempts\":5,\"initialBackoff\":\"0.2s\",\"maxBackoff\":\"2s\","
+      "\"backoffMultiplier\":2,\"retryableStatusCodes\":[\"UNAVAILABLE\"]}}]}");
+}
+
+}  // namespace
 
 absl::Status FromGrpc(const grpc::Status& status) {
   if (status.ok()) return absl::OkStatus();
@@ -54,6 +71,18 @@ absl::StatusOr<std::shared_ptr<Core>> NewCore(std::string target, const ClientOp
   args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 60'000);
   args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 20'000);
   args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 0);
+  if (options.retries) {
+    args.SetInt(GRPC_ARG_ENABLE_RETRIES, 1);
+    args.SetServiceConfigJSON(RetryServiceConfig());
+    // A batch of 65536 ids is 512 KiB, over gRPC's default 256 KiB kept for retrying.
+    args.SetInt(GRPC_ARG_PER_RPC_RETRY_BUFFER_SIZE, 4 << 20);
+    // gRPC waits 1 s after a lost connection, then longer up to 2 min: too long for the
+    // attempts above to meet a restarted server.
+    args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
+    args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1'000);
+  } else {
+    args.SetInt(GRPC_ARG_ENABLE_RETRIES, 0);
+  }
 
   auto core = std::make_shared<Core>();
   core->target = target;
