@@ -4,15 +4,18 @@
 #include <poll.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/mman.h>
 #include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <fstream>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "absl/strings/match.h"
@@ -29,9 +32,14 @@ namespace {
 //   'p'  progress: a double in [0, 1]
 //   'e'  error: int32 status code, uint32 length, message
 //   'm'  mesh: int64 vertices, int64 tetrahedra, int32 fields, per field (uint32 length, name,
-//        uint8 is_integer, int8 source_bytes); then the points (3 doubles per vertex), the
-//        tetrahedra (4 int32 each) and each field's values (a double per vertex), raw.
+//        uint8 is_integer, int8 source_bytes).
+// The arrays go through a memory file (memfd) the parent passes as descriptor kArraysFd and the
+// child fills before it sends 'm': the points (3 doubles per vertex), the tetrahedra (4 int32
+// each), each field's values (a double per vertex), back to back. Through the pipe they cost
+// a wake-up per pipe buffer on both sides (0.4-0.6 s for a 10M-tetrahedra mesh here); through
+// the memory file, one copy in and one out (0.3 s).
 constexpr char kProgress = 'p', kError = 'e', kMesh = 'm';
+constexpr int kArraysFd = 3;
 
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
 constexpr bool kSanitized = true;  // their shadow memory counts as data: no limit then
@@ -71,8 +79,6 @@ class FrameWriter {
     Value(uint32_t(s.size()));
     Bytes(s.data(), s.size());
   }
-  template <typename T>
-  void Array(const std::vector<T>& v) { Bytes(v.data(), v.size() * sizeof(T)); }
 
  private:
   int fd_;
@@ -138,12 +144,6 @@ class ChildPipes {
     s.resize(length);
     return Read(s.data(), length);
   }
-  template <typename T>
-  bool Array(std::vector<T>& v, int64_t count) {
-    v.resize(size_t(count));
-    return Read(v.data(), v.size() * sizeof(T));
-  }
-
   bool stopped() const { return stopped_; }
   // The last lines the child wrote to stderr, read to the end.
   std::string StderrTail() {
@@ -201,11 +201,12 @@ class Child {
     }
   }
   absl::Status Spawn(const std::string& reader, const std::vector<std::string>& args,
-                     int out_write, int err_write) {
+                     int out_write, int err_write, int arrays) {
     posix_spawn_file_actions_t actions;
     posix_spawn_file_actions_init(&actions);
     posix_spawn_file_actions_adddup2(&actions, out_write, STDOUT_FILENO);
     posix_spawn_file_actions_adddup2(&actions, err_write, STDERR_FILENO);
+    posix_spawn_file_actions_adddup2(&actions, arrays, kArraysFd);
     posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
     // The server blocks SIGTERM and SIGINT in every thread and children inherit the mask.
     posix_spawnattr_t attr;
@@ -277,7 +278,7 @@ absl::Status ChildFailure(const std::string& path, int status, const std::string
 
 bool IsolatedReadLimitsMemory() { return !kSanitized; }
 
-int ServeMeshRead(const std::string& path, int64_t memory_limit_bytes, int fd) {
+int ServeMeshRead(const std::string& path, int64_t memory_limit_bytes, int fd, int arrays_fd) {
   ::prctl(PR_SET_PDEATHSIG, SIGKILL);  // never outlive the server
   FrameWriter out(fd);
   if (memory_limit_bytes > 0 && !kSanitized) {
@@ -313,6 +314,19 @@ int ServeMeshRead(const std::string& path, int64_t memory_limit_bytes, int fd) {
     out.String(std::string(status.message()));
     return 1;
   }
+  // The arrays first, then the frame that says they are there.
+  FrameWriter arrays(arrays_fd);
+  const auto put = [&arrays](const auto& v) { arrays.Bytes(v.data(), v.size() * sizeof(v[0])); };
+  put(mesh->points);
+  put(mesh->tetrahedra);
+  for (const PointField& f : mesh->point_fields) put(f.values);
+  if (!arrays.ok()) {
+    out.Value(kError);
+    out.Value(int32_t(absl::StatusCode::kResourceExhausted));
+    out.String(absl::StrCat(path, ": the mesh reader could not hand over the arrays: ",
+                            std::strerror(errno)));
+    return 1;
+  }
   out.Value(kMesh);
   out.Value(int64_t(mesh->num_vertices()));
   out.Value(int64_t(mesh->num_tetrahedra()));
@@ -322,9 +336,6 @@ int ServeMeshRead(const std::string& path, int64_t memory_limit_bytes, int fd) {
     out.Value(uint8_t(f.is_integer));
     out.Value(f.source_bytes);
   }
-  out.Array(mesh->points);
-  out.Array(mesh->tetrahedra);
-  for (const PointField& f : mesh->point_fields) out.Array(f.values);
   return out.ok() ? 0 : 1;
 }
 
@@ -337,12 +348,16 @@ absl::StatusOr<Mesh> ReadMeshIsolated(const std::string& path, const IsolatedRea
   out_read.fd = fds[0], out_write.fd = fds[1];
   if (::pipe2(fds, O_CLOEXEC) != 0) return absl::InternalError("mesh reader: pipe failed");
   err_read.fd = fds[0], err_write.fd = fds[1];
-  ::fcntl(out_read.fd, F_SETPIPE_SZ, 1 << 20);  // fewer wake-ups for the arrays
+  Fd arrays;
+  arrays.fd = ::memfd_create("actopo-mesh-arrays", MFD_CLOEXEC);
+  if (arrays.fd < 0) {
+    return absl::InternalError(absl::StrCat("mesh reader: memfd_create: ", std::strerror(errno)));
+  }
 
   Child child;
   RETURN_IF_ERROR(child.Spawn(
       options.reader, {path, absl::StrCat(options.memory_limit_bytes)}, out_write.fd,
-      err_write.fd));
+      err_write.fd, arrays.fd));
   out_write.Close();
   err_write.Close();
 
@@ -410,12 +425,33 @@ absl::StatusOr<Mesh> ReadMeshIsolated(const std::string& path, const IsolatedRea
     }
     f.is_integer = is_integer != 0;
   }
-  if (!in.Array(mesh.points, 3 * shape.vertices) ||
-      !in.Array(mesh.tetrahedra, 4 * shape.tetrahedra)) {
-    return failed();
-  }
-  for (PointField& f : mesh.point_fields) {
-    if (!in.Array(f.values, shape.vertices)) return failed();
+  // The child has written the arrays and is exiting; they are read back from the memory file.
+  int64_t offset = 0;
+  // Through a small buffer, so that the arrays' pages are written once (resize() would zero
+  // them first).
+  std::vector<char> chunk(size_t(1) << 20);
+  const auto take = [&](auto& v, int64_t count) {
+    using T = std::decay_t<decltype(v[0])>;
+    v.clear();
+    v.reserve(size_t(count));
+    for (int64_t left = count * int64_t(sizeof(T)); left > 0;) {
+      const size_t want = size_t(std::min<int64_t>(left, int64_t(chunk.size())));
+      const ssize_t r = ::pread(arrays.fd, chunk.data(), want, offset);
+      if (r < 0 && errno == EINTR) continue;
+      if (r <= 0 || size_t(r) % sizeof(T) != 0) return false;
+      const T* begin = reinterpret_cast<const T*>(chunk.data());
+      v.insert(v.end(), begin, begin + size_t(r) / sizeof(T));
+      offset += r;
+      left -= r;
+    }
+    return true;
+  };
+  bool complete = take(mesh.points, 3 * shape.vertices) && take(mesh.tetrahedra, 4 * shape.tetrahedra);
+  for (PointField& f : mesh.point_fields) complete = complete && take(f.values, shape.vertices);
+  if (!complete) {
+    child.Wait(/*kill=*/true);
+    return absl::InternalError(
+        absl::StrCat(path, ": the mesh reader's arrays are shorter than its counts"));
   }
   const int status = child.Wait();
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {

@@ -46,8 +46,9 @@ absl::StatusOr<Mesh> ReadMeshIsolated(const std::string& path, const IsolatedRea
 bool IsolatedReadLimitsMemory();
 
 // The child's side: reads `path` with io::ReadMesh and writes progress, then the mesh or the
-// error, to `fd`. Returns the process exit code. Used by actopo-read-mesh's main().
-int ServeMeshRead(const std::string& path, int64_t memory_limit_bytes, int fd);
+// error, to `fd`, and the mesh's arrays to `arrays_fd` (descriptor 3 in actopo-read-mesh).
+// Returns the process exit code. Used by actopo-read-mesh's main().
+int ServeMeshRead(const std::string& path, int64_t memory_limit_bytes, int fd, int arrays_fd);
 
 }  // namespace actopo::io
 
