@@ -2,8 +2,9 @@
 // corrupt section, an allocation far beyond what the header announced) ends the child and comes
 // back as an error, never taking the server down.
 //
-// The child is actopo-read-mesh (server/cmd), which runs io::ReadMesh under an address-space
-// limit and sends the mesh back through a pipe; cancelling kills it at once.
+// The child is actopo-read-mesh (server/cmd), which runs io::ReadMesh under a data-segment limit
+// (RLIMIT_DATA) and sends progress and the mesh's counts back through a pipe, its arrays
+// through a memory file; cancelling kills it at once.
 //
 //   IsolatedReadOptions options{.reader = "/usr/local/bin/actopo-read-mesh",
 //                               .memory_limit_bytes = 512 << 20};
