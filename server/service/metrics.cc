@@ -21,6 +21,7 @@ struct Metrics::Families {
   prometheus::Gauge* meshes;
   prometheus::Gauge* sessions;
   prometheus::Gauge* budget_used;
+  prometheus::Gauge* budget_limit;
   prometheus::Gauge* rss;
   prometheus::Gauge* threads;
 };
@@ -44,6 +45,7 @@ class Metrics::ScrapeTimeGauges : public prometheus::Collectable {
         f_->meshes->Set(v.meshes);
         f_->sessions->Set(v.sessions);
         f_->budget_used->Set(double(v.budget_used_bytes));
+        f_->budget_limit->Set(double(v.budget_limit_bytes));
         f_->rss->Set(double(v.process_rss_bytes));
         f_->threads->Set(v.engine_threads);
       }
@@ -93,6 +95,8 @@ absl::StatusOr<std::unique_ptr<Metrics>> Metrics::Create(const std::string& host
   m->f_->sessions = gauge("actopo_sessions", "Open sessions");
   m->f_->budget_used = gauge("actopo_memory_budget_used_bytes",
                              "Bytes reserved by meshes and sessions in the memory budget");
+  m->f_->budget_limit = gauge("actopo_memory_budget_limit_bytes",
+                              "The memory budget (--memory-budget-mib)");
   m->f_->rss = gauge("actopo_process_resident_bytes", "Resident memory of the server");
   m->f_->threads = gauge("actopo_engine_threads", "Engine threads reserved");
   m->collectable_ = std::make_shared<ScrapeTimeGauges>(m->registry_, m->f_.get());

@@ -59,6 +59,7 @@ GaugeValues TopologyServiceImpl::Gauges() const {
   return {.meshes = int(meshes_->size()),
           .sessions = int(sessions_->size()),
           .budget_used_bytes = budget_->used(),
+          .budget_limit_bytes = budget_->limit(),
           .process_rss_bytes = CurrentRssBytes(),
           .engine_threads = sessions_->threads_in_use()};
 }
