@@ -12,7 +12,7 @@ SOAK_CLIENTS ?= 16
 FUZZ_SECONDS ?= 600
 FUZZERS = upload_fuzzer mesh_file_fuzzer partition_fuzzer request_fuzzer
 
-.PHONY: all deps build test test-unit test-client-cpp test-asan test-tsan test-asan-server test-soak soak test-fuzz fuzz lint-proto demo bench deploy-check clean
+.PHONY: all deps build test lint-python test-unit test-client-cpp test-asan test-tsan test-asan-server test-soak soak test-fuzz fuzz lint-proto demo bench deploy-check clean
 
 all: build
 
@@ -25,10 +25,10 @@ $(BUILD)/build.ninja: | deps
 build: deps $(BUILD)/build.ninja
 	cmake --build $(BUILD) -j $(JOBS)
 
-# API lint, unit, service and fidelity tests; the core and algorithm tests again under ASan+UBSan,
-# and with the service's logic under TSan; the server under ASan+UBSan for the service and client
-# suites; the fuzzers.
-test: lint-proto test-unit test-client-cpp test-soak test-asan test-tsan test-asan-server test-fuzz
+# API lint, Python lint and types, unit, service and fidelity tests; the core and algorithm
+# tests again under ASan+UBSan, and with the service's logic under TSan; the server under
+# ASan+UBSan for the service and client suites; the fuzzers.
+test: lint-proto lint-python test-unit test-client-cpp test-soak test-asan test-tsan test-asan-server test-fuzz
 	@echo "make test: all suites passed"
 
 # The C++ client as a user gets it: built, installed, tested against the real server, and its
@@ -38,6 +38,10 @@ test-client-cpp: build
 
 lint-proto: deps
 	.tools/node_modules/.bin/buf lint proto
+
+# The Python client: ruff (rules in client-py/pyproject.toml) and mypy --strict on the package.
+lint-python: deps
+	cd client-py && ../.venv/bin/ruff check . && ../.venv/bin/mypy actopo
 
 test-unit: build
 	ACTOPO_DATA_DIR=$(DATA_DIR) ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)

@@ -15,7 +15,7 @@ from collections.abc import (
     Mapping,
     Sequence,
 )
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import grpc
 import grpc.aio
@@ -55,6 +55,9 @@ from actopo._types import (
 )
 from actopo._upload import requests as upload_requests
 
+if TYPE_CHECKING:
+    from typing_extensions import Self
+
 _UNSET: Any = object()
 
 
@@ -90,7 +93,7 @@ class AsyncClient:
         self._mesh_timeout = MESH_TIMEOUT if timeout is not None else None
         self._max_batch: int | None = None
 
-    async def __aenter__(self) -> AsyncClient:
+    async def __aenter__(self) -> Self:
         return self
 
     async def __aexit__(self, *exc: object) -> None:
@@ -241,7 +244,7 @@ class AsyncSession:
         self.info = info
         self.session_id = info.session_id
 
-    async def __aenter__(self) -> AsyncSession:
+    async def __aenter__(self) -> Self:
         return self
 
     async def __aexit__(self, *exc: object) -> None:
@@ -371,7 +374,7 @@ async def _write(call: Any, messages: Iterator[tuple[pb.StreamRelationsRequest, 
             request, piece = next(messages)
         except StopIteration:
             break
-        except Exception as e:  # noqa: BLE001 - raised to the caller by the reader
+        except Exception as e:
             failed.append(e)
             break
         await slots.acquire()

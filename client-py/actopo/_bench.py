@@ -159,7 +159,7 @@ def _stream(session: Session, load: Load, ids: _Ids, tally: _Tally, clock: _Cloc
     while clock.more(issued):
         sent: deque[float] = deque()
 
-        def arrays() -> Iterator[np.ndarray]:
+        def arrays(sent: deque[float]) -> Iterator[np.ndarray]:
             nonlocal issued
             while clock.more(issued):  # read by gRPC's sending thread
                 values = ids.take(load.stream_size)
@@ -168,7 +168,7 @@ def _stream(session: Session, load: Load, ids: _Ids, tally: _Tally, clock: _Cloc
                 yield values
 
         try:
-            for batch in session.relation_batches(load.relation, arrays(),
+            for batch in session.relation_batches(load.relation, arrays(sent),
                                                   chunk_size=load.chunk_size,
                                                   window=load.window):
                 tally.done(time.perf_counter() - sent.popleft(),
@@ -200,7 +200,7 @@ def _percentiles(seconds: list[float]) -> dict[str, float | None]:
         return {**{k: None for k in _PERCENTILES}, "mean": None, "max": None}
     ms = np.asarray(seconds) * 1e3
     values = np.percentile(ms, list(_PERCENTILES.values()))
-    return {**{k: float(v) for k, v in zip(_PERCENTILES, values)},
+    return {**{k: float(v) for k, v in zip(_PERCENTILES, values, strict=True)},
             "mean": float(ms.mean()), "max": float(ms.max())}
 
 
@@ -229,8 +229,9 @@ def _server_queries(before: SessionStats, after: SessionStats) -> dict[str, Any]
 
 def _server_jobs(before: list[SessionStats], after: list[SessionStats],
                  run_seconds: list[float]) -> dict[str, Any]:
-    return {"jobs": {"count": sum(a.jobs.count - b.jobs.count for a, b in zip(after, before)),
-                     "ns": sum(a.jobs.ns - b.jobs.ns for a, b in zip(after, before))},
+    pairs = list(zip(after, before, strict=True))
+    return {"jobs": {"count": sum(a.jobs.count - b.jobs.count for a, b in pairs),
+                     "ns": sum(a.jobs.ns - b.jobs.ns for a, b in pairs)},
             "run_s": _percentiles(run_seconds) if run_seconds else None}
 
 
@@ -283,7 +284,7 @@ class Bench:
         tallies = [_Tally() for _ in sessions]
         step = self._count // len(sessions)
         threads = []
-        for i, (session, tally) in enumerate(zip(sessions, tallies)):
+        for i, (session, tally) in enumerate(zip(sessions, tallies, strict=True)):
             ids = _Ids(self._count, i * step, self._load.order, seed=i)
             threads.append(threading.Thread(target=self._client, daemon=True,
                                             args=(_LOOPS[mode], session, ids, tally, clock)))
@@ -304,7 +305,7 @@ class Bench:
         clock.started.wait()
         try:
             loop(session, self._load, ids, tally, clock)
-        except Exception as e:  # noqa: BLE001 - reported in the row, not lost in a thread
+        except Exception as e:
             tally.fail(e)
 
     def _row(self, structure: str, mode: str, clients: int, readers: int,

@@ -42,7 +42,7 @@ def _table(rows: Sequence[Sequence[Any]], header: Sequence[str]) -> None:
     widths = [max(len(r[i]) for r in cells) for i in range(len(header))]
     for row in cells:
         print("  ".join(c.rjust(w) if i else c.ljust(w)
-                        for i, (c, w) in enumerate(zip(row, widths))).rstrip())
+                        for i, (c, w) in enumerate(zip(row, widths, strict=True))).rstrip())
 
 
 def _cell(value: Any) -> str:
@@ -319,8 +319,8 @@ def cmd_relation(client: Client, args: argparse.Namespace) -> None:
                    for s in simplices]
     if args.json:
         return _print_json([{"simplex": s, "ids": a.ids, "vertices": a.vertices}
-                            for s, a in zip(simplices, answers)])
-    for s, a in zip(simplices, answers):
+                            for s, a in zip(simplices, answers, strict=True)])
+    for s, a in zip(simplices, answers, strict=True):
         text = " ".join(map(str, a.ids.tolist()))
         if a.vertices is not None:
             text += "  (" + " ".join(",".join(map(str, v)) for v in a.vertices.tolist()) + ")"

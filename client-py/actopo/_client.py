@@ -5,7 +5,7 @@ from __future__ import annotations
 import threading
 from collections import deque
 from collections.abc import Iterable, Iterator, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import grpc
 import numpy as np
@@ -43,6 +43,9 @@ from actopo._types import (
     StreamItem,
 )
 from actopo._upload import requests as upload_requests
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
 
 _UNSET: Any = object()
 
@@ -92,7 +95,7 @@ class Client:
         self._mesh_timeout = MESH_TIMEOUT if timeout is not None else None
         self._max_batch: int | None = None
 
-    def __enter__(self) -> Client:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -272,7 +275,7 @@ class Session:
         self.info = info
         self.session_id = info.session_id
 
-    def __enter__(self) -> Session:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -465,7 +468,7 @@ class _Feeder:
                 request, piece = next(self._messages)
             except StopIteration:
                 return
-            except Exception as e:  # noqa: BLE001 - raised to the caller by check()
+            except Exception as e:
                 self._error = e
                 return
             with self._changed:

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 from datetime import datetime, timezone
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from google.protobuf import json_format
 
@@ -26,6 +27,11 @@ from actopo._types import (
     SessionStats,
 )
 
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
+_D = TypeVar("_D", bound="DataclassInstance")
+
 
 def _time(message: Any, name: str) -> datetime | None:
     if not message.HasField(name):
@@ -34,8 +40,9 @@ def _time(message: Any, name: str) -> datetime | None:
     return datetime.fromtimestamp(stamp.seconds + stamp.nanos / 1e9, tz=timezone.utc)
 
 
-def _fields(message: Any, cls: Any) -> Any:
-    return cls(**{name: getattr(message, name) for name in cls.__dataclass_fields__})
+def _fields(message: Any, cls: type[_D]) -> _D:
+    """The dataclass `cls` with each of its fields read from the message field of that name."""
+    return cls(**{f.name: getattr(message, f.name) for f in dataclasses.fields(cls)})
 
 
 def server_info(r: pb.GetServerInfoResponse) -> ServerInfo:
@@ -99,7 +106,8 @@ def struct_to_dict(struct: Any) -> dict[str, Any]:
     so ints come back as ints and the object equals actopo-bench's JSON `result`. A Struct is a
     map, whose order the wire does not keep: keys come back sorted.
     """
-    return _ints(json_format.MessageToDict(struct))
+    result: dict[str, Any] = _ints(json_format.MessageToDict(struct))
+    return result
 
 
 def _ints(value: Any) -> Any:

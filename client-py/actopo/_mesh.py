@@ -74,7 +74,7 @@ def _from_pyvista(mesh: Any, name: str) -> MeshArrays:
         found = Counter(_VTK_NAMES.get(int(t), f"vtk_type_{int(t)}") for t in types)
         raise _reject(found, name)
     tets = np.asarray(grid.cells_dict[VTK_TETRA])
-    data = {k: np.asarray(grid.point_data[k]) for k in grid.point_data.keys()}
+    data = {k: np.asarray(grid.point_data[k]) for k in grid.point_data.keys()}  # noqa: SIM118 (pyvista)
     return _checked(name, np.asarray(grid.points), tets, data)
 
 

@@ -9,9 +9,9 @@ from typing import Any, Generic, Protocol, TypeAlias, TypeVar
 
 from actopo._types import LOAD_PHASES, LoadProgress
 
-ProgressArg: TypeAlias = bool | None | Callable[[float], Any]
+ProgressArg: TypeAlias = bool | Callable[[float], Any] | None
 """Of jobs: False/None for nothing, True for a bar, or a callable(fraction)."""
-LoadProgressArg: TypeAlias = bool | None | Callable[[LoadProgress], Any]
+LoadProgressArg: TypeAlias = bool | Callable[[LoadProgress], Any] | None
 """Of loads: False/None for nothing, True for a bar per phase, or a callable(LoadProgress)."""
 
 _T = TypeVar("_T")
@@ -134,7 +134,7 @@ def _step(phase: str) -> str:
     return f"{phase} {LOAD_PHASES.index(phase) + 1}/{len(LOAD_PHASES)}"
 
 
-def _choose(progress: bool | None | Callable[[_T], Any],
+def _choose(progress: bool | Callable[[_T], Any] | None,
             bar: Callable[[], Progress[_T]]) -> Progress[_T]:
     if not progress:
         return _Silent()

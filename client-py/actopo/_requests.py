@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from typing import Any, TypeAlias
+from typing import Any, TypeAlias, TypedDict
 
 import numpy as np
 
@@ -130,10 +130,18 @@ def simplex_array(ids: Any) -> np.ndarray:
     return little_endian(values, np.int32 if int32 else np.int64)
 
 
-def simplices(values: np.ndarray) -> dict[str, pb.Array]:
+class SimplexArrays(TypedDict, total=False):
+    """The keyword arguments of a batch request that carry its simplices: one of the two."""
+
+    ids: pb.Array
+    vertex_tuples: pb.Array
+
+
+def simplices(values: np.ndarray) -> SimplexArrays:
     """The ``ids`` (1-D) or ``vertex_tuples`` (2-D) field of a batch request."""
-    field = "ids" if values.ndim == 1 else "vertex_tuples"
-    return {field: to_array(values, field)}
+    if values.ndim == 1:
+        return {"ids": to_array(values, "ids")}
+    return {"vertex_tuples": to_array(values, "vertex_tuples")}
 
 
 def batches(session: str, name: str, ids: Any,

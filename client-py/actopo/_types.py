@@ -5,12 +5,15 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import grpc
 import numpy as np
 
 from actopo._errors import ActopoError, error_for
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
 
 
 @dataclass(frozen=True)
@@ -243,7 +246,7 @@ class RelationBatch(_CSR):
     errors: tuple[FailedItem, ...] = ()
 
     def __new__(cls, offsets: np.ndarray, values: np.ndarray,
-                errors: Iterable[FailedItem] = ()) -> RelationBatch:
+                errors: Iterable[FailedItem] = ()) -> Self:
         batch = super().__new__(cls, offsets, values)
         failed = tuple(errors)
         if failed:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -19,7 +20,7 @@ def _lines(group: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, dict[s
     points = np.asarray(group.get("Points", np.zeros((0, 3)))).reshape(-1, 3)
     offsets = np.asarray(group.get("Offsets", np.zeros(1, dtype=np.int64)), dtype=np.int64)
     cells = []
-    for start, end in zip(offsets[:-1], offsets[1:]):
+    for start, end in itertools.pairwise(offsets):
         cells.append(np.concatenate([[end - start], np.arange(start, end)]))
     connectivity = np.concatenate(cells) if cells else np.zeros(0, dtype=np.int64)
     arrays = {k: v for k, v in group.items() if k not in ("Points", "Offsets")}
@@ -79,7 +80,7 @@ def _write_meshio(result: JobResult, prefix: str, mesh: Any) -> list[str]:
         points, _, arrays = _lines(separatrices)
         offsets = np.asarray(separatrices["Offsets"], dtype=np.int64)
         segments, owner = [], []
-        for i, (start, end) in enumerate(zip(offsets[:-1], offsets[1:])):
+        for i, (start, end) in enumerate(itertools.pairwise(offsets)):
             ids = np.arange(start, end)
             segments.append(np.stack([ids[:-1], ids[1:]], axis=1))
             owner.append(np.full(max(len(ids) - 1, 0), i))

@@ -46,12 +46,12 @@ def test_streamed_batches_equal_batch_and_single_answers(session, mesh, name, co
     arrays = [ids[:250], ids[250:251], ids[:0], ids[251:].astype(np.int32), ids[::-1]]
     batches = list(session.relation_batches(name, arrays, chunk_size=64))
     assert len(batches) == len(arrays)
-    for array, batch in zip(arrays, batches):
+    for array, batch in zip(arrays, batches, strict=True):
         assert batch.num_simplices == len(array) and not batch.errors
         assert batch.offsets.dtype == np.int64 and batch.values.dtype == np.int64
         _equal(batch, session.relation(name, array))  # one GetRelationBatch
     rows = batches[0].split() + batches[1].split() + batches[3].split()  # ids 0 .. n - 1
-    assert all(np.array_equal(a, b) for a, b in zip(batches[4].split(), rows[::-1]))
+    assert all(np.array_equal(a, b) for a, b in zip(batches[4].split(), rows[::-1], strict=True))
     for i in (0, 1, 250, n // 2, n - 1):
         np.testing.assert_array_equal(rows[i], session.query(name, i).ids)
 
@@ -115,7 +115,7 @@ def test_vertex_tuples_and_dtypes(session, mesh):
 def test_whole_message_errors_raise(client, mesh):
     session = client.open_session(mesh, structure="compact")
     ids = np.arange(10)
-    with pytest.raises(actopo.InvalidArgumentError, match="vertex_tuples.shape"):
+    with pytest.raises(actopo.InvalidArgumentError, match=r"vertex_tuples\.shape"):
         list(session.relation_batches("edge_star", [np.zeros((2, 3), dtype=np.int64)]))
     with pytest.raises(actopo.InvalidArgumentError, match="unknown relation"):
         list(session.relation_batches("vertex_stars", [ids]))
@@ -169,9 +169,9 @@ def test_query_readers_option(client, mesh):
             assert s.describe().engine.query_readers == readers
     with client.open_session(mesh, structure="compact") as s:
         assert s.info.engine.query_readers >= 1  # the server's default
-    with pytest.raises(actopo.InvalidArgumentError, match="engine.query_readers"):
+    with pytest.raises(actopo.InvalidArgumentError, match=r"engine\.query_readers"):
         client.open_session(mesh, query_readers=-1)  # decided on the client
-    with pytest.raises(actopo.InvalidArgumentError, match="engine.query_readers") as e:
+    with pytest.raises(actopo.InvalidArgumentError, match=r"engine\.query_readers") as e:
         client.open_session(mesh, query_readers=1000)
     assert e.value.code == grpc.StatusCode.INVALID_ARGUMENT
 

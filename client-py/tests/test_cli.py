@@ -188,7 +188,7 @@ def test_bench_load_json(cli):
     assert report["config"]["relation"] == "vertex_star"
     runs = {r["mode"]: r for r in report["runs"]}
     assert list(runs) == ["unary", "batch", "stream", "job"]
-    for mode, r in runs.items():
+    for r in runs.values():
         assert r["structure"] == "compact" and r["clients"] == 2
         assert r["requests"] == 6 and r["errors"] == 0 and r["first_error"] is None, r
         assert r["requests_per_s"] > 0 and r["seconds"] > 0

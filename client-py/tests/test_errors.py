@@ -36,7 +36,7 @@ def test_invalid_argument(client):
                 session.relation("vv", [0])  # decided on the client
             with pytest.raises(actopo.InvalidArgumentError, match="unknown algorithm"):
                 session.run("contour-tree")
-        with pytest.raises(actopo.InvalidArgumentError, match="engine.consumers"):
+        with pytest.raises(actopo.InvalidArgumentError, match=r"engine\.consumers"):
             client.open_session(mesh, consumers=1000)
     finally:
         client.delete_mesh(mesh)

@@ -105,8 +105,7 @@ def child_process(code: str, *args: str) -> Iterator[subprocess.Popen]:
 def child_lines(child: subprocess.Popen) -> Iterator[str]:
     """The child's stdout lines; fails with its stderr if it ends first."""
     assert child.stdout is not None
-    for line in child.stdout:
-        yield line
+    yield from child.stdout
     stderr = child.stderr.read() if child.stderr else ""
     pytest.fail(f"the child ended ({child.wait()}) before the fault: {stderr}")
 
@@ -246,7 +245,7 @@ def health_check(channel: grpc.Channel) -> str:
 
 
 def test_sigterm_during_a_job_drains_and_exits_0(server_with_long_job):
-    server, client, session, job = server_with_long_job
+    server, _client, _session, job = server_with_long_job
     with grpc.insecure_channel(server.target) as channel:
         assert health_check(channel) == "SERVING"
         watch = channel.unary_stream(HEALTH_WATCH)(b"", timeout=LIVENESS_SECONDS)

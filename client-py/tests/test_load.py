@@ -34,7 +34,7 @@ def _check_reports(reports: list[actopo.LoadProgress]) -> None:
     assert phases == sorted(phases, key=LOAD_PHASES.index)
     for phase in LOAD_PHASES:
         fractions = [r.fraction for r in reports if r.phase == phase]
-        assert fractions == sorted(fractions) and 0 <= fractions[0] and fractions[-1] <= 1
+        assert fractions == sorted(fractions) and fractions[0] >= 0 and fractions[-1] <= 1
     elapsed = [r.elapsed_seconds for r in reports]
     assert elapsed == sorted(elapsed) and elapsed[0] >= 0
 
@@ -105,9 +105,8 @@ def test_errors_map_as_for_load_mesh(client, source, cls):
 
 
 def test_unreachable_server_is_unavailable():
-    with actopo.Client("127.0.0.1:1") as client:
-        with pytest.raises(actopo.UnavailableError):
-            client.sample("jittered:4", progress=True)
+    with actopo.Client("127.0.0.1:1") as client, pytest.raises(actopo.UnavailableError):
+        client.sample("jittered:4", progress=True)
 
 
 def test_a_raising_callback_stops_the_load(client):

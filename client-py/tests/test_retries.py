@@ -113,9 +113,8 @@ def test_a_read_gives_up_after_five_attempts(flaky):
 
 def test_a_write_is_never_retried(flaky):
     server = flaky(1)
-    with actopo.Client(server.target) as client:
-        with pytest.raises(actopo.UnavailableError):
-            client.delete_mesh("mesh-1")
+    with actopo.Client(server.target) as client, pytest.raises(actopo.UnavailableError):
+        client.delete_mesh("mesh-1")
     assert server.attempts["DeleteMesh"] == 1
 
 
