@@ -57,15 +57,10 @@ TEST_F(DataTest, IsolatedReadGivesTheSameMeshAsReadingInProcess) {
 // they are an InvalidArgument naming the file and what happened.
 TEST(IsolatedReadTest, AFileVtkCrashesOnIsAnErrorNotACrash) {
   const std::filesystem::path dir = MakeTempDir("isolated_crash");
-  const std::string known = std::string(ACTOPO_SOURCE_DIR) + "/fuzz/known/";
-  for (const auto& [input, name] :
-       {std::pair{"legacy_vtk_points_cut_short.vtk.bin", "cut_short.vtk"},
-        std::pair{"xml_compressed_block_size_zero.vtu.bin", "block_size_zero.vtu"}}) {
-    // The fuzzer's inputs: a format byte, then the file.
-    std::ifstream in(known + input, std::ios::binary);
-    in.ignore(1);
+  testing::WriteVtkCrashFiles(dir, ACTOPO_SOURCE_DIR);
+  for (const testing::VtkCrashFile& f : testing::kVtkCrashFiles) {
+    const std::string name = f.name;
     const std::filesystem::path path = dir / name;
-    std::ofstream(path, std::ios::binary) << in.rdbuf();
     absl::StatusOr<Mesh> mesh = ReadMeshIsolated(path.string(), Isolated());
     ASSERT_FALSE(mesh.ok()) << name;
     EXPECT_EQ(mesh.status().code(), absl::StatusCode::kInvalidArgument) << mesh.status();

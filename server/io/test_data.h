@@ -10,6 +10,7 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include <unistd.h>
@@ -44,6 +45,25 @@ inline std::filesystem::path MakeTempDir(const std::string& name) {
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;
+}
+
+// Files on which VTK's own readers crash, found by fuzz/mesh_file_fuzzer (fuzz/known/), written
+// to `dir` under the names given here (the fuzzer's inputs start with a format byte, skipped).
+// `source_dir`: the repository (ACTOPO_SOURCE_DIR in the tests that use this).
+struct VtkCrashFile {
+  const char* known;  // in fuzz/known/
+  const char* name;   // as written
+};
+inline constexpr VtkCrashFile kVtkCrashFiles[] = {
+    {"legacy_vtk_points_cut_short.vtk.bin", "cut_short.vtk"},
+    {"xml_compressed_block_size_zero.vtu.bin", "block_size_zero.vtu"},
+};
+inline void WriteVtkCrashFiles(const std::filesystem::path& dir, const std::string& source_dir) {
+  for (const VtkCrashFile& f : kVtkCrashFiles) {
+    std::ifstream in(source_dir + "/fuzz/known/" + f.known, std::ios::binary);
+    in.ignore(1);
+    std::ofstream(dir / f.name, std::ios::binary) << in.rdbuf();
+  }
 }
 
 // Six times the signed volume of tetrahedron t, positive for VTK's orientation: the normal

@@ -5,6 +5,7 @@
 #include <functional>
 #include <tuple>
 #include "server/algorithms/digest.h"
+#include "server/io/test_data.h"
 #include "server/service/testing/service_fixture.h"
 
 namespace actopo::service {
@@ -469,15 +470,9 @@ TEST_F(BadInputTest, HostileMeshesAndMoreRequests) {
         "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid>"
         "<Piece NumberOfPoints=\"900000000\" NumberOfCells=\"5000000000\">");
   write("empty.vtu", "");
-  // Files VTK's own readers crash on (found by fuzz/mesh_file_fuzzer; its inputs start with a
-  // format byte): read in a child process, they fail the load, not the server.
-  for (const auto& [known, name] :
-       {std::pair{"legacy_vtk_points_cut_short.vtk.bin", "cut_short.vtk"},
-        std::pair{"xml_compressed_block_size_zero.vtu.bin", "block_size_zero.vtu"}}) {
-    std::ifstream in(std::string(ACTOPO_SOURCE_DIR) + "/fuzz/known/" + known, std::ios::binary);
-    in.ignore(1);
-    std::ofstream(data_dir_ / name, std::ios::binary) << in.rdbuf();
-  }
+  // Files VTK's own readers crash on: read in a child process, they fail the load, not the
+  // server.
+  io::testing::WriteVtkCrashFiles(data_dir_, ACTOPO_SOURCE_DIR);
   std::filesystem::create_directories(data_dir_ / "folder.vtu");
   std::filesystem::create_symlink("/etc/passwd", data_dir_ / "escape.vtk");
   // Good enough to load, but degenerate: inverted, flat (coplanar) and duplicated tetrahedra and
