@@ -579,6 +579,19 @@ TEST_F(BadInputTest, HostileMeshesAndMoreRequests) {
        [](auto*, auto& stub, auto&, auto& s) {
          return BatchWith(stub, s, [](auto& r) { SetInt64s(r.mutable_ids(), {0, -4}, {2}); });
        }},
+      // Found by fuzz/request_fuzzer: the extents' product overflowed int64 (UBSan).
+      {"batch: a shape whose product overflows", C::INVALID_ARGUMENT,
+       "vertex_tuples.data: 24 bytes for shape [7419881405664, 6176702, 3] of 8-byte values",
+       [](auto*, auto& stub, auto&, auto& s) {
+         return BatchWith(stub, s, [](auto& r) {
+           SetInt64s(r.mutable_vertex_tuples(), {0, 1, 2}, {7419881405664, 6176702, 3});
+         });
+       }},
+      {"batch: a shape with more values than its data", C::INVALID_ARGUMENT,
+       "ids.data: 16 bytes for shape [4] of 8-byte values",
+       [](auto*, auto& stub, auto&, auto& s) {
+         return BatchWith(stub, s, [](auto& r) { SetInt64s(r.mutable_ids(), {0, 1}, {4}); });
+       }},
       {"batch: over the batch limit", C::RESOURCE_EXHAUSTED, "batch limit",
        [](auto*, auto& stub, auto&, auto& s) {
          return BatchWith(stub, s, [](auto& r) {

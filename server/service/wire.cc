@@ -3,7 +3,9 @@
 #include <bit>
 #include <cstring>
 
+#include "absl/algorithm/container.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "google/protobuf/util/time_util.h"
 #include "server/core/parallel.h"
 
@@ -213,19 +215,30 @@ absl::StatusOr<std::vector<int64_t>> UnpackIntegers(const pb::Array& array,
                                                    pb::DataType_Name(array.dtype()),
                                                    " is not an integer type; use INT32 or INT64"));
   }
-  int64_t count = 1;
   for (int64_t d : array.shape()) {
     if (d < 0) {
       return absl::InvalidArgumentError(
           absl::StrCat(std::string(field), ".shape: negative extent ", d));
     }
+  }
+  // The extents' product is compared with the values the data holds as it grows, so a hostile
+  // shape cannot overflow it.
+  const int64_t in_data = int64_t(array.data().size() / size);
+  int64_t count = array.shape().empty() ? in_data : 1;
+  bool fits = true;
+  if (absl::c_find(array.shape(), 0) != array.shape().end()) count = 0;
+  for (int64_t d : array.shape()) {
+    if (count == 0) break;
+    if (count > in_data / d) {
+      fits = false;
+      break;
+    }
     count *= d;
   }
-  if (array.shape().empty()) count = int64_t(array.data().size() / size);
-  if (array.data().size() != size_t(count) * size) {
-    return absl::InvalidArgumentError(absl::StrCat(std::string(field), ".data: ",
-                                                   array.data().size(), " bytes for ", count,
-                                                   " values of ", size, " bytes"));
+  if (!fits || array.data().size() != size_t(count) * size) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        std::string(field), ".data: ", array.data().size(), " bytes for shape [",
+        absl::StrJoin(array.shape(), ", "), "] of ", size, "-byte values"));
   }
   std::vector<int64_t> out(count);
   const char* p = array.data().data();
