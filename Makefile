@@ -39,9 +39,10 @@ test-client-cpp: build
 lint-proto: deps
 	.tools/node_modules/.bin/buf lint proto
 
-# The Python client: ruff (rules in client-py/pyproject.toml) and mypy --strict on the package.
+# The Python client: ruff (rules in client-py/pyproject.toml) and mypy --strict on the package;
+# ruff with the same rules on the Python tests of tests/.
 lint-python: deps
-	cd client-py && ../.venv/bin/ruff check . && ../.venv/bin/mypy actopo
+	cd client-py && ../.venv/bin/ruff check . ../tests && ../.venv/bin/mypy actopo
 
 test-unit: build
 	ACTOPO_DATA_DIR=$(DATA_DIR) ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)

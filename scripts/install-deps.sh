@@ -20,8 +20,9 @@ debian_packages=(
 )
 
 # Fuzzing (make fuzz, and make test's short runs): clang with libFuzzer; Prometheus and promtool
-# for tests/test_prometheus.py (the scrape job and alert rules of deploy/). Not in the images.
-((want_venv)) && debian_packages+=(clang-14 libfuzzer-14-dev libclang-rt-14-dev prometheus)
+# for tests/test_prometheus.py (the scrape job and alert rules of deploy/); HAProxy for the
+# session-affinity tests (deploy/haproxy.cfg). Not in the images.
+((want_venv)) && debian_packages+=(clang-14 libfuzzer-14-dev libclang-rt-14-dev prometheus haproxy)
 
 missing=()
 # npm (for buf, a development tool): the machine's own Node.js when present, else Debian's.

@@ -1,7 +1,7 @@
 """Static cross-checks of the deployment files (compose.yaml, Dockerfile, deploy/).
 
 No container engine or cluster is needed: every YAML must parse, and the ports, names, labels,
-selectors, probe ports, Envoy addresses, the session hash header and the Prometheus targets must
+selectors, probe ports, HAProxy's servers, the session hash header and the Prometheus targets must
 agree between the files. scripts/deploy-check.sh builds and runs the image itself.
 """
 
@@ -72,25 +72,40 @@ def server_services(compose: dict) -> dict[str, dict]:
             if str(s.get("image", "")).startswith(SERVER_IMAGE)}
 
 
-def envoy_configs(compose: dict, k8s: dict) -> dict[str, dict]:
-    cm = k8s[("ConfigMap", "actopo-envoy")]
-    return {"compose": yaml.safe_load((DEPLOY / "envoy.yaml").read_text()),
-            "k8s": yaml.safe_load(cm["data"]["envoy.yaml"])}
+def haproxy_configs(k8s: dict) -> dict[str, str]:
+    cm = k8s[("ConfigMap", "actopo-proxy")]
+    return {"compose": (DEPLOY / "haproxy.cfg").read_text(), "k8s": cm["data"]["haproxy.cfg"]}
 
 
-def envoy_endpoints(config: dict) -> list[tuple[str, int]]:
+def haproxy_sections(text: str) -> dict[str, list[str]]:
+    """'section name' -> its lines (stripped, no comments or blank lines)."""
+    sections: dict[str, list[str]] = {}
+    current: list[str] = []
+    for raw in text.splitlines():
+        line = raw.split("#", 1)[0].strip() if not raw.strip().startswith("#") else ""
+        if not line:
+            continue
+        if not raw[0].isspace():
+            current = sections.setdefault(line, [])
+        else:
+            current.append(line)
+    return sections
+
+
+def haproxy_servers(text: str) -> list[tuple[str, str, int]]:
+    """(name, host, port) of the actopo backend's server lines."""
     out = []
-    for cluster in config["static_resources"]["clusters"]:
-        for group in cluster["load_assignment"]["endpoints"]:
-            for ep in group["lb_endpoints"]:
-                sock = ep["endpoint"]["address"]["socket_address"]
-                out.append((sock["address"], int(sock["port_value"])))
+    for line in haproxy_sections(text)["backend actopo"]:
+        if line.startswith("server "):
+            _, name, address = line.split()[:3]
+            host, port = address.strip('"').rsplit(":", 1)
+            out.append((name, host, int(port)))
     return out
 
 
-def envoy_listener_port(config: dict) -> int:
-    (listener,) = config["static_resources"]["listeners"]
-    return int(listener["address"]["socket_address"]["port_value"])
+def haproxy_bind_port(text: str, frontend: str) -> int:
+    (bind,) = [x for x in haproxy_sections(text)[f"frontend {frontend}"] if x.startswith("bind ")]
+    return int(bind.split()[1].rsplit(":", 1)[1])
 
 
 # --- every file ------------------------------------------------------------------------------
@@ -130,7 +145,7 @@ def test_compose_servers_ports_data_and_health(compose):
         assert "actopo-health" in " ".join(svc["healthcheck"]["test"]), name
         assert f"127.0.0.1:{GRPC_PORT}" in svc["healthcheck"]["test"], name
     assert set(published(servers["server"]["ports"])) == {GRPC_PORT, METRICS_PORT}
-    for name in ("server-a", "server-b", "envoy"):
+    for name in ("server-a", "server-b", "proxy"):
         assert compose["services"][name]["profiles"] == ["affinity"]
 
 
@@ -139,7 +154,8 @@ def test_compose_client_job_targets_the_server(compose):
     host, port = flag(client["command"], "--server").rsplit(":", 1)
     assert host in server_services(compose) and int(port) == GRPC_PORT
     assert client["depends_on"][host]["condition"] == "service_healthy"
-    assert client["command"][client["command"].index("run"):][:3] == ["run", "--mesh", "sample:wavelet:32"]
+    run = client["command"][client["command"].index("run"):]
+    assert run[:3] == ["run", "--mesh", "sample:wavelet:32"]
 
 
 # --- Kubernetes ------------------------------------------------------------------------------
@@ -194,71 +210,75 @@ def test_service_ports_resolve_to_container_ports(k8s):
                             "metrics": (METRICS_PORT, METRICS_PORT)}, name
 
 
-def test_envoy_deployment_and_service(k8s):
-    dep = k8s[("Deployment", "actopo-envoy")]
+def test_proxy_deployment_and_service(k8s):
+    dep = k8s[("Deployment", "actopo-proxy")]
     pod = dep["spec"]["template"]
     assert dep["spec"]["selector"]["matchLabels"].items() <= pod["metadata"]["labels"].items()
-    svc = k8s[("Service", "actopo-envoy")]
+    svc = k8s[("Service", "actopo-proxy")]
     assert svc["spec"]["selector"] == dep["spec"]["selector"]["matchLabels"]
     (container,) = pod["spec"]["containers"]
     ports = {p["name"]: p["containerPort"] for p in container["ports"]}
-    config = yaml.safe_load(k8s[("ConfigMap", "actopo-envoy")]["data"]["envoy.yaml"])
+    config = haproxy_configs(k8s)["k8s"]
     (grpc_port,) = [p for p in svc["spec"]["ports"] if p["name"] == "grpc"]
-    assert ports[grpc_port["targetPort"]] == envoy_listener_port(config)
-    assert pod["spec"]["volumes"][0]["configMap"]["name"] == "actopo-envoy"
+    assert grpc_port["port"] == GRPC_PORT
+    assert ports[grpc_port["targetPort"]] == haproxy_bind_port(config, "grpc")
+    assert ports["stats"] == haproxy_bind_port(config, "stats")
+    assert container["readinessProbe"]["httpGet"]["port"] == "stats"
+    assert f"monitor-uri {container['readinessProbe']['httpGet']['path']}" in \
+        haproxy_sections(config)["frontend stats"]
+    assert pod["spec"]["volumes"][0]["configMap"]["name"] == "actopo-proxy"
+    env = {e["name"]: e["valueFrom"]["fieldRef"]["fieldPath"] for e in container["env"]}
+    assert env == {"NAMESPACE": "metadata.namespace"}  # ${NAMESPACE} in the server names
 
 
-# --- Envoy -----------------------------------------------------------------------------------
+# --- HAProxy ---------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("where", ["compose", "k8s"])
-def test_envoy_hashes_the_session_header(compose, k8s, where):
-    config = envoy_configs(compose, k8s)[where]
-    clusters = {c["name"]: c for c in config["static_resources"]["clusters"]}
-    (listener,) = config["static_resources"]["listeners"]
-    (hcm,) = listener["filter_chains"][0]["filters"]
-    routes = [r for vh in hcm["typed_config"]["route_config"]["virtual_hosts"] for r in vh["routes"]]
-    assert routes
-    for route in routes:
-        action = route["route"]
-        assert action["cluster"] in clusters
-        headers = [h["header"]["header_name"] for h in action["hash_policy"]]
-        assert headers == [SESSION_HEADER]
-        cluster = clusters[action["cluster"]]
-        assert cluster["lb_policy"] == "RING_HASH"
-        options = cluster["typed_extension_protocol_options"][
-            "envoy.extensions.upstreams.http.v3.HttpProtocolOptions"]
-        assert "http2_protocol_options" in options["explicit_http_config"]  # gRPC upstream
-        assert "grpc_health_check" in cluster["health_checks"][0]
+def test_haproxy_hashes_the_session_header_consistently(k8s, where):
+    backend = haproxy_sections(haproxy_configs(k8s)[where])["backend actopo"]
+    assert f"balance hdr({SESSION_HEADER})" in backend
+    assert "hash-type consistent" in backend
+    (defaults,) = [x.split() for x in backend if x.startswith("default-server ")]
+    assert defaults[defaults.index("proto") + 1] == "h2"  # gRPC to the servers
+    assert "check" in defaults
+    assert "tcp-check expect binary 00000000020801" in backend  # gRPC health: SERVING
 
 
-def test_envoy_compose_endpoints_are_the_affinity_servers(compose, k8s):
-    config = envoy_configs(compose, k8s)["compose"]
+def test_haproxy_compose_servers_are_the_affinity_servers(compose, k8s):
+    config = haproxy_configs(k8s)["compose"]
     affinity = {n for n, s in server_services(compose).items()
                 if "affinity" in s.get("profiles", [])}
-    endpoints = envoy_endpoints(config)
-    assert {host for host, _ in endpoints} == affinity
-    for host, port in endpoints:
+    servers = haproxy_servers(config)
+    assert {host for _, host, _ in servers} == affinity
+    for name, host, port in servers:
+        assert name == host
         assert int(flag(compose["services"][host]["command"], "--port")) == port
-    envoy = compose["services"]["envoy"]
-    assert envoy_listener_port(config) in published(envoy["ports"])
-    assert any(v.startswith("./deploy/envoy.yaml:") for v in envoy["volumes"])
-    assert set(envoy["depends_on"]) == affinity
+    proxy = compose["services"]["proxy"]
+    assert haproxy_bind_port(config, "grpc") in published(proxy["ports"])
+    assert haproxy_bind_port(config, "stats") in published(proxy["ports"])
+    assert any(v.startswith("./deploy/haproxy.cfg:") for v in proxy["volumes"])
+    assert set(proxy["depends_on"]) == affinity
 
 
-def test_envoy_k8s_endpoint_is_the_headless_service(compose, k8s):
-    config = envoy_configs(compose, k8s)["k8s"]
+def test_haproxy_k8s_servers_are_the_statefulset_pods(k8s):
     sts = k8s[("StatefulSet", "actopo-server")]
-    headless = k8s[("Service", sts["spec"]["serviceName"])]
-    grpc = next(p["port"] for p in headless["spec"]["ports"] if p["name"] == "grpc")
-    assert envoy_endpoints(config) == [(headless["metadata"]["name"], grpc)]
+    headless = sts["spec"]["serviceName"]
+    grpc = next(p["port"] for p in k8s[("Service", headless)]["spec"]["ports"]
+                if p["name"] == "grpc")
+    servers = haproxy_servers(haproxy_configs(k8s)["k8s"])
+    assert len(servers) >= sts["spec"]["replicas"]
+    for i, (name, host, port) in enumerate(servers):
+        pod = f"{sts['metadata']['name']}-{i}"
+        assert name == pod
+        assert host == f"{pod}.{headless}.${{NAMESPACE}}.svc.cluster.local"
+        assert port == grpc
 
 
-def test_envoy_configs_differ_only_in_endpoints(compose, k8s):
-    configs = envoy_configs(compose, k8s)
-    for config in configs.values():
-        for cluster in config["static_resources"]["clusters"]:
-            cluster.pop("load_assignment")
-            cluster.pop("dns_refresh_rate", None)
+def test_haproxy_configs_differ_only_in_servers(k8s):
+    configs = {where: haproxy_sections(text) for where, text in haproxy_configs(k8s).items()}
+    for sections in configs.values():
+        sections["backend actopo"] = [x for x in sections["backend actopo"]
+                                      if not x.startswith("server ")]
     assert configs["compose"] == configs["k8s"]
 
 
@@ -275,6 +295,7 @@ def test_prometheus_targets_are_server_metrics_ports(compose):
         assert host in servers, target
         assert int(port) == METRICS_PORT == int(flag(servers[host]["command"], "--metrics-port"))
     assert {t.rsplit(":", 1)[0] for t in targets} == set(servers)
-    assert all(job.get("metrics_path", "/metrics") == "/metrics" for job in config["scrape_configs"])
+    assert all(job.get("metrics_path", "/metrics") == "/metrics"
+               for job in config["scrape_configs"])
     prom = compose["services"]["prometheus"]
     assert any(v.startswith("./deploy/prometheus.yml:") for v in prom["volumes"])

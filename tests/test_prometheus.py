@@ -10,55 +10,24 @@ without a built server ($ACTOPO_BUILD, default build/).
 from __future__ import annotations
 
 import json
-import os
-import shutil
 import signal
-import socket
 import subprocess
-import time
 import urllib.parse
 import urllib.request
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 import yaml
+from support import DEPLOY, PYTHON, free_port, need, need_server, start, stop, wait_for
 
-ROOT = Path(__file__).resolve().parent.parent
-DEPLOY = ROOT / "deploy"
-BUILD = Path(os.environ.get("ACTOPO_BUILD", ROOT / "build"))
-SERVER_BIN = BUILD / "server/cmd/actopo-server"
-PYTHON = ROOT / ".venv/bin/python"
 ALERTS = ["ActopoMemoryBudgetNearlyFull", "ActopoServerDown", "ActopoServerErrors",
           "ActopoSlowJobs"]
 
 
-def need(tool: str) -> str:
-    path = shutil.which(tool)
-    if path is None:
-        pytest.skip(f"{tool} not installed (Debian package prometheus; scripts/install-deps.sh)")
-    return path
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def wait_for(what: str, check: Callable[[], Any], timeout: float = 60) -> Any:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = check()
-        if value:
-            return value
-        time.sleep(0.5)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-
-
 def test_promtool_checks_the_configuration_and_the_rules():
-    promtool = need("promtool")
+    promtool = need("promtool", "prometheus")
     for args in (["check", "config", "prometheus.yml"], ["check", "rules", "alerts.yml"],
                  ["test", "rules", "alerts_test.yml"]):
         run = subprocess.run([promtool, *args], cwd=DEPLOY, capture_output=True, text=True)
@@ -90,13 +59,11 @@ class Prometheus:
 
 @pytest.fixture
 def server_and_prometheus(tmp_path: Path) -> Iterator[tuple[subprocess.Popen, str, Prometheus]]:
-    prometheus = need("prometheus")
-    if not SERVER_BIN.is_file():
-        pytest.skip(f"actopo-server not built ({SERVER_BIN}); set ACTOPO_BUILD")
+    prometheus = need("prometheus", "prometheus")
+    server_bin = need_server()
     grpc_port, metrics_port, web_port = free_port(), free_port(), free_port()
-    server = subprocess.Popen([str(SERVER_BIN), "--host", "127.0.0.1", "--port", str(grpc_port),
-                               "--metrics-port", str(metrics_port)],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    server = start([str(server_bin), "--host", "127.0.0.1", "--port", str(grpc_port),
+                    "--metrics-port", str(metrics_port)])
     # deploy/prometheus.yml's job and rules, scraping this server every second.
     config = yaml.safe_load((DEPLOY / "prometheus.yml").read_text())
     config["global"] = {"scrape_interval": "1s", "evaluation_interval": "1s"}
@@ -105,20 +72,14 @@ def server_and_prometheus(tmp_path: Path) -> Iterator[tuple[subprocess.Popen, st
     job["static_configs"] = [{"targets": [f"127.0.0.1:{metrics_port}"]}]
     config["scrape_configs"] = [job]
     (tmp_path / "prometheus.yml").write_text(yaml.safe_dump(config))
-    prom = subprocess.Popen([prometheus, f"--config.file={tmp_path / 'prometheus.yml'}",
-                             f"--storage.tsdb.path={tmp_path / 'data'}",
-                             f"--web.listen-address=127.0.0.1:{web_port}"],
-                            stdout=subprocess.DEVNULL, stderr=open(tmp_path / "prom.log", "w"))
+    prom = start([prometheus, f"--config.file={tmp_path / 'prometheus.yml'}",
+                  f"--storage.tsdb.path={tmp_path / 'data'}",
+                  f"--web.listen-address=127.0.0.1:{web_port}"],
+                 log=tmp_path / "prom.log")
     try:
         yield server, f"127.0.0.1:{grpc_port}", Prometheus(web_port)
     finally:
-        for p in (prom, server):
-            if p.poll() is None:
-                p.send_signal(signal.SIGTERM)
-                try:
-                    p.wait(timeout=10)
-                except subprocess.TimeoutExpired:
-                    p.kill()
+        stop(prom, server)
 
 
 def test_prometheus_scrapes_the_server_and_the_alerts_follow(server_and_prometheus):

@@ -24,6 +24,8 @@ Client::~Client() = default;
 
 const std::string& Client::target() const { return core_->target; }
 
+const std::string& Client::affinity_key() const { return core_->options.affinity_key; }
+
 absl::StatusOr<ServerInfo> Client::GetServerInfo() {
   ACTOPO_ASSIGN_OR_RETURN(v1::GetServerInfoResponse response,
                           core_->Unary(&v1::TopologyService::Stub::GetServerInfo,

@@ -111,6 +111,37 @@ TEST(ConnectTest, RejectsInconsistentOptions) {
             absl::StatusCode::kInvalidArgument);
 }
 
+TEST(ConnectTest, AffinityKeyIsGivenFromTheEnvironmentOrRandom) {
+  unsetenv("ACTOPO_AFFINITY_KEY");
+  auto given = Client::Connect("127.0.0.1:1", {.affinity_key = "workflow-7"});
+  ASSERT_TRUE(given.ok()) << given.status();
+  EXPECT_EQ((*given)->affinity_key(), "workflow-7");
+
+  auto first = Client::Connect("127.0.0.1:1"), second = Client::Connect("127.0.0.1:1");
+  ASSERT_TRUE(first.ok() && second.ok());
+  const std::string& key = (*first)->affinity_key();
+  EXPECT_EQ(key.size(), 32u) << key;
+  EXPECT_EQ(key.find_first_not_of("0123456789abcdef"), std::string::npos) << key;
+  EXPECT_NE(key, (*second)->affinity_key());
+
+  setenv("ACTOPO_AFFINITY_KEY", "from-env", 1);
+  auto from_env = Client::Connect("127.0.0.1:1");
+  ASSERT_TRUE(from_env.ok());
+  EXPECT_EQ((*from_env)->affinity_key(), "from-env");
+  EXPECT_EQ((*Client::Connect("127.0.0.1:1", {.affinity_key = "mine"}))->affinity_key(), "mine");
+
+  setenv("ACTOPO_AFFINITY_KEY", "tab\there", 1);
+  auto bad_env = Client::Connect("127.0.0.1:1");
+  EXPECT_EQ(bad_env.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(bad_env.status().message().find("ACTOPO_AFFINITY_KEY: 'tab\\there'"),
+            std::string::npos) << bad_env.status();
+  unsetenv("ACTOPO_AFFINITY_KEY");
+  auto bad = Client::Connect("127.0.0.1:1", {.affinity_key = "new\nline"});
+  EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(bad.status().message().find("options.affinity_key"), std::string::npos)
+      << bad.status();
+}
+
 // Port 1 on loopback: nothing listens there.
 TEST(ConnectTest, UnreachableServerIsUnavailable) {
   auto waited = Client::Connect("127.0.0.1:1", {.connect_timeout = std::chrono::milliseconds(300)});

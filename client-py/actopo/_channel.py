@@ -139,7 +139,7 @@ AFFINITY_HEADER = "x-actopo-session"
 def metadata(token: str | None,
              affinity_key: str | None = None) -> tuple[tuple[str, str], ...]:
     """Per-call metadata: the bearer token, sent on plaintext and TLS channels alike, and the
-    affinity key that a load balancer hashes (deploy/envoy.yaml) so every call of this client
+    affinity key that a load balancer hashes (deploy/haproxy.cfg) so every call of this client
     reaches the same server, where its meshes and sessions live."""
     out: tuple[tuple[str, str], ...] = ()
     if token:

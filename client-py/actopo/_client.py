@@ -57,7 +57,7 @@ class Client:
         target: "HOST:PORT"; defaults to $ACTOPO_SERVER.
         token: a bearer token sent with every call (``authorization`` metadata).
         affinity_key: sent with every call as ``x-actopo-session``; behind a load balancer that
-            hashes it (deploy/envoy.yaml), all calls of this client reach one server replica,
+            hashes it (deploy/haproxy.cfg), all calls of this client reach one server replica,
             where its meshes and sessions live. Defaults to $ACTOPO_AFFINITY_KEY, else a fresh
             random key per client.
         tls: False for plaintext, True for TLS with the system's roots, or your own

@@ -520,6 +520,11 @@ struct ClientOptions {
   // server restarts succeeds once it listens again within about 2 s. Nothing that creates,
   // changes or deletes state is retried, nor any stream. False: every call is tried once.
   bool retries = true;
+  // Sent with every call as the metadata `x-actopo-session`. Behind a load balancer that hashes
+  // it (deploy/haproxy.cfg), every call of this client reaches the one server replica that holds
+  // its meshes and sessions. Empty: $ACTOPO_AFFINITY_KEY, else a fresh random key per Client.
+  // Printable ASCII (0x20-0x7E); share one key between clients that use the same sessions.
+  std::string affinity_key;
 };
 
 // A connection to an actopo-server. Create with Connect; thread-safe.
@@ -534,6 +539,8 @@ class Client {
   ~Client();
 
   const std::string& target() const;
+  // The affinity key this client sends (ClientOptions::affinity_key, resolved).
+  const std::string& affinity_key() const;
 
   // Server.
   absl::StatusOr<ServerInfo> GetServerInfo();

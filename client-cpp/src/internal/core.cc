@@ -1,7 +1,9 @@
 #include "src/internal/core.h"
 
 #include <cstdlib>
+#include <random>
 
+#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 
 namespace actopo::internal {
@@ -21,6 +23,29 @@ std::string RetryServiceConfig() {
       "\"backoffMultiplier\":2,\"retryableStatusCodes\":[\"UNAVAILABLE\"]}}]}");
 }
 
+// The affinity key: given, else $ACTOPO_AFFINITY_KEY, else 128 random bits in hex.
+absl::StatusOr<std::string> AffinityKey(std::string key) {
+  const char* source = "options.affinity_key";
+  if (key.empty()) {
+    const char* env = std::getenv("ACTOPO_AFFINITY_KEY");
+    if (env != nullptr) key = env;
+    source = "ACTOPO_AFFINITY_KEY";
+  }
+  if (key.empty()) {
+    std::random_device random;
+    for (int i = 0; i < 4; ++i) absl::StrAppend(&key, absl::Hex(random(), absl::kZeroPad8));
+    return key;
+  }
+  for (const char c : key) {
+    if (c < 0x20 || c > 0x7e) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          source, ": '", absl::CHexEscape(key),
+          "' is not printable ASCII (it travels as the gRPC metadata x-actopo-session)"));
+    }
+  }
+  return key;
+}
+
 }  // namespace
 
 absl::Status FromGrpc(const grpc::Status& status) {
@@ -34,6 +59,7 @@ std::unique_ptr<grpc::ClientContext> Core::Context(std::chrono::milliseconds tim
   if (!options.token.empty()) {
     context->AddMetadata("authorization", "Bearer " + options.token);
   }
+  context->AddMetadata("x-actopo-session", options.affinity_key);
   if (timeout.count() > 0) context->set_deadline(std::chrono::system_clock::now() + timeout);
   return context;
 }
@@ -87,6 +113,7 @@ absl::StatusOr<std::shared_ptr<Core>> NewCore(std::string target, const ClientOp
   auto core = std::make_shared<Core>();
   core->target = target;
   core->options = options;
+  ACTOPO_ASSIGN_OR_RETURN(core->options.affinity_key, AffinityKey(options.affinity_key));
   core->channel = grpc::CreateCustomChannel(target, credentials, args);
   core->stub = v1::TopologyService::NewStub(core->channel);
   if (options.connect_timeout.count() > 0 &&

@@ -39,12 +39,12 @@ absl::Status FromGrpc(const grpc::Status& status);
 
 struct Core {
   std::string target;
-  ClientOptions options;
+  ClientOptions options;  // options.affinity_key is resolved (never empty)
   std::shared_ptr<grpc::Channel> channel;
   std::unique_ptr<v1::TopologyService::Stub> stub;
   std::atomic<int64_t> max_batch_size{0};  // from GetServerInfo, 0 until asked
 
-  // A context carrying the token, with a deadline `timeout` from now (none if zero).
+  // A context carrying the token and the affinity key, with a deadline `timeout` from now (none if zero).
   std::unique_ptr<grpc::ClientContext> Context(std::chrono::milliseconds timeout) const;
   std::unique_ptr<grpc::ClientContext> QuickContext() const {
     return Context(options.default_timeout);

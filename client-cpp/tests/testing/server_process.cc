@@ -54,21 +54,17 @@ bool WaitFor(pid_t pid, std::chrono::milliseconds timeout, int* status) {
 
 }  // namespace
 
-absl::StatusOr<std::unique_ptr<ServerProcess>> ServerProcess::Start(
-    const std::string& binary, const std::string& data_dir,
-    const std::vector<std::string>& extra) {
-  if (access(binary.c_str(), X_OK) != 0) {
-    return absl::NotFoundError(absl::StrCat("actopo-server not found at ", binary,
-                                            " (build the server or set ACTOPO_SERVER_BIN)"));
+absl::StatusOr<std::unique_ptr<ChildProcess>> ChildProcess::Start(
+    const std::vector<std::string>& args, int stdout_fd) {
+  if (args.empty() || access(args[0].c_str(), X_OK) != 0) {
+    return absl::NotFoundError(
+        absl::StrCat("no program to run at '", args.empty() ? "" : args[0], "'"));
   }
   // Everything the child needs is built before fork: between fork and exec only
   // async-signal-safe calls are allowed.
-  std::vector<std::string> args = {binary,   "--host",     "127.0.0.1", "--port",
-                                   "0",      "--data-dir", data_dir,    "--grace-s",
-                                   "2"};
-  args.insert(args.end(), extra.begin(), extra.end());
+  std::vector<std::string> copy = args;
   std::vector<char*> argv;
-  for (std::string& a : args) argv.push_back(a.data());
+  for (std::string& a : copy) argv.push_back(a.data());
   argv.push_back(nullptr);
   std::vector<char*> envp;
   for (char** e = environ; *e != nullptr; ++e) {
@@ -76,26 +72,57 @@ absl::StatusOr<std::unique_ptr<ServerProcess>> ServerProcess::Start(
   }
   envp.push_back(nullptr);
 
+  const pid_t parent = getpid();
+  const pid_t pid = fork();
+  if (pid < 0) return absl::InternalError(absl::StrCat("fork: ", std::strerror(errno)));
+  if (pid == 0) {
+    prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (getppid() != parent) _exit(126);  // the parent died before prctl
+    if (stdout_fd >= 0) dup2(stdout_fd, STDOUT_FILENO);  // dup2 clears O_CLOEXEC on the copy
+    execve(argv[0], argv.data(), envp.data());
+    _exit(127);
+  }
+  return std::unique_ptr<ChildProcess>(new ChildProcess(pid));
+}
+
+bool ChildProcess::running() {
+  int status = 0;
+  if (!reaped_ && waitpid(pid_, &status, WNOHANG) == pid_) reaped_ = true;
+  return !reaped_;
+}
+
+ChildProcess::~ChildProcess() {
+  if (reaped_) return;
+  int status = 0;
+  kill(pid_, SIGTERM);
+  if (!WaitFor(pid_, std::chrono::seconds(15), &status)) {
+    kill(pid_, SIGKILL);
+    waitpid(pid_, &status, 0);
+  }
+}
+
+absl::StatusOr<std::unique_ptr<ServerProcess>> ServerProcess::Start(
+    const std::string& binary, const std::string& data_dir,
+    const std::vector<std::string>& extra) {
+  if (access(binary.c_str(), X_OK) != 0) {
+    return absl::NotFoundError(absl::StrCat("actopo-server not found at ", binary,
+                                            " (build the server or set ACTOPO_SERVER_BIN)"));
+  }
+  std::vector<std::string> args = {binary,   "--host",     "127.0.0.1", "--port",
+                                   "0",      "--data-dir", data_dir,    "--grace-s",
+                                   "2"};
+  args.insert(args.end(), extra.begin(), extra.end());
   int fds[2];
   if (pipe2(fds, O_CLOEXEC) != 0) {
     return absl::InternalError(absl::StrCat("pipe: ", std::strerror(errno)));
   }
-  const pid_t parent = getpid();
-  const pid_t pid = fork();
-  if (pid < 0) {
-    close(fds[0]);
-    close(fds[1]);
-    return absl::InternalError(absl::StrCat("fork: ", std::strerror(errno)));
-  }
-  if (pid == 0) {
-    prctl(PR_SET_PDEATHSIG, SIGKILL);
-    if (getppid() != parent) _exit(126);  // the parent died before prctl
-    dup2(fds[1], STDOUT_FILENO);           // dup2 clears O_CLOEXEC on the copy
-    execve(binary.c_str(), argv.data(), envp.data());
-    _exit(127);
-  }
+  absl::StatusOr<std::unique_ptr<ChildProcess>> child = ChildProcess::Start(args, fds[1]);
   close(fds[1]);
-  std::unique_ptr<ServerProcess> server(new ServerProcess(pid, fds[0]));
+  if (!child.ok()) {
+    close(fds[0]);
+    return child.status();
+  }
+  std::unique_ptr<ServerProcess> server(new ServerProcess(*std::move(child), fds[0]));
   std::string line;
   if (!ReadLine(fds[0], std::chrono::seconds(60), line) ||
       line.rfind(std::string(kListening), 0) != 0) {
@@ -114,12 +141,7 @@ absl::StatusOr<std::unique_ptr<ServerProcess>> ServerProcess::Start(
 }
 
 ServerProcess::~ServerProcess() {
-  int status = 0;
-  kill(pid_, SIGTERM);
-  if (!WaitFor(pid_, std::chrono::seconds(15), &status)) {
-    kill(pid_, SIGKILL);
-    waitpid(pid_, &status, 0);
-  }
+  child_.reset();                        // stops the child
   if (drain_.joinable()) drain_.join();  // EOF once the child is gone
   close(out_);
 }

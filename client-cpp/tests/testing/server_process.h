@@ -1,5 +1,6 @@
-// An actopo-server child process for tests: started on a free loopback port, stopped (SIGTERM,
-// then SIGKILL) when the object goes. It also dies with the test process (PR_SET_PDEATHSIG).
+// Child processes for tests: any program (ChildProcess), and an actopo-server started on a free
+// loopback port (ServerProcess). Each is stopped (SIGTERM, then SIGKILL) when the object goes,
+// and dies with the test process (PR_SET_PDEATHSIG).
 #ifndef ACTOPO_CLIENT_TESTS_TESTING_SERVER_PROCESS_H_
 #define ACTOPO_CLIENT_TESTS_TESTING_SERVER_PROCESS_H_
 
@@ -13,6 +14,26 @@
 #include "absl/status/statusor.h"
 
 namespace actopo::testing {
+
+class ChildProcess {
+ public:
+  // Runs args[0] with the arguments after it, without $ACTOPO_TOKEN in its environment, its
+  // stdout into `stdout_fd` (-1: the test's own).
+  static absl::StatusOr<std::unique_ptr<ChildProcess>> Start(const std::vector<std::string>& args,
+                                                             int stdout_fd = -1);
+  ChildProcess(const ChildProcess&) = delete;
+  ChildProcess& operator=(const ChildProcess&) = delete;
+  ~ChildProcess();
+
+  pid_t pid() const { return pid_; }
+  // Whether it still runs (not exited, or exited and not yet reaped by this object).
+  bool running();
+
+ private:
+  explicit ChildProcess(pid_t pid) : pid_(pid) {}
+  pid_t pid_;
+  bool reaped_ = false;
+};
 
 class ServerProcess {
  public:
@@ -30,9 +51,10 @@ class ServerProcess {
   int port() const { return port_; }
 
  private:
-  ServerProcess(pid_t pid, int out) : pid_(pid), out_(out) {}
+  ServerProcess(std::unique_ptr<ChildProcess> child, int out)
+      : child_(std::move(child)), out_(out) {}
 
-  pid_t pid_;
+  std::unique_ptr<ChildProcess> child_;
   int out_;  // read end of the child's stdout
   std::string target_;
   int port_ = 0;
