@@ -98,9 +98,66 @@ def test_default_threads_use_every_core(structure):
     (["--sample", "jittered:5", "--scalar", "pressure"], "scalar field 'pressure' not found"),
     (["--sample", "jittered:5", "--block-size", "0"], "--block-size: 0 must be at least 1"),
     (["--sample", "jittered:5", "--colour", "red"], "unknown flag --colour"),
+    (["--sample", "jittered:5", "--trace", "/does/not/exist/run.json"],
+     "--trace: cannot write '/does/not/exist/run.json': No such file or directory"),
     ([], "give exactly one of --mesh PATH or --sample NAME"),
 ])
 def test_errors_name_the_flag_and_value(args, message):
     proc = bench(*args, check=False)
     assert proc.returncode != 0
     assert message in proc.stderr
+
+
+def trace_events(path):
+    """The trace's events and its thread names by tid (metadata events set them)."""
+    trace = json.loads(Path(path).read_text())
+    threads = {e["tid"]: e["args"]["name"] for e in trace["traceEvents"]
+               if e["ph"] == "M" and e["name"] == "thread_name"}
+    return [e for e in trace["traceEvents"] if e["ph"] != "M"], threads, trace["otherData"]
+
+
+@pytest.mark.parametrize("structure", ["actopo", "compact", "explicit"])
+def test_trace_shows_phases_threads_computations_and_waits(tmp_path, structure):
+    path = tmp_path / "run.json"
+    report = run_json("--sample", "jittered:14", "--block-size", "60", "--algorithm",
+                      "critical-points", "--structure", structure, "--consumers", "2",
+                      "--producers", "2", "--buffer-ratio", "0.1", "--trace", str(path))
+    events, threads, other = trace_events(path)
+    assert report["trace"] == {"file": str(path), "events": len(events), "dropped": 0}
+    assert other["events"] == len(events)
+
+    main = [tid for tid, name in threads.items() if name == "main"]
+    phases = [e["name"] for e in events if e["cat"] == "phase"]
+    assert phases == ["load", "partition", "vertex order", *(
+        ["preprocess"] if structure != "compact" else []), "critical-points", "results"]
+    assert {e["tid"] for e in events if e["cat"] == "phase"} == set(main)
+    # Phases follow each other on the main thread.
+    spans = [e for e in events if e["cat"] == "phase"]
+    for before, after in zip(spans, spans[1:]):
+        assert before["ts"] + before["dur"] <= after["ts"] + 1e-3
+    assert {"consumer 0", "consumer 1"} <= set(threads.values())
+    work = [e for e in events if e["name"] == "work"]
+    assert {threads[e["tid"]] for e in work} == {"consumer 0", "consumer 1"}
+
+    engine = report["engine"]
+    waits = [e for e in events if e["name"] == "wait"]
+    computed = [e for e in events if e["cat"] in ("leader", "worker", "consumer")
+                and e["name"] not in ("wait", "work")]
+    for e in computed:
+        assert len(e["name"]) == 2 and e["args"]["block"] >= 0  # a relation's code, a block
+    if structure == "actopo":
+        assert len(waits) == engine["misses"] > 0
+        for e in computed:  # each on its own row: consumer N, leader N or worker N.M
+            assert threads[e["tid"]].split()[0] == e["cat"]
+        assert {e["cat"] for e in computed} >= {"leader", "worker"}
+        # Producers may finish a prefetch after the run; the trace stops at its end.
+        assert 0 < len(computed) <= engine["blocks_computed"]
+        for e in waits:
+            assert len(e["args"]["relation"]) == 2 and e["args"]["block"] >= 0
+    elif structure == "compact":
+        assert not waits
+        assert len(computed) == engine["blocks_computed"] > 0
+        assert sum(e["args"]["count"] for e in events if e["name"] == "evict") == \
+            engine["evictions"]
+    else:
+        assert not waits and not computed  # every relation was built before the run

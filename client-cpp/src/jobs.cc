@@ -84,6 +84,19 @@ absl::Status Consume(const v1::RunJobResponse& response, const JobOptions& optio
     case v1::RunJobResponse::kStats:
       result.stats = internal::FromProto(response.stats());
       break;
+    case v1::RunJobResponse::kTrace: {
+      const v1::TraceChunk& piece = response.trace();
+      if (result.trace.empty() && piece.total_bytes() > 0) {
+        result.trace.resize(size_t(piece.total_bytes()));
+      }
+      const int64_t end = piece.offset() + int64_t(piece.data().size());
+      if (piece.offset() < 0 || end > int64_t(result.trace.size())) {
+        return absl::DataLossError(absl::StrCat("trace: bytes [", piece.offset(), ", ", end,
+                                                ") outside its ", result.trace.size()));
+      }
+      result.trace.replace(size_t(piece.offset()), piece.data().size(), piece.data());
+      break;
+    }
     case v1::RunJobResponse::EVENT_NOT_SET:
       break;  // an event of a newer server
   }
@@ -104,6 +117,7 @@ absl::StatusOr<JobResult> Client::RunJob(std::string_view session_id, std::strin
   request.set_algorithm(a);
   request.mutable_parameters()->insert(parameters.begin(), parameters.end());
   request.set_include_arrays(options.include_arrays);
+  request.set_trace(options.trace);
 
   JobResult result;
   result.algorithm = internal::AlgorithmName(a);

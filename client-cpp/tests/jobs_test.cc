@@ -1,6 +1,7 @@
 // Jobs: results equal actopo-bench's, arrays, progress, parameters, cancellation and deadlines.
 #include <unistd.h>
 
+#include <algorithm>
 #include <future>
 #include <stdexcept>
 #include <thread>
@@ -112,6 +113,39 @@ TEST_F(ServerTest, SummaryOnlyAndParameters) {
                        StatusCode::kInvalidArgument, "unknown parameter 'speed'"));
   EXPECT_TRUE(HasError(client().RunJob("session-guess", "critical-points"),
                        StatusCode::kNotFound, "session-guess"));
+}
+
+// JobOptions::trace: the trace-event JSON of the job, whose waits are the job's misses.
+TEST_F(ServerTest, TraceOfAJob) {
+  const std::string session = Open(
+      LoadSample("jittered:16"), {.consumers = 2, .producers = 2, .buffer_ratio = 0.05});
+  absl::StatusOr<JobResult> traced =
+      client().RunJob(session, "critical-points", {}, {.include_arrays = false, .trace = true});
+  ASSERT_OK(traced);
+  const nlohmann::json trace = nlohmann::json::parse(traced->trace);
+  std::vector<std::string> phases, threads;
+  int64_t waits = 0, events = 0;
+  for (const nlohmann::json& e : trace["traceEvents"]) {
+    if (e["ph"] == "M") {
+      if (e["name"] == "thread_name") threads.push_back(e["args"]["name"]);
+      continue;
+    }
+    ++events;
+    if (e["cat"] == "phase") phases.push_back(e["name"]);
+    if (e["name"] == "wait") ++waits;
+  }
+  EXPECT_EQ(phases, (std::vector<std::string>{"start engine", "critical-points", "results"}));
+  EXPECT_EQ(waits, traced->stats.engine.misses);
+  EXPECT_GT(waits, 0);
+  EXPECT_EQ(trace["otherData"]["events"].get<int64_t>(), events);
+  for (const char* name : {"job", "consumer 0", "consumer 1", "leader 0", "leader 1"}) {
+    EXPECT_NE(std::find(threads.begin(), threads.end(), name), threads.end()) << name;
+  }
+
+  absl::StatusOr<JobResult> plain = client().RunJob(session, "critical-points", {},
+                                                    {.include_arrays = false});
+  ASSERT_OK(plain);
+  EXPECT_TRUE(plain->trace.empty());
 }
 
 TEST_F(ServerTest, JobCallbackMayThrow) {

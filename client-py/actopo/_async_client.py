@@ -341,9 +341,10 @@ class AsyncSession:
             call.cancel()
 
     async def submit(self, algorithm: str, *, parameters: Mapping[str, Any] | None = None,
-                     include_arrays: bool = True, timeout: float | None = None) -> AsyncJob:
+                     include_arrays: bool = True, trace: bool = False,
+                     timeout: float | None = None) -> AsyncJob:
         """See Session.submit()."""
-        request, name = _requests.run(self._id(), algorithm, parameters, include_arrays)
+        request, name = _requests.run(self._id(), algorithm, parameters, include_arrays, trace)
         call = self._client._stub.RunJob(request, timeout=timeout,
                                          metadata=self._client._metadata)
         job = AsyncJob(self._client, call, name)
@@ -352,10 +353,10 @@ class AsyncSession:
 
     async def run(self, algorithm: str, *, parameters: Mapping[str, Any] | None = None,
                   progress: ProgressArg = False, include_arrays: bool = True,
-                  timeout: float | None = None) -> JobResult:
+                  trace: bool = False, timeout: float | None = None) -> JobResult:
         """See Session.run(). Cancelling the awaiting task cancels the job."""
         job = await self.submit(algorithm, parameters=parameters, include_arrays=include_arrays,
-                                timeout=timeout)
+                                trace=trace, timeout=timeout)
         return await job.result(progress=progress)
 
     async def stats(self) -> SessionStats:

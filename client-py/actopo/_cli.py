@@ -275,10 +275,13 @@ def cmd_run(client: Client, args: argparse.Namespace) -> None:
     parameters = _parameters(args)
     with _mesh(client, args) as mesh, _open(client, mesh.info, args) as session:
         result = session.run(args.algorithm, parameters=parameters,
-                             include_arrays=bool(args.output), progress=_progress(args))
+                             include_arrays=bool(args.output), trace=bool(args.trace),
+                             progress=_progress(args))
         stats = session.stats()
         report = _report(mesh.info, session, result, stats, parameters,
                          time.perf_counter() - start)
+        if args.trace:
+            report["trace"] = result.save_trace(args.trace)
         if args.output:
             geometry = _geometry(args, mesh)
             report["files"] = result.write(args.output, geometry)
@@ -296,6 +299,8 @@ def cmd_run(client: Client, args: argparse.Namespace) -> None:
     print("result: " + json.dumps(result.summary, indent=1))
     for path in report.get("files", []):
         print(f"wrote {path}")
+    if "trace" in report:
+        print(f"wrote {report['trace']} (open it in ui.perfetto.dev or chrome://tracing)")
 
 
 def _simplex(text: str) -> Any:
@@ -562,6 +567,9 @@ def parser() -> argparse.ArgumentParser:
                    help="an algorithm parameter (repeatable)")
     c.add_argument("--output", metavar="PREFIX",
                    help="write PREFIX_critical_points.vtp, ... for ParaView")
+    c.add_argument("--trace", metavar="FILE",
+                   help="write a Chrome trace of the job's threads (block relations computed, "
+                   "consumer waits, evictions, phases) for ui.perfetto.dev or chrome://tracing")
     c.add_argument("--geometry", metavar="FILE",
                    help="the mesh as a local file, for PREFIX_segmentation.vtu with --mesh "
                    "(default: NAME under the current directory or $ACTOPO_DATA_DIR, if there)")

@@ -409,15 +409,16 @@ class Session:
             call.cancel()
 
     def submit(self, algorithm: str, *, parameters: Mapping[str, Any] | None = None,
-               include_arrays: bool = True, timeout: float | None = None) -> Job:
+               include_arrays: bool = True, trace: bool = False,
+               timeout: float | None = None) -> Job:
         """Starts a job and returns once the server accepted it; see run()."""
-        request, name = _requests.run(self._id(), algorithm, parameters, include_arrays)
+        request, name = _requests.run(self._id(), algorithm, parameters, include_arrays, trace)
         call = self._client._stub.RunJob(request, timeout=timeout,
                                          metadata=self._client._metadata)
         return Job(self._client, call, name)
 
     def run(self, algorithm: str, *, parameters: Mapping[str, Any] | None = None,
-            progress: ProgressArg = False, include_arrays: bool = True,
+            progress: ProgressArg = False, include_arrays: bool = True, trace: bool = False,
             timeout: float | None = None) -> JobResult:
         """Runs an algorithm and returns its result.
 
@@ -425,6 +426,8 @@ class Session:
         ("morse_smale" works too). `parameters`: e.g. ``{"boundary_rule": "none"}``.
         `progress`: True for a progress bar on stderr, or a callable(fraction).
         `include_arrays`: False to receive only the summary and statistics.
+        `trace`: True to record where the job's threads spent their time, as a Chrome trace
+        (``result.trace``; ``result.save_trace("job.json")`` and open it in ui.perfetto.dev).
         Ctrl-C cancels the job on the server and raises KeyboardInterrupt.
 
         >>> result = session.run("critical-points")
@@ -434,7 +437,7 @@ class Session:
         (array([0, 3], dtype=int8), array([0, 4], dtype=int32))
         """
         return self.submit(algorithm, parameters=parameters, include_arrays=include_arrays,
-                           timeout=timeout).result(progress=progress)
+                           trace=trace, timeout=timeout).result(progress=progress)
 
     def stats(self) -> SessionStats:
         """Cumulative statistics of the session (diff two snapshots for an interval)."""

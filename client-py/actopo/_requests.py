@@ -184,9 +184,9 @@ def stream(session: str, name: str,
 
 
 def run(session: str, algorithm: str, parameters: Mapping[str, Any] | None,
-        include_arrays: bool) -> tuple[pb.RunJobRequest, str]:
+        include_arrays: bool, trace: bool = False) -> tuple[pb.RunJobRequest, str]:
     code = _names.lookup(_names.ALGORITHMS, algorithm, "algorithm")
     request = pb.RunJobRequest(session_id=session, algorithm=code,
                                parameters={str(k): str(v) for k, v in (parameters or {}).items()},
-                               include_arrays=include_arrays)
+                               include_arrays=include_arrays, trace=trace)
     return request, _names.name_of(_names.ALGORITHMS, code)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -24,6 +26,7 @@ class JobResult:
         summary: the same object as actopo-bench's JSON ``result`` (counts and digests).
         arrays: result arrays by "<group>/<TTK name>", e.g. "critical_points/CriticalType".
         stats: timings, engine statistics and memory of the job.
+        trace: the job's Chrome trace-event JSON when run with ``trace=True``, else None.
 
     Groups (see the proto's ResultChunk): ``critical_points`` (critical-points, morse-smale),
     ``critical_cells`` (discrete-gradient), ``separatrices`` and ``segmentation``
@@ -38,6 +41,7 @@ class JobResult:
     summary: dict[str, Any]
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
     stats: JobStats | None = None
+    trace: bytes | None = None
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.arrays[name]
@@ -67,6 +71,14 @@ class JobResult:
     @property
     def segmentation(self) -> dict[str, np.ndarray]:
         return self.group("segmentation")
+
+    def save_trace(self, path: str | os.PathLike[str]) -> str:
+        """Writes the job's trace (run with ``trace=True``) to `path`, for ui.perfetto.dev or
+        chrome://tracing, and returns the path."""
+        if self.trace is None:
+            raise ValueError(f"job {self.job_id} was run without trace=True: it has no trace")
+        Path(path).write_bytes(self.trace)
+        return str(path)
 
     def to_pyvista(self, mesh: Any = None) -> dict[str, Any]:
         """The result as pyvista datasets, by group (needs the ``pyvista`` extra).
@@ -100,6 +112,7 @@ class Assembler:
         self.summary: dict[str, Any] | None = None
         self.stats: JobStats | None = None
         self._buffers: dict[str, tuple[bytearray, np.dtype[Any], tuple[int, ...]]] = {}
+        self._trace: bytearray | None = None
 
     def feed(self, response: pb.RunJobResponse) -> float | None:
         """Takes one response; returns the progress fraction when it is a progress message."""
@@ -114,7 +127,18 @@ class Assembler:
             self.summary = _convert.struct_to_dict(response.summary.result)
         elif event == "stats":
             self.stats = _convert.job_stats(response.stats)
+        elif event == "trace":
+            self._trace_piece(response.trace)
         return None
+
+    def _trace_piece(self, piece: pb.TraceChunk) -> None:
+        if self._trace is None:
+            self._trace = bytearray(piece.total_bytes or len(piece.data))
+        end = piece.offset + len(piece.data)
+        if piece.offset < 0 or end > len(self._trace):
+            raise ActopoError(f"trace: piece [{piece.offset}, {end}) outside its "
+                              f"{len(self._trace)} bytes")
+        self._trace[piece.offset:end] = piece.data
 
     def _chunk(self, chunk: pb.ResultChunk) -> None:
         a = chunk.array
@@ -136,4 +160,5 @@ class Assembler:
             values = np.frombuffer(buffer, dtype=dtype)
             arrays[name] = values.reshape(shape) if len(shape) > 1 else values
         return JobResult(algorithm=self.algorithm, job_id=self.job_id, summary=self.summary,
-                         arrays=arrays, stats=self.stats)
+                         arrays=arrays, stats=self.stats,
+                         trace=None if self._trace is None else bytes(self._trace))

@@ -143,6 +143,19 @@ def test_upload_and_run_uploaded_file(cli, data_dir, bench):
     assert cli("delete", mesh["mesh_id"])[0] == 0
 
 
+def test_run_writes_a_trace(cli, tmp_path):
+    path = tmp_path / "job.json"
+    report = _json(cli, "run", "--sample", "jittered:10", "--algorithm", "critical-points",
+                   "--structure", "actopo", "--trace", str(path))
+    assert report["trace"] == str(path)
+    events = json.loads(path.read_text())["traceEvents"]
+    assert [e["name"] for e in events if e.get("cat") == "phase"] == [
+        "start engine", "critical-points", "results"]
+    status, out, _ = cli("run", "--sample", "jittered:10", "--algorithm", "critical-points",
+                         "--trace", str(tmp_path / "again.json"))
+    assert status == 0 and f"wrote {tmp_path / 'again.json'} (open it in" in out
+
+
 def test_run_writes_files_for_paraview(cli, data_dir, tmp_path, monkeypatch):
     pytest.importorskip("pyvista")
     prefix = str(tmp_path / "mc0")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import sys
@@ -183,3 +184,30 @@ def test_files_with_meshio_only(fertility_session, data_dir, tmp_path, monkeypat
     monkeypatch.setitem(sys.modules, "meshio", None)
     with pytest.raises(ImportError, match=r"actopo\[pyvista\]"):
         ms.write(str(tmp_path / "none"))
+
+
+def test_trace_of_a_job(client, fertility, tmp_path):
+    """trace=True: the job's threads, phases, computations and waits, in a file Perfetto
+    opens; the waits are the job's misses. Without it there is none."""
+    with client.open_session(fertility, scalar="eigenfunction4", structure="actopo",
+                             consumers=2, producers=2, buffer_ratio=0.05) as session:
+        result = session.run("morse-smale", trace=True, include_arrays=False)
+        path = result.save_trace(tmp_path / "job.json")
+        trace = json.loads(open(path).read())
+        threads = {e["tid"]: e["args"]["name"] for e in trace["traceEvents"]
+                   if e["ph"] == "M" and e["name"] == "thread_name"}
+        events = [e for e in trace["traceEvents"] if e["ph"] != "M"]
+        assert trace["otherData"]["events"] == len(events)
+        phases = [e["name"] for e in events if e["cat"] == "phase"]
+        assert phases == ["start engine", "morse-smale", "results"]
+        assert {threads[e["tid"]] for e in events if e["cat"] == "phase"} == {"job"}
+        assert {"consumer 0", "consumer 1", "leader 0", "leader 1"} <= set(threads.values())
+        waits = [e for e in events if e["name"] == "wait"]
+        assert len(waits) == result.stats.engine.misses > 0
+        computed = [e for e in events if e["cat"] in ("leader", "worker")]
+        assert computed and all(len(e["name"]) == 2 for e in computed)
+
+        plain = session.run("critical-points", include_arrays=False)
+        assert plain.trace is None
+        with pytest.raises(ValueError, match="without trace=True"):
+            plain.save_trace(tmp_path / "none.json")

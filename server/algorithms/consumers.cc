@@ -1,5 +1,7 @@
 #include "server/algorithms/consumers.h"
 
+#include "absl/strings/str_cat.h"
+
 #include <algorithm>
 #include <thread>
 
@@ -49,11 +51,20 @@ namespace {
 // Runs fn(c) for c in [0, n) on n threads, or inline when n is 1; then the run's status.
 absl::Status RunThreads(int n, const WorkTracker& tracker, const RunContext& context,
                         const std::function<void(int)>& fn) {
+  const auto traced = [&](int c) {
+    Trace::Scope span(context.trace.get(), "work", "consumer");
+    fn(c);
+  };
   if (n == 1) {
-    fn(0);
+    traced(0);
   } else {
     std::vector<std::thread> threads;
-    for (int c = 0; c < n; ++c) threads.emplace_back([&, c] { fn(c); });
+    for (int c = 0; c < n; ++c) {
+      threads.emplace_back([&, c] {
+        SetThreadRole(absl::StrCat("consumer ", c));
+        traced(c);
+      });
+    }
     for (std::thread& t : threads) t.join();
   }
   if (tracker.cancelled()) return absl::CancelledError("the run was cancelled");

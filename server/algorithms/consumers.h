@@ -17,11 +17,13 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <vector>
 
 #include "absl/status/status.h"
 #include "server/core/topology.h"
+#include "server/core/trace.h"
 
 namespace actopo {
 
@@ -32,6 +34,9 @@ struct RunContext {
   std::function<void(double)> progress;
   // Set to stop the run; the algorithm returns CancelledError soon after (checked per block).
   const std::atomic<bool>* cancel = nullptr;
+  // Where to record the run (trace.h): a span per consumer per parallel step ("work"), the
+  // run itself ("run", category phase) and the structure's own events. Null: not recorded.
+  std::shared_ptr<Trace> trace;
 };
 
 struct BlockRange {

@@ -3,8 +3,12 @@
 //
 //   actopo-bench --mesh ../shared/data/fertility_tet.vtu --algorithm topo-relations
 //       --structure compact --json
+//   actopo-bench --mesh F.vtu --algorithm morse-smale --structure actopo --trace run.json
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
+#include <fstream>
 #include <iostream>
 #include <optional>
 
@@ -22,6 +26,7 @@
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
 #include "server/core/topology.h"
+#include "server/core/trace.h"
 #include "server/io/samples.h"
 #include "server/io/vtk_reader.h"
 #include "server/results/result_files.h"
@@ -49,6 +54,7 @@ struct BenchOptions {
   std::string block_labels;
   std::string boundary_rule = "ttk";
   std::string output;
+  std::string trace;  // Chrome trace-event JSON file
   int threads = 0;
   bool json = false;
 };
@@ -58,6 +64,11 @@ const Clock::time_point kProcessStart = Clock::now();
 
 double Seconds(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();
+}
+
+// A phase [start, now) on the main thread's row of the trace.
+void Phase(const std::shared_ptr<Trace>& trace, const char* name, Clock::time_point start) {
+  if (trace) trace->Span(name, "phase", start, Clock::now());
 }
 
 absl::Status Validate(const BenchOptions& o) {
@@ -140,6 +151,7 @@ absl::StatusOr<RunOutput> RunAndSummarize(Structure& structure, const AlgorithmI
     ASSIGN_OR_RETURN(out.files, WriteResultFiles(o.output, *files, outcome.result));
   }
   out.results_s = Seconds(start);
+  Phase(context.trace, "results", start);
   return out;
 }
 
@@ -166,6 +178,18 @@ absl::StatusOr<Json> Run(BenchOptions o) {
   if (o.consumers == 0) o.consumers = plan.consumers;
   if (o.producers == 0) o.producers = std::max(plan.producers, 1);
   ASSIGN_OR_RETURN(const Algorithm algorithm, ParseAlgorithm(o.algorithm));
+  // The trace file is opened first: a path that cannot be written fails before the work.
+  std::shared_ptr<Trace> trace;
+  std::ofstream trace_file;
+  if (!o.trace.empty()) {
+    trace_file.open(o.trace);
+    if (!trace_file) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--trace: cannot write '", o.trace, "': ", std::strerror(errno)));
+    }
+    trace = std::make_shared<Trace>();
+    SetThreadRole("main");
+  }
 
   auto start = Clock::now();
   ASSIGN_OR_RETURN(Mesh mesh, o.mesh.empty() ? io::MakeSample(o.sample) : io::ReadMesh(o.mesh));
@@ -178,6 +202,7 @@ absl::StatusOr<Json> Run(BenchOptions o) {
     scalars = mesh.point_fields[field].values;
   }
   const double load_s = Seconds(start);
+  Phase(trace, "load", start);
 
   start = Clock::now();
   ASSIGN_OR_RETURN(std::vector<int32_t> blocks,
@@ -186,6 +211,7 @@ absl::StatusOr<Json> Run(BenchOptions o) {
   ASSIGN_OR_RETURN(std::shared_ptr<const Topology> topology,
                    Topology::Build(mesh, blocks, {.threads = o.threads}));
   const double partition_s = Seconds(start);
+  Phase(trace, "partition", start);
   std::vector<SimplexId> input_tetrahedra;
   if (algorithm == Algorithm::kMorseSmale) input_tetrahedra = mesh.tetrahedra;
   // Without --output the points and other fields are not needed: free them so peak RSS
@@ -207,14 +233,16 @@ absl::StatusOr<Json> Run(BenchOptions o) {
   if (!scalars.empty()) input.order = VertexOrder(*topology, scalars);
   input.input_tetrahedra = std::move(input_tetrahedra);
   const double order_s = Seconds(start);
+  Phase(trace, "vertex order", start);
   const RelationSet declared = DeclaredRelations(algorithm);
-  RunContext context{.consumers = o.consumers};
+  RunContext context{.consumers = o.consumers, .trace = trace};
   RunOutput out;
   if (o.structure == "explicit") {
     start = Clock::now();
     ASSIGN_OR_RETURN(auto structure,
                      ExplicitStructure::Build(topology, {.relations = declared, .threads = o.threads}));
     const double preprocess_s = Seconds(start);
+    Phase(trace, "preprocess", start);
     ASSIGN_OR_RETURN(out, RunAndSummarize(*structure, input, context, o, files ? &*files : nullptr));
     out.preprocess_s = preprocess_s;
     out.memory = structure->memory();
@@ -223,6 +251,7 @@ absl::StatusOr<Json> Run(BenchOptions o) {
     start = Clock::now();
     ASSIGN_OR_RETURN(auto structure, ActopoStructure::Create(topology, engine));
     const double preprocess_s = Seconds(start);
+    Phase(trace, "preprocess", start);
     ASSIGN_OR_RETURN(out, RunAndSummarize(*structure, input, context, o, files ? &*files : nullptr));
     out.preprocess_s = preprocess_s;
     const EngineStats stats = structure->stats();
@@ -306,6 +335,14 @@ absl::StatusOr<Json> Run(BenchOptions o) {
                   o.structure == "explicit" ? 0 : out.memory.relation_peak_bytes}};
   j["result"] = out.result;
   if (!out.files.empty()) j["files"] = out.files;
+  if (trace) {
+    trace->WriteJson(trace_file);
+    trace_file.close();
+    if (!trace_file) {
+      return absl::InternalError(absl::StrCat("--trace: writing '", o.trace, "' failed"));
+    }
+    j["trace"] = {{"file", o.trace}, {"events", trace->events()}, {"dropped", trace->dropped()}};
+  }
   return j;
 }
 
@@ -335,6 +372,11 @@ void PrintHuman(const Json& j) {
   std::printf("result     %s\n", j["result"].dump().c_str());
   if (j.contains("files")) {
     for (const auto& f : j["files"]) std::printf("wrote      %s\n", f.get<std::string>().c_str());
+  }
+  if (j.contains("trace")) {
+    std::printf("trace      %s (%lld events, %lld dropped)\n",
+                j["trace"]["file"].get<std::string>().c_str(),
+                j["trace"]["events"].get<long long>(), j["trace"]["dropped"].get<long long>());
   }
 }
 
@@ -374,6 +416,10 @@ int main(int argc, char** argv) {
   flags.Add("threads", &o.threads, "preprocessing threads (0: all cores)");
   flags.Add("output", &o.output,
             "write the result for ParaView as PREFIX_*.vtp / PREFIX_segmentation.vtu");
+  flags.Add("trace", &o.trace,
+            "write a Chrome trace-event JSON of the run to this file (open it in Perfetto or "
+            "chrome://tracing): phases, and per thread every block relation computed, every "
+            "consumer wait and every eviction");
   flags.Add("json", &o.json, "print one JSON object");
   if (absl::Status s = flags.Parse(argc, argv); !s.ok()) {
     std::cerr << "actopo-bench: " << s.message() << "\n";

@@ -138,9 +138,10 @@ EngineStats& EngineStats::operator+=(const EngineStats& o) {
 // A consumer's buffer, its producers and its side of the hand-off.
 class ActopoStructure::Consumer {
  public:
-  Consumer(const Topology& topology, const Options& options, int capacity)
+  Consumer(const Topology& topology, const Options& options, int capacity, int index)
       : topo_(topology),
         options_(options),
+        index_(index),
         capacity_(capacity),
         window_(std::max(1, capacity / 2)),
         cells_(size_t(topology.num_blocks()) * kNumRelations),
@@ -157,8 +158,16 @@ class ActopoStructure::Consumer {
   }
 
   void Start() {
-    producers_.emplace_back([this] { LeaderLoop(); });
-    for (int w = 1; w < options_.producers; ++w) producers_.emplace_back([this] { WorkerLoop(); });
+    producers_.emplace_back([this] {
+      SetThreadRole(absl::StrCat("leader ", index_));
+      LeaderLoop();
+    });
+    for (int w = 1; w < options_.producers; ++w) {
+      producers_.emplace_back([this, w] {
+        SetThreadRole(absl::StrCat("worker ", index_, ".", w));
+        WorkerLoop();
+      });
+    }
   }
 
   void Stop() {
@@ -182,6 +191,11 @@ class ActopoStructure::Consumer {
 
   Cell& cell(int32_t block, Relation r) { return cells_[size_t(block) * kNumRelations + Index(r)]; }
 
+  void SetTrace(std::shared_ptr<Trace> trace) {
+    std::lock_guard<std::mutex> lock(mu_);
+    trace_ = std::move(trace);
+  }
+
   // Consumer side: a pinned, ready cell for (block, r), or nullptr when the engine is stopping.
   Cell* Acquire(int32_t block, Relation r, int32_t previous_block) {
     requests_.Add(1);
@@ -195,6 +209,15 @@ class ActopoStructure::Consumer {
     misses_.Add(1);
     const auto start = Clock::now();
     std::unique_lock<std::mutex> lock(mu_);
+    // The wait, as a span "wait" on the consumer's thread, whoever ends it.
+    struct WaitSpan {
+      std::shared_ptr<Trace> trace;
+      Clock::time_point start;
+      Trace::Args args;
+      ~WaitSpan() {
+        if (trace) trace->Span("wait", "consumer", start, Clock::now(), args);
+      }
+    } span{trace_, start, {.block = block, .relation = RelationCode(r).data()}};
     if (TryPin(c)) {  // became ready meanwhile
       wait_ns_.Add(NanosSince(start));
       return &c;
@@ -208,8 +231,13 @@ class ActopoStructure::Consumer {
       ++hint_seq_;
       leader_cv_.notify_one();
       lock.unlock();
+      const auto compute_start = Clock::now();
       auto data = std::make_unique<RelationBlock>(
           ComputeBlockRelation(topo_, r, block, Scratch()));
+      if (span.trace) {
+        span.trace->Span(RelationCode(r).data(), "consumer", compute_start, Clock::now(),
+                         span.args);
+      }
       consumer_relations_.Add(1);
       lock.lock();
       Publish({block, r}, data.release());
@@ -353,11 +381,17 @@ class ActopoStructure::Consumer {
   void Compute(std::unique_lock<std::mutex>& lock, const Task& task, bool leader) {
     Cell& c = cell(task.block, task.relation);
     c.state.store(kComputing);
+    const std::shared_ptr<Trace> trace = trace_;
     lock.unlock();
     const auto start = Clock::now();
     auto data = std::make_unique<RelationBlock>(
         ComputeBlockRelation(topo_, task.relation, task.block, Scratch()));
-    busy_ns_.Add(NanosSince(start));
+    const auto end = Clock::now();
+    busy_ns_.Add(std::chrono::duration_cast<std::chrono::nanoseconds>(end - start).count());
+    if (trace) {
+      trace->Span(RelationCode(task.relation).data(), leader ? "leader" : "worker", start, end,
+                  {.block = task.block});
+    }
     (leader ? leader_relations_ : worker_relations_).Add(1);
     lock.lock();
     Publish(task, data.release());
@@ -401,6 +435,7 @@ class ActopoStructure::Consumer {
   // mu_ held: drop the oldest half of the buffer (by insertion), sparing `keep`, blocks with a
   // relation being computed and relations a consumer has pinned.
   void Evict(int32_t keep) {
+    const int64_t before = evictions_.Get();
     size_t to_evict = std::max<size_t>(1, resident_.size() / 2);
     std::vector<int32_t> still;
     still.reserve(resident_.size());
@@ -414,6 +449,7 @@ class ActopoStructure::Consumer {
       evictions_.Add(1);
     }
     resident_ = std::move(still);
+    if (trace_) trace_->Instant("evict", "buffer", {.count = evictions_.Get() - before});
   }
 
   bool TryEvictBlock(int32_t b) {
@@ -501,6 +537,7 @@ class ActopoStructure::Consumer {
 
   const Topology& topo_;
   const Options& options_;
+  const int index_;  // of this consumer, for thread names in traces
   const int capacity_;
   const int window_;  // blocks prefetched per re-target
   std::vector<Relation> declared_;
@@ -522,6 +559,7 @@ class ActopoStructure::Consumer {
   std::vector<Task> tasks_;
   size_t next_task_ = 0;
   bool prefetching_ = true;  // false: re-targets drop the tasks (see SetPrefetching)
+  std::shared_ptr<Trace> trace_;  // null: not recording
   std::vector<int32_t> resident_;         // blocks in the buffer, oldest first
   std::vector<int64_t> block_inserted_;   // -1 when not resident
 
@@ -556,7 +594,8 @@ absl::StatusOr<std::unique_ptr<ActopoStructure>> ActopoStructure::Create(
                                              options.consumers)) +
                  1;
   for (int c = 0; c < options.consumers; ++c) {
-    s->consumers_.push_back(std::make_unique<Consumer>(*s->topology_, s->options_, s->capacity_));
+    s->consumers_.push_back(
+        std::make_unique<Consumer>(*s->topology_, s->options_, s->capacity_, c));
   }
   // Configuration is complete: only now do threads start.
   for (auto& c : s->consumers_) c->Start();
@@ -571,6 +610,10 @@ void ActopoStructure::Shutdown() {
 
 void ActopoStructure::SetPrefetching(bool on) {
   for (auto& c : consumers_) c->SetPrefetching(on);
+}
+
+void ActopoStructure::SetTrace(std::shared_ptr<Trace> trace) {
+  for (auto& c : consumers_) c->SetTrace(trace);
 }
 
 ActopoStructure::Reader ActopoStructure::NewReader() {

@@ -48,6 +48,7 @@
 #include "server/core/stats.h"
 #include "server/core/structure.h"
 #include "server/core/topology.h"
+#include "server/core/trace.h"
 
 namespace actopo {
 
@@ -119,6 +120,13 @@ class ActopoStructure {
   // follow (Morse-Smale's walls): prefetching there computes blocks nobody reads, on the
   // consumers' cores, and evicts the ones they come back to. Safe to call while running.
   void SetPrefetching(bool on);
+
+  // Records into `trace` from now on (null: stop): per thread, spans for every (block,
+  // relation) computed (named by the relation's code, category leader, worker or consumer),
+  // every consumer wait on a miss ("wait", category consumer), and an instant per eviction
+  // ("evict", category buffer, with the blocks evicted). Safe to call while running; threads
+  // computing at that moment may still add one event each.
+  void SetTrace(std::shared_ptr<Trace> trace);
 
   ActopoStructure(const ActopoStructure&) = delete;
   ActopoStructure& operator=(const ActopoStructure&) = delete;

@@ -17,6 +17,11 @@ CompactStructure::CompactStructure(std::shared_ptr<const Topology> topology,
               1;
 }
 
+void CompactStructure::SetTrace(std::shared_ptr<Trace> trace) {
+  std::lock_guard<std::mutex> lock(mu_);
+  trace_ = std::move(trace);
+}
+
 AccessStats CompactStructure::stats() const {
   std::lock_guard<std::mutex> lock(mu_);
   return finished_;
@@ -36,6 +41,8 @@ CompactStructure::Reader::Reader(CompactStructure* owner)
       capacity_(owner->capacity_),
       entry_of_block_(owner->topology_->num_blocks(), -1) {
   entries_.reserve(capacity_ + kNumRelations);
+  std::lock_guard<std::mutex> lock(owner->mu_);
+  trace_ = owner->trace_;
 }
 
 CompactStructure::Reader::Reader(Reader&& other) noexcept
@@ -48,7 +55,8 @@ CompactStructure::Reader::Reader(Reader&& other) noexcept
       next_insert_(other.next_insert_),
       bytes_(std::exchange(other.bytes_, 0)),
       scratch_(std::move(other.scratch_)),
-      stats_(std::exchange(other.stats_, {})) {}
+      stats_(std::exchange(other.stats_, {})),
+      trace_(std::move(other.trace_)) {}
 
 CompactStructure::Reader::~Reader() {
   if (owner_ == nullptr) return;
@@ -88,6 +96,7 @@ int CompactStructure::Reader::FindOrInsert(int32_t block) {
     AddBytes(-freed);
     entry_of_block_[old.block] = -1;
     ++stats_.evictions;
+    if (trace_) trace_->Instant("evict", "buffer", {.block = old.block, .count = 1});
   }
   Entry& e = entries_[victim];
   e.block = block;
@@ -110,9 +119,11 @@ void CompactStructure::Reader::MoveSlot(Relation r, int32_t block) {
     ++stats_.misses;
     const auto start = std::chrono::steady_clock::now();
     rel = std::make_unique<RelationBlock>(ComputeBlockRelation(*topology_, r, block, scratch_));
-    stats_.wait_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
-                          std::chrono::steady_clock::now() - start)
-                          .count();
+    const auto end = std::chrono::steady_clock::now();
+    stats_.wait_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(end - start).count();
+    if (trace_) {
+      trace_->Span(RelationCode(r).data(), "consumer", start, end, {.block = block});
+    }
     ++stats_.relations_computed;
     AddBytes(rel->bytes());
   }

@@ -23,6 +23,7 @@
 #include "server/core/stats.h"
 #include "server/core/structure.h"
 #include "server/core/topology.h"
+#include "server/core/trace.h"
 
 namespace actopo {
 
@@ -80,12 +81,16 @@ class CompactStructure {
     int64_t bytes_ = 0;
     BlockScratch scratch_;
     AccessStats stats_;
+    std::shared_ptr<Trace> trace_;  // the structure's when the reader was made
   };
 
   Reader NewReader() { return Reader(this); }
   const Topology& topology() const { return *topology_; }
   // Capacity of each reader's cache, in blocks.
   int reader_capacity() const { return capacity_; }
+  // Readers made from now on record into `trace` (null: stop): a span per (block, relation)
+  // they compute (the relation's code, category consumer) and an instant per eviction.
+  void SetTrace(std::shared_ptr<Trace> trace);
   // Totals of finished readers.
   AccessStats stats() const;
   MemoryStats memory() const;
@@ -95,6 +100,7 @@ class CompactStructure {
   int capacity_;
   mutable std::mutex mu_;
   AccessStats finished_;              // guarded by mu_
+  std::shared_ptr<Trace> trace_;      // guarded by mu_
   std::atomic<int64_t> bytes_{0};     // over all live readers
   std::atomic<int64_t> peak_bytes_{0};
 };

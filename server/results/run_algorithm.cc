@@ -94,6 +94,17 @@ template <class Structure>
 absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const AlgorithmInput& in,
                                               const RunContext& context) {
   const auto start = std::chrono::steady_clock::now();
+  // The structure records into the run's trace while the algorithm runs.
+  struct Recording {
+    Structure& structure;
+    explicit Recording(Structure& s, const std::shared_ptr<Trace>& trace) : structure(s) {
+      if constexpr (requires { s.SetTrace(trace); }) s.SetTrace(trace);
+    }
+    ~Recording() {
+      if constexpr (requires { structure.SetTrace(nullptr); }) structure.SetTrace(nullptr);
+    }
+  } recording(structure, context.trace);
+  Trace::Scope span(context.trace.get(), AlgorithmName(in.algorithm).data(), "phase");
   AlgorithmOutcome out;
   switch (in.algorithm) {
     case Algorithm::kTopoRelations: {

@@ -5,6 +5,7 @@
 #include <condition_variable>
 #include <cstring>
 #include <deque>
+#include <sstream>
 #include <thread>
 
 #include "absl/strings/str_cat.h"
@@ -12,6 +13,7 @@
 #include "server/algorithms/digest.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
+#include "server/core/trace.h"
 #include "server/service/ids.h"
 #include "server/service/service.h"
 #include "server/service/wire.h"
@@ -20,6 +22,8 @@ namespace actopo::service {
 namespace {
 
 constexpr size_t kChunkBytes = 1 << 20;
+// A job's trace keeps its first events only (about 14 MiB in memory, 40 MiB of JSON).
+constexpr int64_t kMaxJobTraceEvents = 250'000;
 
 // ---------------------------------------------------------------------------------------------
 // StreamRelations: errors in band. A request carries one simplex or a batch (CSR answer, with
@@ -222,6 +226,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
                                                   request.parameters().end());
     RETURN_IF_ERROR(ApplyParameters(parameters, input_));
     include_arrays_ = request.include_arrays();
+    trace_ = request.trace();
     // Atomic: of N concurrent calls on a session exactly one gets the lease.
     ASSIGN_OR_RETURN(lease_, service_->sessions().StartJob(session_->id(), input_.algorithm));
     job_ = lease_.shared_job();
@@ -232,6 +237,10 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   void Run() {
     RunContext context;
     context.cancel = &job_->cancel;
+    if (trace_) {
+      SetThreadRole("job");
+      context.trace = std::make_shared<Trace>(kMaxJobTraceEvents);
+    }
     context.progress = [this](double fraction) {
       v1::RunJobResponse progress;
       progress.mutable_progress()->set_fraction(fraction);
@@ -240,7 +249,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     absl::StatusOr<JobOutcome> outcome = session_->RunJob(input_, context);
     lease_.Release();  // before the client can see the end of the stream
     absl::Status status = outcome.status();
-    if (status.ok()) status = SendResult(*outcome);
+    if (status.ok()) status = SendResult(*outcome, context.trace.get());
     service_->Count("RunJob", status);
     if (status.ok()) {
       service_->metrics().Job(AlgorithmName(input_.algorithm),
@@ -252,7 +261,8 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     WriteNextLocked();
   }
 
-  absl::Status SendResult(const JobOutcome& job) {
+  absl::Status SendResult(const JobOutcome& job, Trace* trace) {
+    const auto start = std::chrono::steady_clock::now();
     if (include_arrays_) {
       const ResultOutputs outputs = BuildOutputs(session_->result_context(), job.outcome.result);
       for (const auto& [group, poly] : outputs.poly_data) {
@@ -284,6 +294,10 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     const auto parsed = google::protobuf::util::JsonStringToMessage(
         json, summary.mutable_summary()->mutable_result());
     if (!parsed.ok()) return absl::InternalError("summary: " + parsed.ToString());
+    if (trace != nullptr) {
+      trace->Span("results", "phase", start, std::chrono::steady_clock::now());
+      SendTrace(*trace);
+    }
     Push(std::move(summary));
     v1::RunJobResponse stats;
     stats.mutable_stats()->set_run_seconds(job.outcome.run_s);
@@ -292,6 +306,20 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     stats.mutable_stats()->mutable_memory()->set_process_rss_bytes(CurrentRssBytes());
     Push(std::move(stats));
     return absl::OkStatus();
+  }
+
+  void SendTrace(const Trace& trace) {
+    std::ostringstream out;
+    trace.WriteJson(out);
+    const std::string json = std::move(out).str();
+    for (size_t offset = 0; offset < json.size(); offset += kChunkBytes) {
+      v1::RunJobResponse message;
+      v1::TraceChunk* chunk = message.mutable_trace();
+      chunk->set_data(json.substr(offset, kChunkBytes));
+      chunk->set_offset(int64_t(offset));
+      chunk->set_total_bytes(int64_t(json.size()));
+      Push(std::move(message));
+    }
   }
 
   // Arrays larger than a chunk go in pieces.
@@ -341,6 +369,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   std::string job_id_;
   AlgorithmInput input_;
   bool include_arrays_ = false;
+  bool trace_ = false;
   std::thread worker_;
 
   std::mutex mu_;

@@ -401,9 +401,11 @@ absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input,
     out.engine.consumer_relations = out.engine.access.relations_computed;
     out.memory = compact_->memory();
   } else {
+    const auto engine_start = Clock::now();
     ASSIGN_OR_RETURN(auto engine, ActopoStructure::Create(
                                       mesh_->topology, EngineOptions(input.algorithm,
                                                                      options_.consumers)));
+    if (ctx.trace) ctx.trace->Span("start engine", "phase", engine_start, Clock::now());
     absl::StatusOr<AlgorithmOutcome> outcome = RunAlgorithm(*engine, input, ctx);
     out.engine = engine->stats();
     out.memory = engine->memory();

@@ -422,6 +422,10 @@ class CancelToken {
 struct JobOptions {
   // Send the result arrays (otherwise only the summary and statistics).
   bool include_arrays = true;
+  // Record where the job's threads spent their time: JobResult::trace gets a Chrome
+  // trace-event JSON (block relations computed per thread, consumer waits, evictions, phases)
+  // to open in ui.perfetto.dev or chrome://tracing.
+  bool trace = false;
   // Called with the fraction done (0 to 1) as progress arrives, on RunJob's thread.
   std::function<void(double fraction)> progress;
   // Called with the job id once the server accepted the job (e.g. to CancelJob it).
@@ -476,6 +480,7 @@ struct JobResult {
   std::string summary_json;
   std::map<std::string, Array, std::less<>> arrays;
   JobStats stats;
+  std::string trace;  // with JobOptions::trace: the trace-event JSON; else empty
 
   // The array named `name`, or nullptr.
   const Array* Find(std::string_view name) const;

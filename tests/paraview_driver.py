@@ -1,0 +1,101 @@
+"""Run by pvbatch for tests/test_paraview_plugin.py: loads the ACTOPO plugin with
+paraview/load_actopo.py, applies each case's filter to its mesh, and writes what every output port
+holds: arrays.npz (points, line offsets, point and cell arrays by "<case>/<port>/<kind>/<name>")
+and outputs.json (types, counts, field data, the Python modules the plugin ended up using).
+
+    pvbatch tests/paraview_driver.py CASES.json OUT_DIR
+
+CASES.json: {"cases": [{"name", "filter", "mesh", "properties": {...}}, ...]}. A filter that
+fails leaves its outputs empty; the test reads its message from pvbatch's output.
+"""
+
+import json
+import runpy
+import sys
+from pathlib import Path
+
+import numpy as np
+from vtkmodules.util import numpy_support
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def field_data(data):
+    values = {}
+    for i in range(data.GetNumberOfArrays()):
+        array = data.GetAbstractArray(i)
+        if array.IsA("vtkStringArray"):
+            values[array.GetName()] = array.GetValue(0)
+        else:
+            values[array.GetName()] = numpy_support.vtk_to_numpy(array)[0].item()
+    return values
+
+
+def attribute_arrays(data, prefix, arrays):
+    names = []
+    for i in range(data.GetNumberOfArrays()):
+        array = data.GetArray(i)
+        names.append(array.GetName())
+        arrays[f"{prefix}/{array.GetName()}"] = numpy_support.vtk_to_numpy(array)
+    return names
+
+
+def describe(output, prefix, arrays):
+    """What one output port holds; its bulk arrays go into `arrays`."""
+    port = {"type": output.GetClassName(), "points": output.GetNumberOfPoints(),
+            "cells": output.GetNumberOfCells(), "field_data": field_data(output.GetFieldData())}
+    if output.GetPoints() is not None:
+        arrays[f"{prefix}/geometry/Points"] = numpy_support.vtk_to_numpy(
+            output.GetPoints().GetData())
+    port["point_arrays"] = attribute_arrays(output.GetPointData(), f"{prefix}/point", arrays)
+    port["cell_arrays"] = attribute_arrays(output.GetCellData(), f"{prefix}/cell", arrays)
+    if output.IsA("vtkPolyData"):
+        port["verts"] = output.GetNumberOfVerts()
+        port["lines"] = output.GetNumberOfLines()
+        arrays[f"{prefix}/geometry/LineOffsets"] = numpy_support.vtk_to_numpy(
+            output.GetLines().GetOffsetsArray())
+    return port
+
+
+def main(cases_path, out_dir):
+    runpy.run_path(str(ROOT / "paraview" / "load_actopo.py"))
+    from paraview import simple
+
+    spec = json.loads(Path(cases_path).read_text())
+    readers = {}
+    report = {"cases": {}}
+    arrays = {}
+    for case in spec["cases"]:
+        mesh = case["mesh"]
+        if mesh not in readers:
+            readers[mesh] = simple.XMLUnstructuredGridReader(FileName=[mesh])
+            readers[mesh].UpdatePipeline()
+        proxy = getattr(simple, case["filter"])(Input=readers[mesh])
+        for name, value in case["properties"].items():
+            setattr(proxy, name, value)
+        print(f"driver: running {case['name']}", flush=True)
+        proxy.UpdatePipeline()
+        algorithm = proxy.GetClientSideObject()
+        report["cases"][case["name"]] = [
+            describe(algorithm.GetOutputDataObject(port), f"{case['name']}/{port}", arrays)
+            for port in range(algorithm.GetNumberOfOutputPorts())]
+        simple.Delete(proxy)
+
+    import actopo
+    import google.protobuf
+    import grpc
+
+    report["modules"] = {
+        "python": sys.version.split()[0],
+        "numpy": [np.__version__, np.__file__],
+        "protobuf": [google.protobuf.__version__, google.protobuf.__file__],
+        "grpc": [grpc.__version__, grpc.__file__],
+        "actopo": [actopo.__version__, actopo.__file__],
+    }
+    report["finished"] = True
+    np.savez(Path(out_dir) / "arrays.npz", **arrays)
+    (Path(out_dir) / "outputs.json").write_text(json.dumps(report, indent=1))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], sys.argv[2])

@@ -1,0 +1,278 @@
+"""The ParaView plugin (paraview/actopo_plugin.py) for real, headless: pvbatch loads it with
+paraview/load_actopo.py, reads shared meshes with ParaView's reader, applies each filter against a
+running actopo-server (tests/paraview_driver.py), and writes what the outputs hold. Every array
+must equal what the Python client returns for the same mesh, scalar, structure and options: same
+TTK names, dtypes and values, points, polylines, the segmentation on the input grid, the summary
+in the field data beside the session's statistics. Failures (an unknown scalar, an unreachable
+server, a wrong token) must print the server's or client's message and leave pvbatch running.
+
+The plugin finds the client on its own (the repository's .venv and client-py/, after ParaView's
+numpy); the test checks it runs on ParaView's numpy with the client's protobuf and gRPC.
+
+Skipped, saying why, without pvbatch (Debian package paraview; scripts/install-deps.sh), without
+a built server ($ACTOPO_BUILD) or without the shared meshes ($ACTOPO_DATA_DIR).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "client-py" / "tests"))
+from harness import DATA_DIR, free_port, running_server  # noqa: E402
+
+# ParaView's Python modules: Debian's python3-paraview, or the copy scripts/install-deps.sh
+# unpacks where that package cannot be installed (it conflicts with the build's python3-vtk9).
+PARAVIEW_PYTHON = ROOT / ".tools" / "paraview-python" / "usr" / "lib" / "python3" / "dist-packages"
+TOKEN = "paraview-test-token"
+FERTILITY = "fertility_tet.vtu"
+FINGERS = "viscousFingers001_s2_tet.vtu"
+PVBATCH_SECONDS = 120
+
+# name, filter, mesh, properties (as pvbatch sets them), how the client runs the same
+CASES: list[dict[str, Any]] = [
+    {"name": "critical_points", "filter": "ACTOPOCriticalPoints", "mesh": FERTILITY,
+     "properties": {"ScalarField": ["POINTS", "eigenfunction4"], "Structure": "explicit"},
+     "client": {"algorithm": "critical-points", "scalar": "eigenfunction4",
+                "session": {"structure": "explicit"}}},
+    {"name": "critical_points_server_path", "filter": "ACTOPOCriticalPoints", "mesh": FERTILITY,
+     "properties": {"ScalarField": ["POINTS", "height"], "Structure": "compact",
+                    "ServerPath": FERTILITY, "BoundaryRule": "none"},
+     "client": {"algorithm": "critical-points", "scalar": "height", "load": FERTILITY,
+                "session": {"structure": "compact"},
+                "parameters": {"boundary_rule": "none"}}},
+    {"name": "discrete_gradient", "filter": "ACTOPODiscreteGradient", "mesh": FERTILITY,
+     "properties": {"ScalarField": ["POINTS", "eigenfunction4"], "Structure": "compact",
+                    "BlockSize": 500},
+     "client": {"algorithm": "discrete-gradient", "scalar": "eigenfunction4", "block_size": 500,
+                "session": {"structure": "compact"}}},
+    {"name": "morse_smale", "filter": "ACTOPOMorseSmaleComplex", "mesh": FINGERS,
+     "properties": {"ScalarField": ["POINTS", "density"], "Structure": "actopo",
+                    "Consumers": 2, "Producers": 2, "BufferRatio": 0.3, "Prefetch": "spatial",
+                    "Precompute": "declared"},
+     "client": {"algorithm": "morse-smale", "scalar": "density",
+                "session": {"structure": "actopo", "consumers": 2, "producers": 2,
+                            "buffer_ratio": 0.3, "prefetch": "spatial",
+                            "precompute": "declared"}}},
+]
+# Failing runs: name, filter, properties, what pvbatch's output must say.
+ERRORS: list[dict[str, Any]] = [
+    {"name": "error_unknown_scalar", "filter": "ACTOPOCriticalPoints",
+     "properties": {"ScalarField": ["POINTS", "nope"], "ServerPath": FERTILITY},
+     "message": "scalar field 'nope' not found; point fields: 'eigenfunction4', 'height' "
+                "[NOT_FOUND]"},
+    {"name": "error_unreachable", "filter": "ACTOPODiscreteGradient",
+     "properties": {"ScalarField": ["POINTS", "height"]},
+     "message": "failed to connect to all addresses"},
+    {"name": "error_token", "filter": "ACTOPOMorseSmaleComplex",
+     "properties": {"ScalarField": ["POINTS", "height"], "Token": "wrong"},
+     "message": "[UNAUTHENTICATED]"},
+]
+GROUP_OF_PORT = {"critical-points": ["critical_points"], "discrete-gradient": ["critical_cells"],
+                 "morse-smale": ["critical_points", "separatrices", "segmentation"]}
+STATISTICS = ["ActopoEngineWaitSeconds", "ActopoEngineRequests", "ActopoEngineHits",
+              "ActopoEngineMisses", "ActopoEngineEvictions", "ActopoEngineHitRate",
+              "ActopoEngineBufferPeakBytes", "ActopoMemoryStaticBytes",
+              "ActopoMemoryRelationPeakBytes", "ActopoMemoryProcessRssBytes",
+              "ActopoPreprocessSeconds", "ActopoRunSeconds", "ActopoJobs"]
+
+
+def pvbatch() -> str:
+    path = shutil.which("pvbatch")
+    if path is None:
+        pytest.skip("pvbatch not installed (Debian package paraview; scripts/install-deps.sh)")
+    return path
+
+
+def pvbatch_environment() -> dict[str, str]:
+    """pvbatch with ParaView's Python modules and nothing of ours on its path: the plugin must
+    find the client by itself, and the properties, not the variables, name server and token."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV", "ACTOPO_PYTHONPATH",
+                        "ACTOPO_SERVER", "ACTOPO_TOKEN")}
+    if PARAVIEW_PYTHON.is_dir():
+        env["PYTHONPATH"] = str(PARAVIEW_PYTHON)
+    return env
+
+
+class Run:
+    """One pvbatch run of every case: its outputs, arrays, console text and duration."""
+
+    def __init__(self, outputs: dict[str, Any], arrays: dict[str, np.ndarray], console: str,
+                 seconds: float, target: str) -> None:
+        self.outputs = outputs
+        self.arrays = arrays
+        self.console = console
+        self.seconds = seconds
+        self.target = target
+
+    def port(self, case: str, port: int) -> dict[str, Any]:
+        return self.outputs["cases"][case][port]
+
+    def array(self, case: str, port: int, kind: str, name: str) -> np.ndarray:
+        return self.arrays[f"{case}/{port}/{kind}/{name}"]
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
+    binary = pvbatch()
+    tmp = tmp_path_factory.mktemp("paraview")
+    with running_server("--token", TOKEN) as target:
+        unreachable = f"127.0.0.1:{free_port()}"
+        cases = [{"name": c["name"], "filter": c["filter"], "mesh": str(DATA_DIR / c["mesh"]),
+                  "properties": {"ServerAddress": target, "Token": TOKEN, **c["properties"]}}
+                 for c in CASES]
+        for e in ERRORS:
+            address = unreachable if e["name"] == "error_unreachable" else target
+            cases.append({"name": e["name"], "filter": e["filter"],
+                          "mesh": str(DATA_DIR / FERTILITY),
+                          "properties": {"ServerAddress": address, "Token": TOKEN,
+                                         **e["properties"]}})
+        (tmp / "cases.json").write_text(json.dumps({"cases": cases}))
+        start = time.monotonic()
+        done = subprocess.run([binary, str(ROOT / "tests" / "paraview_driver.py"),
+                               str(tmp / "cases.json"), str(tmp)],
+                              env=pvbatch_environment(), capture_output=True, text=True,
+                              timeout=PVBATCH_SECONDS)
+        seconds = time.monotonic() - start
+        console = done.stdout + done.stderr
+        assert done.returncode == 0, f"pvbatch exited {done.returncode}:\n{console}"
+        outputs = json.loads((tmp / "outputs.json").read_text())
+        with np.load(tmp / "arrays.npz") as npz:
+            arrays = {k: npz[k] for k in npz.files}
+        yield Run(outputs, arrays, console, seconds, target)
+
+
+@pytest.fixture(scope="module")
+def expected(run: Run) -> dict[str, Any]:
+    """What the Python client returns for each case, run directly on the same server."""
+    import actopo
+    import pyvista as pv
+
+    results = {}
+    with actopo.Client(run.target, token=TOKEN) as client:
+        for case in CASES:
+            how = case["client"]
+            grid = pv.read(DATA_DIR / case["mesh"])
+            if "load" in how:
+                mesh = client.load_mesh(how["load"])
+            else:
+                mesh = client.upload_mesh(grid, block_size=how.get("block_size", 0))
+            with client.open_session(mesh, scalar=how["scalar"], **how["session"]) as session:
+                result = session.run(how["algorithm"], parameters=how.get("parameters"))
+            client.delete_mesh(mesh)
+            results[case["name"]] = (result, grid)
+    return results
+
+
+def assert_same_array(actual: np.ndarray, wanted: np.ndarray, what: str) -> None:
+    assert actual.dtype == wanted.dtype, f"{what}: dtype {actual.dtype}, client {wanted.dtype}"
+    assert actual.shape == wanted.shape, f"{what}: shape {actual.shape}, client {wanted.shape}"
+    assert np.array_equal(actual, wanted), f"{what}: values differ from the client's"
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c["name"] for c in CASES])
+def test_outputs_equal_the_python_clients_results(run: Run, expected: dict[str, Any],
+                                                  case: dict[str, Any]) -> None:
+    name = case["name"]
+    result, grid = expected[name]
+    groups = GROUP_OF_PORT[case["client"]["algorithm"]]
+    assert len(run.outputs["cases"][name]) == len(groups)
+    for port, group_name in enumerate(groups):
+        group = result.group(group_name)
+        output = run.port(name, port)
+        where = f"{name} port {port} ({group_name})"
+        if group_name == "segmentation":
+            # The input grid, its own arrays kept, the segmentation's added.
+            assert output["type"] == "vtkUnstructuredGrid"
+            assert output["cells"] == grid.n_cells
+            assert_same_array(run.array(name, port, "geometry", "Points"),
+                              np.asarray(grid.points), f"{where} Points")
+            assert sorted(output["point_arrays"]) == sorted([*grid.point_data.keys(), *group])
+            for key in grid.point_data.keys():  # noqa: SIM118 (pyvista)
+                assert_same_array(run.array(name, port, "point", key),
+                                  np.asarray(grid.point_data[key]), f"{where} {key}")
+            for key, values in group.items():
+                assert_same_array(run.array(name, port, "point", key), values, f"{where} {key}")
+            continue
+        assert output["type"] == "vtkPolyData"
+        assert_same_array(run.array(name, port, "geometry", "Points"),
+                          np.asarray(group["Points"], dtype=np.float64).reshape(-1, 3),
+                          f"{where} Points")
+        if group_name == "separatrices":
+            # One polyline per separatrix through its points; the per-separatrix arrays.
+            assert output["lines"] == len(group["Offsets"]) - 1 == output["cells"]
+            assert_same_array(run.array(name, port, "geometry", "LineOffsets"),
+                              group["Offsets"], f"{where} Offsets")
+            arrays = {k: v for k, v in group.items() if k not in ("Points", "Offsets")}
+            assert sorted(output["cell_arrays"]) == sorted(arrays)
+            assert output["point_arrays"] == []
+            kind = "cell"
+        else:
+            # One vertex per critical point or cell, the arrays as point data.
+            assert output["verts"] == output["points"] == len(group["Points"])
+            arrays = {k: v for k, v in group.items() if k != "Points"}
+            assert sorted(output["point_arrays"]) == sorted(arrays)
+            kind = "point"
+        for key, values in arrays.items():
+            assert_same_array(run.array(name, port, kind, key), values, f"{where} {key}")
+    assert result.summary  # the run found something to compare
+    assert sum(run.port(name, p)["points"] for p in range(len(groups))) > 0
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c["name"] for c in CASES])
+def test_every_output_carries_the_summary_and_the_sessions_statistics(
+        run: Run, expected: dict[str, Any], case: dict[str, Any]) -> None:
+    result, _ = expected[case["name"]]
+    for port, output in enumerate(run.outputs["cases"][case["name"]]):
+        data = output["field_data"]
+        where = f"{case['name']} port {port}"
+        assert json.loads(data["ActopoSummary"]) == result.summary, where
+        assert data["ActopoAlgorithm"] == case["client"]["algorithm"]
+        assert data["ActopoStructure"] == case["client"]["session"]["structure"]
+        assert data["ActopoServer"] == run.target
+        missing = [k for k in STATISTICS if k not in data]
+        assert not missing, f"{where}: no {missing} in {sorted(data)}"
+        assert data["ActopoJobs"] == 1
+        assert data["ActopoEngineHits"] + data["ActopoEngineMisses"] == \
+            data["ActopoEngineRequests"] > 0
+        assert data["ActopoMemoryStaticBytes"] > 0
+        assert data["ActopoRunSeconds"] > 0
+        assert 0 <= data["ActopoEngineWaitSeconds"]
+        assert 0 <= data["ActopoEngineHitRate"] <= 1
+
+
+def test_the_plugin_uses_paraviews_numpy_and_the_clients_grpc_stack(run: Run) -> None:
+    modules = run.outputs["modules"]
+    venv = str(ROOT / ".venv")
+    assert not modules["numpy"][1].startswith(venv), modules  # ParaView's own
+    assert modules["protobuf"][1].startswith(venv), modules  # the stubs' protobuf
+    assert modules["grpc"][1].startswith(venv), modules
+    assert modules["actopo"][1].startswith(str(ROOT / "client-py")), modules
+    print(f"PARAVIEW python {modules['python']} numpy {modules['numpy'][0]} protobuf "
+          f"{modules['protobuf'][0]} grpc {modules['grpc'][0]}; pvbatch {run.seconds:.1f} s")
+
+
+@pytest.mark.parametrize("error", ERRORS, ids=[e["name"] for e in ERRORS])
+def test_failures_show_the_message_and_pvbatch_goes_on(run: Run, error: dict[str, Any]) -> None:
+    assert run.outputs["finished"]  # the cases after the failing ones ran too
+    lines = run.console.splitlines()
+    header = next((i for i, line in enumerate(lines)
+                   if line.startswith(error["filter"].replace("ACTOPO", "Actopo"))
+                   and error["message"] in line), None)
+    assert header is not None, f"no '{error['message']}' in pvbatch's output:\n{run.console}"
+    assert lines[header - 1].startswith("ERROR: In actopo_plugin.py")
+    assert "Traceback" not in run.console  # the message, not a Python stack
+    outputs = run.outputs["cases"][error["name"]]
+    assert all(o["points"] == 0 and not o["field_data"] for o in outputs)
