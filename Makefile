@@ -40,9 +40,9 @@ lint-proto: deps
 	.tools/node_modules/.bin/buf lint proto
 
 # The Python client: ruff (rules in client-py/pyproject.toml) and mypy --strict on the package;
-# ruff with the same rules on the Python tests of tests/ and the scripts of bench/.
+# ruff with the same rules on tests/, bench/ and the ParaView plugin.
 lint-python: deps
-	cd client-py && ../.venv/bin/ruff check . ../tests ../bench && ../.venv/bin/mypy actopo
+	cd client-py && ../.venv/bin/ruff check . ../tests ../bench ../paraview && ../.venv/bin/mypy actopo
 
 test-unit: build
 	ACTOPO_DATA_DIR=$(DATA_DIR) ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)

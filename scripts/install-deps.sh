@@ -23,6 +23,9 @@ debian_packages=(
 # for tests/test_prometheus.py (the scrape job and alert rules of deploy/); HAProxy for the
 # session-affinity tests (deploy/haproxy.cfg). Not in the images.
 ((want_venv)) && debian_packages+=(clang-14 libfuzzer-14-dev libclang-rt-14-dev prometheus haproxy)
+# ParaView for the plugin (paraview/) and its headless test with pvbatch, numpy for ParaView's
+# Python (the plugin converts arrays with it); python3-paraview is unpacked below.
+((want_venv)) && debian_packages+=(paraview python3-numpy)
 
 missing=()
 # npm (for buf, a development tool): the machine's own Node.js when present, else Debian's.
@@ -31,15 +34,36 @@ for p in "${debian_packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
 
+sudo=""
+[[ $(id -u) -ne 0 ]] && sudo="sudo"
 if ((${#missing[@]})); then
   echo "install-deps: installing ${missing[*]}"
-  sudo=""
-  [[ $(id -u) -ne 0 ]] && sudo="sudo"
   export DEBIAN_FRONTEND=noninteractive
   $sudo apt-get update -qq
   $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 else
   echo "install-deps: Debian packages present"
+fi
+
+# ParaView's Python modules (package python3-paraview) unpacked into .tools/paraview-python:
+# the package conflicts with python3-vtk9, which libvtk9-dev needs, so it cannot be installed
+# beside the build's VTK. pvbatch finds them through PYTHONPATH (paraview/README.md).
+pv_dir="$here/.tools/paraview-python"
+if ((want_venv)); then
+  pv_version=$(dpkg-query -W -f='${Version}' paraview)
+  if [[ "$(cat "$pv_dir/.version" 2>/dev/null)" != "$pv_version" ]]; then
+    echo "install-deps: unpacking python3-paraview $pv_version into $pv_dir"
+    tmp=$(mktemp -d)
+    chmod 755 "$tmp"  # apt's download user writes there
+    if ! (cd "$tmp" && apt-get download -qq "python3-paraview=$pv_version" 2>/dev/null); then
+      $sudo apt-get update -qq
+      (cd "$tmp" && apt-get download -qq "python3-paraview=$pv_version")
+    fi
+    rm -rf "$pv_dir"
+    dpkg -x "$tmp"/python3-paraview_*.deb "$pv_dir"
+    echo "$pv_version" > "$pv_dir/.version"
+    rm -rf "$tmp"
+  fi
 fi
 
 # buf, the protobuf linter (make lint-proto), from npm into .tools/.

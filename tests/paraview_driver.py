@@ -3,7 +3,7 @@ paraview/load_actopo.py, applies each case's filter to its mesh, and writes what
 holds: arrays.npz (points, line offsets, point and cell arrays by "<case>/<port>/<kind>/<name>")
 and outputs.json (types, counts, field data, the Python modules the plugin ended up using).
 
-    pvbatch tests/paraview_driver.py CASES.json OUT_DIR
+    pvbatch tests/paraview_driver.py CASES.json OUT_DIR [PLUGIN_DIR]
 
 CASES.json: {"cases": [{"name", "filter", "mesh", "properties": {...}}, ...]}. A filter that
 fails leaves its outputs empty; the test reads its message from pvbatch's output.
@@ -57,8 +57,8 @@ def describe(output, prefix, arrays):
     return port
 
 
-def main(cases_path, out_dir):
-    runpy.run_path(str(ROOT / "paraview" / "load_actopo.py"))
+def main(cases_path, out_dir, plugin_dir):
+    runpy.run_path(str(Path(plugin_dir) / "load_actopo.py"))
     from paraview import simple
 
     spec = json.loads(Path(cases_path).read_text())
@@ -81,21 +81,16 @@ def main(cases_path, out_dir):
             for port in range(algorithm.GetNumberOfOutputPorts())]
         simple.Delete(proxy)
 
-    import actopo
-    import google.protobuf
-    import grpc
-
+    # The modules the plugin ended up with: ParaView's numpy, the client's gRPC stack.
+    report["python"] = sys.version.split()[0]
     report["modules"] = {
-        "python": sys.version.split()[0],
-        "numpy": [np.__version__, np.__file__],
-        "protobuf": [google.protobuf.__version__, google.protobuf.__file__],
-        "grpc": [grpc.__version__, grpc.__file__],
-        "actopo": [actopo.__version__, actopo.__file__],
-    }
+        name: [getattr(module, "__version__", ""), module.__file__]
+        for name in ("numpy", "google.protobuf", "grpc", "actopo")
+        if (module := sys.modules.get(name)) is not None}
     report["finished"] = True
     np.savez(Path(out_dir) / "arrays.npz", **arrays)
     (Path(out_dir) / "outputs.json").write_text(json.dumps(report, indent=1))
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], sys.argv[2])
+    main(sys.argv[1], sys.argv[2], sys.argv[3] if len(sys.argv) > 3 else ROOT / "paraview")

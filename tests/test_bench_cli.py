@@ -1,5 +1,6 @@
 """actopo-bench as users call it: the JSON contract of DESIGN.md, identical results across
 structures, output files, and clear errors for bad flags."""
+import itertools
 import json
 import os
 import subprocess
@@ -133,7 +134,7 @@ def test_trace_shows_phases_threads_computations_and_waits(tmp_path, structure):
     assert {e["tid"] for e in events if e["cat"] == "phase"} == set(main)
     # Phases follow each other on the main thread.
     spans = [e for e in events if e["cat"] == "phase"]
-    for before, after in zip(spans, spans[1:]):
+    for before, after in itertools.pairwise(spans):
         assert before["ts"] + before["dur"] <= after["ts"] + 1e-3
     assert {"consumer 0", "consumer 1"} <= set(threads.values())
     work = [e for e in events if e["name"] == "work"]

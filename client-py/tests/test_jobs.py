@@ -8,6 +8,7 @@ import signal
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -193,7 +194,7 @@ def test_trace_of_a_job(client, fertility, tmp_path):
                              consumers=2, producers=2, buffer_ratio=0.05) as session:
         result = session.run("morse-smale", trace=True, include_arrays=False)
         path = result.save_trace(tmp_path / "job.json")
-        trace = json.loads(open(path).read())
+        trace = json.loads(Path(path).read_text())
         threads = {e["tid"]: e["args"]["name"] for e in trace["traceEvents"]
                    if e["ph"] == "M" and e["name"] == "thread_name"}
         events = [e for e in trace["traceEvents"] if e["ph"] != "M"]

@@ -1,0 +1,610 @@
+"""ParaView plugin: TTK's topological filters computed by a running actopo-server.
+
+Three filters take a tetrahedral vtkUnstructuredGrid and a point scalar field, send them to the
+server with the Python client (``actopo``), and return what TTK's filter of the same name returns,
+with TTK's array names:
+
+- ACTOPO Critical Points (ScalarFieldCriticalPoints): the critical vertices as vtkPolyData with
+  CriticalType, IsOnBoundary, ttkVertexScalarField and the scalar;
+- ACTOPO Discrete Gradient (DiscreteGradient): the critical cells, one point per cell, with
+  CellDimension, CellId, ttkVertexScalarField, IsOnBoundary and the scalar;
+- ACTOPO Morse-Smale Complex (MorseSmaleComplex 3D): port 0 the critical points (+ ManifoldSize),
+  port 1 the 1-separatrices as polylines (SourceId, DestinationId, SeparatrixId, SeparatrixType),
+  port 2 the input grid with DescendingManifold, AscendingManifold and MorseSmaleManifold.
+
+Every output carries the session's statistics as field data (ActopoEngineWaitSeconds,
+ActopoEngineHits, ActopoEngineMisses, ActopoMemoryStaticBytes, ..., ActopoSummary as JSON).
+Failures (server unreachable, unknown field, a mesh that is not tetrahedral, ...) are reported in
+ParaView's Output Messages with the server's or the client's message, and the filter fails.
+
+Load it with Tools > Manage Plugins > Load New (paraview/README.md: the Python path, and the
+one-line fix ParaView 5.11.0 needs under Python 3.11), or ``paraview.simple.LoadPlugin(path)``.
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+import os
+import sys
+import traceback
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager, suppress
+from dataclasses import fields
+from pathlib import Path
+from typing import Any
+
+# ParaView 5.11.0's decorators call inspect.getargspec, which Python 3.11 removed (ParaView
+# 5.11.1 uses getfullargspec); its .args is all they read. Harmless on versions that have it.
+if not hasattr(inspect, "getargspec"):
+    inspect.getargspec = inspect.getfullargspec  # type: ignore[attr-defined]
+
+# ParaView's own numpy, imported before the client's directories are added (see below).
+import numpy as np
+from paraview.util.vtkAlgorithm import (
+    VTKPythonAlgorithmBase,
+    smdomain,
+    smhint,
+    smproperty,
+    smproxy,
+)
+from vtkmodules.util import numpy_support
+from vtkmodules.util.vtkConstants import (
+    VTK_DOUBLE,
+    VTK_FLOAT,
+    VTK_SIGNED_CHAR,
+    VTK_TETRA,
+)
+from vtkmodules.vtkCommonCore import (
+    vtkAbstractArray,
+    vtkDoubleArray,
+    vtkOutputWindow,
+    vtkPoints,
+    vtkStringArray,
+    vtkTypeInt64Array,
+)
+from vtkmodules.vtkCommonDataModel import (
+    vtkCellArray,
+    vtkCellTypes,
+    vtkDataObject,
+    vtkFieldData,
+    vtkPolyData,
+    vtkUnstructuredGrid,
+)
+from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
+
+paraview_plugin_name = "ACTOPO"
+paraview_plugin_version = "0.1.0"
+
+PYTHONPATH_VARIABLE = "ACTOPO_PYTHONPATH"
+"""Directories (os.pathsep-separated) holding the ``actopo`` client and its gRPC stack."""
+
+DEFAULT_SERVER = "127.0.0.1:50051"
+STRUCTURES = ("explicit", "compact", "actopo")
+PREFETCH = ("auto", "linear", "spatial", "adaptive")
+PRECOMPUTE = ("auto", "requested", "declared")
+BOUNDARY_RULES = ("ttk", "none")
+
+_HERE = Path(__file__).resolve().parent
+
+
+class PluginError(Exception):
+    """A failure found by the plugin itself (bad input, missing client); shown as it is."""
+
+
+# --- Finding the actopo client ---------------------------------------------------------------
+#
+# ParaView runs its own Python (Debian: the system python3.11, with Debian's numpy and, when
+# installed, Debian's protobuf 4.x). The client and grpcio/protobuf live in a virtual environment
+# (the repository's .venv: numpy 2.x, protobuf 7.x). Appending that environment to sys.path is
+# not enough: the stubs need the environment's protobuf, and Debian's older one would be found
+# first. So numpy stays ParaView's (imported above, before anything is added), the client's
+# directories are searched first only while `actopo` is imported (bringing grpc and protobuf
+# with it), and stay at the end of sys.path afterwards.
+
+
+def client_directories() -> list[str]:
+    """Where the client is looked for: $ACTOPO_PYTHONPATH when set, else this repository's
+    .venv (for this Python version) and client-py/ (the editable install's sources)."""
+    configured = os.environ.get(PYTHONPATH_VARIABLE)
+    if configured is not None:
+        return [d for d in configured.split(os.pathsep) if d]
+    repo = _HERE.parent
+    version = f"python{sys.version_info.major}.{sys.version_info.minor}"
+    candidates = [repo / ".venv" / "lib" / version / "site-packages", repo / "client-py"]
+    return [str(p) for p in candidates if p.is_dir()]
+
+
+@contextmanager
+def _searched_first(directories: Sequence[str]) -> Iterator[None]:
+    saved = list(sys.path)
+    sys.path[:0] = directories
+    try:
+        yield
+    finally:
+        sys.path[:] = saved + [d for d in directories if d not in saved]
+
+
+_client: Any = None
+
+
+def actopo_client() -> Any:
+    """The ``actopo`` module, imported on first use (so the plugin loads without it and a
+    filter reports what is missing)."""
+    global _client
+    if _client is None:
+        directories = client_directories()
+        try:
+            with _searched_first(directories):
+                import actopo
+        except Exception as e:  # ImportError, or a stub refusing its protobuf/grpcio version
+            searched = ", ".join(directories) or "(nothing)"
+            raise PluginError(
+                f"cannot import the actopo Python client ({type(e).__name__}: {e}). Searched "
+                f"first: {searched}. Set {PYTHONPATH_VARIABLE} to the site-packages of an "
+                "environment where 'pip install ./client-py' was run for Python "
+                f"{sys.version_info.major}.{sys.version_info.minor} (paraview/README.md)"
+            ) from e
+        _client = actopo
+    return _client
+
+
+# --- Settings --------------------------------------------------------------------------------
+
+
+class Settings:
+    """What the filter's properties set; 0 and "auto" mean the server's defaults.
+
+    (Not a dataclass: ParaView runs the plugin before registering it in sys.modules, where
+    dataclasses look up string annotations.)
+    """
+
+    def __init__(self) -> None:
+        self.server = ""
+        self.token = ""
+        self.server_path = ""
+        self.structure = "actopo"
+        self.consumers = 0
+        self.producers = 0
+        self.buffer_ratio = 0.0
+        self.prefetch = "auto"
+        self.precompute = "auto"
+        self.block_size = 0
+        self.boundary_rule = "ttk"
+
+    def target(self) -> str:
+        return self.server.strip() or os.environ.get("ACTOPO_SERVER") or DEFAULT_SERVER
+
+
+def _default_server() -> str:
+    return os.environ.get("ACTOPO_SERVER") or DEFAULT_SERVER
+
+
+def _doc(text: str) -> Callable[[Any], Any]:
+    """A property's documentation (tooltip). The decorators have no element for it; a nested
+    element is added like a domain."""
+    escaped = text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    return smdomain.xml(f"<Documentation>{escaped}</Documentation>")
+
+
+def _enumeration(values: Sequence[str]) -> Callable[[Any], Any]:
+    entries = "".join(f'<Entry value="{i}" text="{v}"/>' for i, v in enumerate(values))
+    return smdomain.xml(f'<EnumerationDomain name="enum">{entries}</EnumerationDomain>')
+
+
+def _connection_properties(cls: type) -> type:
+    """Adds the properties every filter has. ParaView reads a proxy's properties from its
+    class's own dictionary, so each filter class gets its own decorated setters."""
+
+    @smproperty.stringvector(name="ServerAddress", label="Server Address",
+                             default_values=_default_server())
+    @_doc("HOST:PORT of the actopo-server (default $ACTOPO_SERVER, else 127.0.0.1:50051).")
+    def SetServerAddress(self: ActopoFilter, value: str) -> None:
+        self.set_option("server", value)
+
+    @smproperty.stringvector(name="ServerPath", label="Server Path", default_values="")
+    @_doc("Optional: a mesh file under the server's data directory to load instead of "
+          "uploading the input (it must be the same mesh for the segmentation).")
+    def SetServerPath(self: ActopoFilter, value: str) -> None:
+        self.set_option("server_path", value)
+
+    @smproperty.stringvector(name="Token", default_values="", panel_visibility="advanced")
+    @_doc("Optional bearer token, for a server started with --token (default $ACTOPO_TOKEN).")
+    def SetToken(self: ActopoFilter, value: str) -> None:
+        self.set_option("token", value)
+
+    @smproperty.intvector(name="Structure", default_values=STRUCTURES.index("actopo"))
+    @_enumeration(STRUCTURES)
+    @_doc("Topological data structure: explicit (all relations up front), compact (on-demand "
+          "cache) or actopo (task-parallel engine). The results are identical.")
+    def SetStructure(self: ActopoFilter, value: int) -> None:
+        self.set_option("structure", STRUCTURES[value])
+
+    @smproperty.intvector(name="Consumers", default_values=0, panel_visibility="advanced")
+    @smdomain.intrange(min=0, max=64)
+    @_doc("Algorithm threads (0: one per server core).")
+    def SetConsumers(self: ActopoFilter, value: int) -> None:
+        self.set_option("consumers", value)
+
+    @smproperty.intvector(name="Producers", default_values=0, panel_visibility="advanced")
+    @smdomain.intrange(min=0, max=64)
+    @_doc("actopo: producer threads per consumer (0: the server's default).")
+    def SetProducers(self: ActopoFilter, value: int) -> None:
+        self.set_option("producers", value)
+
+    @smproperty.doublevector(name="BufferRatio", default_values=0.0,
+                             panel_visibility="advanced")
+    @smdomain.doublerange(min=0.0, max=1.0)
+    @_doc("compact cache / actopo buffer size as a fraction of the blocks (0: 0.2).")
+    def SetBufferRatio(self: ActopoFilter, value: float) -> None:
+        self.set_option("buffer_ratio", value)
+
+    @smproperty.intvector(name="Prefetch", default_values=0, panel_visibility="advanced")
+    @_enumeration(PREFETCH)
+    @_doc("actopo: which blocks the producers compute ahead.")
+    def SetPrefetch(self: ActopoFilter, value: int) -> None:
+        self.set_option("prefetch", PREFETCH[value])
+
+    @smproperty.intvector(name="Precompute", default_values=0, panel_visibility="advanced")
+    @_enumeration(PRECOMPUTE)
+    @_doc("actopo: the relation asked for, or the algorithm's whole declared set.")
+    def SetPrecompute(self: ActopoFilter, value: int) -> None:
+        self.set_option("precompute", PRECOMPUTE[value])
+
+    @smproperty.intvector(name="BlockSize", default_values=0, panel_visibility="advanced")
+    @smdomain.intrange(min=0, max=100000)
+    @_doc("Octree bucket capacity, vertices per block (0: the server's 1000).")
+    def SetBlockSize(self: ActopoFilter, value: int) -> None:
+        self.set_option("block_size", value)
+
+    for setter in (SetServerAddress, SetServerPath, SetToken, SetStructure, SetConsumers,
+                   SetProducers, SetBufferRatio, SetPrefetch, SetPrecompute, SetBlockSize):
+        setattr(cls, setter.__name__, setter)
+    return cls
+
+
+# The input: a vtkUnstructuredGrid with at least one scalar point array to pick from.
+_INPUT_ARRAYS = '<InputArrayDomain name="input_scalars" attribute_type="point" ' \
+                'number_of_components="1"/>'
+
+_SCALAR_PROPERTY = """
+<StringVectorProperty name="ScalarField" label="Scalar Field" command="SetInputArrayToProcess"
+    number_of_elements="5" element_types="0 0 0 0 2" animateable="0">
+  <ArrayListDomain name="array_list" attribute_type="Scalars" input_domain_name="input_scalars">
+    <RequiredProperties><Property name="Input" function="Input"/></RequiredProperties>
+  </ArrayListDomain>
+  <Documentation>The point scalar field (one component) the algorithm runs on.</Documentation>
+</StringVectorProperty>
+"""
+
+
+_MENU = '<ShowInMenu category="ACTOPO"/>'
+
+
+# --- Input and outputs -----------------------------------------------------------------------
+
+
+def _scalar_name(algorithm: VTKPythonAlgorithmBase, grid: vtkUnstructuredGrid) -> str:
+    """The selected point array, else the first one-component floating-point point array."""
+    info = algorithm.GetInputArrayInformation(0)
+    if info is not None and info.Has(vtkDataObject.FIELD_NAME()):
+        name = info.Get(vtkDataObject.FIELD_NAME())
+        if name:
+            return str(name)
+    data = grid.GetPointData()
+    for i in range(data.GetNumberOfArrays()):
+        array = data.GetArray(i)
+        if array is not None and array.GetNumberOfComponents() == 1 \
+                and array.GetDataType() in (VTK_FLOAT, VTK_DOUBLE):
+            return str(array.GetName())
+    raise PluginError("the input has no one-component floating-point point array to use as "
+                      "the scalar field")
+
+
+def _tetrahedra(grid: vtkUnstructuredGrid) -> np.ndarray:
+    if grid.GetNumberOfCells() == 0:
+        raise PluginError("the input has no cells; the service takes tetrahedral meshes")
+    types = numpy_support.vtk_to_numpy(grid.GetCellTypesArray())
+    if not np.all(types == VTK_TETRA):
+        kinds, counts = np.unique(types, return_counts=True)
+        found = ", ".join(f"{count} {vtkCellTypes.GetClassNameFromTypeId(int(kind))}"
+                          for kind, count in zip(kinds, counts, strict=True))
+        raise PluginError(f"only tetrahedral meshes are supported, found cell types: {found}; "
+                          "apply ParaView's Tetrahedralize filter first")
+    connectivity = numpy_support.vtk_to_numpy(grid.GetCells().GetConnectivityArray())
+    return connectivity.reshape(-1, 4)
+
+
+def _upload_arrays(grid: vtkUnstructuredGrid,
+                   scalar: str) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """(points, tetrahedra, {scalar: values}) as the client's upload_mesh() takes them."""
+    array = grid.GetPointData().GetArray(scalar)
+    if array is None:
+        names = [grid.GetPointData().GetArrayName(i)
+                 for i in range(grid.GetPointData().GetNumberOfArrays())]
+        raise PluginError(f"the input has no numeric point array '{scalar}'; point arrays: "
+                          f"{', '.join(repr(n) for n in names) or 'none'}")
+    if array.GetNumberOfComponents() != 1:
+        raise PluginError(f"point array '{scalar}' has {array.GetNumberOfComponents()} "
+                          "components; pick a scalar field (one component)")
+    if grid.GetPoints() is None:
+        raise PluginError("the input has no points")
+    points = numpy_support.vtk_to_numpy(grid.GetPoints().GetData())
+    return points, _tetrahedra(grid), {scalar: numpy_support.vtk_to_numpy(array)}
+
+
+def _vtk_array(name: str, values: np.ndarray) -> vtkAbstractArray:
+    values = np.ascontiguousarray(values)
+    # int8 becomes vtkSignedCharArray as in TTK (numpy_support would make it a vtkCharArray).
+    array_type = VTK_SIGNED_CHAR if values.dtype == np.int8 else None
+    array = numpy_support.numpy_to_vtk(values, deep=True, array_type=array_type)
+    array.SetName(name)
+    return array
+
+
+def _id_array(values: np.ndarray) -> Any:
+    return numpy_support.numpy_to_vtkIdTypeArray(
+        np.ascontiguousarray(values, dtype=numpy_support.ID_TYPE_CODE), deep=True)
+
+
+def _points(values: np.ndarray) -> vtkPoints:
+    points = vtkPoints()
+    points.SetData(numpy_support.numpy_to_vtk(
+        np.ascontiguousarray(np.reshape(values, (-1, 3)), dtype=np.float64), deep=True))
+    return points
+
+
+def _cells(offsets: np.ndarray) -> vtkCellArray:
+    """Cells over consecutive points: cell i holds points offsets[i] to offsets[i + 1] - 1."""
+    cells = vtkCellArray()
+    cells.SetData(_id_array(offsets), _id_array(np.arange(offsets[-1] if len(offsets) else 0)))
+    return cells
+
+
+def point_group_polydata(group: Mapping[str, np.ndarray], output: vtkPolyData) -> None:
+    """Critical points or cells: one vertex cell per point, the arrays as point data."""
+    points = np.reshape(group.get("Points", np.zeros((0, 3))), (-1, 3))
+    output.SetPoints(_points(points))
+    output.SetVerts(_cells(np.arange(len(points) + 1)))
+    for name, values in group.items():
+        if name != "Points":
+            output.GetPointData().AddArray(_vtk_array(name, values))
+
+
+def separatrices_polydata(group: Mapping[str, np.ndarray], output: vtkPolyData) -> None:
+    """1-separatrices: one polyline per separatrix through its points, the per-separatrix
+    arrays as cell data."""
+    output.SetPoints(_points(group.get("Points", np.zeros((0, 3)))))
+    output.SetLines(_cells(np.asarray(group.get("Offsets", np.zeros(1)), dtype=np.int64)))
+    for name, values in group.items():
+        if name not in ("Points", "Offsets"):
+            output.GetCellData().AddArray(_vtk_array(name, values))
+
+
+def segmentation_grid(source: vtkUnstructuredGrid, group: Mapping[str, np.ndarray],
+                      output: vtkUnstructuredGrid) -> None:
+    """The input grid with the segmentation's per-vertex arrays added."""
+    count = source.GetNumberOfPoints()
+    for name, values in group.items():
+        if len(values) != count:
+            raise PluginError(f"segmentation array {name} has {len(values)} values but the "
+                              f"input has {count} points: the server's mesh (Server Path) must "
+                              "be the input mesh")
+    output.ShallowCopy(source)
+    for name, values in group.items():
+        output.GetPointData().AddArray(_vtk_array(name, values))
+
+
+def _camel(name: str) -> str:
+    return "".join(part.capitalize() for part in name.split("_"))
+
+
+def statistics(result: Any, session_stats: Any,
+               settings: Settings) -> dict[str, str | float | int]:
+    """The session's statistics and the job's identity, by field-data array name."""
+    values: dict[str, str | float | int] = {
+        "ActopoServer": settings.target(),
+        "ActopoStructure": settings.structure,
+        "ActopoAlgorithm": result.algorithm,
+        "ActopoJobId": result.job_id,
+        "ActopoSummary": json.dumps(result.summary, sort_keys=True),
+        "ActopoPreprocessSeconds": float(session_stats.preprocess_seconds),
+        "ActopoJobs": int(session_stats.jobs.count),
+    }
+    if result.stats is not None:
+        values["ActopoRunSeconds"] = float(result.stats.run_seconds)
+    for prefix, stats in (("Engine", session_stats.engine), ("Memory", session_stats.memory)):
+        for item in fields(stats):
+            number = getattr(stats, item.name)
+            if item.name.endswith("_ns"):
+                values[f"Actopo{prefix}{_camel(item.name[:-3])}Seconds"] = number / 1e9
+            else:
+                values[f"Actopo{prefix}{_camel(item.name)}"] = int(number)
+    values["ActopoEngineHitRate"] = float(session_stats.engine.hit_rate)
+    return values
+
+
+def add_field_data(output: vtkDataObject, values: Mapping[str, str | float | int]) -> None:
+    data: vtkFieldData = output.GetFieldData()
+    for name, value in values.items():
+        array: vtkAbstractArray
+        if isinstance(value, str):
+            array = vtkStringArray()
+            array.InsertNextValue(value)
+        elif isinstance(value, float):
+            array = vtkDoubleArray()
+            array.InsertNextValue(value)
+        else:
+            array = vtkTypeInt64Array()
+            array.InsertNextValue(value)
+        array.SetName(name)
+        data.AddArray(array)
+
+
+# --- The filters -----------------------------------------------------------------------------
+
+
+class _Cancelled(Exception):
+    pass
+
+
+class ActopoFilter(VTKPythonAlgorithmBase):
+    """Common part of the filters: settings, the round trip to the server, error reporting."""
+
+    algorithm = ""
+    label = ""
+    output_types: tuple[str, ...] = ("vtkPolyData",)
+
+    def __init__(self) -> None:
+        VTKPythonAlgorithmBase.__init__(self, nInputPorts=1, inputType="vtkUnstructuredGrid",
+                                        nOutputPorts=len(self.output_types),
+                                        outputType=self.output_types[0])
+        self.settings = Settings()
+
+    def set_option(self, name: str, value: Any) -> None:
+        if getattr(self.settings, name) != value:
+            setattr(self.settings, name, value)
+            self.Modified()
+
+    def FillOutputPortInformation(self, port: int, info: Any) -> int:
+        info.Set(vtkDataObject.DATA_TYPE_NAME(), self.output_types[port])
+        return 1
+
+    def FillInputPortInformation(self, port: int, info: Any) -> int:
+        info.Set(vtkAlgorithm.INPUT_REQUIRED_DATA_TYPE(), "vtkUnstructuredGrid")
+        return 1
+
+    def parameters(self) -> dict[str, str]:
+        return {}
+
+    def RequestData(self, request: Any, inInfo: Any, outInfo: Any) -> int:
+        try:
+            grid = vtkUnstructuredGrid.GetData(inInfo[0])
+            if grid is None:
+                raise PluginError("the input is not a vtkUnstructuredGrid")
+            result, session_stats = self.run(grid)
+            outputs = [self.GetOutputData(outInfo, i) for i in range(len(self.output_types))]
+            self.fill(grid, result, outputs)
+            values = statistics(result, session_stats, self.settings)
+            for output in outputs:
+                add_field_data(output, values)
+        except _Cancelled:
+            return 0
+        except Exception as e:  # every failure must reach ParaView's Output Messages
+            self.report(e)
+            return 0
+        return 1
+
+    def run(self, grid: vtkUnstructuredGrid) -> tuple[Any, Any]:
+        """Uploads (or loads) the mesh, runs the algorithm on a session; (result, stats)."""
+        actopo = actopo_client()
+        s = self.settings
+        scalar = _scalar_name(self, grid)
+        token = s.token or os.environ.get("ACTOPO_TOKEN") or None
+        self.UpdateProgress(0.0)
+        with actopo.Client(s.target(), token=token) as client:
+            if s.server_path:
+                mesh = client.load_mesh(s.server_path, block_size=s.block_size)
+            else:
+                mesh = client.upload_mesh(_upload_arrays(grid, scalar), name=f"paraview:{scalar}",
+                                          block_size=s.block_size)
+            try:
+                self.UpdateProgress(0.2)
+                with client.open_session(mesh, scalar=scalar, structure=s.structure,
+                                         consumers=s.consumers, producers=s.producers,
+                                         buffer_ratio=s.buffer_ratio, prefetch=s.prefetch,
+                                         precompute=s.precompute) as session:
+                    result = session.run(self.algorithm, parameters=self.parameters(),
+                                         progress=self._progress)
+                    return result, session.stats()
+            finally:
+                # A failure here must not hide the run's; the server frees the mesh with its
+                # last session anyway.
+                with suppress(actopo.ActopoError):
+                    client.delete_mesh(mesh)
+
+    def _progress(self, fraction: float) -> None:
+        if self.GetAbortExecute():
+            raise _Cancelled()  # leaving the session's block closes it, which cancels the job
+        self.UpdateProgress(0.2 + 0.8 * fraction)
+
+    def fill(self, grid: vtkUnstructuredGrid, result: Any, outputs: list[Any]) -> None:
+        raise NotImplementedError
+
+    def report(self, error: Exception) -> None:
+        """Prints the error the way vtkErrorMacro does: ParaView shows it in Output Messages
+        (pvbatch/pvpython on stderr)."""
+        if isinstance(error, PluginError) or type(error).__module__.startswith("actopo"):
+            message = str(error)
+        else:  # a bug of the plugin: the traceback helps
+            message = "".join(traceback.format_exception(error)).rstrip()
+        target = self.settings.target()
+        vtkOutputWindow.GetInstance().DisplayErrorText(
+            f"ERROR: In {Path(__file__).name}\n{type(self).__name__} ({self.label}, server "
+            f"{target}): {message}\n\n")
+
+
+@smproxy.filter(name="ActopoCriticalPoints", label="ACTOPO Critical Points")
+@smhint.xml(_MENU)
+@smproperty.xml(_SCALAR_PROPERTY)
+@smproperty.input(name="Input", port_index=0)
+@smdomain.datatype(dataTypes=["vtkUnstructuredGrid"], composite_data_supported=False)
+@smdomain.xml(_INPUT_ARRAYS)
+@_connection_properties
+class ActopoCriticalPoints(ActopoFilter):
+    """TTK ScalarFieldCriticalPoints on the server: the critical vertices."""
+
+    algorithm = "critical-points"
+    label = "ACTOPO Critical Points"
+
+    @smproperty.intvector(name="BoundaryRule", label="Boundary Rule", default_values=0)
+    @_enumeration(BOUNDARY_RULES)
+    @_doc("ttk: boundary vertices may be saddles (TTK >= 1.1); none: the interior rule only.")
+    def SetBoundaryRule(self, value: int) -> None:
+        self.set_option("boundary_rule", BOUNDARY_RULES[value])
+
+    def parameters(self) -> dict[str, str]:
+        return {"boundary_rule": self.settings.boundary_rule}
+
+    def fill(self, grid: vtkUnstructuredGrid, result: Any, outputs: list[Any]) -> None:
+        point_group_polydata(result.group("critical_points"), outputs[0])
+
+
+@smproxy.filter(name="ActopoDiscreteGradient", label="ACTOPO Discrete Gradient")
+@smhint.xml(_MENU)
+@smproperty.xml(_SCALAR_PROPERTY)
+@smproperty.input(name="Input", port_index=0)
+@smdomain.datatype(dataTypes=["vtkUnstructuredGrid"], composite_data_supported=False)
+@smdomain.xml(_INPUT_ARRAYS)
+@_connection_properties
+class ActopoDiscreteGradient(ActopoFilter):
+    """TTK DiscreteGradient on the server: the critical cells, one point each."""
+
+    algorithm = "discrete-gradient"
+    label = "ACTOPO Discrete Gradient"
+
+    def fill(self, grid: vtkUnstructuredGrid, result: Any, outputs: list[Any]) -> None:
+        point_group_polydata(result.group("critical_cells"), outputs[0])
+
+
+@smproxy.filter(name="ActopoMorseSmaleComplex", label="ACTOPO Morse-Smale Complex")
+@smhint.xml(_MENU)
+@smproperty.xml('<OutputPort name="Critical Points" index="0"/>'
+                '<OutputPort name="1-Separatrices" index="1"/>'
+                '<OutputPort name="Segmentation" index="2"/>')
+@smproperty.xml(_SCALAR_PROPERTY)
+@smproperty.input(name="Input", port_index=0)
+@smdomain.datatype(dataTypes=["vtkUnstructuredGrid"], composite_data_supported=False)
+@smdomain.xml(_INPUT_ARRAYS)
+@_connection_properties
+class ActopoMorseSmaleComplex(ActopoFilter):
+    """TTK MorseSmaleComplex (3D, default outputs) on the server."""
+
+    algorithm = "morse-smale"
+    label = "ACTOPO Morse-Smale Complex"
+    output_types = ("vtkPolyData", "vtkPolyData", "vtkUnstructuredGrid")
+
+    def fill(self, grid: vtkUnstructuredGrid, result: Any, outputs: list[Any]) -> None:
+        segmentation_grid(grid, result.group("segmentation"), outputs[2])
+        point_group_polydata(result.group("critical_points"), outputs[0])
+        separatrices_polydata(result.group("separatrices"), outputs[1])
