@@ -21,9 +21,9 @@ TEST_F(ServerTest, ServerInfo) {
   EXPECT_FALSE(info->version.empty());
   EXPECT_EQ(info->algorithms, (std::vector<std::string>{"topo-relations", "critical-points",
                                                         "discrete-gradient", "morse-smale"}));
-  ASSERT_EQ(info->relations.size(), 20u);
+  ASSERT_EQ(info->relations.size(), 22u);
   EXPECT_EQ(info->relations.front(), "vertex_neighbors");
-  EXPECT_EQ(info->relations.back(), "triangle_on_boundary");
+  EXPECT_EQ(info->relations.back(), "triangle_neighbors");
   EXPECT_FALSE(info->library_versions.at("grpc").empty());
   EXPECT_FALSE(info->samples.empty());
   EXPECT_EQ(info->limits.max_batch_size, kSharedMaxBatchSize);

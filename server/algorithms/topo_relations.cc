@@ -13,7 +13,8 @@ namespace {
 using R = Relation;
 constexpr std::array<Relation, kNumRelations> kSweeps = {
     R::kVT, R::kEV, R::kET, R::kFV, R::kFT, R::kTV, R::kVE, R::kVF, R::kEF, R::kFE,
-    R::kTE, R::kTF, R::kVV, R::kTT, R::kVL, R::kEL, R::kFL, R::kVB, R::kEB, R::kFB};
+    R::kTE, R::kTF, R::kVV, R::kTT, R::kVL, R::kEL, R::kFL, R::kVB, R::kEB, R::kFB,
+    R::kEE, R::kFF};
 
 // splitmix64's finaliser: a cheap, well-mixing 64-bit hash.
 inline uint64_t Mix(uint64_t x) {

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <cassert>
+#include <functional>
+#include <memory>
 
 namespace actopo {
 namespace {
@@ -45,6 +47,8 @@ class BlockComputer {
       case Relation::kFL: TriangleLink(out); break;
       case Relation::kVB: VertexOnBoundary(out); break;
       case Relation::kEB: EdgeOnBoundary(out); break;
+      case Relation::kEE: EdgeNeighbors(out); break;
+      case Relation::kFF: TriangleNeighbors(out); break;
       case Relation::kEV:
       case Relation::kFV:
       case Relation::kTV:
@@ -290,6 +294,73 @@ class BlockComputer {
       out.offsets[i + 1] = static_cast<SimplexId>(s_.values.size());
     }
     out.values.assign(s_.values.begin(), s_.values.end());
+  }
+
+  // Rows of relation `r` of any simplex, computed block by block as asked (this block's first).
+  // For the neighbour relations, whose rows join rows of simplices other blocks may own.
+  class RowsOf {
+   public:
+    RowsOf(const Topology& topology, Relation r) : topo_(topology), r_(r) {}
+    std::span<const SimplexId> row(SimplexId s) {
+      const int32_t block = topo_.block_of(SourceDimension(r_), s);
+      auto it = std::find_if(blocks_.begin(), blocks_.end(),
+                             [&](const auto& b) { return b->block == block; });
+      if (it == blocks_.end()) {
+        blocks_.push_back(std::make_unique<RelationBlock>(
+            BlockComputer(topo_, block, scratch_).Compute(r_)));
+        it = blocks_.end() - 1;
+      }
+      return (*it)->row(s - (*it)->first);
+    }
+
+   private:
+    const Topology& topo_;
+    const Relation r_;
+    BlockScratch scratch_;
+    std::vector<std::unique_ptr<RelationBlock>> blocks_;  // a handful: this block and neighbours
+  };
+
+  // `out` row by row: the sorted union of `rows` minus the simplex itself.
+  void UnionRows(RelationBlock& out, const std::function<void(SimplexId, std::vector<SimplexId>&)>&
+                                         rows) {
+    out.offsets.assign(size_t(out.count) + 1, 0);
+    out.values.clear();
+    for (SimplexId i = 0; i < out.count; ++i) {
+      const SimplexId self = out.first + i;
+      s_.tmp.clear();
+      rows(self, s_.tmp);
+      std::sort(s_.tmp.begin(), s_.tmp.end());
+      s_.tmp.erase(std::unique(s_.tmp.begin(), s_.tmp.end()), s_.tmp.end());
+      for (SimplexId x : s_.tmp) {
+        if (x != self) out.values.push_back(x);
+      }
+      out.offsets[i + 1] = static_cast<SimplexId>(out.values.size());
+    }
+  }
+
+  // EE: the edges at either end of the edge. Its lower end is in this block, its upper end may
+  // be in another, whose VE is computed too (once per block).
+  void EdgeNeighbors(RelationBlock& out) {
+    RowsOf ve(topo_, Relation::kVE);
+    UnionRows(out, [&](SimplexId e, std::vector<SimplexId>& row) {
+      for (SimplexId v : topo_.edge(e)) {
+        const auto around = ve.row(v);
+        row.insert(row.end(), around.begin(), around.end());
+      }
+    });
+  }
+
+  // FF: the triangles on the triangle's three edges. Edges (a, b) and (a, c) belong to this
+  // block, (b, c) may belong to another, whose EF is computed too (once per block).
+  void TriangleNeighbors(RelationBlock& out) {
+    RowsOf ef(topo_, Relation::kEF);
+    UnionRows(out, [&](SimplexId f, std::vector<SimplexId>& row) {
+      const auto [a, b, c] = topo_.triangle(f);
+      for (SimplexId e : {topo_.FindEdge(a, b), topo_.FindEdge(a, c), topo_.FindEdge(b, c)}) {
+        const auto around = ef.row(e);
+        row.insert(row.end(), around.begin(), around.end());
+      }
+    });
   }
 
   void TriangleEdges(RelationBlock& out) {

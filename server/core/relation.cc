@@ -30,6 +30,8 @@ constexpr std::array<RelationInfo, kNumRelations> kRelations = {{
     {Relation::kVB, "VB", "vertex_on_boundary"},
     {Relation::kEB, "EB", "edge_on_boundary"},
     {Relation::kFB, "FB", "triangle_on_boundary"},
+    {Relation::kEE, "EE", "edge_neighbors"},
+    {Relation::kFF, "FF", "triangle_neighbors"},
 }};
 
 constexpr std::array<Relation, kNumRelations> kAll = [] {

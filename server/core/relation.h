@@ -37,29 +37,31 @@ enum class Relation : uint8_t {
   kVB,  // vertex on boundary: one value, 0 or 1
   kEB,  // edge on boundary: one value, 0 or 1
   kFB,  // triangle on boundary (exactly one incident tetrahedron): one value, 0 or 1
+  kEE,  // edge -> edges sharing a vertex with it, ascending (itself excluded)
+  kFF,  // triangle -> triangles sharing an edge with it, ascending (itself excluded)
 };
-inline constexpr int kNumRelations = 20;
+inline constexpr int kNumRelations = 22;
 
 constexpr int Index(Relation r) { return static_cast<int>(r); }
 
 // Dimension of the simplices a relation is asked of (V=0, E=1, F=2, T=3).
 constexpr int SourceDimension(Relation r) {
-  constexpr std::array<int8_t, kNumRelations> kDim = {0, 0, 0, 0, 1, 1, 1, 2, 2, 2,
-                                                      3, 3, 3, 3, 0, 1, 2, 0, 1, 2};
+  constexpr std::array<int8_t, kNumRelations> kDim = {0, 0, 0, 0, 1, 1, 1, 2, 2, 2, 3,
+                                                      3, 3, 3, 0, 1, 2, 0, 1, 2, 1, 2};
   return kDim[Index(r)];
 }
 
 // Dimension of the simplices in a relation's result; -1 for the boundary predicates.
 constexpr int TargetDimension(Relation r) {
-  constexpr std::array<int8_t, kNumRelations> kDim = {0, 1, 2, 3, 0, 2, 3, 0, 1, 3,
-                                                      0, 1, 2, 3, 2, 1, 0, -1, -1, -1};
+  constexpr std::array<int8_t, kNumRelations> kDim = {0, 1, 2, 3, 0, 2, 3, 0, 1, 3, 0,
+                                                      1, 2, 3, 2, 1, 0, -1, -1, -1, 1, 2};
   return kDim[Index(r)];
 }
 
 // Number of elements when fixed for every simplex (EV 2, FE 3, ...), 0 when variable.
 constexpr int FixedSize(Relation r) {
-  constexpr std::array<int8_t, kNumRelations> kSize = {0, 0, 0, 0, 2, 0, 0, 3, 3, 0,
-                                                       4, 6, 4, 0, 0, 0, 0, 1, 1, 1};
+  constexpr std::array<int8_t, kNumRelations> kSize = {0, 0, 0, 0, 2, 0, 0, 3, 3, 0, 4,
+                                                       6, 4, 0, 0, 0, 0, 1, 1, 1, 0, 0};
   return kSize[Index(r)];
 }
 

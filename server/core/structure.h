@@ -100,12 +100,14 @@ class ReaderBase {
   std::span<const SimplexId> edge_star(SimplexId e) { return get<Relation::kET>(e); }
   std::span<const SimplexId> edge_link(SimplexId e) { return get<Relation::kEL>(e); }
   bool edge_on_boundary(SimplexId e) { return get<Relation::kEB>(e)[0] != 0; }
+  std::span<const SimplexId> edge_neighbors(SimplexId e) { return get<Relation::kEE>(e); }
 
   std::array<SimplexId, 3> triangle_vertices(SimplexId f) const { return topology_->triangle(f); }
   std::span<const SimplexId> triangle_edges(SimplexId f) { return get<Relation::kFE>(f); }
   std::span<const SimplexId> triangle_star(SimplexId f) { return get<Relation::kFT>(f); }
   std::span<const SimplexId> triangle_link(SimplexId f) { return get<Relation::kFL>(f); }
   bool triangle_on_boundary(SimplexId f) const { return topology_->triangle_on_boundary(f); }
+  std::span<const SimplexId> triangle_neighbors(SimplexId f) { return get<Relation::kFF>(f); }
 
   std::span<const SimplexId, 4> tetrahedron_vertices(SimplexId t) const {
     return topology_->tetrahedron(t);
@@ -148,6 +150,8 @@ std::span<const SimplexId> ReaderBase<Derived>::get(Relation r, SimplexId s) {
     case Relation::kVB: return get<Relation::kVB>(s);
     case Relation::kEB: return get<Relation::kEB>(s);
     case Relation::kFB: return get<Relation::kFB>(s);
+    case Relation::kEE: return get<Relation::kEE>(s);
+    case Relation::kFF: return get<Relation::kFF>(s);
   }
   return {};
 }

@@ -26,7 +26,7 @@ absl::StatusOr<Relation> FromProto(pb::Relation r) {
         absl::StrCat("relation: ", pb::Relation_Name(r).empty() ? std::to_string(int(r))
                                                                  : pb::Relation_Name(r),
                      " is not a relation; set one of RELATION_VERTEX_NEIGHBORS ... "
-                     "RELATION_TRIANGLE_ON_BOUNDARY"));
+                     "RELATION_TRIANGLE_NEIGHBORS"));
   }
   return static_cast<Relation>(i);
 }

@@ -286,7 +286,8 @@ struct SessionStats {
 // "edge_star", "triangle_vertices", "triangle_edges", "triangle_star", "tetrahedron_vertices",
 // "tetrahedron_edges", "tetrahedron_triangles", "tetrahedron_neighbors", "vertex_link",
 // "edge_link", "triangle_link", "vertex_on_boundary", "edge_on_boundary",
-// "triangle_on_boundary".
+// "triangle_on_boundary", "edge_neighbors" (edges sharing a vertex), "triangle_neighbors"
+// (triangles sharing an edge).
 
 // The simplex a relation query is about: an id, or its input vertex ids in any order.
 //

@@ -57,6 +57,8 @@ RelationOracle::RelationOracle(const Topology& topology) {
   auto& vb = sized(Relation::kVB, nv);
   auto& eb = sized(Relation::kEB, ne);
   auto& fb = sized(Relation::kFB, nf);
+  auto& ee = sized(Relation::kEE, ne);
+  auto& ff = sized(Relation::kFF, nf);
 
   std::vector<std::set<SimplexId>> vv_set(nv), ve_set(nv), vf_set(nv), ef_set(ne), tt_set(nt);
   for (SimplexId e = 0; e < ne; ++e) {
@@ -91,6 +93,19 @@ RelationOracle::RelationOracle(const Topology& topology) {
     vf[v].assign(vf_set[v].begin(), vf_set[v].end());
   }
   for (SimplexId e = 0; e < ne; ++e) ef[e].assign(ef_set[e].begin(), ef_set[e].end());
+  // Neighbours through a shared vertex (edges) or edge (triangles).
+  for (SimplexId e = 0; e < ne; ++e) {
+    std::set<SimplexId> around;
+    for (SimplexId v : edges_[e]) around.insert(ve_set[v].begin(), ve_set[v].end());
+    around.erase(e);
+    ee[e].assign(around.begin(), around.end());
+  }
+  for (SimplexId f = 0; f < nf; ++f) {
+    std::set<SimplexId> around;
+    for (SimplexId e : fe[f]) around.insert(ef_set[e].begin(), ef_set[e].end());
+    around.erase(f);
+    ff[f].assign(around.begin(), around.end());
+  }
   for (SimplexId t = 0; t < nt; ++t) {
     for (SimplexId f : tf[t])
       for (SimplexId other : ft[f])
