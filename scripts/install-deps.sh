@@ -60,6 +60,7 @@ if ((want_venv)); then
       (cd "$tmp" && apt-get download -qq "python3-paraview=$pv_version")
     fi
     rm -rf "$pv_dir"
+    mkdir -p "$pv_dir"
     dpkg -x "$tmp"/python3-paraview_*.deb "$pv_dir"
     echo "$pv_version" > "$pv_dir/.version"
     rm -rf "$tmp"
