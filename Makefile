@@ -46,7 +46,7 @@ lint-python: deps
 
 test-unit: build
 	ACTOPO_DATA_DIR=$(DATA_DIR) ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)
-	ACTOPO_BUILD=$(abspath $(BUILD)) .venv/bin/python -m pytest -q tests
+	ACTOPO_BUILD=$(abspath $(BUILD)) ACTOPO_DATA_DIR=$(DATA_DIR) .venv/bin/python -m pytest -q -rs tests
 	ACTOPO_BUILD=$(abspath $(BUILD)) ACTOPO_DATA_DIR=$(DATA_DIR) .venv/bin/python -m pytest -q client-py/tests
 
 # 16 clients doing everything at once against one server (scripts/soak.py): no unexpected status
