@@ -67,7 +67,9 @@ std::string TopoRelationsResult::checksum_hex() const {
 
 std::span<const Relation> TopoRelationsSweeps() { return kSweeps; }
 
-RelationSet TopoRelationsDeclared() { return RelationSet::All(); }
+// An explicit structure composes the edge and triangle neighbours from the others as they are
+// read (explicit_structure.h), so they need not be stored.
+RelationSet TopoRelationsDeclared() { return ExplicitStructure::DefaultRelations(); }
 
 template <class Structure>
 absl::StatusOr<TopoRelationsResult> RunTopoRelations(Structure& structure,

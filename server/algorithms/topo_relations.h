@@ -33,7 +33,8 @@ struct TopoRelationsResult {
 
 // The sweep order.
 std::span<const Relation> TopoRelationsSweeps();
-// Everything the sweeps read that a structure stores: all relations.
+// What a structure needs stored for the sweeps: all relations but the edge and triangle
+// neighbours, which an explicit structure composes from the others.
 RelationSet TopoRelationsDeclared();
 
 // Runs on any structure with NewReader(); defined for the explicit, compact and actopo

@@ -1,7 +1,9 @@
 #include "server/core/explicit_structure.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <iterator>
 
 #include "server/core/block_relations.h"
 #include "server/core/parallel.h"
@@ -14,6 +16,39 @@ void ExplicitStructure::Reader::MissingRelation(Relation r) {
                "actopo: relation %s was not declared when the explicit structure was built\n",
                std::string(RelationName(r)).c_str());
   std::abort();
+}
+
+std::span<const SimplexId> ExplicitStructure::Reader::Row(Relation r, SimplexId s) const {
+  const Stored& st = owner_->stored_[Index(r)];
+  if (!st.present) MissingRelation(r);
+  if (FixedSize(r) > 0) {
+    return {st.values.data() + size_t(s) * FixedSize(r), size_t(FixedSize(r))};
+  }
+  return {st.values.data() + st.offsets[s], st.values.data() + st.offsets[s + 1]};
+}
+
+std::span<const SimplexId> ExplicitStructure::Reader::EdgeNeighbors(SimplexId e) {
+  const auto [a, b] = topology_->edge(e);
+  const std::span<const SimplexId> at_a = Row(Relation::kVE, a), at_b = Row(Relation::kVE, b);
+  edge_neighbors_.clear();
+  // Both rows are ascending and share only e itself.
+  std::set_union(at_a.begin(), at_a.end(), at_b.begin(), at_b.end(),
+                 std::back_inserter(edge_neighbors_));
+  std::erase(edge_neighbors_, e);
+  return edge_neighbors_;
+}
+
+std::span<const SimplexId> ExplicitStructure::Reader::TriangleNeighbors(SimplexId f) {
+  triangle_neighbors_.clear();
+  for (SimplexId e : Row(Relation::kFE, f)) {
+    const std::span<const SimplexId> around = Row(Relation::kEF, e);
+    triangle_neighbors_.insert(triangle_neighbors_.end(), around.begin(), around.end());
+  }
+  std::sort(triangle_neighbors_.begin(), triangle_neighbors_.end());
+  triangle_neighbors_.erase(std::unique(triangle_neighbors_.begin(), triangle_neighbors_.end()),
+                            triangle_neighbors_.end());
+  std::erase(triangle_neighbors_, f);
+  return triangle_neighbors_;
 }
 
 absl::StatusOr<std::unique_ptr<ExplicitStructure>> ExplicitStructure::Build(

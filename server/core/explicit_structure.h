@@ -5,8 +5,13 @@
 //   ExplicitStructure::Reader reader = structure->NewReader();
 //   for (SimplexId t : reader.vertex_star(v)) ...
 //
-// Readers are free to copy and to use from any number of threads at once (read-only data).
-// Asking a reader for a relation outside the declared set is a programming error and aborts.
+// By default every relation is stored except the edge and triangle neighbours (EE, FF), which
+// hold more entries than the others together: a reader composes those rows from the stored
+// VE, FE and EF as they are asked for. Declared explicitly, they are stored too.
+//
+// Readers are free to copy and to use from any number of threads at once (read-only data; each
+// reader has its own buffer for composed rows). Asking a reader for a relation that is neither
+// stored nor composable from stored ones is a programming error and aborts.
 #ifndef ACTOPO_SERVER_CORE_EXPLICIT_STRUCTURE_H_
 #define ACTOPO_SERVER_CORE_EXPLICIT_STRUCTURE_H_
 
@@ -25,8 +30,16 @@ namespace actopo {
 
 class ExplicitStructure {
  public:
+  // Everything but EE and FF.
+  static constexpr RelationSet DefaultRelations() {
+    RelationSet s = RelationSet::All();
+    s.Remove(Relation::kEE);
+    s.Remove(Relation::kFF);
+    return s;
+  }
+
   struct Options {
-    RelationSet relations = RelationSet::All();
+    RelationSet relations = DefaultRelations();
     int threads = 0;  // preprocessing threads; 0: DefaultThreads()
   };
 
@@ -39,8 +52,13 @@ class ExplicitStructure {
   class Reader : public ReaderBase<Reader> {
    public:
     template <Relation R>
-    std::span<const SimplexId> Lookup(SimplexId s) const {
+    std::span<const SimplexId> Lookup(SimplexId s) {
       const Stored& st = owner_->stored_[Index(R)];
+      if constexpr (R == Relation::kEE) {
+        if (!st.present) return EdgeNeighbors(s);
+      } else if constexpr (R == Relation::kFF) {
+        if (!st.present) return TriangleNeighbors(s);
+      }
       if (!st.present) [[unlikely]] MissingRelation(R);
       if constexpr (FixedSize(R) > 0) {
         return {st.values.data() + size_t(s) * FixedSize(R), size_t(FixedSize(R))};
@@ -55,7 +73,13 @@ class ExplicitStructure {
     explicit Reader(const ExplicitStructure* owner)
         : ReaderBase<Reader>(owner->topology_.get()), owner_(owner) {}
     [[noreturn]] static void MissingRelation(Relation r);
+    // Composed rows: VE(a) and VE(b) of edge (a, b); EF of the triangle's three edges; minus
+    // the simplex itself, ascending.
+    std::span<const SimplexId> EdgeNeighbors(SimplexId e);
+    std::span<const SimplexId> TriangleNeighbors(SimplexId f);
+    std::span<const SimplexId> Row(Relation r, SimplexId s) const;
     const ExplicitStructure* owner_;
+    std::vector<SimplexId> edge_neighbors_, triangle_neighbors_;
   };
 
   Reader NewReader() const { return Reader(this); }

@@ -89,6 +89,7 @@ class RelationSet {
     return s;
   }
   constexpr void Add(Relation r) { bits_ |= 1u << Index(r); }
+  constexpr void Remove(Relation r) { bits_ &= ~(1u << Index(r)); }
   constexpr bool Contains(Relation r) const { return bits_ & (1u << Index(r)); }
   constexpr bool empty() const { return bits_ == 0; }
   constexpr uint32_t bits() const { return bits_; }

@@ -35,10 +35,16 @@ TEST_P(RelationsTest, ExplicitMatchesOracle) {
   for (const Case& c : Meshes()) {
     auto topo = *Topology::Build(c.mesh, OctreeBlocks(c.mesh.points, {.bucket_capacity = capacity}));
     testing::RelationOracle oracle(*topo);
-    auto structure = ExplicitStructure::Build(topo, {.threads = 2});
-    ASSERT_TRUE(structure.ok()) << structure.status();
-    auto reader = (*structure)->NewReader();
-    EXPECT_EQ(testing::CompareWithOracle(reader, oracle, c.name), 0);
+    // Edge and triangle neighbours composed at read time (the default), and stored.
+    for (RelationSet relations : {ExplicitStructure::DefaultRelations(), RelationSet::All()}) {
+      auto structure = ExplicitStructure::Build(topo, {.relations = relations, .threads = 2});
+      ASSERT_TRUE(structure.ok()) << structure.status();
+      EXPECT_EQ((*structure)->relations().Contains(Relation::kEE), relations == RelationSet::All());
+      auto reader = (*structure)->NewReader();
+      const std::string label = c.name + (relations == RelationSet::All() ? " stored" : "");
+      EXPECT_EQ(testing::CompareWithOracle(reader, oracle, label), 0);
+      testing::CompareRandomAccess(reader, oracle, 11, 300, label);
+    }
   }
 }
 

@@ -22,10 +22,10 @@ int64_t NanosSince(Clock::time_point start) {
 
 constexpr std::string_view kDimensionNames[4] = {"vertex", "edge", "triangle", "tetrahedron"};
 
-// Bytes per tetrahedron of all 22 relations stored (explicit, measured on jittered:96 with
-// actopo-bench's structure_bytes - static_bytes: 540; the 20 without the edge and triangle
-// neighbours took 380).
-constexpr int64_t kAllRelationsBytesPerTet = 540;
+// Bytes per tetrahedron of the relations an explicit structure stores by default (all but the
+// edge and triangle neighbours; measured on jittered:96 with actopo-bench's structure_bytes -
+// static_bytes). With those two it would be 540.
+constexpr int64_t kAllRelationsBytesPerTet = 380;
 
 }  // namespace
 
