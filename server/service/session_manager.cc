@@ -32,7 +32,7 @@ absl::StatusOr<std::shared_ptr<Session>> SessionManager::Open(
   RETURN_IF_ERROR(Session::Validate(options));
   {
     std::lock_guard<std::mutex> lock(mu_);
-    if (int(sessions_.size()) >= limits_.max_sessions) {
+    if (int(sessions_.size()) + opening_ >= limits_.max_sessions) {
       return absl::ResourceExhaustedError(absl::StrCat(
           "sessions: the server holds its maximum of ", limits_.max_sessions,
           " sessions; close one first (--max-sessions raises the limit)"));
@@ -50,9 +50,11 @@ absl::StatusOr<std::shared_ptr<Session>> SessionManager::Open(
           "budget of ", limits_.max_engine_threads, " (", threads_, " in use)"));
     }
     threads_ += query;
+    ++opening_;  // the slot is held while the session is built, outside the lock
   }
   absl::StatusOr<std::unique_ptr<Session>> session = Session::Open(mesh, options, budget_, progress);
   std::lock_guard<std::mutex> lock(mu_);
+  --opening_;
   if (!session.ok()) {
     threads_ -= Session::QueryThreads(options);
     return session.status();

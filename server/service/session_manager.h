@@ -116,6 +116,7 @@ class SessionManager {
   std::map<std::string, std::shared_ptr<Job>> jobs_;      // by job id
   std::map<std::string, std::string> job_of_session_;     // session id -> job id
   int threads_ = 0;
+  int opening_ = 0;  // sessions being opened: each holds a slot of max_sessions
   bool draining_ = false;
   bool stop_ = false;
   std::condition_variable reaper_cv_;
