@@ -14,12 +14,13 @@ int main(int argc, char** argv) {
   const std::string target = argc > 1 ? argv[1] : "";
   const std::string mesh_name = argc > 2 ? argv[2] : "sample:jittered:32";
 
-  absl::StatusOr<std::unique_ptr<actopo::Client>> client = actopo::Client::Connect(target);
+  absl::StatusOr<std::unique_ptr<actopo::client::Client>> client =
+      actopo::client::Client::Connect(target);
   if (!client.ok()) {
     std::cerr << client.status() << "\n";
     return 1;
   }
-  absl::StatusOr<actopo::MeshInfo> mesh = (*client)->LoadMesh(mesh_name);
+  absl::StatusOr<actopo::client::MeshInfo> mesh = (*client)->LoadMesh(mesh_name);
   if (!mesh.ok()) {
     std::cerr << "load " << mesh_name << ": " << mesh.status() << "\n";
     return 1;
@@ -27,10 +28,10 @@ int main(int argc, char** argv) {
   std::cout << mesh->name << ": " << mesh->vertices << " vertices, " << mesh->tetrahedra
             << " tetrahedra\n";
 
-  absl::StatusOr<actopo::SessionInfo> session = (*client)->OpenSession(mesh->mesh_id);
-  absl::StatusOr<actopo::JobResult> result =
+  absl::StatusOr<actopo::client::SessionInfo> session = (*client)->OpenSession(mesh->mesh_id);
+  absl::StatusOr<actopo::client::JobResult> result =
       session.ok() ? (*client)->RunJob(session->session_id, "critical-points")
-                   : absl::StatusOr<actopo::JobResult>(session.status());
+                   : absl::StatusOr<actopo::client::JobResult>(session.status());
   if (result.ok()) {
     // One CriticalType per critical vertex, with TTK's codes.
     absl::StatusOr<std::vector<int8_t>> types =

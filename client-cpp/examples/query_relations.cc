@@ -20,20 +20,20 @@ void Print(const std::string& what, std::span<const int64_t> ids) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  absl::StatusOr<std::unique_ptr<actopo::Client>> connected =
-      actopo::Client::Connect(argc > 1 ? argv[1] : "");
+  absl::StatusOr<std::unique_ptr<actopo::client::Client>> connected =
+      actopo::client::Client::Connect(argc > 1 ? argv[1] : "");
   if (!connected.ok()) {
     std::cerr << connected.status() << "\n";
     return 1;
   }
-  actopo::Client& client = **connected;
-  absl::StatusOr<actopo::MeshInfo> mesh = client.LoadMesh("sample:jittered:8");
+  actopo::client::Client& client = **connected;
+  absl::StatusOr<actopo::client::MeshInfo> mesh = client.LoadMesh("sample:jittered:8");
   if (!mesh.ok()) {
     std::cerr << mesh.status() << "\n";
     return 1;
   }
-  absl::StatusOr<actopo::SessionInfo> session =
-      client.OpenSession(mesh->mesh_id, {.structure = actopo::Structure::kCompact});
+  absl::StatusOr<actopo::client::SessionInfo> session =
+      client.OpenSession(mesh->mesh_id, {.structure = actopo::client::Structure::kCompact});
   if (!session.ok()) {
     std::cerr << session.status() << "\n";
     return 1;
@@ -48,8 +48,8 @@ int main(int argc, char** argv) {
 
   // Edges and triangles by service id, or by their vertices with the vertices of the results.
   if (tet.ok()) {
-    const actopo::Simplex edge = actopo::Simplex::Vertices({(*tet)[0], (*tet)[1]});
-    absl::StatusOr<actopo::RelationResult> triangles =
+    const actopo::client::Simplex edge = actopo::client::Simplex::Vertices({(*tet)[0], (*tet)[1]});
+    absl::StatusOr<actopo::client::RelationResult> triangles =
         client.RelationWithVertices(s, "edge_triangles", edge);
     if (triangles.ok()) {
       Print("triangles around that tetrahedron's first edge", triangles->ids);
@@ -60,7 +60,7 @@ int main(int argc, char** argv) {
   // Many simplices at once: compressed sparse rows.
   std::vector<int64_t> vertices(5);
   std::iota(vertices.begin(), vertices.end(), 0);
-  absl::StatusOr<actopo::RelationCsr> neighbours =
+  absl::StatusOr<actopo::client::RelationCsr> neighbours =
       client.RelationBatch(s, "vertex_neighbors", vertices);
   if (neighbours.ok()) {
     for (size_t i = 0; i < neighbours->size(); ++i) {

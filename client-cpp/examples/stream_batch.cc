@@ -25,25 +25,25 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  absl::StatusOr<std::unique_ptr<actopo::Client>> connected =
-      actopo::Client::Connect(argc > 1 ? argv[1] : "");
+  absl::StatusOr<std::unique_ptr<actopo::client::Client>> connected =
+      actopo::client::Client::Connect(argc > 1 ? argv[1] : "");
   if (!connected.ok()) {
     std::cerr << connected.status() << "\n";
     return 1;
   }
-  actopo::Client& client = **connected;
+  actopo::client::Client& client = **connected;
   const std::string sample = argc > 2 ? argv[2] : "jittered:24";
-  absl::StatusOr<actopo::MeshInfo> mesh = client.LoadMesh("sample:" + sample);
+  absl::StatusOr<actopo::client::MeshInfo> mesh = client.LoadMesh("sample:" + sample);
   if (!mesh.ok()) {
     std::cerr << mesh.status() << "\n";
     return 1;
   }
   const std::string structure = argc > 3 ? argv[3] : "actopo";
-  actopo::SessionOptions options;
-  options.structure = structure == "explicit"  ? actopo::Structure::kExplicit
-                      : structure == "compact" ? actopo::Structure::kCompact
-                                               : actopo::Structure::kActopo;
-  absl::StatusOr<actopo::SessionInfo> session = client.OpenSession(mesh->mesh_id, options);
+  actopo::client::SessionOptions options;
+  options.structure = structure == "explicit"  ? actopo::client::Structure::kExplicit
+                      : structure == "compact" ? actopo::client::Structure::kCompact
+                                               : actopo::client::Structure::kActopo;
+  absl::StatusOr<actopo::client::SessionInfo> session = client.OpenSession(mesh->mesh_id, options);
   if (!session.ok()) {
     std::cerr << session.status() << "\n";
     return 1;
@@ -83,7 +83,7 @@ int main(int argc, char** argv) {
   auto start = std::chrono::steady_clock::now();
   int64_t answered = 0, failed = 0, total = 0;
   const absl::Status streamed = client.StreamRelations(
-      session->session_id, "vertex_star", ids, [&](actopo::StreamItem item) {
+      session->session_id, "vertex_star", ids, [&](actopo::client::StreamItem item) {
         if (item.ids.ok()) {
           ++answered;
           total += int64_t(item.ids->size());
@@ -99,7 +99,7 @@ int main(int argc, char** argv) {
 
   ids.pop_back();  // a batch fails as a whole on a bad id
   start = std::chrono::steady_clock::now();
-  absl::StatusOr<actopo::RelationCsr> batch =
+  absl::StatusOr<actopo::client::RelationCsr> batch =
       client.RelationBatch(session->session_id, "vertex_star", ids);
   const double batch_s = SecondsSince(start);
   if (batch.ok()) {
@@ -112,7 +112,8 @@ int main(int argc, char** argv) {
   // Batches of 65536 on one stream, written ahead of the answers; the last one holds a bad id.
   ids.push_back(int64_t(ids.size()));
   constexpr size_t kChunk = 65536;
-  absl::StatusOr<std::unique_ptr<actopo::RelationStream>> stream = client.OpenRelationStream();
+  absl::StatusOr<std::unique_ptr<actopo::client::RelationStream>> stream =
+      client.OpenRelationStream();
   if (!stream.ok()) {
     std::cerr << stream.status() << "\n";
     return 1;
@@ -129,10 +130,10 @@ int main(int argc, char** argv) {
     (*stream)->WritesDone().IgnoreError();
   });
   int64_t rows = 0, batch_values = 0;
-  while (std::optional<actopo::StreamItem> item = (*stream)->Read()) {
+  while (std::optional<actopo::client::StreamItem> item = (*stream)->Read()) {
     rows += int64_t(item->rows.size());
     batch_values += int64_t(item->rows.values.size());
-    for (const actopo::ItemError& e : item->item_errors) {
+    for (const actopo::client::ItemError& e : item->item_errors) {
       std::cout << "item " << item->request_id + e.index << ": " << e.status << "\n";
     }
   }

@@ -5,7 +5,7 @@
 #include "absl/strings/str_cat.h"
 #include "actopo/client.h"
 
-namespace actopo {
+namespace actopo::client {
 namespace {
 
 template <class T>
@@ -194,4 +194,4 @@ std::shared_ptr<CancelToken::Registration> CancelToken::OnCancel(std::function<v
   return std::make_shared<Registration>(state_, id);
 }
 
-}  // namespace actopo
+}  // namespace actopo::client

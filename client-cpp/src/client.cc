@@ -6,7 +6,7 @@
 #include "src/internal/core.h"
 #include "src/internal/names.h"
 
-namespace actopo {
+namespace actopo::client {
 
 using internal::FromProto;
 using internal::ToProto;
@@ -201,4 +201,4 @@ absl::Status Client::CancelJob(std::string_view job_id) {
       .status();
 }
 
-}  // namespace actopo
+}  // namespace actopo::client

@@ -9,7 +9,7 @@
 #include "src/internal/core.h"
 #include "src/internal/names.h"
 
-namespace actopo {
+namespace actopo::client {
 namespace {
 
 // Result arrays arrive in pieces (ResultChunk: offset and total bytes of the whole array).
@@ -161,4 +161,4 @@ absl::StatusOr<JobResult> Client::RunJob(std::string_view session_id, std::strin
   return result;
 }
 
-}  // namespace actopo
+}  // namespace actopo::client

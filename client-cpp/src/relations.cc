@@ -10,7 +10,7 @@
 #include "src/internal/core.h"
 #include "src/internal/names.h"
 
-namespace actopo {
+namespace actopo::client {
 namespace {
 
 using Stream = grpc::ClientReaderWriter<v1::StreamRelationsRequest, v1::StreamRelationsResponse>;
@@ -396,4 +396,4 @@ absl::StatusOr<std::unique_ptr<RelationStream>> Client::OpenRelationStream() {
   return std::make_unique<RelationStream>(std::move(impl));
 }
 
-}  // namespace actopo
+}  // namespace actopo::client

@@ -9,7 +9,7 @@
 #include "src/internal/names.h"
 #include "src/internal/sha256.h"
 
-namespace actopo {
+namespace actopo::client {
 namespace {
 
 constexpr int64_t kMaxCount = 2147483647;  // the server's ids are 32-bit
@@ -127,4 +127,4 @@ absl::StatusOr<MeshInfo> Client::UploadMesh(std::span<const double> points,
   return Upload(*core_, points, tetrahedra, fields, options);
 }
 
-}  // namespace actopo
+}  // namespace actopo::client

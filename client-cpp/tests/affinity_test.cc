@@ -19,7 +19,7 @@
 #include "absl/strings/str_replace.h"
 #include "tests/testing/fixture.h"
 
-namespace actopo::testing {
+namespace actopo::client::testing {
 namespace {
 
 std::string HAProxyBinary() {
@@ -129,4 +129,4 @@ TEST(AffinityTest, EveryCallOfAKeyReachesOneServerThroughHAProxy) {
 }
 
 }  // namespace
-}  // namespace actopo::testing
+}  // namespace actopo::client::testing

@@ -10,7 +10,7 @@
 
 #include "tests/testing/fixture.h"
 
-namespace actopo::testing {
+namespace actopo::client::testing {
 namespace {
 
 using absl::StatusCode;
@@ -317,4 +317,4 @@ TEST_F(ServerTest, Tls) {
 }
 
 }  // namespace
-}  // namespace actopo::testing
+}  // namespace actopo::client::testing

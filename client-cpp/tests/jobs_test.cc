@@ -8,7 +8,7 @@
 
 #include "tests/testing/fixture.h"
 
-namespace actopo::testing {
+namespace actopo::client::testing {
 namespace {
 
 using absl::StatusCode;
@@ -241,4 +241,4 @@ TEST_F(ServerTest, ClosingTheSessionCancelsItsJob) {
 }
 
 }  // namespace
-}  // namespace actopo::testing
+}  // namespace actopo::client::testing

@@ -5,7 +5,7 @@
 
 #include "tests/testing/fixture.h"
 
-namespace actopo::testing {
+namespace actopo::client::testing {
 namespace {
 
 using absl::StatusCode;
@@ -284,4 +284,4 @@ TEST_F(RelationsTest, StreamAbandonedEarlyEnds) {
 }
 
 }  // namespace
-}  // namespace actopo::testing
+}  // namespace actopo::client::testing

@@ -1,14 +1,34 @@
-// What the client does without a server: arrays, names, tokens, argument checks.
+// What the client does without a server: arrays, names, statistics, tokens, argument checks.
 #include <gtest/gtest.h>
 
 #include <cstdlib>
 #include <cstring>
+#include <iostream>
 #include <thread>
 
 #include "actopo/client.h"
 
-namespace actopo {
+namespace actopo::client {
 namespace {
+
+// The example of the header's overview, word for word, so that it keeps compiling (never run: it
+// needs a server on port 50051).
+[[maybe_unused]] absl::Status HeaderOverviewExample() {
+  absl::StatusOr<std::unique_ptr<actopo::client::Client>> client =
+      actopo::client::Client::Connect("127.0.0.1:50051");
+  if (!client.ok()) return client.status();
+  absl::StatusOr<actopo::client::MeshInfo> mesh = (*client)->LoadMesh("sample:jittered:20");
+  if (!mesh.ok()) return mesh.status();
+  absl::StatusOr<actopo::client::SessionInfo> session =
+      (*client)->OpenSession(mesh->mesh_id, {.structure = actopo::client::Structure::kCompact});
+  if (!session.ok()) return session.status();
+  absl::StatusOr<std::vector<int64_t>> star =
+      (*client)->Relation(session->session_id, "vertex_star", 7);  // tetrahedra around 7
+  absl::StatusOr<actopo::client::JobResult> result =
+      (*client)->RunJob(session->session_id, "critical-points");
+  if (result.ok()) std::cout << result->summary_json << "\n";  // {"counts": {...}, ...}
+  return absl::OkStatus();
+}
 
 template <class T>
 Array MakeArray(const std::string& name, std::vector<T> values, std::vector<int64_t> shape) {
@@ -73,6 +93,15 @@ TEST(SimplexTest, ByIdOrByVertices) {
   const Simplex edge = Simplex::Vertices({17, 3});
   EXPECT_TRUE(edge.by_vertices());
   EXPECT_EQ(edge.vertices(), (std::vector<int64_t>{17, 3}));
+}
+
+// Ratios at zero requests follow the Python client: nothing was asked, so nothing was missed.
+TEST(EngineStatsTest, HitRateIsOneWithoutRequests) {
+  EXPECT_EQ(EngineStats{}.hit_rate(), 1.0);
+  EXPECT_EQ((EngineStats{.requests = 0, .hits = 0, .misses = 0}).hit_rate(), 1.0);
+  EXPECT_EQ((EngineStats{.requests = 4, .hits = 1, .misses = 3}).hit_rate(), 0.25);
+  EXPECT_EQ((EngineStats{.requests = 4, .hits = 0, .misses = 4}).hit_rate(), 0.0);
+  EXPECT_EQ((EngineStats{.requests = 3, .hits = 3}).hit_rate(), 1.0);
 }
 
 TEST(CancelTokenTest, CopiesShareTheFlag) {
@@ -198,4 +227,4 @@ TEST(ArgumentsTest, CheckedOnTheClient) {
 }
 
 }  // namespace
-}  // namespace actopo
+}  // namespace actopo::client

@@ -6,7 +6,7 @@
 
 #include "tests/testing/fixture.h"
 
-namespace actopo::testing {
+namespace actopo::client::testing {
 namespace {
 
 using absl::StatusCode;
@@ -153,4 +153,4 @@ TEST_F(UploadTest, ServerRejectionsKeepTheirCodes) {
 }
 
 }  // namespace
-}  // namespace actopo::testing
+}  // namespace actopo::client::testing

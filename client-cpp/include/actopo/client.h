@@ -8,23 +8,27 @@
 // problems the client finds itself (an unknown relation name, a ragged array) are
 // INVALID_ARGUMENT before anything is sent.
 //
+// Everything here is in namespace actopo::client; the server's own types (its EngineStats,
+// PartitionOptions, ...) are in actopo, so one program may link the client and the server's
+// libraries. Ratios of counters (EngineStats::hit_rate) are 1.0 when the denominator is 0.
+//
 // This is the only public header. The generated protobuf and gRPC types stay inside the
 // library, so a program using it depends on Abseil's status types and the standard library
 // only.
 //
 // Example:
 //
-//   absl::StatusOr<std::unique_ptr<actopo::Client>> client =
-//       actopo::Client::Connect("127.0.0.1:50051");
+//   absl::StatusOr<std::unique_ptr<actopo::client::Client>> client =
+//       actopo::client::Client::Connect("127.0.0.1:50051");
 //   if (!client.ok()) return client.status();
-//   absl::StatusOr<actopo::MeshInfo> mesh = (*client)->LoadMesh("sample:jittered:20");
+//   absl::StatusOr<actopo::client::MeshInfo> mesh = (*client)->LoadMesh("sample:jittered:20");
 //   if (!mesh.ok()) return mesh.status();
-//   absl::StatusOr<actopo::SessionInfo> session =
-//       (*client)->OpenSession(mesh->mesh_id, {.structure = actopo::Structure::kCompact});
+//   absl::StatusOr<actopo::client::SessionInfo> session =
+//       (*client)->OpenSession(mesh->mesh_id, {.structure = actopo::client::Structure::kCompact});
 //   if (!session.ok()) return session.status();
 //   absl::StatusOr<std::vector<int64_t>> star =
 //       (*client)->Relation(session->session_id, "vertex_star", 7);  // tetrahedra around 7
-//   absl::StatusOr<actopo::JobResult> result =
+//   absl::StatusOr<actopo::client::JobResult> result =
 //       (*client)->RunJob(session->session_id, "critical-points");
 //   if (result.ok()) std::cout << result->summary_json << "\n";  // {"counts": {...}, ...}
 //
@@ -51,7 +55,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 
-namespace actopo {
+namespace actopo::client {
 
 namespace internal {
 struct Core;  // the channel, the stub and the options, shared by a Client and its streams
@@ -259,8 +263,8 @@ struct EngineStats {
   int64_t buffer_bytes = 0;
   int64_t buffer_peak_bytes = 0;
 
-  // hits / requests, 0 without requests.
-  double hit_rate() const { return requests > 0 ? double(hits) / double(requests) : 0.0; }
+  // hits / requests; 1.0 without requests (nothing was missed), as in the Python client.
+  double hit_rate() const { return requests > 0 ? double(hits) / double(requests) : 1.0; }
 };
 
 // Memory of a session.
@@ -558,9 +562,9 @@ class Client {
   absl::StatusOr<MeshInfo> LoadMesh(std::string_view path, const PartitionOptions& partition = {});
   // The same, reporting progress and cancellable:
   //
-  //   actopo::CancelToken cancel;   // cancel.Cancel() from any thread stops the load
+  //   actopo::client::CancelToken cancel;   // cancel.Cancel() from any thread stops the load
   //   auto mesh = client->LoadMeshWithProgress("big.vtu", {
-  //       .progress = [](const actopo::LoadProgress& p) {
+  //       .progress = [](const actopo::client::LoadProgress& p) {
   //         std::cerr << p.phase << " " << int(100 * p.fraction) << "%\r";
   //       },
   //       .cancel = cancel});
@@ -636,7 +640,7 @@ class Client {
   // Runs an algorithm on a session and waits for its result. `parameters`: e.g.
   // {{"boundary_rule", "none"}} for critical points.
   //
-  //   actopo::CancelToken cancel;   // cancel.Cancel() from another thread stops the job
+  //   actopo::client::CancelToken cancel;   // cancel.Cancel() from another thread stops the job
   //   auto result = client->RunJob(session_id, "morse-smale", {},
   //       {.progress = [](double f) { std::cerr << int(100 * f) << "%\r"; }, .cancel = cancel});
   absl::StatusOr<JobResult> RunJob(std::string_view session_id, std::string_view algorithm,
@@ -652,6 +656,6 @@ class Client {
   std::shared_ptr<internal::Core> core_;
 };
 
-}  // namespace actopo
+}  // namespace actopo::client
 
 #endif  // ACTOPO_CLIENT_H_

@@ -6,7 +6,7 @@
 #include "absl/strings/str_cat.h"
 #include "src/internal/names.h"
 
-namespace actopo::internal {
+namespace actopo::client::internal {
 
 // The wire is little-endian and arrays are copied byte for byte.
 static_assert(std::endian::native == std::endian::little,
@@ -151,4 +151,4 @@ absl::StatusOr<std::vector<int64_t>> UnpackInt64(const v1::Array& array, std::st
   return values;
 }
 
-}  // namespace actopo::internal
+}  // namespace actopo::client::internal

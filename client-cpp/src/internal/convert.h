@@ -8,7 +8,7 @@
 #include "actopo/client.h"
 #include "actopo/v1/topology_service.pb.h"
 
-namespace actopo::internal {
+namespace actopo::client::internal {
 
 ServerInfo FromProto(const v1::GetServerInfoResponse& info);
 MeshInfo FromProto(const v1::MeshInfo& mesh);
@@ -25,6 +25,6 @@ void PackInt64(std::span<const int64_t> values, std::span<const int64_t> shape, 
 // The values of an int64 array (`field` names it in errors); checks dtype and size.
 absl::StatusOr<std::vector<int64_t>> UnpackInt64(const v1::Array& array, std::string_view field);
 
-}  // namespace actopo::internal
+}  // namespace actopo::client::internal
 
 #endif  // ACTOPO_CLIENT_SRC_INTERNAL_CONVERT_H_

@@ -6,7 +6,7 @@
 #include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 
-namespace actopo::internal {
+namespace actopo::client::internal {
 namespace {
 
 // The retry policy of ClientOptions::retries, the same as the Python client's.
@@ -126,4 +126,4 @@ absl::StatusOr<std::shared_ptr<Core>> NewCore(std::string target, const ClientOp
   return core;
 }
 
-}  // namespace actopo::internal
+}  // namespace actopo::client::internal

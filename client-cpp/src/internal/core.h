@@ -15,7 +15,7 @@
 #include "actopo/client.h"
 #include "actopo/v1/topology_service.grpc.pb.h"
 
-namespace actopo::internal {
+namespace actopo::client::internal {
 
 // Debian's Abseil has no status macros.
 #define ACTOPO_RETURN_IF_ERROR(expr)               \
@@ -69,6 +69,6 @@ struct Core {
 // Connects (lazily unless options.connect_timeout > 0).
 absl::StatusOr<std::shared_ptr<Core>> NewCore(std::string target, const ClientOptions& options);
 
-}  // namespace actopo::internal
+}  // namespace actopo::client::internal
 
 #endif  // ACTOPO_CLIENT_SRC_INTERNAL_CORE_H_

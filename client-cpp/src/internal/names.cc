@@ -8,7 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 
-namespace actopo::internal {
+namespace actopo::client::internal {
 namespace {
 
 // (name, value) for every value of a proto enum but the _UNSPECIFIED zero, named by the value
@@ -165,4 +165,4 @@ Precompute FromProto(v1::Precompute precompute) {
   }
 }
 
-}  // namespace actopo::internal
+}  // namespace actopo::client::internal

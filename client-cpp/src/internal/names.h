@@ -10,7 +10,7 @@
 #include "actopo/client.h"
 #include "actopo/v1/topology_service.pb.h"
 
-namespace actopo::internal {
+namespace actopo::client::internal {
 
 // "vertex_star" -> RELATION_VERTEX_STAR; case is ignored and '-' equals '_'. Unknown names are
 // INVALID_ARGUMENT listing the known ones.
@@ -29,6 +29,6 @@ Prefetch FromProto(v1::Prefetch prefetch);
 v1::Precompute ToProto(Precompute precompute);
 Precompute FromProto(v1::Precompute precompute);
 
-}  // namespace actopo::internal
+}  // namespace actopo::client::internal
 
 #endif  // ACTOPO_CLIENT_SRC_INTERNAL_NAMES_H_

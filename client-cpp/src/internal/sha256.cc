@@ -2,7 +2,7 @@
 
 #include <openssl/evp.h>
 
-namespace actopo::internal {
+namespace actopo::client::internal {
 
 Sha256::Sha256() : context_(EVP_MD_CTX_new()) {
   ok_ = context_ != nullptr && EVP_DigestInit_ex(context_, EVP_sha256(), nullptr) == 1;
@@ -33,4 +33,4 @@ absl::StatusOr<std::string> Sha256::HexDigest() {
   return hex;
 }
 
-}  // namespace actopo::internal
+}  // namespace actopo::client::internal

@@ -9,7 +9,7 @@
 
 struct evp_md_ctx_st;
 
-namespace actopo::internal {
+namespace actopo::client::internal {
 
 class Sha256 {
  public:
@@ -27,6 +27,6 @@ class Sha256 {
   bool ok_;
 };
 
-}  // namespace actopo::internal
+}  // namespace actopo::client::internal
 
 #endif  // ACTOPO_CLIENT_SRC_INTERNAL_SHA256_H_

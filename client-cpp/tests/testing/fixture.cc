@@ -5,7 +5,7 @@
 #include <map>
 #include <mutex>
 
-namespace actopo::testing {
+namespace actopo::client::testing {
 namespace {
 
 std::string EnvOr(const char* name, const char* fallback) {
@@ -154,4 +154,4 @@ std::string ServerTest::Fertility() {
   return s.fertility;
 }
 
-}  // namespace actopo::testing
+}  // namespace actopo::client::testing

@@ -16,7 +16,7 @@
 #include "actopo/client.h"
 #include "tests/testing/server_process.h"
 
-namespace actopo::testing {
+namespace actopo::client::testing {
 
 std::string ServerBinary();
 std::string BenchBinary();
@@ -41,7 +41,7 @@ const absl::Status& StatusOf(const absl::StatusOr<T>& s) {
   switch (0)                                                                               \
   case 0:                                                                                  \
   default:                                                                                 \
-    if (const ::absl::Status actopo_status_ = ::actopo::testing::StatusOf(expr);           \
+    if (const ::absl::Status actopo_status_ = ::actopo::client::testing::StatusOf(expr);           \
         actopo_status_.ok()) {                                                              \
     } else                                                                                 \
       on_failure() << #expr << ": " << actopo_status_ << " "
@@ -76,6 +76,6 @@ class ServerTest : public ::testing::Test {
   std::vector<std::string> meshes_, sessions_;
 };
 
-}  // namespace actopo::testing
+}  // namespace actopo::client::testing
 
 #endif  // ACTOPO_CLIENT_TESTS_TESTING_FIXTURE_H_

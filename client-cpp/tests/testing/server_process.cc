@@ -15,7 +15,7 @@
 
 extern char** environ;
 
-namespace actopo::testing {
+namespace actopo::client::testing {
 namespace {
 
 constexpr std::string_view kListening = "actopo-server listening on ";
@@ -146,4 +146,4 @@ ServerProcess::~ServerProcess() {
   close(out_);
 }
 
-}  // namespace actopo::testing
+}  // namespace actopo::client::testing

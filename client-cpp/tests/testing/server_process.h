@@ -13,7 +13,7 @@
 
 #include "absl/status/statusor.h"
 
-namespace actopo::testing {
+namespace actopo::client::testing {
 
 class ChildProcess {
  public:
@@ -61,6 +61,6 @@ class ServerProcess {
   std::thread drain_;  // reads the child's stdout after the first line, so it never blocks
 };
 
-}  // namespace actopo::testing
+}  // namespace actopo::client::testing
 
 #endif  // ACTOPO_CLIENT_TESTS_TESTING_SERVER_PROCESS_H_
