@@ -12,7 +12,7 @@ SOAK_CLIENTS ?= 16
 FUZZ_SECONDS ?= 600
 FUZZERS = upload_fuzzer mesh_file_fuzzer partition_fuzzer request_fuzzer
 
-.PHONY: all deps build test lint-python test-unit test-client-cpp test-asan test-tsan test-asan-server test-soak soak test-fuzz fuzz lint-proto demo bench deploy-check clean
+.PHONY: all deps build test lint-python test-unit test-client-cpp test-thread-safety test-asan test-tsan test-asan-server test-soak soak test-fuzz fuzz lint-proto demo bench deploy-check clean
 
 all: build
 
@@ -25,10 +25,12 @@ $(BUILD)/build.ninja: | deps
 build: deps $(BUILD)/build.ninja
 	cmake --build $(BUILD) -j $(JOBS)
 
-# API lint, Python lint and types, unit, service and fidelity tests; the core and algorithm
+# API lint, Python lint and types, clang's thread-safety analysis of the core, unit, service and
+# fidelity tests; the core and algorithm
 # tests again under ASan+UBSan, and with the service's logic under TSan; the server under
 # ASan+UBSan for the service and client suites; the fuzzers.
-test: lint-proto lint-python test-unit test-client-cpp test-soak test-asan test-tsan test-asan-server test-fuzz
+test: lint-proto lint-python test-thread-safety test-unit test-client-cpp test-soak test-asan test-tsan \
+  test-asan-server test-fuzz
 	@echo "make test: all suites passed"
 
 # The C++ client as a user gets it: built, installed, tested against the real server, and its
@@ -72,6 +74,16 @@ fuzz: deps build-fuzz/build.ninja
 
 test-fuzz:
 	$(MAKE) fuzz FUZZ_SECONDS=60
+
+# clang's thread-safety analysis (-Wthread-safety) of server/core, warnings as errors: every
+# member annotated ABSL_GUARDED_BY is only touched with its mutex held (server/core/sync.h).
+build-tsa/build.ninja: | deps
+	cmake -S . -B build-tsa $(CMAKE_FLAGS) -DCMAKE_CXX_COMPILER=clang++-14 -DACTOPO_CORE_ONLY=ON \
+	  "-DCMAKE_CXX_FLAGS=-Wthread-safety -Werror"
+
+test-thread-safety: deps build-tsa/build.ninja
+	cmake --build build-tsa -j $(JOBS) --target actopo_core
+	@echo "test-thread-safety: server/core passes clang -Wthread-safety -Werror"
 
 # Sanitizer trees build less to stay fast: ASan+UBSan the core and algorithms (no VTK, no gRPC);
 # TSan those and the service's logic without gRPC (sessions, job leases, limits, background work);
@@ -131,4 +143,4 @@ bench: build
 	bash bench/compare_structures.sh
 
 clean:
-	rm -rf build build-asan build-tsan build-asan-server build-fuzz
+	rm -rf build build-asan build-tsan build-tsa build-asan-server build-fuzz

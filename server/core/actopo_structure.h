@@ -19,19 +19,51 @@
 // waits at most one block computation): when the consumer reads faster than one producer
 // computes, which is the common case, an idle leader would waste a core.
 //
-// What this implementation guarantees beyond the reference code:
-// - each (block, relation) has a state (absent, computing, ready): nothing is computed twice at
-//   once, and an empty relation is still "ready";
-// - producers sleep on a condition variable when there is nothing useful to do;
-// - eviction (oldest half of the buffer by insertion) never frees a relation a consumer is
-//   reading: the consumer pins it (an atomic count) and eviction skips pinned entries;
-// - the configuration is fixed before any thread starts; destruction stops and joins every
-//   thread, also while a consumer waits on a miss (that consumer then computes the relation
-//   itself, so its results stay correct).
+// The engine in one consumer (actopo_structure.cc; C consumers share nothing but the Topology):
+//
+//   consumer thread (the algorithm's)     producers: 1 leader + P-1 workers
+//   Reader::Lookup ---------------------> RelationBuffer (relation_buffer.h): per (block,
+//     hit: TryPin, lock-free                relation) absent -> computing -> ready -> absent,
+//     miss: Acquire() under mu_             pins, eviction of the oldest half
+//   posts a request or a hint ----------> leader: serves the request, then asks the
+//                                           PrefetchPlanner (prefetch_planner.h) for the next
+//                                           tasks; workers (and an idle leader) take them
+//
+// State per (block, relation): see relation_buffer.h. Who moves it here: StartComputing by the
+// one producer or consumer that will compute it (whoever wins the compare-and-swap; the others
+// count a duplicate avoided), Publish by that thread, eviction inside Publish. So nothing is
+// computed twice at once, and a relation is freed only when no reader holds a pin on it.
+//
+// Sequence numbers (all under the consumer's mu_, each only ever grows):
+// - request_seq: the consumer posts a miss it waits for (kLeader policy, or the relation is
+//   being computed by a producer); served_seq catches up to it once that relation is pinned for
+//   the consumer, by the leader (it was ready, or the leader computed it) or by the Publish of
+//   whoever computed it. The consumer waits until served_seq >= its request's number.
+// - hint_seq: the consumer tells the leader where it is without waiting (it reached the trigger
+//   block of the current plan, or computes a miss itself under kConsumer). The leader keeps the
+//   last request and hint numbers it has handled and re-plans once per new one.
+//
+// Locks, in the order they nest (a thread holding one takes only locks listed below it):
+//   lifecycle_mu  Start/Stop of the producer threads (Shutdown and the destructor may race).
+//   mu            one per consumer: stop flag, request/hint/served numbers and their payloads,
+//                 the current plan and its cursor, the prefetching switch, the trace pointer.
+//                 Producers hold it except while computing a relation; the consumer takes it
+//                 only on a miss and once per plan (a hint).
+//   buffer mu     inside RelationBuffer::Publish only: the resident list.
+// Lock-free: pins and states (RelationBuffer), the trigger block, statistics counters, and the
+// TransitionModel of the adaptive mode (consumer thread only). Members are annotated with
+// Abseil's thread-safety attributes and checked by clang -Wthread-safety (make
+// test-thread-safety).
+//
+// Guarantees beyond the reference code: nothing computed twice at once and an empty relation is
+// "ready" (the state above); producers sleep on condition variables when there is nothing to do;
+// eviction never frees a relation a consumer is reading (pins); the configuration is fixed before
+// any thread starts; destruction and Shutdown stop and join every producer, also while a
+// consumer waits on a miss (that consumer then computes the relation itself, so its results stay
+// correct).
 //
 // A read inside the block a reader is already on is a comparison; moving to another block is a
-// few atomic operations on a hit, and takes the consumer's mutex only on a miss and, once per
-// prefetch window, to tell the leader where the consumer has got to.
+// few atomic operations on a hit.
 #ifndef ACTOPO_SERVER_CORE_ACTOPO_STRUCTURE_H_
 #define ACTOPO_SERVER_CORE_ACTOPO_STRUCTURE_H_
 
@@ -44,6 +76,7 @@
 
 #include "absl/status/statusor.h"
 #include "server/core/block_relations.h"
+#include "server/core/prefetch_planner.h"
 #include "server/core/relation.h"
 #include "server/core/stats.h"
 #include "server/core/structure.h"
@@ -52,13 +85,6 @@
 
 namespace actopo {
 
-// Which blocks producers compute ahead of the consumer.
-enum class Prefetch : uint8_t {
-  kLinear,    // b + 1, b + 2, ...
-  kSpatial,   // blocks sharing a tetrahedron with b, ascending
-  kAdaptive,  // the blocks this consumer has most often moved to from b (learned online), then
-              // spatial neighbours for the rest of the window
-};
 // Who computes a relation the consumer misses when no producer is already computing it.
 enum class MissPolicy : uint8_t {
   kLeader,    // the paper's protocol: the consumer asks its leader and waits
@@ -66,22 +92,15 @@ enum class MissPolicy : uint8_t {
               // where it is, so the workers re-target
 };
 
-// Which relations producers compute for a prefetched block.
-enum class Precompute : uint8_t {
-  kRequested,  // the relation the consumer last asked for
-  kDeclared,   // every relation of the algorithm's declared set
-};
-
-std::string_view PrefetchName(Prefetch p);
 std::string_view MissPolicyName(MissPolicy p);
-std::string_view PrecomputeName(Precompute p);
 
 // Engine counters of one consumer (and summed per session).
 struct EngineStats {
   AccessStats access;
   int64_t leader_relations = 0;     // (block, relation) computed by leaders
   int64_t worker_relations = 0;     // ... by workers
-  int64_t consumer_relations = 0;   // ... by consumers themselves (only while shutting down)
+  int64_t consumer_relations = 0;   // ... by consumers (their misses under kConsumer, and
+                                    // every miss once the engine is stopping)
   int64_t duplicates_avoided = 0;   // tasks skipped because already computing or ready
   int64_t blocks_inserted = 0;      // blocks that entered the buffer
   int64_t producer_busy_ns = 0;     // time producers spent computing
@@ -152,11 +171,11 @@ class ActopoStructure {
     friend class ActopoStructure;
     struct Slot : RelationSlot {
       int32_t block = -1;
-      void* cell = nullptr;  // the pinned buffer cell, or null for a consumer-computed block
+      bool pinned = false;  // false: empty, or a block this reader computed itself (own_)
     };
     Reader(const Topology* topology, Consumer* consumer);
     void MoveSlot(Relation r, int32_t block);
-    void Release(Slot& slot);
+    void Release(Relation r);
 
     Consumer* consumer_;
     std::array<Slot, kNumRelations> slots_;

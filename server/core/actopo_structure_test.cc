@@ -6,6 +6,7 @@
 #include <atomic>
 #include <chrono>
 #include <thread>
+#include <tuple>
 
 #include "gtest/gtest.h"
 #include "server/core/partition.h"
@@ -27,70 +28,83 @@ std::unique_ptr<ActopoStructure> Create(std::shared_ptr<const Topology> topo,
   return std::move(*s);
 }
 
+// One engine configuration; every combination is a test of its own.
 struct Config {
   Prefetch prefetch;
   Precompute precompute;
   int producers;
   int consumers;
   double ratio;
+  MissPolicy policy;
 };
 
 std::string Label(const Config& c) {
   return std::string(PrefetchName(c.prefetch)) + "/" + std::string(PrecomputeName(c.precompute)) +
          " P=" + std::to_string(c.producers) + " C=" + std::to_string(c.consumers) +
-         " ratio=" + std::to_string(c.ratio);
+         " ratio=" + std::to_string(c.ratio) + " miss=" + std::string(MissPolicyName(c.policy));
 }
 
-std::vector<Config> AllConfigs() {
-  std::vector<Config> out;
-  for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive})
-    for (Precompute q : {Precompute::kRequested, Precompute::kDeclared})
-      for (int producers : {1, 2, 4})
-        for (int consumers : {1, 2})
-          for (double ratio : {0.01, 0.2, 1.0}) out.push_back({p, q, producers, consumers, ratio});
-  return out;
-}
+class EveryConfiguration : public ::testing::TestWithParam<
+                               std::tuple<Prefetch, Precompute, int, int, double, MissPolicy>> {
+ protected:
+  Config config() const {
+    const auto& [prefetch, precompute, producers, consumers, ratio, policy] = GetParam();
+    return {prefetch, precompute, producers, consumers, ratio, policy};
+  }
+};
 
-TEST(ActopoStructure, EveryConfigurationMatchesOracle) {
+TEST_P(EveryConfiguration, MatchesTheOracle) {
+  const Config c = config();
   for (const Mesh& mesh : {testing::Lattice(5, 5, 4, 9), testing::NonManifold()}) {
     auto topo = Build(mesh, 9);
     testing::RelationOracle oracle(*topo);
-    int index = 0;
-    for (const Config& c : AllConfigs()) {
-      // Both miss policies, alternating over the configurations.
-      const MissPolicy policy = index++ % 2 ? MissPolicy::kConsumer : MissPolicy::kLeader;
-      auto structure = Create(topo, {.consumers = c.consumers,
-                                     .producers = c.producers,
-                                     .buffer_ratio = c.ratio,
-                                     .prefetch = c.prefetch,
-                                     .precompute = c.precompute,
-                                     .miss_policy = policy});
-      std::vector<std::thread> threads;
-      std::atomic<int> mismatches{0};
-      for (int k = 0; k < c.consumers; ++k) {
-        threads.emplace_back([&, k] {
-          auto reader = structure->NewReader();
-          if (k == 0) {
-            mismatches += testing::CompareWithOracle(reader, oracle, Label(c));
-          }
-          testing::CompareRandomAccess(reader, oracle, 17 + k, 30, Label(c));
-        });
+    auto structure = Create(topo, {.consumers = c.consumers,
+                                   .producers = c.producers,
+                                   .buffer_ratio = c.ratio,
+                                   .prefetch = c.prefetch,
+                                   .precompute = c.precompute,
+                                   .miss_policy = c.policy});
+    std::vector<std::thread> threads;
+    std::atomic<int> mismatches{0};
+    for (int k = 0; k < c.consumers; ++k) {
+      threads.emplace_back([&, k] {
+        auto reader = structure->NewReader();
+        if (k == 0) mismatches += testing::CompareWithOracle(reader, oracle, Label(c));
+        testing::CompareRandomAccess(reader, oracle, 17 + k, 30, Label(c));
+      });
+    }
+    for (auto& t : threads) t.join();
+    EXPECT_EQ(mismatches.load(), 0);
+    for (const EngineStats& s : structure->consumer_stats()) {
+      EXPECT_EQ(s.access.requests, s.access.hits + s.access.misses);
+      if (c.policy == MissPolicy::kLeader) {
+        EXPECT_EQ(s.consumer_relations, 0);
       }
-      for (auto& t : threads) t.join();
-      EXPECT_EQ(mismatches.load(), 0) << Label(c);
-      for (const EngineStats& s : structure->consumer_stats()) {
-        EXPECT_EQ(s.access.requests, s.access.hits + s.access.misses) << Label(c);
-        if (policy == MissPolicy::kLeader) {
-          EXPECT_EQ(s.consumer_relations, 0) << Label(c);
-        }
-        // The buffer holds at most its capacity, plus the block just inserted, plus blocks
-        // the consumer pins (one per relation slot).
-        EXPECT_LE(s.buffer_peak_blocks,
-                  structure->buffer_capacity_blocks() + 1 + kNumRelations) << Label(c);
-      }
+      // The buffer holds at most its capacity, plus the block just inserted, plus blocks the
+      // consumer pins (one per relation slot).
+      EXPECT_LE(s.buffer_peak_blocks, structure->buffer_capacity_blocks() + 1 + kNumRelations);
     }
   }
 }
+
+std::string ConfigName(const ::testing::TestParamInfo<EveryConfiguration::ParamType>& info) {
+  const auto& [prefetch, precompute, producers, consumers, ratio, policy] = info.param;
+  return std::string(PrefetchName(prefetch)) + "_" + std::string(PrecomputeName(precompute)) +
+         "_P" + std::to_string(producers) + "_C" + std::to_string(consumers) + "_ratio" +
+         std::to_string(int(ratio * 100)) + "pct_" + std::string(MissPolicyName(policy)) +
+         "Misses";
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    ActopoStructure, EveryConfiguration,
+    ::testing::Combine(
+        ::testing::Values(Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive),
+        ::testing::Values(Precompute::kRequested, Precompute::kDeclared),
+        ::testing::Values(1, 2, 4),                // producers
+        ::testing::Values(1, 2),                   // consumers
+        ::testing::Values(0.01, 0.2, 1.0),         // buffer ratio
+        ::testing::Values(MissPolicy::kLeader, MissPolicy::kConsumer)),
+    ConfigName);
 
 TEST(ActopoStructure, PrefetchingOffComputesOnlyWhatIsMissed) {
   auto topo = Build(testing::Lattice(6, 6, 5, 3), 8);

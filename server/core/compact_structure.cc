@@ -18,12 +18,12 @@ CompactStructure::CompactStructure(std::shared_ptr<const Topology> topology,
 }
 
 void CompactStructure::SetTrace(std::shared_ptr<Trace> trace) {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   trace_ = std::move(trace);
 }
 
 AccessStats CompactStructure::stats() const {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   return finished_;
 }
 
@@ -41,7 +41,7 @@ CompactStructure::Reader::Reader(CompactStructure* owner)
       capacity_(owner->capacity_),
       entry_of_block_(owner->topology_->num_blocks(), -1) {
   entries_.reserve(capacity_ + kNumRelations);
-  std::lock_guard<std::mutex> lock(owner->mu_);
+  MutexLock lock(owner->mu_);
   trace_ = owner->trace_;
 }
 
@@ -61,7 +61,7 @@ CompactStructure::Reader::Reader(Reader&& other) noexcept
 CompactStructure::Reader::~Reader() {
   if (owner_ == nullptr) return;
   AddBytes(-bytes_);
-  std::lock_guard<std::mutex> lock(owner_->mu_);
+  MutexLock lock(owner_->mu_);
   owner_->finished_ += stats_;
 }
 

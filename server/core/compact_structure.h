@@ -15,13 +15,13 @@
 #include <array>
 #include <atomic>
 #include <memory>
-#include <mutex>
 #include <vector>
 
 #include "server/core/block_relations.h"
 #include "server/core/relation.h"
 #include "server/core/stats.h"
 #include "server/core/structure.h"
+#include "server/core/sync.h"
 #include "server/core/topology.h"
 #include "server/core/trace.h"
 
@@ -98,9 +98,9 @@ class CompactStructure {
  private:
   std::shared_ptr<const Topology> topology_;
   int capacity_;
-  mutable std::mutex mu_;
-  AccessStats finished_;              // guarded by mu_
-  std::shared_ptr<Trace> trace_;      // guarded by mu_
+  mutable Mutex mu_;
+  AccessStats finished_ ABSL_GUARDED_BY(mu_);
+  std::shared_ptr<Trace> trace_ ABSL_GUARDED_BY(mu_);
   std::atomic<int64_t> bytes_{0};     // over all live readers
   std::atomic<int64_t> peak_bytes_{0};
 };

@@ -64,7 +64,7 @@ Trace::~Trace() = default;
 Trace::ThreadBuffer& Trace::Buffer() {
   if (cached.trace == id_) return *static_cast<ThreadBuffer*>(cached.buffer);
   const std::thread::id self = std::this_thread::get_id();
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   auto it = std::find_if(buffers_.begin(), buffers_.end(),
                          [&](const auto& b) { return b->thread == self; });
   if (it == buffers_.end()) {
@@ -85,7 +85,7 @@ void Trace::Add(const Event& event) {
     return;
   }
   ThreadBuffer& buffer = Buffer();
-  std::lock_guard<std::mutex> lock(buffer.mu);
+  MutexLock lock(buffer.mu);
   buffer.events.push_back(event);
 }
 
@@ -103,7 +103,7 @@ int64_t Trace::events() const {
 }
 
 void Trace::WriteJson(std::ostream& out) const {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   out << "{\"displayTimeUnit\":\"ms\",\"traceEvents\":[\n";
   bool first = true;
   const auto next = [&] {
@@ -120,7 +120,7 @@ void Trace::WriteJson(std::ostream& out) const {
     out << "}}";
   }
   for (const auto& buffer : buffers_) {
-    std::lock_guard<std::mutex> events_lock(buffer->mu);
+    MutexLock events_lock(buffer->mu);
     for (const Event& e : buffer->events) {
       next();
       out << R"({"ph":")" << (e.duration_ns < 0 ? "i" : "X") << R"(","pid":1,"tid":)"

@@ -22,11 +22,13 @@
 #include <cstdint>
 #include <deque>
 #include <memory>
-#include <mutex>
 #include <ostream>
 #include <string>
 #include <thread>
 #include <vector>
+
+#include "absl/base/thread_annotations.h"
+#include "server/core/sync.h"
 
 namespace actopo {
 
@@ -98,8 +100,8 @@ class Trace {
     std::thread::id thread;
     int tid = 0;  // 1, 2, ... in order of first event
     std::string role;
-    mutable std::mutex mu;  // the owning thread appends, WriteJson reads
-    std::deque<Event> events;
+    mutable Mutex mu;  // the owning thread appends, WriteJson reads
+    std::deque<Event> events ABSL_GUARDED_BY(mu);
   };
   ThreadBuffer& Buffer();
   void Add(const Event& event);
@@ -109,8 +111,8 @@ class Trace {
   const Clock::time_point origin_;
   std::atomic<int64_t> reserved_{0};
   std::atomic<int64_t> dropped_{0};
-  mutable std::mutex mu_;  // guards buffers_ (the list; each buffer has its own lock)
-  std::vector<std::unique_ptr<ThreadBuffer>> buffers_;
+  mutable Mutex mu_ ABSL_ACQUIRED_BEFORE(ThreadBuffer::mu);
+  std::vector<std::unique_ptr<ThreadBuffer>> buffers_ ABSL_GUARDED_BY(mu_);  // each: its own lock
 };
 
 }  // namespace actopo
