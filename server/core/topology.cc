@@ -156,6 +156,27 @@ SimplexId Topology::FindTriangle(SimplexId a, SimplexId b, SimplexId c) const {
   return -1;
 }
 
+SimplexId Topology::FindTetrahedron(SimplexId a, SimplexId b, SimplexId c, SimplexId d) const {
+  // A tetrahedron sits among its block's internal ones, which are ordered by lowest vertex: a
+  // binary search finds a's run (tens of tetrahedra), then a linear scan.
+  const int32_t block = vertex_block_[a];
+  const SimplexId* tets = tet_vertices_.data();
+  SimplexId lo = block_tet_begin_[block], hi = block_tet_begin_[block + 1];
+  while (lo < hi) {
+    const SimplexId mid = lo + (hi - lo) / 2;
+    if (tets[4 * size_t(mid)] < a) {
+      lo = mid + 1;
+    } else {
+      hi = mid;
+    }
+  }
+  for (SimplexId t = lo; t < block_tet_begin_[block + 1] && tets[4 * size_t(t)] == a; ++t) {
+    const SimplexId* s = &tets[4 * size_t(t)];
+    if (s[1] == b && s[2] == c && s[3] == d) return t;
+  }
+  return -1;
+}
+
 TopologyBytes Topology::bytes() const {
   TopologyBytes b;
   b.vertices = VectorBytes(vertex_block_) + VectorBytes(vertex_input_id_) +

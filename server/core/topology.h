@@ -130,6 +130,7 @@ class Topology {
   // Tuple -> id; the internal vertex ids must be sorted ascending. -1 if no such simplex.
   SimplexId FindEdge(SimplexId a, SimplexId b) const;
   SimplexId FindTriangle(SimplexId a, SimplexId b, SimplexId c) const;
+  SimplexId FindTetrahedron(SimplexId a, SimplexId b, SimplexId c, SimplexId d) const;
 
   // Block of a simplex: the block of its lowest vertex.
   int32_t vertex_block(SimplexId v) const { return vertex_block_[v]; }

@@ -1,6 +1,8 @@
 #include "server/core/topology.h"
 
 #include <algorithm>
+#include <map>
+#include <random>
 #include <set>
 
 #include "gmock/gmock.h"
@@ -151,6 +153,51 @@ TEST(Topology, FindRejectsAbsentSimplices) {
   std::array<SimplexId, 3> t = {a, b, c};
   std::sort(t.begin(), t.end());
   EXPECT_EQ(topo->FindTriangle(t[0], t[1], t[2]), -1);
+}
+
+// Against a brute-force oracle: every tetrahedron's tuple finds it, and random tuples (mostly
+// absent, some sharing a face or a lowest vertex with a tetrahedron) find one exactly when the
+// mesh's set of sorted tuples holds them.
+TEST(Topology, FindTetrahedronMatchesBruteForce) {
+  for (const Mesh& m : {testing::Lattice(5, 4, 4, 1), testing::NonManifold(),
+                        testing::TwoComponents(), testing::SingleTetrahedron()}) {
+    for (int capacity : {1, 7, 1000}) {
+      auto topo = BuildOrDie(m, capacity);
+      std::map<std::array<SimplexId, 4>, SimplexId> tuples;
+      for (SimplexId t = 0; t < topo->num_tetrahedra(); ++t) {
+        std::array<SimplexId, 4> v;
+        const SimplexId input = topo->tetrahedron_input_id(t);
+        for (int k = 0; k < 4; ++k) {
+          v[k] = topo->vertex_internal_id(m.tetrahedra[4 * size_t(input) + k]);
+        }
+        std::sort(v.begin(), v.end());
+        tuples[v] = t;
+      }
+      for (const auto& [v, t] : tuples) {
+        EXPECT_EQ(topo->FindTetrahedron(v[0], v[1], v[2], v[3]), t);
+      }
+      std::mt19937 random(capacity);
+      const SimplexId nv = topo->num_vertices();
+      for (int i = 0; i < 2000; ++i) {
+        std::array<SimplexId, 4> v;
+        if (i % 2 == 0 && !tuples.empty()) {
+          // A tetrahedron with one vertex replaced: often a near miss.
+          auto it = tuples.begin();
+          std::advance(it, random() % tuples.size());
+          v = it->first;
+          v[random() % 4] = SimplexId(random() % nv);
+        } else {
+          for (SimplexId& x : v) x = SimplexId(random() % nv);
+        }
+        std::sort(v.begin(), v.end());
+        if (std::adjacent_find(v.begin(), v.end()) != v.end()) continue;
+        const auto it = tuples.find(v);
+        EXPECT_EQ(topo->FindTetrahedron(v[0], v[1], v[2], v[3]),
+                  it == tuples.end() ? -1 : it->second)
+            << v[0] << " " << v[1] << " " << v[2] << " " << v[3];
+      }
+    }
+  }
 }
 
 TEST(Topology, ExternalTetrahedraAndBlockAdjacency) {

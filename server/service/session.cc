@@ -192,22 +192,7 @@ absl::StatusOr<SimplexId> Session::ResolveVertices(int dimension,
     case 0: found = v[0]; break;
     case 1: found = v[0] == v[1] ? -1 : topo.FindEdge(v[0], v[1]); break;
     case 2: found = topo.FindTriangle(v[0], v[1], v[2]); break;
-    default: {
-      // The tetrahedra of its lowest vertex: internal ones come from its block's range and the
-      // external list, both short; scan them.
-      const int32_t b = topo.vertex_block(v[0]);
-      auto matches = [&](SimplexId t) {
-        const auto tv = topo.tetrahedron(t);
-        return std::equal(tv.begin(), tv.end(), v.begin());
-      };
-      for (SimplexId t = topo.block_tetrahedron_begin(b);
-           found < 0 && t < topo.block_tetrahedron_begin(b + 1); ++t) {
-        if (matches(t)) found = t;
-      }
-      for (SimplexId t : topo.external_tetrahedra(b)) {
-        if (found < 0 && matches(t)) found = t;
-      }
-    }
+    default: found = topo.FindTetrahedron(v[0], v[1], v[2], v[3]); break;
   }
   if (found < 0) {
     return absl::NotFoundError(absl::StrCat(
