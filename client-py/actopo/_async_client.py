@@ -32,6 +32,7 @@ from actopo._channel import (
     resolve_target,
 )
 from actopo._errors import ActopoError, error_for_number, translate, translated
+from actopo._literals import Algorithm, Precompute, Prefetch, Relation, Structure
 from actopo._mesh import MeshLike, mesh_arrays
 from actopo._progress import (
     LoadProgressArg,
@@ -181,9 +182,9 @@ class AsyncClient:
         await self._call("DeleteMesh", pb.DeleteMeshRequest(mesh_id=_requests.mesh_id(mesh)))
 
     def open_session(self, mesh: MeshRef, *, scalar: str | None = None,
-                     structure: str = "actopo", consumers: int = 0, producers: int = 0,
-                     buffer_ratio: float = 0.0, prefetch: str = "auto",
-                     precompute: str = "auto", query_readers: int = 0) -> _SessionOpener:
+                     structure: Structure = "actopo", consumers: int = 0, producers: int = 0,
+                     buffer_ratio: float = 0.0, prefetch: Prefetch = "auto",
+                     precompute: Precompute = "auto", query_readers: int = 0) -> _SessionOpener:
         """See Client.open_session(). Await it, or use ``async with`` to close it at the end."""
         request = _requests.open_session(mesh, scalar, structure, consumers, producers,
                                          buffer_ratio, prefetch, precompute, query_readers)
@@ -270,7 +271,8 @@ class AsyncSession:
         self.info = await self._client.get_session(self._id())
         return self.info
 
-    async def relation(self, name: str, ids: Any, *, raise_errors: bool = True) -> RelationBatch:
+    async def relation(self, name: Relation, ids: Any, *,
+                       raise_errors: bool = True) -> RelationBatch:
         """See Session.relation()."""
         values = _requests.simplex_array(ids)
         chunk = _batches.chunk_size(None, await self._client._batch_size())
@@ -283,7 +285,7 @@ class AsyncSession:
                                                           raise_errors=raise_errors)]
         return batches[0]
 
-    async def relation_batches(self, name: str, arrays: Iterable[Any], *,
+    async def relation_batches(self, name: Relation, arrays: Iterable[Any], *,
                                chunk_size: int | None = None,
                                window: int = _batches.STREAM_WINDOW,
                                raise_errors: bool = False) -> AsyncIterator[RelationBatch]:
@@ -315,13 +317,13 @@ class AsyncSession:
         if failed:
             raise failed[0]
 
-    async def query(self, name: str, simplex: SimplexArg, *,
+    async def query(self, name: Relation, simplex: SimplexArg, *,
                     include_vertices: bool = False) -> SimplexRelation:
         """See Session.query()."""
         request = _requests.single(self._id(), name, simplex, include_vertices)
         return _requests.single_result(await self._client._call("GetRelation", request))
 
-    async def relations_stream(self, name: str, simplices: Iterable[SimplexArg], *,
+    async def relations_stream(self, name: Relation, simplices: Iterable[SimplexArg], *,
                                raise_errors: bool = False) -> AsyncIterator[StreamItem]:
         """See Session.relations_stream(); an async iterator."""
         call = self._client._stub.StreamRelations(
@@ -340,7 +342,7 @@ class AsyncSession:
         finally:
             call.cancel()
 
-    async def submit(self, algorithm: str, *, parameters: Mapping[str, Any] | None = None,
+    async def submit(self, algorithm: Algorithm, *, parameters: Mapping[str, Any] | None = None,
                      include_arrays: bool = True, trace: bool = False,
                      timeout: float | None = None) -> AsyncJob:
         """See Session.submit()."""
@@ -351,7 +353,7 @@ class AsyncSession:
         await job._accepted()
         return job
 
-    async def run(self, algorithm: str, *, parameters: Mapping[str, Any] | None = None,
+    async def run(self, algorithm: Algorithm, *, parameters: Mapping[str, Any] | None = None,
                   progress: ProgressArg = False, include_arrays: bool = True,
                   trace: bool = False, timeout: float | None = None) -> JobResult:
         """See Session.run(). Cancelling the awaiting task cancels the job."""
@@ -391,7 +393,7 @@ async def _write(call: Any, messages: Iterator[tuple[pb.StreamRelationsRequest, 
 class AsyncJob:
     """The asyncio twin of Job."""
 
-    def __init__(self, client: AsyncClient, call: Any, algorithm: str) -> None:
+    def __init__(self, client: AsyncClient, call: Any, algorithm: Algorithm) -> None:
         self._client = client
         self._call = call
         self._assembler = Assembler(algorithm)

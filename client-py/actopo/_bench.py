@@ -18,6 +18,7 @@ import numpy as np
 from actopo import _names, _requests
 from actopo._client import Client, Session
 from actopo._errors import ActopoError, InvalidArgumentError
+from actopo._literals import Algorithm, Relation, Structure
 from actopo._types import FailedItem, MeshInfo, SessionStats
 
 MODES = ("unary", "batch", "stream", "job")
@@ -36,7 +37,7 @@ class Load:
     (one RelationBatch each, cut into messages of `chunk_size`), `window` messages in flight.
     """
 
-    relation: str
+    relation: Relation
     seconds: float = 5.0
     requests: int = 0
     batch_size: int = 4096
@@ -44,11 +45,11 @@ class Load:
     chunk_size: int | None = None
     window: int = 4
     order: str = "sequential"
-    algorithm: str = "critical-points"
+    algorithm: Algorithm = "critical-points"
     parameters: dict[str, str] = field(default_factory=dict)
 
 
-def source_count(mesh: MeshInfo, relation: str) -> int:
+def source_count(mesh: MeshInfo, relation: Relation) -> int:
     """How many simplices the relation can be asked about (its source dimension's count)."""
     name = _names.name_of(_names.RELATIONS, _requests.relation(relation))
     return int(getattr(mesh, _SOURCES[name.split("_", 1)[0]]))
@@ -244,7 +245,7 @@ class Bench:
     """
 
     def __init__(self, connect: Callable[[], Client],
-                 open_session: Callable[[Client, str], Session], mesh: MeshInfo,
+                 open_session: Callable[[Client, Structure], Session], mesh: MeshInfo,
                  load: Load) -> None:
         if load.seconds <= 0 and not load.requests:
             raise InvalidArgumentError("duration: must be positive (or give a request count)")
@@ -254,7 +255,7 @@ class Bench:
         self._load = load
         self._count = source_count(mesh, load.relation)
 
-    def run(self, structure: str, mode: str, clients: int,
+    def run(self, structure: Structure, mode: str, clients: int,
             shared: Session | None) -> dict[str, Any]:
         """One mode with `clients` clients. Relation modes ask `shared` (a session of the
         caller's); jobs run on a session per client (a session runs one job at a time)."""

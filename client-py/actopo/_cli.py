@@ -19,12 +19,13 @@ import sys
 import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from actopo import _names
 from actopo._bench import MODES, ORDERS, Bench, Load
 from actopo._client import Client, Session
 from actopo._errors import ActopoError, InvalidArgumentError
+from actopo._literals import Structure
 from actopo._mesh import MeshArrays, mesh_arrays
 from actopo._results import JobResult
 from actopo._types import MeshInfo, SessionInfo, SessionStats, plain
@@ -120,8 +121,14 @@ def _mesh(client: Client, args: argparse.Namespace) -> Iterator[_Mesh]:
                 client.delete_mesh(info.mesh_id)
 
 
+def _structure(name: str) -> Structure:
+    """A structure's name as the CLI got it, checked and spelled as the API spells it."""
+    code = _names.lookup(_names.STRUCTURES, name.strip(), "structure")
+    return cast(Structure, _names.name_of(_names.STRUCTURES, code))
+
+
 def _open(client: Client, mesh: MeshInfo, args: argparse.Namespace,
-          structure: str | None = None) -> Session:
+          structure: Structure | None = None) -> Session:
     return client.open_session(mesh, scalar=args.scalar, structure=structure or args.structure,
                                consumers=args.consumers, producers=args.producers,
                                buffer_ratio=args.buffer_ratio, prefetch=args.prefetch,
@@ -347,11 +354,10 @@ def cmd_stats(client: Client, args: argparse.Namespace) -> None:
 
 
 def cmd_compare(client: Client, args: argparse.Namespace) -> None:
-    structures = [s.strip() for s in args.structures.split(",") if s.strip()]
-    for s in structures:
-        _names.lookup(_names.STRUCTURES, s, "structure")
+    structures = [_structure(s) for s in args.structures.split(",") if s.strip()]
     parameters = _parameters(args)
-    rows, first = [], None
+    rows: list[dict[str, Any]] = []
+    first = None
     with _mesh(client, args) as mesh:
         for structure in structures:
             with _open(client, mesh.info, args, structure) as session:

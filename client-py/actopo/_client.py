@@ -21,6 +21,7 @@ from actopo._channel import (
     sync_channel,
 )
 from actopo._errors import ActopoError, error_for_number, translate, translated
+from actopo._literals import Algorithm, Precompute, Prefetch, Relation, Structure
 from actopo._mesh import MeshLike, mesh_arrays
 from actopo._progress import (
     LoadProgressArg,
@@ -220,9 +221,9 @@ class Client:
     # Sessions.
 
     def open_session(self, mesh: MeshRef, *, scalar: str | None = None,
-                     structure: str = "actopo", consumers: int = 0, producers: int = 0,
-                     buffer_ratio: float = 0.0, prefetch: str = "auto",
-                     precompute: str = "auto", query_readers: int = 0) -> Session:
+                     structure: Structure = "actopo", consumers: int = 0, producers: int = 0,
+                     buffer_ratio: float = 0.0, prefetch: Prefetch = "auto",
+                     precompute: Precompute = "auto", query_readers: int = 0) -> Session:
         """Opens a session: a structure ("explicit", "compact" or "actopo") on a mesh and a
         scalar field (default: the mesh's first floating-point field). 0 means the server's
         default (consumers and producers from the server's cores, as actopo-server --consumers
@@ -301,7 +302,7 @@ class Session:
             raise ValueError("the session is closed")
         return self.session_id
 
-    def relation(self, name: str, ids: Any, *, raise_errors: bool = True) -> RelationBatch:
+    def relation(self, name: Relation, ids: Any, *, raise_errors: bool = True) -> RelationBatch:
         """A relation of many simplices, as CSR numpy arrays ``(offsets, values)``.
 
         `name`: e.g. "vertex_edges", "edge_triangles", "tetrahedron_neighbors", "vertex_link";
@@ -334,7 +335,7 @@ class Session:
         [batch] = self.relation_batches(name, [values], raise_errors=raise_errors)
         return batch
 
-    def relation_batches(self, name: str, arrays: Iterable[Any], *,
+    def relation_batches(self, name: Relation, arrays: Iterable[Any], *,
                          chunk_size: int | None = None, window: int = _batches.STREAM_WINDOW,
                          raise_errors: bool = False) -> Iterator[RelationBatch]:
         """Streams one relation over many arrays of simplices on one StreamRelations call,
@@ -373,7 +374,7 @@ class Session:
             call.cancel()
         feeder.check()
 
-    def query(self, name: str, simplex: SimplexArg, *,
+    def query(self, name: Relation, simplex: SimplexArg, *,
               include_vertices: bool = False) -> SimplexRelation:
         """A relation of one simplex, given by id or by its vertices (any order).
 
@@ -387,7 +388,7 @@ class Session:
         request = _requests.single(self._id(), name, simplex, include_vertices)
         return _requests.single_result(self._client._call("GetRelation", request))
 
-    def relations_stream(self, name: str, simplices: Iterable[SimplexArg], *,
+    def relations_stream(self, name: Relation, simplices: Iterable[SimplexArg], *,
                          raise_errors: bool = False) -> Iterator[StreamItem]:
         """Streams one relation over many simplices (StreamRelations), yielding a StreamItem
         per simplex as answers arrive. A bad simplex gets its own error and the stream goes
@@ -408,7 +409,7 @@ class Session:
         finally:
             call.cancel()
 
-    def submit(self, algorithm: str, *, parameters: Mapping[str, Any] | None = None,
+    def submit(self, algorithm: Algorithm, *, parameters: Mapping[str, Any] | None = None,
                include_arrays: bool = True, trace: bool = False,
                timeout: float | None = None) -> Job:
         """Starts a job and returns once the server accepted it; see run()."""
@@ -417,7 +418,7 @@ class Session:
                                          metadata=self._client._metadata)
         return Job(self._client, call, name)
 
-    def run(self, algorithm: str, *, parameters: Mapping[str, Any] | None = None,
+    def run(self, algorithm: Algorithm, *, parameters: Mapping[str, Any] | None = None,
             progress: ProgressArg = False, include_arrays: bool = True, trace: bool = False,
             timeout: float | None = None) -> JobResult:
         """Runs an algorithm and returns its result.
@@ -503,7 +504,7 @@ class Job:
     """A running job (Session.submit()). ``job_id`` is known as soon as it is created;
     result() waits for the end; cancel() may be called from any thread."""
 
-    def __init__(self, client: Client, call: Any, algorithm: str) -> None:
+    def __init__(self, client: Client, call: Any, algorithm: Algorithm) -> None:
         self._client = client
         self._call = call
         self._lock = threading.Lock()

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import dataclasses
 from datetime import datetime, timezone
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 from google.protobuf import json_format
 
 from actopo import _names
 from actopo._arrays import dtype_name
+from actopo._literals import Precompute, Prefetch, Structure
 from actopo._proto import pb
 from actopo._types import (
     Counter,
@@ -67,14 +68,14 @@ def load_progress(p: pb.LoadProgress) -> LoadProgress:
 
 def session_info(s: pb.SessionInfo) -> SessionInfo:
     e = s.engine
+    prefetch = cast(Prefetch, _names.name_of(_names.PREFETCH, e.prefetch, "auto"))
+    precompute = cast(Precompute, _names.name_of(_names.PRECOMPUTE, e.precompute, "auto"))
+    structure = cast(Structure, _names.name_of(_names.STRUCTURES, s.structure, "actopo"))
     engine = EngineOptions(consumers=e.consumers, producers=e.producers,
-                           buffer_ratio=e.buffer_ratio,
-                           prefetch=_names.name_of(_names.PREFETCH, e.prefetch, "auto"),
-                           precompute=_names.name_of(_names.PRECOMPUTE, e.precompute, "auto"),
+                           buffer_ratio=e.buffer_ratio, prefetch=prefetch, precompute=precompute,
                            query_readers=e.query_readers)
     return SessionInfo(session_id=s.session_id, mesh_id=s.mesh_id, scalar_field=s.scalar_field,
-                       structure=_names.name_of(_names.STRUCTURES, s.structure, "actopo"),
-                       engine=engine, created=_time(s, "created"),
+                       structure=structure, engine=engine, created=_time(s, "created"),
                        last_used=_time(s, "last_used"),
                        running_job_id=s.running_job_id or None)
 

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from typing import Any, TypeAlias, TypedDict
+from typing import Any, TypeAlias, TypedDict, cast
 
 import numpy as np
 
 from actopo import _convert, _names
 from actopo._arrays import little_endian, to_array, to_numpy
 from actopo._errors import ActopoError, InvalidArgumentError
+from actopo._literals import Algorithm, Precompute, Prefetch, Relation, Structure
 from actopo._proto import pb
 from actopo._types import LoadProgress, MeshInfo, RelationBatch, SimplexRelation
 
@@ -73,9 +74,9 @@ def engine_count(what: str, value: int) -> int:
     return int(value)
 
 
-def open_session(mesh: MeshRef, scalar: str | None, structure: str, consumers: int,
-                 producers: int, buffer_ratio: float, prefetch: str,
-                 precompute: str, query_readers: int = 0) -> pb.OpenSessionRequest:
+def open_session(mesh: MeshRef, scalar: str | None, structure: Structure, consumers: int,
+                 producers: int, buffer_ratio: float, prefetch: Prefetch,
+                 precompute: Precompute, query_readers: int = 0) -> pb.OpenSessionRequest:
     engine = pb.EngineOptions(consumers=engine_count("consumers", consumers),
                               producers=engine_count("producers", producers),
                               buffer_ratio=buffer_ratio,
@@ -88,7 +89,7 @@ def open_session(mesh: MeshRef, scalar: str | None, structure: str, consumers: i
         structure=_names.lookup(_names.STRUCTURES, structure, "structure"), engine=engine)
 
 
-def relation(name: str) -> Any:
+def relation(name: Relation) -> Any:
     return _names.lookup(_names.RELATIONS, name, "relation")
 
 
@@ -100,7 +101,7 @@ def simplex(value: SimplexArg) -> pb.Simplex:
     return pb.Simplex(vertices=pb.VertexTuple(ids=ids))
 
 
-def single(session: str, name: str, value: SimplexArg,
+def single(session: str, name: Relation, value: SimplexArg,
            include_vertices: bool) -> pb.GetRelationRequest:
     return pb.GetRelationRequest(session_id=session, relation=relation(name),
                                  simplex=simplex(value), include_vertices=include_vertices)
@@ -144,7 +145,7 @@ def simplices(values: np.ndarray) -> SimplexArrays:
     return {"vertex_tuples": to_array(values, "vertex_tuples")}
 
 
-def batches(session: str, name: str, ids: Any,
+def batches(session: str, name: Relation, ids: Any,
             max_batch: int) -> list[pb.GetRelationBatchRequest]:
     """GetRelationBatch requests of at most `max_batch` simplices each.
 
@@ -174,7 +175,7 @@ def merge(responses: Sequence[pb.GetRelationBatchResponse]) -> RelationBatch:
     return RelationBatch(np.concatenate(offsets), np.concatenate(values))
 
 
-def stream(session: str, name: str,
+def stream(session: str, name: Relation,
            simplices: Iterable[SimplexArg]) -> Iterator[pb.StreamRelationsRequest]:
     """One request per simplex; request_id is the simplex's index in the input."""
     code = relation(name)
@@ -183,10 +184,10 @@ def stream(session: str, name: str,
                                         simplex=simplex(value))
 
 
-def run(session: str, algorithm: str, parameters: Mapping[str, Any] | None,
-        include_arrays: bool, trace: bool = False) -> tuple[pb.RunJobRequest, str]:
+def run(session: str, algorithm: Algorithm, parameters: Mapping[str, Any] | None,
+        include_arrays: bool, trace: bool = False) -> tuple[pb.RunJobRequest, Algorithm]:
     code = _names.lookup(_names.ALGORITHMS, algorithm, "algorithm")
     request = pb.RunJobRequest(session_id=session, algorithm=code,
                                parameters={str(k): str(v) for k, v in (parameters or {}).items()},
                                include_arrays=include_arrays, trace=trace)
-    return request, _names.name_of(_names.ALGORITHMS, code)
+    return request, cast(Algorithm, _names.name_of(_names.ALGORITHMS, code))

@@ -9,9 +9,10 @@ from typing import Any
 
 import numpy as np
 
-from actopo import _convert
+from actopo import _convert, _vtk
 from actopo._arrays import dtype_of
 from actopo._errors import ActopoError
+from actopo._literals import Algorithm
 from actopo._proto import pb
 from actopo._types import JobStats
 
@@ -36,7 +37,7 @@ class JobResult:
         result.segmentation["MorseSmaleManifold"]     # int32, one per vertex
     """
 
-    algorithm: str
+    algorithm: Algorithm
     job_id: str
     summary: dict[str, Any]
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
@@ -55,6 +56,9 @@ class JobResult:
         """The arrays of one group by TTK name ({} when absent)."""
         prefix = name + "/"
         return {k[len(prefix):]: v for k, v in self.arrays.items() if k.startswith(prefix)}
+
+    def _groups(self) -> dict[str, dict[str, np.ndarray]]:
+        return {name: self.group(name) for name in self.groups}
 
     @property
     def critical_points(self) -> dict[str, np.ndarray]:
@@ -88,9 +92,7 @@ class JobResult:
         mesh's geometry, which stays on the server: pass the mesh you uploaded (any form
         upload_mesh() takes) to get it as an UnstructuredGrid, else it is left out.
         """
-        from actopo._vtk import to_pyvista
-
-        return to_pyvista(self, mesh)
+        return _vtk.to_pyvista(self._groups(), mesh)
 
     def write(self, prefix: str, mesh: Any = None) -> list[str]:
         """Writes files for ParaView as actopo-bench does (PREFIX_critical_points.vtp, ...).
@@ -98,15 +100,13 @@ class JobResult:
         Uses pyvista if installed, else meshio (then every file is a .vtu). The segmentation is
         written only when `mesh` gives the geometry. Returns the paths written.
         """
-        from actopo._vtk import write_files
-
-        return write_files(self, prefix, mesh)
+        return _vtk.write_files(self._groups(), prefix, mesh)
 
 
 class Assembler:
     """Feeds on RunJob responses and builds the JobResult (shared by both clients)."""
 
-    def __init__(self, algorithm: str) -> None:
+    def __init__(self, algorithm: Algorithm) -> None:
         self.algorithm = algorithm
         self.job_id = ""
         self.summary: dict[str, Any] | None = None

@@ -11,6 +11,7 @@ import grpc
 import numpy as np
 
 from actopo._errors import ActopoError, error_for
+from actopo._literals import Precompute, Prefetch, Structure
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -97,8 +98,8 @@ class EngineOptions:
     consumers: int
     producers: int
     buffer_ratio: float
-    prefetch: str
-    precompute: str
+    prefetch: Prefetch
+    precompute: Precompute
     query_readers: int = 0
     """Relation calls the session answers at once (each with a reader of its own)."""
 
@@ -110,7 +111,7 @@ class SessionInfo:
     session_id: str
     mesh_id: str
     scalar_field: str
-    structure: str
+    structure: Structure
     engine: EngineOptions
     created: datetime | None
     last_used: datetime | None

@@ -1,21 +1,31 @@
-"""Results as pyvista datasets and as files for ParaView (pyvista, else meshio)."""
+"""Results as pyvista datasets and as files for ParaView (pyvista, else meshio).
+
+It takes a result's arrays by group ({"critical_points": {"Points": ..., ...}, ...}), not the
+JobResult, so that _results depends on this module and not the other way round.
+"""
 
 from __future__ import annotations
 
 import itertools
-from typing import TYPE_CHECKING, Any
+from collections.abc import Mapping
+from typing import Any, TypeAlias
 
 import numpy as np
 
 from actopo._mesh import mesh_arrays
 
-if TYPE_CHECKING:
-    from actopo._results import JobResult
+Groups: TypeAlias = Mapping[str, Mapping[str, np.ndarray]]
+"""A result's arrays: group name -> TTK array name -> values."""
 
 POINT_GROUPS = ("critical_points", "critical_cells")
 
 
-def _lines(group: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+def _group(groups: Groups, name: str) -> dict[str, np.ndarray]:
+    """A copy of one group, {} when absent (the callers pop from it)."""
+    return dict(groups.get(name, {}))
+
+
+def _lines(group: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
     """Points, VTK line connectivity [n, i0, .., in-1, ...] and per-line arrays."""
     points = np.asarray(group.get("Points", np.zeros((0, 3)))).reshape(-1, 3)
     offsets = np.asarray(group.get("Offsets", np.zeros(1, dtype=np.int64)), dtype=np.int64)
@@ -27,28 +37,28 @@ def _lines(group: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, dict[s
     return points, connectivity, arrays
 
 
-def to_pyvista(result: JobResult, mesh: Any = None) -> dict[str, Any]:
+def to_pyvista(groups: Groups, mesh: Any = None) -> dict[str, Any]:
     try:
         import pyvista as pv
     except ImportError:
         raise ImportError("to_pyvista() needs pyvista: pip install 'actopo[pyvista]'") from None
     out: dict[str, Any] = {}
     for name in POINT_GROUPS:
-        group = result.group(name)
+        group = _group(groups, name)
         if group:
             points = np.asarray(group.pop("Points"), dtype=np.float64).reshape(-1, 3)
             poly = pv.PolyData(points) if len(points) else pv.PolyData()
             for key, values in group.items():
                 poly.point_data[key] = values
             out[name] = poly
-    separatrices = result.group("separatrices")
+    separatrices = _group(groups, "separatrices")
     if separatrices:
         points, connectivity, arrays = _lines(separatrices)
         poly = pv.PolyData(points, lines=connectivity) if len(connectivity) else pv.PolyData()
         for key, values in arrays.items():
             poly.cell_data[key] = values
         out["separatrices"] = poly
-    segmentation = result.group("segmentation")
+    segmentation = _group(groups, "segmentation")
     if segmentation and mesh is not None:
         if isinstance(mesh, pv.UnstructuredGrid):
             grid = mesh.copy()
@@ -63,19 +73,19 @@ def to_pyvista(result: JobResult, mesh: Any = None) -> dict[str, Any]:
     return out
 
 
-def _write_meshio(result: JobResult, prefix: str, mesh: Any) -> list[str]:
+def _write_meshio(groups: Groups, prefix: str, mesh: Any) -> list[str]:
     import meshio
 
     written = []
     for name in POINT_GROUPS:
-        group = result.group(name)
+        group = _group(groups, name)
         if group:
             points = np.asarray(group.pop("Points"), dtype=np.float64).reshape(-1, 3)
             cells = [("vertex", np.arange(len(points)).reshape(-1, 1))]
             path = f"{prefix}_{name}.vtu"
             meshio.Mesh(points, cells, point_data=group).write(path)
             written.append(path)
-    separatrices = result.group("separatrices")
+    separatrices = _group(groups, "separatrices")
     if separatrices:
         points, _, arrays = _lines(separatrices)
         offsets = np.asarray(separatrices["Offsets"], dtype=np.int64)
@@ -91,7 +101,7 @@ def _write_meshio(result: JobResult, prefix: str, mesh: Any) -> list[str]:
                     cell_data={k: [np.asarray(v)[line_owner]] for k, v in arrays.items()}
                     ).write(path)
         written.append(path)
-    segmentation = result.group("segmentation")
+    segmentation = _group(groups, "segmentation")
     if segmentation and mesh is not None:
         local = mesh_arrays(mesh)
         path = f"{prefix}_segmentation.vtu"
@@ -101,7 +111,7 @@ def _write_meshio(result: JobResult, prefix: str, mesh: Any) -> list[str]:
     return written
 
 
-def write_files(result: JobResult, prefix: str, mesh: Any = None) -> list[str]:
+def write_files(groups: Groups, prefix: str, mesh: Any = None) -> list[str]:
     try:
         import pyvista  # noqa: F401
     except ImportError:
@@ -110,9 +120,9 @@ def write_files(result: JobResult, prefix: str, mesh: Any = None) -> list[str]:
         except ImportError:
             raise ImportError("writing result files needs pyvista (.vtp/.vtu) or meshio (.vtu): "
                               "pip install 'actopo[pyvista]'") from None
-        return _write_meshio(result, prefix, mesh)
+        return _write_meshio(groups, prefix, mesh)
     written = []
-    for name, dataset in to_pyvista(result, mesh).items():
+    for name, dataset in to_pyvista(groups, mesh).items():
         path = f"{prefix}_{name}.{'vtu' if name == 'segmentation' else 'vtp'}"
         dataset.save(path)
         written.append(path)
