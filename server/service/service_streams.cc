@@ -9,8 +9,6 @@
 #include <thread>
 
 #include "absl/strings/str_cat.h"
-#include "google/protobuf/util/json_util.h"
-#include "server/algorithms/digest.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
 #include "server/core/trace.h"
@@ -290,10 +288,8 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
       }
     }
     v1::RunJobResponse summary;
-    const std::string json = Summarize(job.outcome.result, *session_->mesh().topology).dump();
-    const auto parsed = google::protobuf::util::JsonStringToMessage(
-        json, summary.mutable_summary()->mutable_result());
-    if (!parsed.ok()) return absl::InternalError("summary: " + parsed.ToString());
+    FillSummary(job.outcome.result, *session_->mesh().topology,
+                summary.mutable_summary()->mutable_result());
     if (trace != nullptr) {
       trace->Span("results", "phase", start, std::chrono::steady_clock::now());
       SendTrace(*trace);

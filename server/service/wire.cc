@@ -8,6 +8,7 @@
 #include "absl/strings/str_join.h"
 #include "google/protobuf/util/time_util.h"
 #include "server/core/parallel.h"
+#include "server/core/status_macros.h"
 
 namespace actopo::service {
 
@@ -19,42 +20,86 @@ grpc::Status ToGrpcStatus(const absl::Status& status) {
   return grpc::Status(static_cast<grpc::StatusCode>(status.code()), std::string(status.message()));
 }
 
-absl::StatusOr<Relation> FromProto(pb::Relation r) {
-  const int i = int(r) - 1;
-  if (i < 0 || i >= kNumRelations) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("relation: ", pb::Relation_Name(r).empty() ? std::to_string(int(r))
-                                                                 : pb::Relation_Name(r),
-                     " is not a relation; set one of RELATION_VERTEX_NEIGHBORS ... "
-                     "RELATION_TRIANGLE_NEIGHBORS"));
+namespace {
+
+static_assert(std::size(kRelationMapping) == kNumRelations);
+
+template <class P, class C, size_t N>
+std::optional<C> CoreValue(const EnumMapping<P, C> (&mapping)[N], P proto) {
+  for (const auto& row : mapping) {
+    if (row.proto == proto) return row.core;
   }
-  return static_cast<Relation>(i);
+  return std::nullopt;
 }
 
-pb::Relation ToProto(Relation r) { return static_cast<pb::Relation>(Index(r) + 1); }
+// _UNSPECIFIED for a core value the API does not name.
+template <class P, class C, size_t N>
+P ProtoValue(const EnumMapping<P, C> (&mapping)[N], C core) {
+  for (const auto& row : mapping) {
+    if (row.core == core) return row.proto;
+  }
+  return P{};
+}
+
+// "RELATION_VERTEX_EDGES", or the number of a value the API does not define.
+template <class P>
+std::string ValueName(P value) {
+  const google::protobuf::EnumValueDescriptor* d =
+      google::protobuf::GetEnumDescriptor<P>()->FindValueByNumber(int(value));
+  return d != nullptr ? d->name() : std::to_string(int(value));
+}
+
+template <class P, class C, size_t N>
+absl::StatusOr<C> FromProtoOrError(const EnumMapping<P, C> (&mapping)[N], P proto,
+                                   const char* field, const char* what,
+                                   const std::string& hint = "") {
+  if (std::optional<C> core = CoreValue(mapping, proto)) return *core;
+  return absl::InvalidArgumentError(
+      absl::StrCat(field, ": ", ValueName(proto), " is not ", what, hint));
+}
+
+}  // namespace
+
+absl::StatusOr<Relation> FromProto(pb::Relation r) {
+  const std::string hint =
+      absl::StrCat("; set one of ", ValueName(std::begin(kRelationMapping)->proto), " ... ",
+                   ValueName(std::rbegin(kRelationMapping)->proto));
+  return FromProtoOrError(kRelationMapping, r, "relation", "a relation", hint);
+}
 
 absl::StatusOr<Algorithm> FromProto(pb::Algorithm a) {
-  const int i = int(a) - 1;
-  if (i < 0 || i >= int(AllAlgorithms().size())) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "algorithm: ", pb::Algorithm_Name(a).empty() ? std::to_string(int(a)) : pb::Algorithm_Name(a),
-        " is not an algorithm; set ALGORITHM_TOPO_RELATIONS, ALGORITHM_CRITICAL_POINTS, "
-        "ALGORITHM_DISCRETE_GRADIENT or ALGORITHM_MORSE_SMALE"));
+  std::string hint = "; set ";
+  for (size_t i = 0; i < std::size(kAlgorithmMapping); ++i) {
+    const char* separator = i == 0 ? "" : i + 1 < std::size(kAlgorithmMapping) ? ", " : " or ";
+    absl::StrAppend(&hint, separator, ValueName(kAlgorithmMapping[i].proto));
   }
-  return AllAlgorithms()[i];
+  return FromProtoOrError(kAlgorithmMapping, a, "algorithm", "an algorithm", hint);
 }
+
+absl::StatusOr<StructureKind> FromProto(pb::Structure s) {
+  return FromProtoOrError(kStructureMapping, s, "structure", "a structure");
+}
+
+absl::StatusOr<Prefetch> FromProto(pb::Prefetch p) {
+  return FromProtoOrError(kPrefetchMapping, p, "engine.prefetch", "a prefetch mode");
+}
+
+absl::StatusOr<Precompute> FromProto(pb::Precompute p) {
+  return FromProtoOrError(kPrecomputeMapping, p, "engine.precompute", "a scope");
+}
+
+pb::Relation ToProto(Relation r) { return ProtoValue(kRelationMapping, r); }
+pb::Algorithm ToProto(Algorithm a) { return ProtoValue(kAlgorithmMapping, a); }
+pb::Structure ToProto(StructureKind s) { return ProtoValue(kStructureMapping, s); }
+pb::Prefetch ToProto(Prefetch p) { return ProtoValue(kPrefetchMapping, p); }
+pb::Precompute ToProto(Precompute p) { return ProtoValue(kPrecomputeMapping, p); }
 
 absl::StatusOr<SessionOptions> FromProto(const pb::OpenSessionRequest& r) {
   SessionOptions o;
   o.scalar_field = r.scalar_field();
-  switch (r.structure()) {
-    case pb::STRUCTURE_UNSPECIFIED:
-    case pb::STRUCTURE_ACTOPO: o.structure = StructureKind::kActopo; break;
-    case pb::STRUCTURE_EXPLICIT: o.structure = StructureKind::kExplicit; break;
-    case pb::STRUCTURE_COMPACT: o.structure = StructureKind::kCompact; break;
-    default:
-      return absl::InvalidArgumentError(
-          absl::StrCat("structure: ", int(r.structure()), " is not a structure"));
+  // Not set: ACTOPO.
+  if (r.structure() != pb::STRUCTURE_UNSPECIFIED) {
+    ASSIGN_OR_RETURN(o.structure, FromProto(r.structure()));
   }
   const pb::EngineOptions& e = r.engine();
   const ThreadPlan plan = DefaultThreadPlan(o.structure == StructureKind::kActopo);
@@ -62,22 +107,12 @@ absl::StatusOr<SessionOptions> FromProto(const pb::OpenSessionRequest& r) {
   o.producers = e.producers() != 0 ? e.producers() : std::max(plan.producers, 1);
   if (e.buffer_ratio() != 0) o.buffer_ratio = e.buffer_ratio();
   o.query_readers = e.query_readers() != 0 ? e.query_readers() : std::min(DefaultThreads(), 4);
-  switch (e.prefetch()) {
-    case pb::PREFETCH_UNSPECIFIED: break;
-    case pb::PREFETCH_LINEAR: o.prefetch = Prefetch::kLinear; break;
-    case pb::PREFETCH_SPATIAL: o.prefetch = Prefetch::kSpatial; break;
-    case pb::PREFETCH_ADAPTIVE: o.prefetch = Prefetch::kAdaptive; break;
-    default:
-      return absl::InvalidArgumentError(
-          absl::StrCat("engine.prefetch: ", int(e.prefetch()), " is not a prefetch mode"));
+  // Not set: chosen per algorithm.
+  if (e.prefetch() != pb::PREFETCH_UNSPECIFIED) {
+    ASSIGN_OR_RETURN(o.prefetch, FromProto(e.prefetch()));
   }
-  switch (e.precompute()) {
-    case pb::PRECOMPUTE_UNSPECIFIED: break;
-    case pb::PRECOMPUTE_REQUESTED: o.precompute = Precompute::kRequested; break;
-    case pb::PRECOMPUTE_DECLARED: o.precompute = Precompute::kDeclared; break;
-    default:
-      return absl::InvalidArgumentError(
-          absl::StrCat("engine.precompute: ", int(e.precompute()), " is not a scope"));
+  if (e.precompute() != pb::PRECOMPUTE_UNSPECIFIED) {
+    ASSIGN_OR_RETURN(o.precompute, FromProto(e.precompute()));
   }
   return o;
 }
@@ -129,16 +164,14 @@ void Fill(Session& s, const std::string& running_job, pb::SessionInfo* out) {
   out->set_mesh_id(s.mesh().id);
   out->set_scalar_field(s.scalar_name());
   const SessionOptions& o = s.options();
-  out->set_structure(o.structure == StructureKind::kExplicit  ? pb::STRUCTURE_EXPLICIT
-                     : o.structure == StructureKind::kCompact ? pb::STRUCTURE_COMPACT
-                                                              : pb::STRUCTURE_ACTOPO);
+  out->set_structure(ToProto(o.structure));
   pb::EngineOptions* e = out->mutable_engine();
   e->set_consumers(o.consumers);
   e->set_producers(o.producers);
   e->set_buffer_ratio(o.buffer_ratio);
   e->set_query_readers(o.query_readers);
-  if (o.prefetch) e->set_prefetch(static_cast<pb::Prefetch>(int(*o.prefetch) + 1));
-  if (o.precompute) e->set_precompute(static_cast<pb::Precompute>(int(*o.precompute) + 1));
+  if (o.prefetch) e->set_prefetch(ToProto(*o.prefetch));
+  if (o.precompute) e->set_precompute(ToProto(*o.precompute));
   *out->mutable_created() = Stamp(s.created());
   *out->mutable_last_used() = Stamp(s.last_used());
   out->set_running_job_id(running_job);
@@ -163,6 +196,96 @@ void Fill(const MemoryStats& m, pb::MemoryStats* out) {
   out->set_static_bytes(m.static_bytes);
   out->set_relation_bytes(m.relation_bytes);
   out->set_relation_peak_bytes(m.relation_peak_bytes);
+}
+
+namespace {
+
+using google::protobuf::Struct;
+
+void SetNumber(Struct* s, const std::string& key, double number) {
+  (*s->mutable_fields())[key].set_number_value(number);
+}
+
+void SetString(Struct* s, const std::string& key, std::string text) {
+  (*s->mutable_fields())[key].set_string_value(std::move(text));
+}
+
+void SetList(Struct* s, const std::string& key, std::span<const int64_t> numbers) {
+  google::protobuf::ListValue* list = (*s->mutable_fields())[key].mutable_list_value();
+  for (int64_t n : numbers) list->add_values()->set_number_value(double(n));
+}
+
+Struct* SetStruct(Struct* s, const std::string& key) {
+  return (*s->mutable_fields())[key].mutable_struct_value();
+}
+
+void FillTopoRelations(const TopoRelationsResult& r, Struct* out) {
+  Struct* totals = SetStruct(out, "relation_totals");
+  for (Relation rel : TopoRelationsSweeps()) {
+    SetNumber(totals, std::string(RelationName(rel)), double(r.totals[Index(rel)]));
+  }
+  SetString(out, "checksum", r.checksum_hex());
+}
+
+void FillCriticalPoints(const CriticalPointsResult& r, Struct* out) {
+  Struct* counts = SetStruct(out, "counts");
+  const auto count = [&](CriticalType t) { return double(r.counts[int(t)]); };
+  SetNumber(counts, "minimum", count(CriticalType::kMinimum));
+  SetNumber(counts, "saddle1", count(CriticalType::kSaddle1));
+  SetNumber(counts, "saddle2", count(CriticalType::kSaddle2));
+  SetNumber(counts, "degenerate", count(CriticalType::kDegenerate));
+  SetNumber(counts, "maximum", count(CriticalType::kMaximum));
+  SetString(out, "vertices_sha256", r.VerticesDigest());
+}
+
+void FillDiscreteGradient(const DiscreteGradientResult& r, const Topology& topology,
+                          Struct* out) {
+  SetList(out, "critical_cells", r.critical_cells);
+  SetList(out, "pairs_count", r.pairs);
+  SetString(out, "critical_cells_sha256", r.CriticalCellsDigest(topology));
+  SetString(out, "pairs_sha256", r.PairsDigest(topology));
+}
+
+void FillMorseSmale(const MorseSmaleResult& r, Struct* out) {
+  SetList(out, "critical_cells", r.gradient.critical_cells);
+  Struct* separatrices = SetStruct(out, "separatrices");
+  SetNumber(separatrices, "descending", double(r.CountSeparatrices(SeparatrixType::kDescending)));
+  SetNumber(separatrices, "ascending", double(r.CountSeparatrices(SeparatrixType::kAscending)));
+  SetNumber(separatrices, "saddle_connectors",
+            double(r.CountSeparatrices(SeparatrixType::kSaddleConnector)));
+  SetNumber(separatrices, "segments", double(r.Segments()));
+  Struct* regions = SetStruct(out, "regions");
+  SetNumber(regions, "descending", double(MorseSmaleResult::Regions(r.descending)));
+  SetNumber(regions, "ascending", double(MorseSmaleResult::Regions(r.ascending)));
+  SetNumber(regions, "morse_smale", double(MorseSmaleResult::Regions(r.morse_smale)));
+  Struct* sizes = SetStruct(out, "manifold_size_sum");
+  SetNumber(sizes, "minima", double(absl::c_accumulate(r.minimum_sizes, int64_t{0})));
+  SetNumber(sizes, "maxima", double(absl::c_accumulate(r.maximum_sizes, int64_t{0})));
+  Struct* unlabelled = SetStruct(out, "unlabelled_vertices");
+  SetNumber(unlabelled, "descending", double(absl::c_count(r.descending, -1)));
+  SetNumber(unlabelled, "ascending", double(absl::c_count(r.ascending, -1)));
+  SetNumber(unlabelled, "morse_smale", double(absl::c_count(r.morse_smale, -1)));
+  Struct* digests = SetStruct(out, "segmentation_sha256");
+  SetString(digests, "descending", MorseSmaleResult::SegmentationDigest(r.descending));
+  SetString(digests, "ascending", MorseSmaleResult::SegmentationDigest(r.ascending));
+  SetString(digests, "morse_smale", MorseSmaleResult::SegmentationDigest(r.morse_smale));
+}
+
+}  // namespace
+
+void FillSummary(const AlgorithmResult& result, const Topology& topology, Struct* out) {
+  out->Clear();
+  std::visit(
+      [&](const auto& r) {
+        using T = std::decay_t<decltype(r)>;
+        if constexpr (std::is_same_v<T, TopoRelationsResult>) FillTopoRelations(r, out);
+        if constexpr (std::is_same_v<T, CriticalPointsResult>) FillCriticalPoints(r, out);
+        if constexpr (std::is_same_v<T, DiscreteGradientResult>) {
+          FillDiscreteGradient(r, topology, out);
+        }
+        if constexpr (std::is_same_v<T, MorseSmaleResult>) FillMorseSmale(r, out);
+      },
+      result);
 }
 
 void Pack(const std::string& name, std::span<const int64_t> values, pb::Array* out) {
