@@ -194,12 +194,6 @@ class LowerStarPairing {
 
 }  // namespace
 
-std::vector<SimplexId> CellInputVertices(const Topology& topology, int d, SimplexId c) {
-  std::vector<SimplexId> v(size_t(d) + 1);
-  CellTokens(topology, d, c, v.data());
-  return v;
-}
-
 void CellTokens(const Topology& topology, int d, SimplexId c, SimplexId* ids) {
   switch (d) {
     case 0: ids[0] = c; break;

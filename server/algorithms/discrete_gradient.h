@@ -44,10 +44,8 @@ struct DiscreteGradientResult {
   std::string PairsDigest(const Topology& topology) const;
 };
 
-// Input vertex ids of a cell, ascending: into ids[0..d] (no allocation, for digests), or as a
-// vector.
+// Input vertex ids of a cell, ascending, into ids[0..d] (no allocation, for digests).
 void CellTokens(const Topology& topology, int d, SimplexId c, SimplexId* ids);
-std::vector<SimplexId> CellInputVertices(const Topology& topology, int d, SimplexId c);
 
 // VE, VF and VT: the lower star of every vertex.
 RelationSet DiscreteGradientDeclared();

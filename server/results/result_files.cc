@@ -138,6 +138,12 @@ void AddMorseSmaleOutputs(const ResultContext& c, const MorseSmaleResult& r, Res
 
 }  // namespace
 
+std::vector<SimplexId> CellInputVertices(const Topology& topology, int d, SimplexId c) {
+  std::vector<SimplexId> v(size_t(d) + 1);
+  CellTokens(topology, d, c, v.data());
+  return v;
+}
+
 ResultOutputs BuildOutputs(const ResultContext& c, const AlgorithmResult& result) {
   ResultOutputs out;
   if (const auto* r = std::get_if<CriticalPointsResult>(&result)) {

@@ -38,6 +38,10 @@ struct ResultOutputs {
 };
 ResultOutputs BuildOutputs(const ResultContext& context, const AlgorithmResult& result);
 
+// The input vertex ids of cell `c` of dimension `d` (internal id), ascending: where outputs
+// place a cell and what they report of it.
+std::vector<SimplexId> CellInputVertices(const Topology& topology, int d, SimplexId c);
+
 // Writes PREFIX_<group>.vtp for each poly data group and PREFIX_segmentation.vtu; returns the
 // paths written.
 absl::StatusOr<std::vector<std::string>> WriteResultFiles(const std::string& prefix,

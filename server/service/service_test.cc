@@ -14,6 +14,7 @@
 #include "server/algorithms/vertex_order.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
+#include "server/results/result_files.h"
 #include "server/results/run_algorithm.h"
 #include "server/service/testing/service_fixture.h"
 
