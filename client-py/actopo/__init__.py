@@ -15,9 +15,12 @@ compact or the task-parallel actopo engine), query relations and run TTK-compati
             print(result.segmentation["MorseSmaleManifold"][:10])
 
 Every failure is an ActopoError; its subclasses name the kind (InvalidMeshError, NotFoundError,
-ResourceExhaustedError, ...) and keep the gRPC code and the server's message.
+ResourceExhaustedError, ...) and keep the gRPC code and the server's message. Structure,
+Algorithm, Relation, Prefetch and Precompute are the Literal types of the names the methods take;
+the statistics and other data the calls return are in actopo.types.
 """
 
+from actopo import types as types  # the returned data types, documented beside __all__
 from actopo._async_client import AsyncClient, AsyncJob, AsyncSession
 from actopo._client import Client, Job, Session
 from actopo._errors import (
@@ -33,35 +36,18 @@ from actopo._errors import (
                             ResourceExhaustedError,
                             UnavailableError,
 )
+from actopo._literals import Algorithm, Precompute, Prefetch, Relation, Structure
 from actopo._results import JobResult
-from actopo._types import (
-                            Counter,
-                            EngineOptions,
-                            EngineStats,
-                            FailedItem,
-                            FieldInfo,
-                            JobStats,
-                            LoadProgress,
-                            MemoryStats,
-                            MeshInfo,
-                            QueryBreakdown,
-                            RelationBatch,
-                            ServerInfo,
-                            ServerLimits,
-                            SessionInfo,
-                            SessionStats,
-                            SimplexRelation,
-                            StreamItem,
-)
+from actopo._types import LoadProgress, MeshInfo, RelationBatch
 
 __version__ = "0.1.0"
 
+# The list is documented, one line a name, in README.md ("Public names"); a test compares them.
 __all__ = [
-    "ActopoError", "AsyncClient", "AsyncJob", "AsyncSession", "AuthenticationError",
-    "CancelledError", "Client", "Counter", "DeadlineExceededError", "EngineOptions",
-    "EngineStats", "FailedItem", "FailedPreconditionError", "FieldInfo", "InvalidArgumentError",
-    "InvalidMeshError", "Job", "JobResult", "JobStats", "LoadProgress", "MemoryStats",
-    "MeshInfo", "NotFoundError", "OutOfRangeError", "QueryBreakdown", "RelationBatch",
-    "ResourceExhaustedError", "ServerInfo", "ServerLimits", "Session", "SessionInfo",
-    "SessionStats", "SimplexRelation", "StreamItem", "UnavailableError", "__version__",
+    "ActopoError", "Algorithm", "AsyncClient", "AsyncJob", "AsyncSession",
+    "AuthenticationError", "CancelledError", "Client", "DeadlineExceededError",
+    "FailedPreconditionError", "InvalidArgumentError", "InvalidMeshError", "Job", "JobResult",
+    "LoadProgress", "MeshInfo", "NotFoundError", "OutOfRangeError", "Precompute", "Prefetch",
+    "Relation", "RelationBatch", "ResourceExhaustedError", "Session", "Structure",
+    "UnavailableError", "__version__",
 ]

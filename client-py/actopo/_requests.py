@@ -177,11 +177,15 @@ def merge(responses: Sequence[pb.GetRelationBatchResponse]) -> RelationBatch:
 
 def stream(session: str, name: Relation,
            simplices: Iterable[SimplexArg]) -> Iterator[pb.StreamRelationsRequest]:
-    """One request per simplex; request_id is the simplex's index in the input."""
+    """One request per simplex; request_id is the simplex's index in the input.
+
+    The relation is checked here, in the caller's thread: gRPC's sending thread, which takes
+    the requests, would turn an error of its own into an UNKNOWN status without the message.
+    """
     code = relation(name)
-    for index, value in enumerate(simplices):
-        yield pb.StreamRelationsRequest(request_id=index, session_id=session, relation=code,
-                                        simplex=simplex(value))
+    return (pb.StreamRelationsRequest(request_id=index, session_id=session, relation=code,
+                                      simplex=simplex(value))
+            for index, value in enumerate(simplices))
 
 
 def run(session: str, algorithm: Algorithm, parameters: Mapping[str, Any] | None,

@@ -66,9 +66,9 @@ def test_session_lifecycle(client, cube):
     info = session.info
     assert info.mesh_id == mesh.mesh_id and info.scalar_field == "z"
     assert info.structure == "actopo"
-    assert info.engine == actopo.EngineOptions(consumers=2, producers=1, buffer_ratio=0.5,
-                                               prefetch="spatial", precompute="declared",
-                                               query_readers=3)
+    assert info.engine == actopo.types.EngineOptions(consumers=2, producers=1,
+                                                     buffer_ratio=0.5, prefetch="spatial",
+                                                     precompute="declared", query_readers=3)
     assert session.describe().session_id == session.session_id
     assert client.get_session(session.session_id) == session.describe()
     assert session.session_id in {s.session_id for s in client.list_sessions()}

@@ -1,0 +1,39 @@
+"""The data the client hands back, for annotating code that passes it on.
+
+Clients, sessions and jobs return these; you read them and rarely build them. The package's
+top level re-exports the few that user code names often (MeshInfo, LoadProgress, RelationBatch,
+JobResult); the rest are here only:
+
+    from actopo.types import SessionStats
+
+    def report(stats: SessionStats) -> str:
+        return f"{stats.engine.hit_rate:.0%} hits, {stats.engine.wait_seconds:.3f} s waited"
+"""
+
+from actopo._results import JobResult
+from actopo._types import (
+    Counter,
+    EngineOptions,
+    EngineStats,
+    FailedItem,
+    FieldInfo,
+    JobStats,
+    LoadProgress,
+    MemoryStats,
+    MeshInfo,
+    QueryBreakdown,
+    RelationBatch,
+    ServerInfo,
+    ServerLimits,
+    SessionInfo,
+    SessionStats,
+    SimplexRelation,
+    StreamItem,
+)
+
+__all__ = [
+    "Counter", "EngineOptions", "EngineStats", "FailedItem", "FieldInfo", "JobResult",
+    "JobStats", "LoadProgress", "MemoryStats", "MeshInfo", "QueryBreakdown", "RelationBatch",
+    "ServerInfo", "ServerLimits", "SessionInfo", "SessionStats", "SimplexRelation",
+    "StreamItem",
+]
