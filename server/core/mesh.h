@@ -54,13 +54,6 @@ absl::Status ValidateMesh(const Mesh& mesh);
 // Checks that one field has only finite values (NaN and infinities cannot be ordered).
 absl::Status ValidateScalarField(const PointField& field);
 
-// Checks VTK cell type codes: all must be tetrahedra (VTK_TETRA = 10). Otherwise the error lists
-// every cell type found with its count, e.g. "found 36290 triangle (VTK type 5)".
-absl::Status ValidateCellTypes(std::span<const uint8_t> vtk_cell_types);
-
-// Human name of a VTK linear cell type code ("triangle", "hexahedron", ...).
-std::string_view VtkCellTypeName(int vtk_cell_type);
-
 // The index in mesh.point_fields of the scalar field to use: the one called `name`, or when
 // `name` is empty the first floating-point field that is not `block_label_field`. The field is
 // validated (finite values).

@@ -26,6 +26,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "server/core/status_macros.h"
+#include "server/io/cell_types.h"
 
 namespace actopo::io::internal {
 namespace {
