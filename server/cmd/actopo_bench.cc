@@ -4,6 +4,7 @@
 //   actopo-bench --mesh ../shared/data/fertility_tet.vtu --algorithm topo-relations
 //       --structure compact --json
 //   actopo-bench --mesh F.vtu --algorithm morse-smale --structure actopo --trace run.json
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
@@ -16,6 +17,7 @@
 #include "absl/strings/str_join.h"
 #include "nlohmann/json.hpp"
 #include "server/algorithms/registry.h"
+#include "server/algorithms/structure_options.h"
 #include "server/algorithms/vertex_order.h"
 #include "server/cmd/flags.h"
 #include "server/core/actopo_structure.h"
@@ -79,36 +81,6 @@ absl::Status Validate(const BenchOptions& o) {
     return absl::InvalidArgumentError(absl::StrCat("--boundary-rule: unknown rule '",
                                                    o.boundary_rule, "'; available: ttk, none"));
   }
-  if (o.structure != "explicit" && o.structure != "compact" && o.structure != "actopo") {
-    return absl::InvalidArgumentError(absl::StrCat("--structure: unknown structure '",
-                                                   o.structure,
-                                                   "'; available: explicit, compact, actopo"));
-  }
-  if (o.prefetch != "auto" && o.prefetch != "linear" && o.prefetch != "spatial" &&
-      o.prefetch != "adaptive") {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "--prefetch: unknown mode '", o.prefetch, "'; available: auto, linear, spatial, adaptive"));
-  }
-  if (o.precompute != "auto" && o.precompute != "requested" && o.precompute != "declared") {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "--precompute: unknown scope '", o.precompute, "'; available: auto, requested, declared"));
-  }
-  if (o.miss_policy != "leader" && o.miss_policy != "consumer") {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "--miss-policy: unknown policy '", o.miss_policy, "'; available: leader, consumer"));
-  }
-  if (o.consumers < 0 || o.consumers > 256) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("--consumers: ", o.consumers, " is outside [0, 256] (0: from the cores)"));
-  }
-  if (o.producers < 0) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("--producers: ", o.producers, " is negative (0: from the cores)"));
-  }
-  if (!(o.buffer_ratio >= 0.0 && o.buffer_ratio <= 1.0)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("--buffer-ratio: ", o.buffer_ratio, " is outside [0, 1]"));
-  }
   if (o.block_size < 1) {
     return absl::InvalidArgumentError(absl::StrCat("--block-size: ", o.block_size,
                                                    " must be at least 1"));
@@ -155,28 +127,42 @@ absl::StatusOr<RunOutput> RunAndSummarize(Structure& structure, const AlgorithmI
   return out;
 }
 
-// Flags over the algorithm's `auto` choices (registry.h).
-ActopoStructure::Options EngineOptions(const BenchOptions& o, Algorithm algorithm) {
-  ActopoStructure::Options e{.consumers = o.consumers,
-                             .producers = o.producers,
-                             .buffer_ratio = o.buffer_ratio,
-                             .prefetch = DefaultPrefetch(algorithm),
-                             .precompute = DefaultPrecompute(algorithm),
-                             .declared = DeclaredRelations(algorithm)};
-  if (o.prefetch == "linear") e.prefetch = Prefetch::kLinear;
-  if (o.prefetch == "spatial") e.prefetch = Prefetch::kSpatial;
-  if (o.prefetch == "adaptive") e.prefetch = Prefetch::kAdaptive;
-  e.miss_policy = o.miss_policy == "leader" ? MissPolicy::kLeader : MissPolicy::kConsumer;
-  if (o.precompute == "requested") e.precompute = Precompute::kRequested;
-  if (o.precompute == "declared") e.precompute = Precompute::kDeclared;
-  return e;
+// The structure flags through the options module sessions use too (structure_options.h): the
+// same names, defaults and ranges. Parse errors name the flag.
+absl::StatusOr<StructureOptions> StructureFromFlags(const BenchOptions& o) {
+  auto flag = [](const char* name, const absl::Status& status) {
+    return absl::Status(status.code(), absl::StrCat("--", name, ": ", status.message()));
+  };
+  StructureOptions s{.consumers = o.consumers, .producers = o.producers,
+                     .buffer_ratio = o.buffer_ratio, .query_readers = 1};
+  absl::StatusOr<StructureKind> structure = ParseStructure(o.structure);
+  if (!structure.ok()) return flag("structure", structure.status());
+  s.structure = *structure;
+  absl::StatusOr<std::optional<Prefetch>> prefetch = ParsePrefetch(o.prefetch);
+  if (!prefetch.ok()) return flag("prefetch", prefetch.status());
+  s.prefetch = *prefetch;
+  absl::StatusOr<std::optional<Precompute>> precompute = ParsePrecompute(o.precompute);
+  if (!precompute.ok()) return flag("precompute", precompute.status());
+  s.precompute = *precompute;
+  absl::StatusOr<MissPolicy> miss_policy = ParseMissPolicy(o.miss_policy);
+  if (!miss_policy.ok()) return flag("miss-policy", miss_policy.status());
+  s.miss_policy = *miss_policy;
+  s = WithDefaults(s);
+  if (absl::Status status = ValidateStructureOptions(s); !status.ok()) {
+    // "buffer_ratio: 2 is outside [0, 1]" names the option; here it is the flag --buffer-ratio.
+    std::string message(status.message());
+    const size_t colon = std::min(message.find(':'), message.size());
+    std::replace(message.begin(), message.begin() + colon, '_', '-');
+    return absl::Status(status.code(), "--" + message);
+  }
+  return s;
 }
 
 absl::StatusOr<Json> Run(BenchOptions o) {
   RETURN_IF_ERROR(Validate(o));
-  const ThreadPlan plan = DefaultThreadPlan(o.structure == "actopo");
-  if (o.consumers == 0) o.consumers = plan.consumers;
-  if (o.producers == 0) o.producers = std::max(plan.producers, 1);
+  ASSIGN_OR_RETURN(const StructureOptions options, StructureFromFlags(o));
+  o.consumers = options.consumers;
+  o.producers = options.producers;
   ASSIGN_OR_RETURN(const Algorithm algorithm, ParseAlgorithm(o.algorithm));
   // The trace file is opened first: a path that cannot be written fails before the work.
   std::shared_ptr<Trace> trace;
@@ -237,7 +223,7 @@ absl::StatusOr<Json> Run(BenchOptions o) {
   const RelationSet declared = DeclaredRelations(algorithm);
   RunContext context{.consumers = o.consumers, .trace = trace};
   RunOutput out;
-  if (o.structure == "explicit") {
+  if (options.structure == StructureKind::kExplicit) {
     start = Clock::now();
     ASSIGN_OR_RETURN(auto structure,
                      ExplicitStructure::Build(topology, {.relations = declared, .threads = o.threads}));
@@ -246,8 +232,8 @@ absl::StatusOr<Json> Run(BenchOptions o) {
     ASSIGN_OR_RETURN(out, RunAndSummarize(*structure, input, context, o, files ? &*files : nullptr));
     out.preprocess_s = preprocess_s;
     out.memory = structure->memory();
-  } else if (o.structure == "actopo") {
-    const ActopoStructure::Options engine = EngineOptions(o, algorithm);
+  } else if (options.structure == StructureKind::kActopo) {
+    const ActopoStructure::Options engine = EngineOptions(options, algorithm);
     start = Clock::now();
     ASSIGN_OR_RETURN(auto structure, ActopoStructure::Create(topology, engine));
     const double preprocess_s = Seconds(start);
@@ -278,8 +264,7 @@ absl::StatusOr<Json> Run(BenchOptions o) {
     }
     out.engine_detail["consumers"] = per_consumer;
   } else {
-    CompactStructure structure(topology,
-                               {.cache_ratio = o.buffer_ratio, .consumers = o.consumers});
+    CompactStructure structure(topology, CacheOptions(options, options.consumers));
     ASSIGN_OR_RETURN(out, RunAndSummarize(structure, input, context, o, files ? &*files : nullptr));
     out.access = structure.stats();
     out.memory = structure.memory();

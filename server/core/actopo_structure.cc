@@ -384,20 +384,25 @@ ActopoStructure::ActopoStructure(std::shared_ptr<const Topology> topology,
                                  const Options& options)
     : topology_(std::move(topology)), options_(options) {}
 
-absl::StatusOr<std::unique_ptr<ActopoStructure>> ActopoStructure::Create(
-    std::shared_ptr<const Topology> topology, const Options& options) {
-  if (options.consumers < 1 || options.consumers > 256) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("consumers: ", options.consumers, " is outside [1, 256]"));
+absl::Status ActopoStructure::Validate(const Options& options) {
+  if (options.consumers < 1 || options.consumers > kMaxConsumers) {
+    return absl::InvalidArgumentError(absl::StrCat("consumers: ", options.consumers,
+                                                   " is outside [1, ", kMaxConsumers, "]"));
   }
-  if (options.producers < 1 || options.producers > 64) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("producers: ", options.producers, " is outside [1, 64]"));
+  if (options.producers < 1 || options.producers > kMaxProducers) {
+    return absl::InvalidArgumentError(absl::StrCat("producers: ", options.producers,
+                                                   " is outside [1, ", kMaxProducers, "]"));
   }
   if (!(options.buffer_ratio >= 0.0 && options.buffer_ratio <= 1.0)) {
     return absl::InvalidArgumentError(
         absl::StrCat("buffer_ratio: ", options.buffer_ratio, " is outside [0, 1]"));
   }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::unique_ptr<ActopoStructure>> ActopoStructure::Create(
+    std::shared_ptr<const Topology> topology, const Options& options) {
+  if (absl::Status status = Validate(options); !status.ok()) return status;
   auto s = std::unique_ptr<ActopoStructure>(new ActopoStructure(std::move(topology), options));
   s->capacity_ = static_cast<int>(std::floor(options.buffer_ratio * s->topology_->num_blocks() /
                                              options.consumers)) +

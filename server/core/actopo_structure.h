@@ -123,8 +123,14 @@ class ActopoStructure {
     RelationSet declared = RelationSet::All();  // used by Precompute::kDeclared
     MissPolicy miss_policy = MissPolicy::kConsumer;  // measured faster; kLeader: the paper
   };
+  // The ranges Validate enforces: consumers and producers in [1, 64], buffer_ratio in [0, 1].
+  static constexpr int kMaxConsumers = 64;
+  static constexpr int kMaxProducers = 64;
 
-  // Validates the options (each error names the option and value) and starts C * P threads.
+  // INVALID_ARGUMENT naming the option and its value ("consumers: 300 is outside [1, 64]").
+  static absl::Status Validate(const Options& options);
+
+  // Validates the options and starts C * P threads.
   static absl::StatusOr<std::unique_ptr<ActopoStructure>> Create(
       std::shared_ptr<const Topology> topology, const Options& options);
   ~ActopoStructure();  // stops and joins every producer; readers must be gone

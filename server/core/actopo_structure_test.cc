@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <thread>
 #include <tuple>
 
@@ -236,13 +237,28 @@ TEST(ActopoStructure, DestroyIdleAndBusyStructures) {
 }
 
 TEST(ActopoStructure, RejectsBadOptions) {
+  struct Case {
+    ActopoStructure::Options options;
+    std::string message;
+  };
+  const Case cases[] = {
+      {{.consumers = 0}, "consumers: 0 is outside [1, 64]"},
+      {{.consumers = 65}, "consumers: 65 is outside [1, 64]"},
+      {{.producers = 0}, "producers: 0 is outside [1, 64]"},
+      {{.producers = 65}, "producers: 65 is outside [1, 64]"},
+      {{.buffer_ratio = 1.5}, "buffer_ratio: 1.5 is outside [0, 1]"},
+      {{.buffer_ratio = -0.1}, "buffer_ratio: -0.1 is outside [0, 1]"},
+      {{.buffer_ratio = std::nan("")}, "buffer_ratio: nan is outside [0, 1]"},
+  };
   auto topo = Build(testing::SingleTetrahedron(), 1);
-  EXPECT_EQ(ActopoStructure::Create(topo, {.consumers = 0}).status().message(),
-            "consumers: 0 is outside [1, 256]");
-  EXPECT_EQ(ActopoStructure::Create(topo, {.producers = 0}).status().message(),
-            "producers: 0 is outside [1, 64]");
-  EXPECT_EQ(ActopoStructure::Create(topo, {.buffer_ratio = 1.5}).status().message(),
-            "buffer_ratio: 1.5 is outside [0, 1]");
+  for (const Case& c : cases) {
+    const absl::Status status = ActopoStructure::Create(topo, c.options).status();
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << c.message;
+    EXPECT_EQ(status.message(), c.message);
+    EXPECT_EQ(ActopoStructure::Validate(c.options), status);
+  }
+  EXPECT_TRUE(ActopoStructure::Validate({.consumers = 64, .producers = 64, .buffer_ratio = 0})
+                  .ok());
 }
 
 }  // namespace
