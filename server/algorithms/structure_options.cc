@@ -66,7 +66,7 @@ absl::StatusOr<MissPolicy> ParseMissPolicy(std::string_view name) {
 }
 
 StructureOptions WithDefaults(StructureOptions options, int cores) {
-  const ThreadPlan plan = DefaultThreadPlan(options.structure == StructureKind::kActopo, cores);
+  const ThreadPlan plan = DefaultThreadPlan(options.kind == StructureKind::kActopo, cores);
   if (options.consumers == 0) options.consumers = plan.consumers;
   if (options.producers == 0) options.producers = std::max(plan.producers, 1);
   if (options.query_readers == 0) options.query_readers = std::clamp(cores, 1, 4);

@@ -2,7 +2,7 @@
 // service's sessions and actopo-bench, their defaults, one validator, and the structures' own
 // options built from them.
 //
-//   StructureOptions o{.structure = StructureKind::kActopo, .buffer_ratio = 0.1};
+//   StructureOptions o{.kind = StructureKind::kActopo, .buffer_ratio = 0.1};
 //   o = WithDefaults(o);                        // zeros: from the machine's cores
 //   RETURN_IF_ERROR(ValidateStructureOptions(o, "engine."));  // "engine.consumers: 0 is ..."
 //   ASSIGN_OR_RETURN(auto engine,
@@ -39,7 +39,7 @@ absl::StatusOr<std::optional<Precompute>> ParsePrecompute(std::string_view name)
 absl::StatusOr<MissPolicy> ParseMissPolicy(std::string_view name);
 
 struct StructureOptions {
-  StructureKind structure = StructureKind::kActopo;
+  StructureKind kind = StructureKind::kActopo;
   int consumers = 0;  // the algorithm's threads; 0: one per core
   int producers = 0;  // actopo, per consumer (1 leader + workers); 0: one
   double buffer_ratio = 0.2;  // actopo buffer / compact cache, as a fraction of the blocks

@@ -48,11 +48,11 @@ TEST(StructureOptions, UnknownNamesListWhatIsAccepted) {
 }
 
 TEST(StructureOptions, ZerosComeFromTheCores) {
-  const StructureOptions actopo = WithDefaults({.structure = StructureKind::kActopo}, 8);
+  const StructureOptions actopo = WithDefaults({.kind = StructureKind::kActopo}, 8);
   EXPECT_EQ(actopo.consumers, 8);
   EXPECT_EQ(actopo.producers, 1);
   EXPECT_EQ(actopo.query_readers, 4);
-  const StructureOptions compact = WithDefaults({.structure = StructureKind::kCompact}, 2);
+  const StructureOptions compact = WithDefaults({.kind = StructureKind::kCompact}, 2);
   EXPECT_EQ(compact.consumers, 2);
   EXPECT_EQ(compact.producers, 1);
   EXPECT_EQ(compact.query_readers, 2);

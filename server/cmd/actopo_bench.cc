@@ -137,7 +137,7 @@ absl::StatusOr<StructureOptions> StructureFromFlags(const BenchOptions& o) {
                      .buffer_ratio = o.buffer_ratio, .query_readers = 1};
   absl::StatusOr<StructureKind> structure = ParseStructure(o.structure);
   if (!structure.ok()) return flag("structure", structure.status());
-  s.structure = *structure;
+  s.kind = *structure;
   absl::StatusOr<std::optional<Prefetch>> prefetch = ParsePrefetch(o.prefetch);
   if (!prefetch.ok()) return flag("prefetch", prefetch.status());
   s.prefetch = *prefetch;
@@ -223,7 +223,7 @@ absl::StatusOr<Json> Run(BenchOptions o) {
   const RelationSet declared = DeclaredRelations(algorithm);
   RunContext context{.consumers = o.consumers, .trace = trace};
   RunOutput out;
-  if (options.structure == StructureKind::kExplicit) {
+  if (options.kind == StructureKind::kExplicit) {
     start = Clock::now();
     ASSIGN_OR_RETURN(auto structure,
                      ExplicitStructure::Build(topology, {.relations = declared, .threads = o.threads}));
@@ -232,7 +232,7 @@ absl::StatusOr<Json> Run(BenchOptions o) {
     ASSIGN_OR_RETURN(out, RunAndSummarize(*structure, input, context, o, files ? &*files : nullptr));
     out.preprocess_s = preprocess_s;
     out.memory = structure->memory();
-  } else if (options.structure == StructureKind::kActopo) {
+  } else if (options.kind == StructureKind::kActopo) {
     const ActopoStructure::Options engine = EngineOptions(options, algorithm);
     start = Clock::now();
     ASSIGN_OR_RETURN(auto structure, ActopoStructure::Create(topology, engine));

@@ -251,7 +251,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     service_->Count("RunJob", status);
     if (status.ok()) {
       service_->metrics().Job(AlgorithmName(input_.algorithm),
-                              StructureName(session_->options().structure),
+                              StructureName(session_->options().structure.kind),
                               outcome->outcome.run_s, outcome->engine);
     }
     std::lock_guard<std::mutex> lock(mu_);

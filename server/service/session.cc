@@ -33,62 +33,31 @@ std::string FieldRef::ToString() const {
   return index < 0 ? std::string(name) : absl::StrCat(std::string(name), "[", index, "]");
 }
 
-std::string_view StructureName(StructureKind s) {
-  switch (s) {
-    case StructureKind::kExplicit: return "explicit";
-    case StructureKind::kCompact: return "compact";
-    case StructureKind::kActopo: return "actopo";
-  }
-  return "?";
-}
-
-int64_t Session::EstimateBytes(const LoadedMesh& mesh, const SessionOptions& o) {
+int64_t Session::EstimateBytes(const LoadedMesh& mesh, const SessionOptions& options) {
+  const StructureOptions& o = options.structure;
   const int64_t tets = mesh.topology->num_tetrahedra();
   const int64_t blocks = mesh.topology->num_blocks();
   const int64_t order = int64_t(mesh.topology->num_vertices()) * 4 + tets * 16;
-  if (o.structure == StructureKind::kExplicit) return order + tets * kAllRelationsBytesPerTet;
+  if (o.kind == StructureKind::kExplicit) return order + tets * kAllRelationsBytesPerTet;
   // Buffers hold about buffer_ratio of all relations, plus one state cell per (block,
   // relation) per consumer (16 bytes each).
   const int64_t cells = blocks * kNumRelations * 16 * (o.consumers + 1);
   return order + int64_t(o.buffer_ratio * tets * kAllRelationsBytesPerTet) + cells;
 }
 
-int Session::QueryThreads(const SessionOptions& o) {
-  return o.structure == StructureKind::kActopo ? o.query_readers * o.producers : 0;
+int Session::QueryThreads(const SessionOptions& options) {
+  const StructureOptions& o = options.structure;
+  return o.kind == StructureKind::kActopo ? o.query_readers * o.producers : 0;
 }
 
-int Session::JobThreads(const SessionOptions& o) {
-  const int producers = o.structure == StructureKind::kActopo ? o.producers : 0;
+int Session::JobThreads(const SessionOptions& options) {
+  const StructureOptions& o = options.structure;
+  const int producers = o.kind == StructureKind::kActopo ? o.producers : 0;
   return o.consumers * (1 + producers);
 }
 
-ActopoStructure::Options Session::EngineOptions(Algorithm algorithm, int consumers) const {
-  return {.consumers = consumers,
-          .producers = options_.producers,
-          .buffer_ratio = options_.buffer_ratio,
-          .prefetch = options_.prefetch.value_or(DefaultPrefetch(algorithm)),
-          .precompute = options_.precompute.value_or(DefaultPrecompute(algorithm)),
-          .declared = DeclaredRelations(algorithm)};
-}
-
 absl::Status Session::Validate(const SessionOptions& options) {
-  if (options.consumers < 1 || options.consumers > 64) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("engine.consumers: ", options.consumers, " is outside [1, 64]"));
-  }
-  if (options.producers < 1 || options.producers > 64) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("engine.producers: ", options.producers, " is outside [1, 64]"));
-  }
-  if (options.query_readers < 1 || options.query_readers > 64) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("engine.query_readers: ", options.query_readers, " is outside [1, 64]"));
-  }
-  if (!(options.buffer_ratio >= 0.0 && options.buffer_ratio <= 1.0)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("engine.buffer_ratio: ", options.buffer_ratio, " is outside [0, 1]"));
-  }
-  return absl::OkStatus();
+  return ValidateStructureOptions(options.structure, "engine.");
 }
 
 absl::StatusOr<std::unique_ptr<Session>> Session::Open(std::shared_ptr<const LoadedMesh> mesh,
@@ -102,7 +71,8 @@ absl::StatusOr<std::unique_ptr<Session>> Session::Open(std::shared_ptr<const Loa
   s->scalar_name_ = m.point_fields[field].name;
   const int64_t estimate = EstimateBytes(*mesh, options);
   RETURN_IF_ERROR(budget->Reserve(
-      estimate, absl::StrCat("a ", std::string(StructureName(options.structure)), " session on mesh '",
+      estimate, absl::StrCat("a ", std::string(StructureName(options.structure.kind)),
+                             " session on mesh '",
                              mesh->id, "'")));
   s->reservation_ = Reservation(budget, estimate);
   s->id_ = NewId("session");
@@ -115,30 +85,25 @@ absl::StatusOr<std::unique_ptr<Session>> Session::Open(std::shared_ptr<const Loa
   RETURN_IF_ERROR(progress.Update("precompute", 0));
   s->base_.order = VertexOrder(*mesh->topology, m.point_fields[field].values);
   s->base_.input_tetrahedra = m.tetrahedra;
-  switch (options.structure) {
+  const StructureOptions& structure = options.structure;
+  switch (structure.kind) {
     case StructureKind::kExplicit: {
       ASSIGN_OR_RETURN(s->explicit_, ExplicitStructure::Build(mesh->topology, {}, progress));
       break;
     }
     case StructureKind::kCompact:
       s->compact_ = std::make_unique<CompactStructure>(
-          mesh->topology, CompactStructure::Options{.cache_ratio = options.buffer_ratio,
-                                                    .consumers = options.consumers});
+          mesh->topology, CacheOptions(structure, structure.consumers));
       s->query_compact_ = std::make_unique<CompactStructure>(
-          mesh->topology, CompactStructure::Options{.cache_ratio = options.buffer_ratio,
-                                                    .consumers = options.query_readers});
+          mesh->topology, CacheOptions(structure, structure.query_readers));
       s->compact_readers_ = std::make_unique<ReaderPool<CompactStructure::Reader>>(
-          options.query_readers, [q = s->query_compact_.get()] { return q->NewReader(); });
+          structure.query_readers, [q = s->query_compact_.get()] { return q->NewReader(); });
       break;
     case StructureKind::kActopo: {
-      ActopoStructure::Options query{.consumers = options.query_readers,
-                                     .producers = options.producers,
-                                     .buffer_ratio = options.buffer_ratio,
-                                     .prefetch = options.prefetch.value_or(Prefetch::kSpatial),
-                                     .precompute = Precompute::kRequested};
-      ASSIGN_OR_RETURN(s->query_engine_, ActopoStructure::Create(mesh->topology, query));
+      ASSIGN_OR_RETURN(s->query_engine_,
+                       ActopoStructure::Create(mesh->topology, QueryEngineOptions(structure)));
       s->actopo_readers_ = std::make_unique<ReaderPool<ActopoStructure::Reader>>(
-          options.query_readers, [q = s->query_engine_.get()] { return q->NewReader(); });
+          structure.query_readers, [q = s->query_engine_.get()] { return q->NewReader(); });
       break;
     }
   }
@@ -375,7 +340,7 @@ absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input,
   Touch();
   const auto start = Clock::now();
   RunContext ctx = context;
-  ctx.consumers = options_.consumers;
+  ctx.consumers = options_.structure.consumers;
   JobOutcome out;
   if (explicit_) {
     ASSIGN_OR_RETURN(out.outcome, RunAlgorithm(*explicit_, input, ctx));
@@ -389,9 +354,9 @@ absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input,
     out.memory = compact_->memory();
   } else {
     const auto engine_start = Clock::now();
-    ASSIGN_OR_RETURN(auto engine, ActopoStructure::Create(
-                                      mesh_->topology, EngineOptions(input.algorithm,
-                                                                     options_.consumers)));
+    ASSIGN_OR_RETURN(auto engine,
+                     ActopoStructure::Create(mesh_->topology,
+                                             EngineOptions(options_.structure, input.algorithm)));
     if (ctx.trace) ctx.trace->Span("start engine", "phase", engine_start, Clock::now());
     absl::StatusOr<AlgorithmOutcome> outcome = RunAlgorithm(*engine, input, ctx);
     out.engine = engine->stats();

@@ -23,6 +23,7 @@
 
 #include "absl/status/statusor.h"
 #include "absl/time/time.h"
+#include "server/algorithms/structure_options.h"
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
@@ -34,18 +35,10 @@
 
 namespace actopo::service {
 
-enum class StructureKind : uint8_t { kExplicit, kCompact, kActopo };
-std::string_view StructureName(StructureKind s);
 
 struct SessionOptions {
-  std::string scalar_field;  // empty: the first floating-point field
-  StructureKind structure = StructureKind::kActopo;
-  int consumers = 1;
-  int producers = 2;
-  double buffer_ratio = 0.2;
-  std::optional<Prefetch> prefetch;      // unset: per algorithm
-  std::optional<Precompute> precompute;  // unset: per algorithm
-  int query_readers = 1;  // relation calls answered at once, each with a reader of its own
+  std::string scalar_field;    // empty: the first floating-point field
+  StructureOptions structure;  // with WithDefaults applied; validated as the request's engine.*
 };
 
 // The request field a simplex came from, for error messages: "ids[12]" for item 12 of a batch
@@ -145,7 +138,6 @@ class Session {
   void AppendRowsInBlockOrder(Reader& reader, Relation r, std::span<const SimplexId> simplices,
                               std::vector<int64_t>& offsets, std::vector<int64_t>& values,
                               std::vector<int64_t>* vertices) const;
-  ActopoStructure::Options EngineOptions(Algorithm algorithm, int consumers) const;
 
   std::string id_;
   std::shared_ptr<const LoadedMesh> mesh_;

@@ -97,23 +97,24 @@ pb::Precompute ToProto(Precompute p) { return ProtoValue(kPrecomputeMapping, p);
 absl::StatusOr<SessionOptions> FromProto(const pb::OpenSessionRequest& r) {
   SessionOptions o;
   o.scalar_field = r.scalar_field();
+  StructureOptions& s = o.structure;
   // Not set: ACTOPO.
   if (r.structure() != pb::STRUCTURE_UNSPECIFIED) {
-    ASSIGN_OR_RETURN(o.structure, FromProto(r.structure()));
+    ASSIGN_OR_RETURN(s.kind, FromProto(r.structure()));
   }
+  // Zeros and unset modes keep the module's defaults: from the cores, or per algorithm.
   const pb::EngineOptions& e = r.engine();
-  const ThreadPlan plan = DefaultThreadPlan(o.structure == StructureKind::kActopo);
-  o.consumers = e.consumers() != 0 ? e.consumers() : plan.consumers;
-  o.producers = e.producers() != 0 ? e.producers() : std::max(plan.producers, 1);
-  if (e.buffer_ratio() != 0) o.buffer_ratio = e.buffer_ratio();
-  o.query_readers = e.query_readers() != 0 ? e.query_readers() : std::min(DefaultThreads(), 4);
-  // Not set: chosen per algorithm.
+  s.consumers = e.consumers();
+  s.producers = e.producers();
+  if (e.buffer_ratio() != 0) s.buffer_ratio = e.buffer_ratio();
+  s.query_readers = e.query_readers();
   if (e.prefetch() != pb::PREFETCH_UNSPECIFIED) {
-    ASSIGN_OR_RETURN(o.prefetch, FromProto(e.prefetch()));
+    ASSIGN_OR_RETURN(s.prefetch, FromProto(e.prefetch()));
   }
   if (e.precompute() != pb::PRECOMPUTE_UNSPECIFIED) {
-    ASSIGN_OR_RETURN(o.precompute, FromProto(e.precompute()));
+    ASSIGN_OR_RETURN(s.precompute, FromProto(e.precompute()));
   }
+  s = WithDefaults(s);
   return o;
 }
 
@@ -163,8 +164,8 @@ void Fill(Session& s, const std::string& running_job, pb::SessionInfo* out) {
   out->set_session_id(s.id());
   out->set_mesh_id(s.mesh().id);
   out->set_scalar_field(s.scalar_name());
-  const SessionOptions& o = s.options();
-  out->set_structure(ToProto(o.structure));
+  const StructureOptions& o = s.options().structure;
+  out->set_structure(ToProto(o.kind));
   pb::EngineOptions* e = out->mutable_engine();
   e->set_consumers(o.consumers);
   e->set_producers(o.producers);

@@ -113,17 +113,21 @@ TEST(WireMapping, UnspecifiedMeansTheDefaults) {
   v1::OpenSessionRequest request;
   const absl::StatusOr<SessionOptions> options = FromProto(request);
   ASSERT_TRUE(options.ok()) << options.status();
-  EXPECT_EQ(options->structure, StructureKind::kActopo);
-  EXPECT_FALSE(options->prefetch.has_value());
-  EXPECT_FALSE(options->precompute.has_value());
+  EXPECT_EQ(options->structure.kind, StructureKind::kActopo);
+  EXPECT_FALSE(options->structure.prefetch.has_value());
+  EXPECT_FALSE(options->structure.precompute.has_value());
+  // Zeros become the module's defaults (structure_options.h) here, at the edge.
+  EXPECT_EQ(options->structure.consumers, WithDefaults({}).consumers);
+  EXPECT_GE(options->structure.producers, 1);
+  EXPECT_GE(options->structure.query_readers, 1);
   request.set_structure(v1::STRUCTURE_COMPACT);
   request.mutable_engine()->set_prefetch(v1::PREFETCH_SPATIAL);
   request.mutable_engine()->set_precompute(v1::PRECOMPUTE_DECLARED);
   const absl::StatusOr<SessionOptions> set = FromProto(request);
   ASSERT_TRUE(set.ok()) << set.status();
-  EXPECT_EQ(set->structure, StructureKind::kCompact);
-  EXPECT_EQ(set->prefetch, Prefetch::kSpatial);
-  EXPECT_EQ(set->precompute, Precompute::kDeclared);
+  EXPECT_EQ(set->structure.kind, StructureKind::kCompact);
+  EXPECT_EQ(set->structure.prefetch, Prefetch::kSpatial);
+  EXPECT_EQ(set->structure.precompute, Precompute::kDeclared);
 }
 
 // The summary built from the result equals, value for value, the one the service used to send:
