@@ -12,7 +12,7 @@ SOAK_CLIENTS ?= 16
 FUZZ_SECONDS ?= 600
 FUZZERS = upload_fuzzer mesh_file_fuzzer partition_fuzzer request_fuzzer
 
-.PHONY: all deps build test lint-python test-unit test-client-cpp test-thread-safety test-asan test-tsan test-asan-server test-soak soak test-fuzz fuzz lint-proto demo bench deploy-check clean
+.PHONY: all deps build test format check-format lint-python test-unit test-client-cpp test-thread-safety test-asan test-tsan test-asan-server test-soak soak test-fuzz fuzz lint-proto demo bench deploy-check clean
 
 all: build
 
@@ -25,11 +25,11 @@ $(BUILD)/build.ninja: | deps
 build: deps $(BUILD)/build.ninja
 	cmake --build $(BUILD) -j $(JOBS)
 
-# API lint, Python lint and types, clang's thread-safety analysis of the core, unit, service and
+# API lint, C++ format, Python lint and types, clang's thread-safety analysis of the core, unit, service and
 # fidelity tests; the core and algorithm
 # tests again under ASan+UBSan, and with the service's logic under TSan; the server under
 # ASan+UBSan for the service and client suites; the fuzzers.
-test: lint-proto lint-python test-thread-safety test-unit test-client-cpp test-soak test-asan test-tsan \
+test: lint-proto check-format lint-python test-thread-safety test-unit test-client-cpp test-soak test-asan test-tsan \
   test-asan-server test-fuzz
 	@echo "make test: all suites passed"
 
@@ -40,6 +40,16 @@ test-client-cpp: build
 
 lint-proto: deps
 	.tools/node_modules/.bin/buf lint proto
+
+# The C++ house style (.clang-format): check-format fails on any file clang-format would change;
+# format rewrites them.
+CXX_SOURCES = $(shell git ls-files '*.cc' '*.h')
+check-format: deps
+	clang-format-14 --dry-run --Werror $(CXX_SOURCES)
+	@echo "check-format: $(words $(CXX_SOURCES)) C++ files match .clang-format"
+
+format:
+	clang-format-14 -i $(CXX_SOURCES)
 
 # The Python client: ruff (rules in client-py/pyproject.toml) and mypy --strict on the package;
 # ruff with the same rules on tests/, bench/ and the ParaView plugin.

@@ -35,8 +35,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   // section cut short, fuzz/known/), which no check of ours stops yet; see the README's known
   // limitations. Fuzzing it would only find that again.
   static const char* kExtensions[] = {".vtu", ".vti"};
-  const std::string path = "/tmp/actopo_mesh_file_fuzzer_" + std::to_string(getpid()) +
-                           kExtensions[data[0] % 2];
+  const std::string path =
+      "/tmp/actopo_mesh_file_fuzzer_" + std::to_string(getpid()) + kExtensions[data[0] % 2];
   {
     std::ofstream out(path, std::ios::binary | std::ios::trunc);
     out.write(reinterpret_cast<const char*>(data + 1), std::streamsize(size - 1));

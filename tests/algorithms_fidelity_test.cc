@@ -33,7 +33,8 @@ std::vector<Case> Cases() {
   if (!in) return out;
   const Json all = Json::parse(in);
   for (const auto& [file, fields] : all.items()) {
-    for (const auto& [field, entry] : fields.items()) out.push_back({file, field, entry["upstream"]});
+    for (const auto& [field, entry] : fields.items())
+      out.push_back({file, field, entry["upstream"]});
   }
   return out;
 }
@@ -66,11 +67,11 @@ void ForEveryStructureAndThreadCount(const Loaded& in, Prefetch prefetch, Check&
     CompactStructure compact(in.topology, {.cache_ratio = 0.1, .consumers = consumers});
     check("compact" + c, compact, context);
     const int producers = 1 + (consumers + 1) % 3;
-    auto actopo = *ActopoStructure::Create(in.topology,
-                                           {.consumers = consumers,
-                                            .producers = producers,
-                                            .buffer_ratio = consumers == 2 ? 0.05 : 0.2,
-                                            .prefetch = prefetch});
+    auto actopo =
+        *ActopoStructure::Create(in.topology, {.consumers = consumers,
+                                               .producers = producers,
+                                               .buffer_ratio = consumers == 2 ? 0.05 : 0.2,
+                                               .prefetch = prefetch});
     check("actopo P=" + std::to_string(producers) + c, *actopo, context);
   }
 }
@@ -83,28 +84,29 @@ TEST_F(MatchesTtk, CriticalPointsAndDiscreteGradient) {
     const Loaded in = Load(c.file, c.field);
     const Json& cp = c.expected["critical_points"];
     const Json& dg = c.expected["discrete_gradient"];
-    ForEveryStructureAndThreadCount(in, Prefetch::kLinear, [&](const std::string& label,
-                                                               auto& structure,
-                                                               const RunContext& context) {
-      SCOPED_TRACE(label);
-      const CriticalPointsResult r = *RunCriticalPoints(structure, in.order, {}, context);
-      EXPECT_EQ(r.counts[int(CriticalType::kMinimum)], cp["counts"]["minimum"].get<int64_t>());
-      EXPECT_EQ(r.counts[int(CriticalType::kSaddle1)], cp["counts"]["saddle1"].get<int64_t>());
-      EXPECT_EQ(r.counts[int(CriticalType::kSaddle2)], cp["counts"]["saddle2"].get<int64_t>());
-      EXPECT_EQ(r.counts[int(CriticalType::kMaximum)], cp["counts"]["maximum"].get<int64_t>());
-      EXPECT_EQ(r.counts[int(CriticalType::kDegenerate)],
-                cp["counts"]["degenerate"].get<int64_t>());
-      EXPECT_EQ(r.VerticesDigest(), cp["vertices_sha256"].get<std::string>());
+    ForEveryStructureAndThreadCount(
+        in, Prefetch::kLinear,
+        [&](const std::string& label, auto& structure, const RunContext& context) {
+          SCOPED_TRACE(label);
+          const CriticalPointsResult r = *RunCriticalPoints(structure, in.order, {}, context);
+          EXPECT_EQ(r.counts[int(CriticalType::kMinimum)], cp["counts"]["minimum"].get<int64_t>());
+          EXPECT_EQ(r.counts[int(CriticalType::kSaddle1)], cp["counts"]["saddle1"].get<int64_t>());
+          EXPECT_EQ(r.counts[int(CriticalType::kSaddle2)], cp["counts"]["saddle2"].get<int64_t>());
+          EXPECT_EQ(r.counts[int(CriticalType::kMaximum)], cp["counts"]["maximum"].get<int64_t>());
+          EXPECT_EQ(r.counts[int(CriticalType::kDegenerate)],
+                    cp["counts"]["degenerate"].get<int64_t>());
+          EXPECT_EQ(r.VerticesDigest(), cp["vertices_sha256"].get<std::string>());
 
-      const DiscreteGradientResult g = *RunDiscreteGradient(structure, in.order, context);
-      if constexpr (std::is_same_v<std::decay_t<decltype(structure)>, ExplicitStructure>) {
-        testing::ExpectValidGradient(g, structure);  // the digests below cover the others
-      }
-      EXPECT_EQ(Json(g.critical_cells), dg["critical_cells"]);
-      EXPECT_EQ(Json(g.pairs), dg["pairs_count"]);
-      EXPECT_EQ(g.CriticalCellsDigest(*in.topology), dg["critical_cells_sha256"].get<std::string>());
-      EXPECT_EQ(g.PairsDigest(*in.topology), dg["pairs_sha256"].get<std::string>());
-    });
+          const DiscreteGradientResult g = *RunDiscreteGradient(structure, in.order, context);
+          if constexpr (std::is_same_v<std::decay_t<decltype(structure)>, ExplicitStructure>) {
+            testing::ExpectValidGradient(g, structure);  // the digests below cover the others
+          }
+          EXPECT_EQ(Json(g.critical_cells), dg["critical_cells"]);
+          EXPECT_EQ(Json(g.pairs), dg["pairs_count"]);
+          EXPECT_EQ(g.CriticalCellsDigest(*in.topology),
+                    dg["critical_cells_sha256"].get<std::string>());
+          EXPECT_EQ(g.PairsDigest(*in.topology), dg["pairs_sha256"].get<std::string>());
+        });
   }
 }
 
@@ -116,30 +118,32 @@ TEST_F(MatchesTtk, MorseSmale) {
     const Loaded in = Load(c.file, c.field);
     const Json& ms = c.expected["morse_smale"];
     // Linear: the default; morse_smale_test.cc covers the other prefetch modes.
-    ForEveryStructureAndThreadCount(in, Prefetch::kLinear, [&](const std::string& label,
-                                                               auto& structure,
-                                                               const RunContext& context) {
-      SCOPED_TRACE(label);
-      const MorseSmaleResult r = *RunMorseSmale(structure, in.order, in.tetrahedra, context);
-      EXPECT_EQ(Json(r.gradient.critical_cells), ms["critical_cells"]);
-      EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kDescending),
-                ms["separatrices"]["descending"].get<int64_t>());
-      EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kAscending),
-                ms["separatrices"]["ascending"].get<int64_t>());
-      EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kSaddleConnector),
-                ms["separatrices"]["saddle_connectors"].get<int64_t>());
-      EXPECT_EQ(r.Segments(), ms["separatrices"]["segments"].get<int64_t>());
-      EXPECT_EQ(MorseSmaleResult::Regions(r.descending), ms["regions"]["descending"].get<int64_t>());
-      EXPECT_EQ(MorseSmaleResult::Regions(r.ascending), ms["regions"]["ascending"].get<int64_t>());
-      EXPECT_EQ(MorseSmaleResult::Regions(r.morse_smale),
-                ms["regions"]["morse_smale"].get<int64_t>());
-      EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.descending),
-                ms["segmentation_sha256"]["descending"].get<std::string>());
-      EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.ascending),
-                ms["segmentation_sha256"]["ascending"].get<std::string>());
-      EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.morse_smale),
-                ms["segmentation_sha256"]["morse_smale"].get<std::string>());
-    });
+    ForEveryStructureAndThreadCount(
+        in, Prefetch::kLinear,
+        [&](const std::string& label, auto& structure, const RunContext& context) {
+          SCOPED_TRACE(label);
+          const MorseSmaleResult r = *RunMorseSmale(structure, in.order, in.tetrahedra, context);
+          EXPECT_EQ(Json(r.gradient.critical_cells), ms["critical_cells"]);
+          EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kDescending),
+                    ms["separatrices"]["descending"].get<int64_t>());
+          EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kAscending),
+                    ms["separatrices"]["ascending"].get<int64_t>());
+          EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kSaddleConnector),
+                    ms["separatrices"]["saddle_connectors"].get<int64_t>());
+          EXPECT_EQ(r.Segments(), ms["separatrices"]["segments"].get<int64_t>());
+          EXPECT_EQ(MorseSmaleResult::Regions(r.descending),
+                    ms["regions"]["descending"].get<int64_t>());
+          EXPECT_EQ(MorseSmaleResult::Regions(r.ascending),
+                    ms["regions"]["ascending"].get<int64_t>());
+          EXPECT_EQ(MorseSmaleResult::Regions(r.morse_smale),
+                    ms["regions"]["morse_smale"].get<int64_t>());
+          EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.descending),
+                    ms["segmentation_sha256"]["descending"].get<std::string>());
+          EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.ascending),
+                    ms["segmentation_sha256"]["ascending"].get<std::string>());
+          EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.morse_smale),
+                    ms["segmentation_sha256"]["morse_smale"].get<std::string>());
+        });
   }
 }
 
@@ -149,10 +153,11 @@ TEST_F(MatchesTtk, GradientInvariantsOnOtherMeshes) {
     SCOPED_TRACE(file);
     const Loaded in = Load(file, field);
     auto explicit_structure = *ExplicitStructure::Build(in.topology, {});
-    const DiscreteGradientResult reference = *RunDiscreteGradient(*explicit_structure, in.order, {});
+    const DiscreteGradientResult reference =
+        *RunDiscreteGradient(*explicit_structure, in.order, {});
     testing::ExpectValidGradient(reference, *explicit_structure);
-    auto actopo = *ActopoStructure::Create(in.topology, {.producers = 2,
-                                                         .prefetch = Prefetch::kAdaptive});
+    auto actopo =
+        *ActopoStructure::Create(in.topology, {.producers = 2, .prefetch = Prefetch::kAdaptive});
     const DiscreteGradientResult r = *RunDiscreteGradient(*actopo, in.order, {});
     EXPECT_EQ(r.PairsDigest(*in.topology), reference.PairsDigest(*in.topology));
   }

@@ -38,12 +38,11 @@ TEST(ClientWithServerTest, BothEngineStatsSideBySide) {
   other.worker_relations = 7;
   server += other;  // defined in actopo_core
 
-  const actopo::client::EngineStats client{
-      .requests = server.access.requests,
-      .hits = server.access.hits,
-      .misses = server.access.misses,
-      .leader_relations = server.leader_relations,
-      .worker_relations = server.worker_relations};
+  const actopo::client::EngineStats client{.requests = server.access.requests,
+                                           .hits = server.access.hits,
+                                           .misses = server.access.misses,
+                                           .leader_relations = server.leader_relations,
+                                           .worker_relations = server.worker_relations};
   EXPECT_EQ(client.requests, 4);
   EXPECT_EQ(client.hits, 3);
   EXPECT_EQ(client.worker_relations, 7);

@@ -34,11 +34,10 @@ int main(int argc, char** argv) {
                    : absl::StatusOr<actopo::client::JobResult>(session.status());
   if (result.ok()) {
     // One CriticalType per critical vertex, with TTK's codes.
-    absl::StatusOr<std::vector<int8_t>> types =
-        result->Get<int8_t>("critical_points/CriticalType");
+    absl::StatusOr<std::vector<int8_t>> types = result->Get<int8_t>("critical_points/CriticalType");
     if (types.ok()) {
-      constexpr std::array<const char*, 5> kNames = {"minimum", "1-saddle", "2-saddle",
-                                                     "maximum", "degenerate"};
+      constexpr std::array<const char*, 5> kNames = {"minimum", "1-saddle", "2-saddle", "maximum",
+                                                     "degenerate"};
       std::array<int, 5> counts{};
       for (int8_t t : *types) {
         if (t >= 0 && t < 5) ++counts[size_t(t)];

@@ -70,11 +70,11 @@ int main(int argc, char** argv) {
   if (latencies_us.empty()) return 1;
   std::sort(latencies_us.begin(), latencies_us.end());
   const auto percentile = [&](double p) {
-    return int64_t(latencies_us[std::min(latencies_us.size() - 1, size_t(p * latencies_us.size()))]);
+    return int64_t(
+        latencies_us[std::min(latencies_us.size() - 1, size_t(p * latencies_us.size()))]);
   };
   std::cout << "one per call: " << clients << " thread(s), " << latencies_us.size()
-            << " calls, p50 " << percentile(0.5)
-            << " us, p99 " << percentile(0.99) << " us\n";
+            << " calls, p50 " << percentile(0.5) << " us, p99 " << percentile(0.99) << " us\n";
 
   // Every vertex, plus one id past the end to show an error in the stream.
   std::vector<int64_t> ids(size_t(mesh->vertices) + 1);
@@ -93,9 +93,8 @@ int main(int argc, char** argv) {
         }
       });
   const double stream_s = SecondsSince(start);
-  std::cout << "stream: " << streamed << ", " << answered << " answers, " << failed
-            << " errors, " << total << " tetrahedra, " << int64_t(double(answered) / stream_s)
-            << " queries/s\n";
+  std::cout << "stream: " << streamed << ", " << answered << " answers, " << failed << " errors, "
+            << total << " tetrahedra, " << int64_t(double(answered) / stream_s) << " queries/s\n";
 
   ids.pop_back();  // a batch fails as a whole on a bad id
   start = std::chrono::steady_clock::now();
@@ -103,8 +102,8 @@ int main(int argc, char** argv) {
       client.RelationBatch(session->session_id, "vertex_star", ids);
   const double batch_s = SecondsSince(start);
   if (batch.ok()) {
-    std::cout << "batch: " << batch->size() << " rows, " << batch->values.size()
-              << " tetrahedra, " << int64_t(double(batch->size()) / batch_s) << " queries/s\n";
+    std::cout << "batch: " << batch->size() << " rows, " << batch->values.size() << " tetrahedra, "
+              << int64_t(double(batch->size()) / batch_s) << " queries/s\n";
   } else {
     std::cerr << "batch: " << batch.status() << "\n";
   }

@@ -51,16 +51,15 @@ int64_t Array::size() const {
 
 absl::Status Array::CheckLayout(DataType want) const {
   if (dtype != want) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "array '", name, "': dtype is ", std::string(DataTypeName(dtype)), ", not ",
-        std::string(DataTypeName(want))));
+    return absl::InvalidArgumentError(absl::StrCat("array '", name, "': dtype is ",
+                                                   std::string(DataTypeName(dtype)), ", not ",
+                                                   std::string(DataTypeName(want))));
   }
   const int64_t n = size();
   if (n < 0 || data.size() != size_t(n) * DataTypeSize(dtype)) {
     return absl::InvalidArgumentError(absl::StrCat("array '", name, "': ", data.size(),
                                                    " bytes do not hold ", n, " ",
-                                                   std::string(DataTypeName(dtype)),
-                                                   " values"));
+                                                   std::string(DataTypeName(dtype)), " values"));
   }
   return absl::OkStatus();
 }
@@ -87,9 +86,8 @@ std::vector<double> Array::ToDouble() const {
 absl::StatusOr<std::vector<int64_t>> Array::ToInt64() const {
   if (dtype == DataType::kFloat32 || dtype == DataType::kFloat64 ||
       dtype == DataType::kUnspecified) {
-    return absl::InvalidArgumentError(absl::StrCat("array '", name, "': dtype ",
-                                                   std::string(DataTypeName(dtype)),
-                                                   " is not an integer type"));
+    return absl::InvalidArgumentError(absl::StrCat(
+        "array '", name, "': dtype ", std::string(DataTypeName(dtype)), " is not an integer type"));
   }
   const size_t width = DataTypeSize(dtype);
   std::vector<int64_t> values(data.size() / width);

@@ -82,8 +82,8 @@ absl::StatusOr<MeshInfo> Client::LoadMeshWithProgress(std::string_view path,
   v1::LoadMeshWithProgressRequest request;
   ACTOPO_ASSIGN_OR_RETURN(*request.mutable_load(), LoadRequest(path, options.partition));
   if (options.cancel.cancelled()) return absl::CancelledError("load: cancelled before it started");
-  std::unique_ptr<grpc::ClientContext> context = core_->Context(
-      options.timeout.count() > 0 ? options.timeout : core_->options.mesh_timeout);
+  std::unique_ptr<grpc::ClientContext> context =
+      core_->Context(options.timeout.count() > 0 ? options.timeout : core_->options.mesh_timeout);
   grpc::ClientContext* raw = context.get();
   std::shared_ptr<CancelToken::Registration> registration =
       options.cancel.OnCancel([raw] { raw->TryCancel(); });
@@ -188,9 +188,9 @@ absl::Status Client::CloseSession(std::string_view session_id) {
 absl::StatusOr<SessionStats> Client::Stats(std::string_view session_id) {
   v1::GetSessionStatsRequest request;
   request.set_session_id(std::string(session_id));
-  ACTOPO_ASSIGN_OR_RETURN(v1::GetSessionStatsResponse response,
-                          core_->Unary(&v1::TopologyService::Stub::GetSessionStats, request,
-                                       core_->QuickContext()));
+  ACTOPO_ASSIGN_OR_RETURN(
+      v1::GetSessionStatsResponse response,
+      core_->Unary(&v1::TopologyService::Stub::GetSessionStats, request, core_->QuickContext()));
   return FromProto(response);
 }
 

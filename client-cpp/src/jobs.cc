@@ -28,8 +28,8 @@ class ArrayAssembler {
     }
     const int64_t end = chunk.offset() + int64_t(piece.data().size());
     if (chunk.offset() < 0 || end > int64_t(array.data.size())) {
-      return Bad(piece.name(), absl::StrCat("bytes [", chunk.offset(), ", ", end,
-                                            ") outside its ", array.data.size()));
+      return Bad(piece.name(), absl::StrCat("bytes [", chunk.offset(), ", ", end, ") outside its ",
+                                            array.data.size()));
     }
     if (!piece.data().empty()) {
       std::memcpy(array.data.data() + chunk.offset(), piece.data().data(), piece.data().size());
@@ -42,8 +42,8 @@ class ArrayAssembler {
   absl::StatusOr<std::map<std::string, Array, std::less<>>> Take() {
     for (const auto& [name, array] : arrays_) {
       if (received_[name] != int64_t(array.data.size())) {
-        return Bad(name, absl::StrCat(received_[name], " of ", array.data.size(),
-                                      " bytes received"));
+        return Bad(name,
+                   absl::StrCat(received_[name], " of ", array.data.size(), " bytes received"));
       }
     }
     return std::move(arrays_);
@@ -69,8 +69,7 @@ absl::Status Consume(const v1::RunJobResponse& response, const JobOptions& optio
     case v1::RunJobResponse::kProgress:
       if (options.progress) options.progress(response.progress().fraction());
       break;
-    case v1::RunJobResponse::kChunk:
-      return arrays.Add(response.chunk());
+    case v1::RunJobResponse::kChunk: return arrays.Add(response.chunk());
     case v1::RunJobResponse::kSummary: {
       have_summary = true;
       const auto converted = google::protobuf::util::MessageToJsonString(
@@ -81,9 +80,7 @@ absl::Status Consume(const v1::RunJobResponse& response, const JobOptions& optio
       }
       break;
     }
-    case v1::RunJobResponse::kStats:
-      result.stats = internal::FromProto(response.stats());
-      break;
+    case v1::RunJobResponse::kStats: result.stats = internal::FromProto(response.stats()); break;
     case v1::RunJobResponse::kTrace: {
       const v1::TraceChunk& piece = response.trace();
       if (result.trace.empty() && piece.total_bytes() > 0) {
@@ -97,8 +94,7 @@ absl::Status Consume(const v1::RunJobResponse& response, const JobOptions& optio
       result.trace.replace(size_t(piece.offset()), piece.data().size(), piece.data());
       break;
     }
-    case v1::RunJobResponse::EVENT_NOT_SET:
-      break;  // an event of a newer server
+    case v1::RunJobResponse::EVENT_NOT_SET: break;  // an event of a newer server
   }
   return absl::OkStatus();
 }

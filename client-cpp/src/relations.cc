@@ -88,8 +88,8 @@ void Append(const RelationCsr& part, RelationCsr& csr) {
 }
 
 absl::StatusOr<v1::GetRelationResponse> Single(internal::Core& core, std::string_view session_id,
-                                                std::string_view relation, const Simplex& simplex,
-                                                bool include_vertices) {
+                                               std::string_view relation, const Simplex& simplex,
+                                               bool include_vertices) {
   ACTOPO_ASSIGN_OR_RETURN(v1::Relation r, internal::RelationFromName(relation));
   v1::GetRelationRequest request;
   request.set_session_id(std::string(session_id));
@@ -162,9 +162,9 @@ absl::StatusOr<RelationCsr> Batch(internal::Core& core, std::string_view session
     const int64_t shape[] = {int64_t(n), int64_t(k)};
     internal::PackInt64(values, std::span<const int64_t>(shape, tuple_size == 0 ? 1 : 2),
                         tuple_size == 0 ? request.mutable_ids() : request.mutable_vertex_tuples());
-    ACTOPO_ASSIGN_OR_RETURN(v1::GetRelationBatchResponse response,
-                            core.Unary(&v1::TopologyService::Stub::GetRelationBatch, request,
-                                       core.QuickContext()));
+    ACTOPO_ASSIGN_OR_RETURN(
+        v1::GetRelationBatchResponse response,
+        core.Unary(&v1::TopologyService::Stub::GetRelationBatch, request, core.QuickContext()));
     return ToCsr(response.offsets(), response.values(), n);
   }
   const size_t chunk = std::min(batch, kStreamChunk);
@@ -184,9 +184,9 @@ absl::StatusOr<RelationCsr> Batch(internal::Core& core, std::string_view session
           status = ToStatus(response.error());
         } else if (response.item_errors_size() > 0) {
           const v1::ItemError& e = response.item_errors(0);
-          status = absl::Status(static_cast<absl::StatusCode>(e.code()),
-                                absl::StrCat(e.message(), " (simplex ", first + size_t(e.index()),
-                                             " of the input)"));
+          status = absl::Status(
+              static_cast<absl::StatusCode>(e.code()),
+              absl::StrCat(e.message(), " (simplex ", first + size_t(e.index()), " of the input)"));
         } else {
           absl::StatusOr<RelationCsr> part = ToCsr(response.offsets(), response.values(), count);
           if (part.ok()) Append(*part, csr);
@@ -197,16 +197,15 @@ absl::StatusOr<RelationCsr> Batch(internal::Core& core, std::string_view session
   if (!status.ok()) return status;
   if (!call.ok()) return call;
   if (csr.size() != n) {
-    return absl::InternalError(absl::StrCat("stream: the server answered ", csr.size(), " of ",
-                                            n, " simplices"));
+    return absl::InternalError(
+        absl::StrCat("stream: the server answered ", csr.size(), " of ", n, " simplices"));
   }
   return csr;
 }
 
 // One simplex per request (`fill` sets each), answers to `on_item`.
-absl::Status StreamAll(internal::Core& core, std::string_view session_id,
-                       std::string_view relation, size_t n,
-                       const std::function<void(size_t, v1::Simplex*)>& fill,
+absl::Status StreamAll(internal::Core& core, std::string_view session_id, std::string_view relation,
+                       size_t n, const std::function<void(size_t, v1::Simplex*)>& fill,
                        const std::function<void(StreamItem)>& on_item) {
   ACTOPO_ASSIGN_OR_RETURN(v1::Relation r, internal::RelationFromName(relation));
   return StreamRequests(
@@ -255,9 +254,9 @@ absl::StatusOr<RelationCsr> Client::RelationBatchByVertices(std::string_view ses
                                                             int tuple_size) {
   ACTOPO_ASSIGN_OR_RETURN(v1::Relation r, internal::RelationFromName(relation));
   if (tuple_size < 1 || tuple_size > 4 || tuples.size() % size_t(tuple_size) != 0) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("tuples: ", tuples.size(), " vertex ids do not make tuples of ",
-                     tuple_size, " (1 to 4 vertices per simplex)"));
+    return absl::InvalidArgumentError(absl::StrCat("tuples: ", tuples.size(),
+                                                   " vertex ids do not make tuples of ", tuple_size,
+                                                   " (1 to 4 vertices per simplex)"));
   }
   if (tuples.empty()) return RelationCsr{.offsets = {0}};
   ACTOPO_ASSIGN_OR_RETURN(const int64_t batch, MaxBatchSize());
@@ -328,13 +327,13 @@ absl::Status RelationStream::Write(int64_t request_id, std::string_view session_
 }
 
 absl::Status RelationStream::WriteBatch(int64_t request_id, std::string_view session_id,
-                                        std::string_view relation,
-                                        std::span<const int64_t> values, int tuple_size) {
+                                        std::string_view relation, std::span<const int64_t> values,
+                                        int tuple_size) {
   ACTOPO_ASSIGN_OR_RETURN(v1::Relation r, internal::RelationFromName(relation));
   if (tuple_size < 0 || tuple_size > 4 || (tuple_size > 0 && values.size() % tuple_size != 0)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("values: ", values.size(), " vertex ids do not make tuples of ",
-                     tuple_size, " (0 for ids, 1 to 4 vertices per simplex)"));
+    return absl::InvalidArgumentError(absl::StrCat("values: ", values.size(),
+                                                   " vertex ids do not make tuples of ", tuple_size,
+                                                   " (0 for ids, 1 to 4 vertices per simplex)"));
   }
   v1::StreamRelationsRequest request;
   request.set_request_id(request_id);

@@ -2,8 +2,8 @@
 // every call carries the client's affinity key (x-actopo-session), so the meshes and sessions of
 // a key stay on one server and every later client with that key finds them. Without haproxy
 // (Debian package haproxy) the test is skipped, saying so.
-#include <sys/socket.h>
 #include <netinet/in.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -50,11 +50,11 @@ std::string LocalConfig(int listen, int stats, const ServerProcess& a, const Ser
   std::ifstream file(ACTOPO_HAPROXY_CONFIG);
   std::stringstream text;
   text << file.rdbuf();
-  return absl::StrReplaceAll(
-      text.str(), {{"bind :8080 ", absl::StrCat("bind 127.0.0.1:", listen, " ")},
-                   {"bind :8404", absl::StrCat("bind 127.0.0.1:", stats)},
-                   {"server-a server-a:50051", absl::StrCat("server-a ", a.target())},
-                   {"server-b server-b:50051", absl::StrCat("server-b ", b.target())}});
+  return absl::StrReplaceAll(text.str(),
+                             {{"bind :8080 ", absl::StrCat("bind 127.0.0.1:", listen, " ")},
+                              {"bind :8404", absl::StrCat("bind 127.0.0.1:", stats)},
+                              {"server-a server-a:50051", absl::StrCat("server-a ", a.target())},
+                              {"server-b server-b:50051", absl::StrCat("server-b ", b.target())}});
 }
 
 std::unique_ptr<Client> Connect(const std::string& target, const std::string& key = "") {
@@ -69,12 +69,15 @@ TEST(AffinityTest, EveryCallOfAKeyReachesOneServerThroughHAProxy) {
   if (haproxy.empty()) {
     GTEST_SKIP() << "haproxy not installed (Debian package haproxy; scripts/install-deps.sh)";
   }
-  absl::StatusOr<std::unique_ptr<ServerProcess>> a = ServerProcess::Start(ServerBinary(), DataDir());
-  absl::StatusOr<std::unique_ptr<ServerProcess>> b = ServerProcess::Start(ServerBinary(), DataDir());
+  absl::StatusOr<std::unique_ptr<ServerProcess>> a =
+      ServerProcess::Start(ServerBinary(), DataDir());
+  absl::StatusOr<std::unique_ptr<ServerProcess>> b =
+      ServerProcess::Start(ServerBinary(), DataDir());
   ASSERT_OK(a);
   ASSERT_OK(b);
   const int listen = FreePort(), stats = FreePort();
-  const std::string config = absl::StrCat(::testing::TempDir(), "/actopo_haproxy_", getpid(), ".cfg");
+  const std::string config =
+      absl::StrCat(::testing::TempDir(), "/actopo_haproxy_", getpid(), ".cfg");
   std::ofstream(config) << LocalConfig(listen, stats, **a, **b);
   absl::StatusOr<std::unique_ptr<ChildProcess>> proxy =
       ChildProcess::Start({haproxy, "-q", "-f", config});

@@ -70,7 +70,8 @@ TEST_F(ServerTest, MeshLifecycle) {
   absl::StatusOr<std::vector<MeshInfo>> list = client().ListMeshes();
   ASSERT_OK(list);
   int found = 0;
-  for (const MeshInfo& m : *list) found += m.mesh_id == file->mesh_id || m.mesh_id == sample->mesh_id;
+  for (const MeshInfo& m : *list)
+    found += m.mesh_id == file->mesh_id || m.mesh_id == sample->mesh_id;
   EXPECT_EQ(found, 2);
 
   absl::StatusOr<MeshInfo> described = client().GetMesh(sample->mesh_id);
@@ -79,8 +80,7 @@ TEST_F(ServerTest, MeshLifecycle) {
   EXPECT_EQ(described->name, sample->name);
 
   ASSERT_OK(client().DeleteMesh(sample->mesh_id));
-  EXPECT_TRUE(HasError(client().GetMesh(sample->mesh_id), StatusCode::kNotFound,
-                       sample->mesh_id));
+  EXPECT_TRUE(HasError(client().GetMesh(sample->mesh_id), StatusCode::kNotFound, sample->mesh_id));
   EXPECT_TRUE(HasError(client().DeleteMesh(sample->mesh_id), StatusCode::kNotFound));
 }
 
@@ -132,9 +132,11 @@ TEST_F(ServerTest, CancellingALoadLeavesNoMesh) {
 TEST_F(ServerTest, SessionLifecycleAndStats) {
   const std::string mesh = LoadSample("jittered:6");
   for (Structure structure : {Structure::kExplicit, Structure::kCompact, Structure::kActopo}) {
-    absl::StatusOr<SessionInfo> opened = client().OpenSession(
-        mesh, {.structure = structure, .buffer_ratio = 0.5, .prefetch = Prefetch::kSpatial,
-               .precompute = Precompute::kDeclared});
+    absl::StatusOr<SessionInfo> opened =
+        client().OpenSession(mesh, {.structure = structure,
+                                    .buffer_ratio = 0.5,
+                                    .prefetch = Prefetch::kSpatial,
+                                    .precompute = Precompute::kDeclared});
     ASSERT_OK(opened);
     const std::string id = opened->session_id;
     EXPECT_EQ(id.rfind("session-", 0), 0u);
@@ -197,12 +199,12 @@ TEST_F(ServerTest, ServerErrorsKeepTheirCodeAndMessage) {
   const std::string mesh = LoadSample("jittered:5");
   EXPECT_TRUE(HasError(client().OpenSession(mesh, {.scalar = "pressure"}), StatusCode::kNotFound,
                        "'pressure' not found"));
-  EXPECT_TRUE(HasError(client().OpenSession(mesh, {.producers = 500}),
-                       StatusCode::kInvalidArgument, "engine.producers: 500"));
+  EXPECT_TRUE(HasError(client().OpenSession(mesh, {.producers = 500}), StatusCode::kInvalidArgument,
+                       "engine.producers: 500"));
   EXPECT_TRUE(HasError(client().OpenSession(mesh, {.buffer_ratio = -2}),
                        StatusCode::kInvalidArgument, "engine.buffer_ratio: -2"));
-  EXPECT_TRUE(HasError(client().GetSession("session-guess"), StatusCode::kNotFound,
-                       "session-guess"));
+  EXPECT_TRUE(
+      HasError(client().GetSession("session-guess"), StatusCode::kNotFound, "session-guess"));
   EXPECT_TRUE(HasError(client().CancelJob("job-x"), StatusCode::kNotFound, "job-x"));
 }
 
@@ -210,15 +212,14 @@ TEST_F(ServerTest, DeadlinesApply) {
   auto impatient = Client::Connect(target(), {.default_timeout = std::chrono::milliseconds(1),
                                               .mesh_timeout = std::chrono::milliseconds(1)});
   ASSERT_OK(impatient);
-  EXPECT_TRUE(HasError((*impatient)->LoadMesh("sample:jittered:20"),
-                       StatusCode::kDeadlineExceeded));
+  EXPECT_TRUE(
+      HasError((*impatient)->LoadMesh("sample:jittered:20"), StatusCode::kDeadlineExceeded));
 }
 
 // A second server with a token and tight limits.
 TEST_F(ServerTest, TokenAndLimits) {
-  auto server = ServerProcess::Start(ServerBinary(), DataDir(),
-                                     {"--token", "s3cret", "--max-meshes", "1",
-                                      "--max-sessions", "1"});
+  auto server = ServerProcess::Start(
+      ServerBinary(), DataDir(), {"--token", "s3cret", "--max-meshes", "1", "--max-sessions", "1"});
   ASSERT_OK(server);
   auto anonymous = Client::Connect((*server)->target());
   ASSERT_OK(anonymous);
@@ -282,8 +283,7 @@ TEST_F(ServerTest, ReadsRideOutARestartAndNothingElseIsRetried) {
   reader.join();
   ASSERT_OK(second);
   EXPECT_OK(info) << "after "
-                  << std::chrono::duration_cast<std::chrono::milliseconds>(waited).count()
-                  << " ms";
+                  << std::chrono::duration_cast<std::chrono::milliseconds>(waited).count() << " ms";
   EXPECT_GE(waited, std::chrono::milliseconds(400));  // it did wait for the restart
   EXPECT_TRUE(HasError((*client)->GetMesh(mesh->mesh_id), StatusCode::kNotFound));
 }
@@ -297,20 +297,21 @@ TEST_F(ServerTest, Tls) {
   const std::string cert = (dir / "cert.pem").string(), key = (dir / "key.pem").string();
   const std::string command =
       "openssl req -x509 -newkey rsa:2048 -nodes -days 1 -subj /CN=127.0.0.1 "
-      "-addext subjectAltName=IP:127.0.0.1 -keyout " + key + " -out " + cert +
-      " > /dev/null 2>&1";
+      "-addext subjectAltName=IP:127.0.0.1 -keyout " +
+      key + " -out " + cert + " > /dev/null 2>&1";
   ASSERT_EQ(std::system(command.c_str()), 0) << command;
   std::stringstream pem;
   pem << std::ifstream(cert).rdbuf();
 
-  auto server = ServerProcess::Start(ServerBinary(), DataDir(),
-                                     {"--tls-cert", cert, "--tls-key", key});
+  auto server =
+      ServerProcess::Start(ServerBinary(), DataDir(), {"--tls-cert", cert, "--tls-key", key});
   ASSERT_OK(server);
-  auto client = Client::Connect((*server)->target(), {.use_tls = true, .tls_root_certs = pem.str()});
+  auto client =
+      Client::Connect((*server)->target(), {.use_tls = true, .tls_root_certs = pem.str()});
   ASSERT_OK(client);
   EXPECT_OK((*client)->GetServerInfo());
-  auto plaintext = Client::Connect((*server)->target(),
-                                   {.default_timeout = std::chrono::seconds(5)});
+  auto plaintext =
+      Client::Connect((*server)->target(), {.default_timeout = std::chrono::seconds(5)});
   ASSERT_OK(plaintext);
   EXPECT_TRUE(HasError((*plaintext)->GetServerInfo(), StatusCode::kUnavailable));
   std::filesystem::remove_all(dir);

@@ -30,10 +30,10 @@ TEST_P(BenchEqualityTest, SummaryEqualsBenchAndArraysAreComplete) {
   const std::string session = Open(Fertility(), {.scalar = "eigenfunction4"});
   std::vector<double> progress;
   std::string accepted;
-  absl::StatusOr<JobResult> result = client().RunJob(
-      session, algorithm, {},
-      {.progress = [&](double f) { progress.push_back(f); },
-       .on_accepted = [&](const std::string& id) { accepted = id; }});
+  absl::StatusOr<JobResult> result =
+      client().RunJob(session, algorithm, {},
+                      {.progress = [&](double f) { progress.push_back(f); },
+                       .on_accepted = [&](const std::string& id) { accepted = id; }});
   ASSERT_OK(result);
   EXPECT_EQ(result->algorithm, algorithm);
   EXPECT_EQ(result->job_id, accepted);
@@ -89,8 +89,8 @@ TEST_P(BenchEqualityTest, SummaryEqualsBenchAndArraysAreComplete) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Fertility, BenchEqualityTest,
-                         ::testing::Values("topo-relations", "critical-points",
-                                           "discrete-gradient", "morse-smale"));
+                         ::testing::Values("topo-relations", "critical-points", "discrete-gradient",
+                                           "morse-smale"));
 
 TEST_F(ServerTest, SummaryOnlyAndParameters) {
   const std::string session = Open(LoadSample("jittered:8"), {.structure = Structure::kCompact});
@@ -111,14 +111,14 @@ TEST_F(ServerTest, SummaryOnlyAndParameters) {
                        StatusCode::kInvalidArgument, "boundary_rule: unknown value 'maybe'"));
   EXPECT_TRUE(HasError(client().RunJob(session, "critical-points", {{"speed", "fast"}}),
                        StatusCode::kInvalidArgument, "unknown parameter 'speed'"));
-  EXPECT_TRUE(HasError(client().RunJob("session-guess", "critical-points"),
-                       StatusCode::kNotFound, "session-guess"));
+  EXPECT_TRUE(HasError(client().RunJob("session-guess", "critical-points"), StatusCode::kNotFound,
+                       "session-guess"));
 }
 
 // JobOptions::trace: the trace-event JSON of the job, whose waits are the job's misses.
 TEST_F(ServerTest, TraceOfAJob) {
-  const std::string session = Open(
-      LoadSample("jittered:16"), {.consumers = 2, .producers = 2, .buffer_ratio = 0.05});
+  const std::string session =
+      Open(LoadSample("jittered:16"), {.consumers = 2, .producers = 2, .buffer_ratio = 0.05});
   absl::StatusOr<JobResult> traced =
       client().RunJob(session, "critical-points", {}, {.include_arrays = false, .trace = true});
   ASSERT_OK(traced);
@@ -142,8 +142,8 @@ TEST_F(ServerTest, TraceOfAJob) {
     EXPECT_NE(std::find(threads.begin(), threads.end(), name), threads.end()) << name;
   }
 
-  absl::StatusOr<JobResult> plain = client().RunJob(session, "critical-points", {},
-                                                    {.include_arrays = false});
+  absl::StatusOr<JobResult> plain =
+      client().RunJob(session, "critical-points", {}, {.include_arrays = false});
   ASSERT_OK(plain);
   EXPECT_TRUE(plain->trace.empty());
 }
@@ -191,8 +191,8 @@ TEST_F(ServerTest, Cancellation) {
   absl::StatusOr<SessionInfo> busy = client().GetSession(session);
   ASSERT_OK(busy);
   EXPECT_EQ(busy->running_job_id, id);
-  EXPECT_TRUE(HasError(client().RunJob(session, "critical-points"),
-                       StatusCode::kFailedPrecondition, "is running job"));
+  EXPECT_TRUE(HasError(client().RunJob(session, "critical-points"), StatusCode::kFailedPrecondition,
+                       "is running job"));
   ASSERT_OK(client().CancelJob(id));
   EXPECT_TRUE(HasError(run.get(), StatusCode::kCancelled));
   EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));

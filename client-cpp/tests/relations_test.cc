@@ -52,7 +52,8 @@ TEST_F(RelationsTest, SingleByIdAndByVertices) {
             Single("edge_star", Simplex::Vertices({tet[1], tet[0]})));
   EXPECT_EQ(Single("edge_vertices", edges->ids[5]), (std::vector<int64_t>{tet[2], tet[3]}));
   // A triangle by its vertices; the plain call sends no vertex tuples back.
-  const std::vector<int64_t> star = Single("triangle_star", Simplex::Vertices({tet[2], tet[0], tet[1]}));
+  const std::vector<int64_t> star =
+      Single("triangle_star", Simplex::Vertices({tet[2], tet[0], tet[1]}));
   EXPECT_TRUE(std::find(star.begin(), star.end(), 0) != star.end());
   absl::StatusOr<RelationResult> plain = client().RelationWithVertices(session_, "vertex_star", 0);
   ASSERT_OK(plain);
@@ -74,8 +75,8 @@ TEST_F(RelationsTest, SingleErrors) {
                        StatusCode::kNotFound, "is not a triangle"));
   EXPECT_TRUE(HasError(client().Relation(session_, "edge_star", Simplex::Vertices({0, 1000})),
                        StatusCode::kOutOfRange, "vertex id 1000"));
-  EXPECT_TRUE(HasError(client().Relation("session-guess", "vertex_star", 0),
-                       StatusCode::kNotFound, "session-guess"));
+  EXPECT_TRUE(HasError(client().Relation("session-guess", "vertex_star", 0), StatusCode::kNotFound,
+                       "session-guess"));
 }
 
 TEST_F(RelationsTest, BatchEqualsSinglesAcrossSplits) {
@@ -114,8 +115,8 @@ TEST_F(RelationsTest, BatchErrors) {
   const std::vector<int64_t> ids = {0, 1, 5000};
   EXPECT_TRUE(HasError(client().RelationBatch(session_, "vertex_star", ids),
                        StatusCode::kOutOfRange, "5000"));
-  EXPECT_TRUE(HasError(client().RelationBatch("session-guess", "vertex_star", ids),
-                       StatusCode::kNotFound));
+  EXPECT_TRUE(
+      HasError(client().RelationBatch("session-guess", "vertex_star", ids), StatusCode::kNotFound));
 }
 
 TEST_F(RelationsTest, StreamedBatchErrorNamesTheInputPosition) {
@@ -171,8 +172,7 @@ TEST_F(RelationsTest, StreamKeepsGoingAfterBadItems) {
   for (size_t i = 0; i < ids.size(); ++i) {
     EXPECT_EQ(items[i].request_id, int64_t(i));
     if (ids[i] < 0 || ids[i] > 1000) {
-      EXPECT_TRUE(HasError(items[i].ids.status(), StatusCode::kOutOfRange,
-                           std::to_string(ids[i])));
+      EXPECT_TRUE(HasError(items[i].ids.status(), StatusCode::kOutOfRange, std::to_string(ids[i])));
     } else {
       ASSERT_OK(items[i].ids);
       EXPECT_EQ(*items[i].ids, Single("vertex_neighbors", ids[i]));
@@ -235,11 +235,10 @@ TEST_F(RelationsTest, StreamDrivenByHand) {
     }
     EXPECT_OK(stream.Write(5, "session-guess", "vertex_star", 0));
     EXPECT_OK(stream.WritesDone());
-    EXPECT_TRUE(HasError(stream.Write(6, session_, "vertex_star", 0),
-                         StatusCode::kFailedPrecondition));
+    EXPECT_TRUE(
+        HasError(stream.Write(6, session_, "vertex_star", 0), StatusCode::kFailedPrecondition));
   });
-  EXPECT_TRUE(HasError(stream.Write(1, session_, "vertex_starz", 0),
-                       StatusCode::kInvalidArgument));
+  EXPECT_TRUE(HasError(stream.Write(1, session_, "vertex_starz", 0), StatusCode::kInvalidArgument));
   int64_t expected = 1000;
   while (std::optional<StreamItem> item = stream.Read()) {
     if (item->request_id == 5) {

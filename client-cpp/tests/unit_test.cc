@@ -162,13 +162,12 @@ TEST(ConnectTest, AffinityKeyIsGivenFromTheEnvironmentOrRandom) {
   setenv("ACTOPO_AFFINITY_KEY", "tab\there", 1);
   auto bad_env = Client::Connect("127.0.0.1:1");
   EXPECT_EQ(bad_env.status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_NE(bad_env.status().message().find("ACTOPO_AFFINITY_KEY: 'tab\\there'"),
-            std::string::npos) << bad_env.status();
+  EXPECT_NE(bad_env.status().message().find("ACTOPO_AFFINITY_KEY: 'tab\\there'"), std::string::npos)
+      << bad_env.status();
   unsetenv("ACTOPO_AFFINITY_KEY");
   auto bad = Client::Connect("127.0.0.1:1", {.affinity_key = "new\nline"});
   EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_NE(bad.status().message().find("options.affinity_key"), std::string::npos)
-      << bad.status();
+  EXPECT_NE(bad.status().message().find("options.affinity_key"), std::string::npos) << bad.status();
 }
 
 // Port 1 on loopback: nothing listens there.
@@ -187,8 +186,7 @@ TEST(ArgumentsTest, CheckedOnTheClient) {
   Client& c = **client;
   auto relation = c.Relation("session-x", "vertex_stars", 0);
   EXPECT_EQ(relation.status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_NE(relation.status().message().find("unknown relation 'vertex_stars'"),
-            std::string::npos)
+  EXPECT_NE(relation.status().message().find("unknown relation 'vertex_stars'"), std::string::npos)
       << relation.status();
   EXPECT_NE(relation.status().message().find("vertex_star,"), std::string::npos);
   const std::vector<int64_t> tuples = {1, 2, 3};
@@ -222,8 +220,8 @@ TEST(ArgumentsTest, CheckedOnTheClient) {
   EXPECT_NE(twice.status().message().find("appears twice"), std::string::npos);
   // Empty inputs need no call at all.
   EXPECT_EQ(c.RelationBatch("s", "vertex_star", {})->size(), 0u);
-  EXPECT_TRUE(c.StreamRelations("s", "vertex_star", std::span<const int64_t>(),
-                                [](StreamItem) {}).ok());
+  EXPECT_TRUE(
+      c.StreamRelations("s", "vertex_star", std::span<const int64_t>(), [](StreamItem) {}).ok());
 }
 
 }  // namespace

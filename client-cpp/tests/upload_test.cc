@@ -137,16 +137,16 @@ TEST_F(UploadTest, ServerRejectionsKeepTheirCodes) {
   const Lattice lattice(3);
   std::vector<int32_t> tets = lattice.tetrahedra32;
   tets[5] = 27;  // one past the last vertex
-  EXPECT_TRUE(HasError(client().UploadMesh(lattice.points, tets), StatusCode::kOutOfRange,
-                       "vertex id 27"));
+  EXPECT_TRUE(
+      HasError(client().UploadMesh(lattice.points, tets), StatusCode::kOutOfRange, "vertex id 27"));
   tets[5] = tets[4];
   EXPECT_TRUE(HasError(client().UploadMesh(lattice.points, tets), StatusCode::kInvalidArgument,
                        "repeats vertex"));
   // A NaN scalar uploads, but no session opens on it.
   std::vector<double> field = lattice.height;
   field[3] = std::numeric_limits<double>::quiet_NaN();
-  const std::string id = Keep(client().UploadMesh(lattice.points, lattice.tetrahedra32,
-                                                  {{"bad", field}}));
+  const std::string id =
+      Keep(client().UploadMesh(lattice.points, lattice.tetrahedra32, {{"bad", field}}));
   ASSERT_FALSE(id.empty());
   EXPECT_TRUE(HasError(client().OpenSession(id, {.scalar = "bad"}), StatusCode::kInvalidArgument,
                        "non-finite value nan"));

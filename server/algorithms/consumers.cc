@@ -1,9 +1,9 @@
 #include "server/algorithms/consumers.h"
 
-#include "absl/strings/str_cat.h"
-
 #include <algorithm>
 #include <thread>
+
+#include "absl/strings/str_cat.h"
 
 namespace actopo {
 

@@ -90,9 +90,7 @@ std::string CriticalPointsResult::VerticesDigest() const {
   return text.HexDigest();
 }
 
-RelationSet CriticalPointsDeclared() {
-  return {Relation::kVV, Relation::kVT, Relation::kVB};
-}
+RelationSet CriticalPointsDeclared() { return {Relation::kVV, Relation::kVT, Relation::kVB}; }
 
 template <class Structure>
 absl::StatusOr<CriticalPointsResult> RunCriticalPoints(Structure& structure,

@@ -56,9 +56,9 @@ TEST(VertexOrder, BreaksTiesByInputId) {
 
 TEST(CriticalPoints, IdenticalOnEveryStructureAndMode) {
   for (const Fixture& f : Fixtures()) {
-    auto explicit_structure = *ExplicitStructure::Build(f.topo, {.relations = CriticalPointsDeclared()});
-    const CriticalPointsResult reference =
-        *RunCriticalPoints(*explicit_structure, f.order, {}, {});
+    auto explicit_structure =
+        *ExplicitStructure::Build(f.topo, {.relations = CriticalPointsDeclared()});
+    const CriticalPointsResult reference = *RunCriticalPoints(*explicit_structure, f.order, {}, {});
     ASSERT_FALSE(reference.points.empty());
     const std::string digest = reference.VerticesDigest();
     for (int consumers : {1, 2}) {
@@ -70,12 +70,15 @@ TEST(CriticalPoints, IdenticalOnEveryStructureAndMode) {
                 digest);
       for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
         for (Precompute q : {Precompute::kRequested, Precompute::kDeclared}) {
-          auto actopo = *ActopoStructure::Create(
-              f.topo, {.consumers = consumers, .producers = 2, .buffer_ratio = 0.1,
-                       .prefetch = p, .precompute = q, .declared = CriticalPointsDeclared()});
-          EXPECT_EQ(RunCriticalPoints(*actopo, f.order, {}, {.consumers = consumers})
-                        ->VerticesDigest(),
-                    digest)
+          auto actopo = *ActopoStructure::Create(f.topo, {.consumers = consumers,
+                                                          .producers = 2,
+                                                          .buffer_ratio = 0.1,
+                                                          .prefetch = p,
+                                                          .precompute = q,
+                                                          .declared = CriticalPointsDeclared()});
+          EXPECT_EQ(
+              RunCriticalPoints(*actopo, f.order, {}, {.consumers = consumers})->VerticesDigest(),
+              digest)
               << PrefetchName(p) << " " << PrecomputeName(q) << " C=" << consumers;
         }
       }
@@ -130,9 +133,12 @@ TEST(DiscreteGradient, ValidAndIdenticalOnEveryStructureAndMode) {
       CompactStructure compact(f.topo, {.cache_ratio = 0.1, .consumers = consumers});
       check(*RunDiscreteGradient(compact, f.order, {.consumers = consumers}), "compact");
       for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
-        auto actopo = *ActopoStructure::Create(
-            f.topo, {.consumers = consumers, .producers = 3, .buffer_ratio = 0.05, .prefetch = p,
-                     .precompute = Precompute::kDeclared, .declared = DiscreteGradientDeclared()});
+        auto actopo = *ActopoStructure::Create(f.topo, {.consumers = consumers,
+                                                        .producers = 3,
+                                                        .buffer_ratio = 0.05,
+                                                        .prefetch = p,
+                                                        .precompute = Precompute::kDeclared,
+                                                        .declared = DiscreteGradientDeclared()});
         check(*RunDiscreteGradient(*actopo, f.order, {.consumers = consumers}),
               std::string(PrefetchName(p)));
       }

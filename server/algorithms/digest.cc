@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <array>
 #include <bit>
-#include <cstring>
 #include <condition_variable>
+#include <cstring>
 #include <mutex>
 
 #include "server/core/parallel.h"

@@ -139,9 +139,10 @@ struct LineGroup {
 // decimal text, so ids in [0, max_id) are ranked once (DecimalRanks) and no text is sorted.
 // Memory: 4 + 4 * threads bytes per id (ranks and counts) plus 4 bytes per item of a chunk and a
 // few megabytes of text per thread (texts are formatted on every thread and hashed in order by
-// whichever thread finishes the next one, so hashing overlaps formatting); each chunk costs one more pass of sort_tokens over the group
-// (a 10M-tetrahedra gradient fits one chunk). The callbacks are called from `threads` threads at
-// once (0: the cores, at most 4) and must be safe for that; the digest does not depend on it.
+// whichever thread finishes the next one, so hashing overlaps formatting); each chunk costs one
+// more pass of sort_tokens over the group (a 10M-tetrahedra gradient fits one chunk). The callbacks
+// are called from `threads` threads at once (0: the cores, at most 4) and must be safe for that;
+// the digest does not depend on it.
 std::string SortedLinesSha256(int64_t max_id, std::span<const LineGroup> groups,
                               int64_t chunk_items = int64_t(12) << 20, int threads = 0);
 

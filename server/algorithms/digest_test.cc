@@ -62,8 +62,8 @@ TEST_P(DecimalRanksTest, OrdersIdsAsText) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Sizes, DecimalRanksTest,
-                         testing::Values(0, 1, 2, 9, 10, 11, 12, 99, 100, 101, 109, 110, 999,
-                                         1000, 1001, 4321, 10000, 123457));
+                         testing::Values(0, 1, 2, 9, 10, 11, 12, 99, 100, 101, 109, 110, 999, 1000,
+                                         1001, 4321, 10000, 123457));
 
 // Lines "<d> <ids>[ <ids>]" hashed by SortedLinesSha256 equal the text sorted and hashed.
 TEST(SortedLinesSha256, EqualsSortedText) {
@@ -97,7 +97,8 @@ TEST(SortedLinesSha256, EqualsSortedText) {
   std::vector<std::string> lines;
   for (const auto& p : pairs) lines.push_back(absl::StrCat("1 ", p[0], ",", p[1], " ", p[2], "\n"));
   std::vector<std::string> second;
-  for (const auto& t : triples) second.push_back(absl::StrCat("2 ", t[0], ",", t[1], ",", t[2], "\n"));
+  for (const auto& t : triples)
+    second.push_back(absl::StrCat("2 ", t[0], ",", t[1], ",", t[2], "\n"));
   std::sort(lines.begin(), lines.end());
   std::sort(second.begin(), second.end());
   std::string expected_text;

@@ -255,8 +255,8 @@ void CofacetTokens(const Topology& topology, int d, const SimplexId* ids, Simple
 
 // Appends "<d> <cell>[ <higher cell>]" (a line of the critical-cell or pair digests); `ids` are
 // the cell's input vertex ids, ascending.
-void AppendCellLine(std::string& line, const Topology& topology, const DecimalTable& decimal,
-                    int d, const SimplexId* ids, SimplexId higher = -1) {
+void AppendCellLine(std::string& line, const Topology& topology, const DecimalTable& decimal, int d,
+                    const SimplexId* ids, SimplexId higher = -1) {
   char buffer[2 + 4 * 11 + 1 + 4 * 11 + 8];  // + 8: DecimalTable::Write's slack
   char* p = buffer;
   *p++ = char('0' + d);
@@ -286,18 +286,18 @@ std::string DiscreteGradientResult::CriticalCellsDigest(const Topology& topology
   std::vector<LineGroup> groups;
   for (int d = 0; d < 4; ++d) {
     const std::vector<SimplexId>& cells = critical[d];
-    groups.push_back(LineGroup{
-        .items = int64_t(cells.size()),
-        .tokens = d + 1,
-        .sort_tokens =
-            [&topology, &cells, d](int64_t i, SimplexId* ids) {
-              CellTokens(topology, d, cells[i], ids);
-              return true;
-            },
-        .append_line =
-            [&topology, &decimal, d](int64_t, const SimplexId* ids, std::string& line) {
-              AppendCellLine(line, topology, decimal, d, ids);
-            }});
+    groups.push_back(
+        LineGroup{.items = int64_t(cells.size()),
+                  .tokens = d + 1,
+                  .sort_tokens =
+                      [&topology, &cells, d](int64_t i, SimplexId* ids) {
+                        CellTokens(topology, d, cells[i], ids);
+                        return true;
+                      },
+                  .append_line =
+                      [&topology, &decimal, d](int64_t, const SimplexId* ids, std::string& line) {
+                        AppendCellLine(line, topology, decimal, d, ids);
+                      }});
   }
   return SortedLinesSha256(topology.num_vertices(), groups);
 }
@@ -316,17 +316,14 @@ std::string DiscreteGradientResult::PairsDigest(const Topology& topology) const 
               return true;
             },
         .append_line =
-            [this, &topology, &decimal, d](int64_t c, const SimplexId* ids,
-                                           std::string& line) {
+            [this, &topology, &decimal, d](int64_t c, const SimplexId* ids, std::string& line) {
               AppendCellLine(line, topology, decimal, d, ids, gradient.up[d][c]);
             }});
   }
   return SortedLinesSha256(topology.num_vertices(), groups);
 }
 
-RelationSet DiscreteGradientDeclared() {
-  return {Relation::kVE, Relation::kVF, Relation::kVT};
-}
+RelationSet DiscreteGradientDeclared() { return {Relation::kVE, Relation::kVF, Relation::kVT}; }
 
 template <class Structure>
 absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,

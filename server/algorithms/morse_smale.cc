@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <iterator>
 #include <optional>
-#include <type_traits>
 #include <queue>
+#include <type_traits>
 
 #include "absl/container/flat_hash_set.h"
 #include "absl/strings/str_cat.h"
@@ -220,7 +220,8 @@ class Builder {
   std::vector<SimplexId> wall_saddles_, candidates_, star_;
 };
 
-std::vector<SimplexId> ToInputOrder(const Topology& topo, const std::vector<SimplexId>& by_internal) {
+std::vector<SimplexId> ToInputOrder(const Topology& topo,
+                                    const std::vector<SimplexId>& by_internal) {
   std::vector<SimplexId> out(by_internal.size());
   for (SimplexId v = 0; v < SimplexId(by_internal.size()); ++v) {
     out[topo.vertex_input_id(v)] = by_internal[v];
@@ -324,8 +325,8 @@ std::vector<SimplexId> FinalSegmentation(const std::vector<SimplexId>& descendin
   distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
   std::vector<SimplexId> out(sparse.size());
   for (size_t v = 0; v < sparse.size(); ++v) {
-    out[v] = SimplexId(std::lower_bound(distinct.begin(), distinct.end(), sparse[v]) -
-                       distinct.begin());
+    out[v] =
+        SimplexId(std::lower_bound(distinct.begin(), distinct.end(), sparse[v]) - distinct.begin());
   }
   return out;
 }
@@ -359,8 +360,7 @@ std::string MorseSmaleResult::SegmentationDigest(std::span<const SimplexId> labe
 }
 
 RelationSet MorseSmaleDeclared() {
-  return {Relation::kVE, Relation::kVF, Relation::kVT,
-          Relation::kFT, Relation::kFE, Relation::kEF};
+  return {Relation::kVE, Relation::kVF, Relation::kVT, Relation::kFT, Relation::kFE, Relation::kEF};
 }
 
 template <class Structure>
@@ -370,9 +370,9 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
                                                const RunContext& context) {
   const Topology& topo = structure.topology();
   if (input_tetrahedra.size() != 4 * size_t(topo.num_tetrahedra())) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "morse-smale: ", input_tetrahedra.size(), " tetrahedron vertex ids for ",
-        topo.num_tetrahedra(), " tetrahedra"));
+    return absl::InvalidArgumentError(absl::StrCat("morse-smale: ", input_tetrahedra.size(),
+                                                   " tetrahedron vertex ids for ",
+                                                   topo.num_tetrahedra(), " tetrahedra"));
   }
   // Progress: the gradient is the first half, the separatrices and segmentations the rest.
   const auto phase = [&context](double from, double to) {
@@ -401,20 +401,20 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
   }
   std::vector<std::vector<Separatrix>> ascending(saddles.size()), connectors(saddles.size());
   std::optional<PrefetchOff<Structure>> prefetch_off(structure);
-  absl::Status status = RunOnConsumersShared(
-      phase(0.5, 0.8), int64_t(saddles.size()), /*chunk=*/1,
-      [&](int, ItemQueue& queue, WorkTracker& tracker) {
-        auto reader = structure.NewReader();
-        Builder builder(reader, g, input_tetrahedra);
-        int64_t begin, end;
-        while (queue.Next(begin, end)) {
-          for (int64_t i = begin; i < end; ++i) {
-            builder.AscendingSeparatrices(saddles[i], ascending[i]);
-            builder.SaddleConnectors(saddles[i], connectors[i]);
-          }
-          if (!tracker.Done(end - begin)) return;
-        }
-      });
+  absl::Status status =
+      RunOnConsumersShared(phase(0.5, 0.8), int64_t(saddles.size()), /*chunk=*/1,
+                           [&](int, ItemQueue& queue, WorkTracker& tracker) {
+                             auto reader = structure.NewReader();
+                             Builder builder(reader, g, input_tetrahedra);
+                             int64_t begin, end;
+                             while (queue.Next(begin, end)) {
+                               for (int64_t i = begin; i < end; ++i) {
+                                 builder.AscendingSeparatrices(saddles[i], ascending[i]);
+                                 builder.SaddleConnectors(saddles[i], connectors[i]);
+                               }
+                               if (!tracker.Done(end - begin)) return;
+                             }
+                           });
   prefetch_off.reset();
   if (!status.ok()) return status;
   for (auto* per_saddle : {&ascending, &connectors}) {
@@ -472,8 +472,8 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
     if (l >= 0) ++result.maximum_sizes[l];
   }
   result.ascending = ToInputOrder(topo, vertex_label);
-  result.morse_smale = FinalSegmentation(result.descending, result.ascending,
-                                         int64_t(result.maximum_sizes.size()));
+  result.morse_smale =
+      FinalSegmentation(result.descending, result.ascending, int64_t(result.maximum_sizes.size()));
   if (context.progress) context.progress(1.0);
   return result;
 }

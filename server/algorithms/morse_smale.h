@@ -35,9 +35,9 @@ struct Cell {
 
 struct Separatrix {
   SeparatrixType type;
-  Cell source;             // the saddle (1-saddle for connectors)
-  Cell destination;        // the extremum (2-saddle for connectors)
-  std::vector<Cell> cells; // the V-path, source first
+  Cell source;              // the saddle (1-saddle for connectors)
+  Cell destination;         // the extremum (2-saddle for connectors)
+  std::vector<Cell> cells;  // the V-path, source first
 };
 
 struct MorseSmaleResult {

@@ -94,14 +94,16 @@ TEST(MorseSmale, InvariantsAndStructureIndependence) {
                 expected)
           << consumers << " consumers";
       CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = consumers});
-      EXPECT_EQ(digests(*RunMorseSmale(compact, in.order, in.mesh.tetrahedra,
-                                       {.consumers = consumers})),
-                expected)
+      EXPECT_EQ(
+          digests(*RunMorseSmale(compact, in.order, in.mesh.tetrahedra, {.consumers = consumers})),
+          expected)
           << consumers << " consumers";
     }
     for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
-      auto actopo = *ActopoStructure::Create(in.topo, {.consumers = 3, .producers = 2,
-                                                       .buffer_ratio = 0.05, .prefetch = p,
+      auto actopo = *ActopoStructure::Create(in.topo, {.consumers = 3,
+                                                       .producers = 2,
+                                                       .buffer_ratio = 0.05,
+                                                       .prefetch = p,
                                                        .declared = MorseSmaleDeclared()});
       EXPECT_EQ(digests(*RunMorseSmale(*actopo, in.order, in.mesh.tetrahedra, {.consumers = 3})),
                 expected)

@@ -39,8 +39,8 @@ absl::StatusOr<Algorithm> ParseAlgorithm(std::string_view name) {
     names.emplace_back(AlgorithmName(a));
   }
   return absl::InvalidArgumentError(absl::StrCat("algorithm: unknown algorithm '",
-                                                 std::string(name), "'; available: ",
-                                                 absl::StrJoin(names, ", ")));
+                                                 std::string(name),
+                                                 "'; available: ", absl::StrJoin(names, ", ")));
 }
 
 std::span<const Algorithm> AllAlgorithms() { return kAll; }

@@ -14,8 +14,7 @@ constexpr std::array<StructureKind, 3> kStructures = {
     StructureKind::kExplicit, StructureKind::kCompact, StructureKind::kActopo};
 constexpr std::array<Prefetch, 3> kPrefetches = {Prefetch::kLinear, Prefetch::kSpatial,
                                                  Prefetch::kAdaptive};
-constexpr std::array<Precompute, 2> kPrecomputes = {Precompute::kRequested,
-                                                    Precompute::kDeclared};
+constexpr std::array<Precompute, 2> kPrecomputes = {Precompute::kRequested, Precompute::kDeclared};
 constexpr std::array<MissPolicy, 2> kMissPolicies = {MissPolicy::kLeader, MissPolicy::kConsumer};
 
 // The value of `values` whose name(value) is `name`; else INVALID_ARGUMENT listing them.
@@ -30,8 +29,8 @@ absl::StatusOr<T> ParseNamed(std::string_view what, std::string_view name,
     names.emplace_back(name_of(v));
   }
   return absl::InvalidArgumentError(absl::StrCat("unknown ", std::string(what), " '",
-                                                 std::string(name), "'; available: ",
-                                                 absl::StrJoin(names, ", ")));
+                                                 std::string(name),
+                                                 "'; available: ", absl::StrJoin(names, ", ")));
 }
 
 }  // namespace
@@ -81,8 +80,8 @@ absl::Status ValidateStructureOptions(const StructureOptions& options,
                                                    .producers = options.producers,
                                                    .buffer_ratio = options.buffer_ratio});
   if (status.ok() && (options.query_readers < 1 || options.query_readers > kMaxQueryReaders)) {
-    status = absl::InvalidArgumentError(absl::StrCat(
-        "query_readers: ", options.query_readers, " is outside [1, ", kMaxQueryReaders, "]"));
+    status = absl::InvalidArgumentError(absl::StrCat("query_readers: ", options.query_readers,
+                                                     " is outside [1, ", kMaxQueryReaders, "]"));
   }
   if (status.ok() || field_prefix.empty()) return status;
   return absl::Status(status.code(), absl::StrCat(std::string(field_prefix), status.message()));

@@ -40,10 +40,10 @@ absl::StatusOr<MissPolicy> ParseMissPolicy(std::string_view name);
 
 struct StructureOptions {
   StructureKind kind = StructureKind::kActopo;
-  int consumers = 0;  // the algorithm's threads; 0: one per core
-  int producers = 0;  // actopo, per consumer (1 leader + workers); 0: one
-  double buffer_ratio = 0.2;  // actopo buffer / compact cache, as a fraction of the blocks
-  std::optional<Prefetch> prefetch;      // unset: DefaultPrefetch(algorithm)
+  int consumers = 0;                 // the algorithm's threads; 0: one per core
+  int producers = 0;                 // actopo, per consumer (1 leader + workers); 0: one
+  double buffer_ratio = 0.2;         // actopo buffer / compact cache, as a fraction of the blocks
+  std::optional<Prefetch> prefetch;  // unset: DefaultPrefetch(algorithm)
   std::optional<Precompute> precompute;  // unset: DefaultPrecompute(algorithm)
   MissPolicy miss_policy = MissPolicy::kConsumer;
   int query_readers = 0;  // service: relation calls answered at once; 0: min(cores, 4)

@@ -80,8 +80,7 @@ TEST(StructureOptions, ValidatorNamesTheOptionBehindThePrefix) {
       {with([](auto& o) { o.consumers = 65; }), "consumers: 65 is outside [1, 64]"},
       {with([](auto& o) { o.producers = 65; }), "producers: 65 is outside [1, 64]"},
       {with([](auto& o) { o.buffer_ratio = 2; }), "buffer_ratio: 2 is outside [0, 1]"},
-      {with([](auto& o) { o.buffer_ratio = std::nan(""); }),
-       "buffer_ratio: nan is outside [0, 1]"},
+      {with([](auto& o) { o.buffer_ratio = std::nan(""); }), "buffer_ratio: nan is outside [0, 1]"},
       {with([](auto& o) { o.query_readers = 0; }), "query_readers: 0 is outside [1, 64]"},
       {with([](auto& o) { o.query_readers = 65; }), "query_readers: 65 is outside [1, 64]"},
   };

@@ -12,9 +12,8 @@ namespace {
 
 using R = Relation;
 constexpr std::array<Relation, kNumRelations> kSweeps = {
-    R::kVT, R::kEV, R::kET, R::kFV, R::kFT, R::kTV, R::kVE, R::kVF, R::kEF, R::kFE,
-    R::kTE, R::kTF, R::kVV, R::kTT, R::kVL, R::kEL, R::kFL, R::kVB, R::kEB, R::kFB,
-    R::kEE, R::kFF};
+    R::kVT, R::kEV, R::kET, R::kFV, R::kFT, R::kTV, R::kVE, R::kVF, R::kEF, R::kFE, R::kTE,
+    R::kTF, R::kVV, R::kTT, R::kVL, R::kEL, R::kFL, R::kVB, R::kEB, R::kFB, R::kEE, R::kFF};
 
 // splitmix64's finaliser: a cheap, well-mixing 64-bit hash.
 inline uint64_t Mix(uint64_t x) {
@@ -98,9 +97,7 @@ absl::StatusOr<TopoRelationsResult> RunTopoRelations(Structure& structure,
 
 template absl::StatusOr<TopoRelationsResult> RunTopoRelations(ExplicitStructure&,
                                                               const RunContext&);
-template absl::StatusOr<TopoRelationsResult> RunTopoRelations(CompactStructure&,
-                                                              const RunContext&);
-template absl::StatusOr<TopoRelationsResult> RunTopoRelations(ActopoStructure&,
-                                                              const RunContext&);
+template absl::StatusOr<TopoRelationsResult> RunTopoRelations(CompactStructure&, const RunContext&);
+template absl::StatusOr<TopoRelationsResult> RunTopoRelations(ActopoStructure&, const RunContext&);
 
 }  // namespace actopo

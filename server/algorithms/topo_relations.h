@@ -2,8 +2,9 @@
 //
 // Sweeps over all simplices of one dimension in increasing id, reading every element of one
 // relation: VT, EV, ET, FV, FT, TV, VE, VF, EF, FE, TE, TF, then VV, TT, the links, the
-// boundary predicates and the edge and triangle neighbours (EE, FF). Reports the total size of each relation and a checksum of what was read,
-// so the work cannot be optimised away and results can be compared across structures.
+// boundary predicates and the edge and triangle neighbours (EE, FF). Reports the total size of each
+// relation and a checksum of what was read, so the work cannot be optimised away and results can be
+// compared across structures.
 //
 //   ExplicitStructure::Build(topology, {.relations = TopoRelationsDeclared()});
 //   ASSIGN_OR_RETURN(TopoRelationsResult r, RunTopoRelations(*structure, {.consumers = 2}));

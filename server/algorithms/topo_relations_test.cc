@@ -50,8 +50,8 @@ TEST(TopoRelations, TotalsMatchOracleAndIdentities) {
 }
 
 TEST(TopoRelations, IdenticalAcrossStructuresConsumersAndCacheSizes) {
-  for (const Mesh& m : {testing::Lattice(8, 7, 6, 2), testing::NonManifold(),
-                        testing::TwoComponents()}) {
+  for (const Mesh& m :
+       {testing::Lattice(8, 7, 6, 2), testing::NonManifold(), testing::TwoComponents()}) {
     auto topo = Build(m, 13);
     const TopoRelationsResult reference = RunExplicit(topo, 1);
     EXPECT_NE(reference.checksum, 0u);
@@ -89,9 +89,10 @@ TEST(TopoRelations, ReportsProgressAndStopsWhenCancelled) {
   std::atomic<bool> cancel{false};
   int calls = 0;
   RunContext cancelling{.consumers = 2,
-                        .progress = [&](double) {
-                          if (++calls == 3) cancel = true;
-                        },
+                        .progress =
+                            [&](double) {
+                              if (++calls == 3) cancel = true;
+                            },
                         .cancel = &cancel};
   const auto cancelled = RunTopoRelations(compact, cancelling);
   EXPECT_EQ(cancelled.status().code(), absl::StatusCode::kCancelled);
@@ -139,12 +140,13 @@ TEST(TopoRelations, CancelStopsActopoRun) {
   std::atomic<bool> cancel{false};
   int calls = 0;
   RunContext context{.consumers = 2,
-                     .progress = [&](double) {
-                       if (++calls == 2) {
-                         cancel = true;
-                         structure->Shutdown();  // what a session does on cancellation
-                       }
-                     },
+                     .progress =
+                         [&](double) {
+                           if (++calls == 2) {
+                             cancel = true;
+                             structure->Shutdown();  // what a session does on cancellation
+                           }
+                         },
                      .cancel = &cancel};
   EXPECT_EQ(RunTopoRelations(*structure, context).status().code(), absl::StatusCode::kCancelled);
 }

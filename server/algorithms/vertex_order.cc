@@ -13,7 +13,8 @@ std::vector<SimplexId> VertexOrder(const Topology& topology, std::span<const dou
     return scalars[a] < scalars[b] || (scalars[a] == scalars[b] && a < b);
   });
   std::vector<SimplexId> order(n);
-  for (SimplexId rank = 0; rank < n; ++rank) order[topology.vertex_internal_id(by_rank[rank])] = rank;
+  for (SimplexId rank = 0; rank < n; ++rank)
+    order[topology.vertex_internal_id(by_rank[rank])] = rank;
   return order;
 }
 

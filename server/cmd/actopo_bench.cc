@@ -82,17 +82,17 @@ absl::Status Validate(const BenchOptions& o) {
                                                    o.boundary_rule, "'; available: ttk, none"));
   }
   if (o.block_size < 1) {
-    return absl::InvalidArgumentError(absl::StrCat("--block-size: ", o.block_size,
-                                                   " must be at least 1"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("--block-size: ", o.block_size, " must be at least 1"));
   }
   return absl::OkStatus();
 }
 
 struct RunOutput {
   double preprocess_s = 0, run_s = 0;
-  double results_s = 0;  // summary digests and --output files
-  int64_t peak_rss_after_run = 0;  // before result digests and files, which can be large
-  std::vector<std::string> files;  // written with --output
+  double results_s = 0;                 // summary digests and --output files
+  int64_t peak_rss_after_run = 0;       // before result digests and files, which can be large
+  std::vector<std::string> files;       // written with --output
   Json engine_detail = Json::object();  // actopo only
   AccessStats access;
   MemoryStats memory;
@@ -133,8 +133,10 @@ absl::StatusOr<StructureOptions> StructureFromFlags(const BenchOptions& o) {
   auto flag = [](const char* name, const absl::Status& status) {
     return absl::Status(status.code(), absl::StrCat("--", name, ": ", status.message()));
   };
-  StructureOptions s{.consumers = o.consumers, .producers = o.producers,
-                     .buffer_ratio = o.buffer_ratio, .query_readers = 1};
+  StructureOptions s{.consumers = o.consumers,
+                     .producers = o.producers,
+                     .buffer_ratio = o.buffer_ratio,
+                     .query_readers = 1};
   absl::StatusOr<StructureKind> structure = ParseStructure(o.structure);
   if (!structure.ok()) return flag("structure", structure.status());
   s.kind = *structure;
@@ -191,9 +193,9 @@ absl::StatusOr<Json> Run(BenchOptions o) {
   Phase(trace, "load", start);
 
   start = Clock::now();
-  ASSIGN_OR_RETURN(std::vector<int32_t> blocks,
-                   ComputeBlocks(mesh, {.bucket_capacity = o.block_size,
-                                        .block_label_field = o.block_labels}));
+  ASSIGN_OR_RETURN(
+      std::vector<int32_t> blocks,
+      ComputeBlocks(mesh, {.bucket_capacity = o.block_size, .block_label_field = o.block_labels}));
   ASSIGN_OR_RETURN(std::shared_ptr<const Topology> topology,
                    Topology::Build(mesh, blocks, {.threads = o.threads}));
   const double partition_s = Seconds(start);
@@ -212,10 +214,10 @@ absl::StatusOr<Json> Run(BenchOptions o) {
 
   // The vertex order is the algorithms' preconditioning, like TTK's offsets: in `preprocess`.
   start = Clock::now();
-  AlgorithmInput input{.algorithm = algorithm,
-                       .critical_points = {.boundary_rule = o.boundary_rule == "none"
-                                                                ? BoundaryRule::kNone
-                                                                : BoundaryRule::kTtk}};
+  AlgorithmInput input{
+      .algorithm = algorithm,
+      .critical_points = {.boundary_rule = o.boundary_rule == "none" ? BoundaryRule::kNone
+                                                                     : BoundaryRule::kTtk}};
   if (!scalars.empty()) input.order = VertexOrder(*topology, scalars);
   input.input_tetrahedra = std::move(input_tetrahedra);
   const double order_s = Seconds(start);
@@ -225,11 +227,12 @@ absl::StatusOr<Json> Run(BenchOptions o) {
   RunOutput out;
   if (options.kind == StructureKind::kExplicit) {
     start = Clock::now();
-    ASSIGN_OR_RETURN(auto structure,
-                     ExplicitStructure::Build(topology, {.relations = declared, .threads = o.threads}));
+    ASSIGN_OR_RETURN(auto structure, ExplicitStructure::Build(
+                                         topology, {.relations = declared, .threads = o.threads}));
     const double preprocess_s = Seconds(start);
     Phase(trace, "preprocess", start);
-    ASSIGN_OR_RETURN(out, RunAndSummarize(*structure, input, context, o, files ? &*files : nullptr));
+    ASSIGN_OR_RETURN(out,
+                     RunAndSummarize(*structure, input, context, o, files ? &*files : nullptr));
     out.preprocess_s = preprocess_s;
     out.memory = structure->memory();
   } else if (options.kind == StructureKind::kActopo) {
@@ -238,7 +241,8 @@ absl::StatusOr<Json> Run(BenchOptions o) {
     ASSIGN_OR_RETURN(auto structure, ActopoStructure::Create(topology, engine));
     const double preprocess_s = Seconds(start);
     Phase(trace, "preprocess", start);
-    ASSIGN_OR_RETURN(out, RunAndSummarize(*structure, input, context, o, files ? &*files : nullptr));
+    ASSIGN_OR_RETURN(out,
+                     RunAndSummarize(*structure, input, context, o, files ? &*files : nullptr));
     out.preprocess_s = preprocess_s;
     const EngineStats stats = structure->stats();
     out.access = stats.access;
@@ -288,15 +292,12 @@ absl::StatusOr<Json> Run(BenchOptions o) {
                  {"block_size", o.block_labels.empty() ? Json(o.block_size) : Json(nullptr)},
                  {"block_labels", o.block_labels.empty() ? Json(nullptr) : Json(o.block_labels)},
                  {"scalar", scalar_name.empty() ? Json(nullptr) : Json(scalar_name)},
-                 {"boundary_rule", algorithm == Algorithm::kCriticalPoints
-                                       ? Json(o.boundary_rule) : Json(nullptr)},
+                 {"boundary_rule",
+                  algorithm == Algorithm::kCriticalPoints ? Json(o.boundary_rule) : Json(nullptr)},
                  {"preprocess_threads", o.threads > 0 ? o.threads : DefaultThreads()}};
-  j["times_s"] = {{"load", load_s},
-                  {"partition", partition_s},
-                  {"preprocess", order_s + out.preprocess_s},
-                  {"run", out.run_s},
-                  {"results", out.results_s},
-                  {"total", Seconds(kProcessStart)}};
+  j["times_s"] = {
+      {"load", load_s},   {"partition", partition_s}, {"preprocess", order_s + out.preprocess_s},
+      {"run", out.run_s}, {"results", out.results_s}, {"total", Seconds(kProcessStart)}};
   j["engine"] = {{"wait_s", out.access.wait_ns * 1e-9},
                  {"requests", out.access.requests},
                  {"hits", out.access.hits},
@@ -304,20 +305,19 @@ absl::StatusOr<Json> Run(BenchOptions o) {
                  {"evictions", out.access.evictions},
                  {"blocks_computed", out.access.relations_computed}};
   for (auto& [key, value] : out.engine_detail.items()) j["engine"][key] = value;
-  j["memory"] = {{"peak_rss_bytes", PeakRssBytes()},  // the whole process, results included
-                 {"peak_rss_before_results_bytes", out.peak_rss_after_run},
-                 {"structure_bytes", out.memory.static_bytes + (o.structure == "explicit"
-                                                                    ? out.memory.relation_bytes
-                                                                    : 0)},
-                 {"static_bytes", out.memory.static_bytes},
-                 {"static_breakdown_bytes",
-                  {{"vertices", static_bytes.vertices},
-                   {"edges", static_bytes.edges},
-                   {"triangles", static_bytes.triangles},
-                   {"tetrahedra", static_bytes.tetrahedra},
-                   {"blocks", static_bytes.blocks}}},
-                 {"buffer_peak_bytes",
-                  o.structure == "explicit" ? 0 : out.memory.relation_peak_bytes}};
+  j["memory"] = {
+      {"peak_rss_bytes", PeakRssBytes()},  // the whole process, results included
+      {"peak_rss_before_results_bytes", out.peak_rss_after_run},
+      {"structure_bytes",
+       out.memory.static_bytes + (o.structure == "explicit" ? out.memory.relation_bytes : 0)},
+      {"static_bytes", out.memory.static_bytes},
+      {"static_breakdown_bytes",
+       {{"vertices", static_bytes.vertices},
+        {"edges", static_bytes.edges},
+        {"triangles", static_bytes.triangles},
+        {"tetrahedra", static_bytes.tetrahedra},
+        {"blocks", static_bytes.blocks}}},
+      {"buffer_peak_bytes", o.structure == "explicit" ? 0 : out.memory.relation_peak_bytes}};
   j["result"] = out.result;
   if (!out.files.empty()) j["files"] = out.files;
   if (trace) {
@@ -333,10 +333,11 @@ absl::StatusOr<Json> Run(BenchOptions o) {
 
 void PrintHuman(const Json& j) {
   const Json& m = j["mesh"];
-  std::printf("mesh       %s: %lld vertices, %lld edges, %lld triangles, %lld tetrahedra, %lld blocks\n",
-              m["source"].get<std::string>().c_str(), m["vertices"].get<long long>(),
-              m["edges"].get<long long>(), m["triangles"].get<long long>(),
-              m["tetrahedra"].get<long long>(), m["blocks"].get<long long>());
+  std::printf(
+      "mesh       %s: %lld vertices, %lld edges, %lld triangles, %lld tetrahedra, %lld blocks\n",
+      m["source"].get<std::string>().c_str(), m["vertices"].get<long long>(),
+      m["edges"].get<long long>(), m["triangles"].get<long long>(),
+      m["tetrahedra"].get<long long>(), m["blocks"].get<long long>());
   std::printf("run        %s on %s, %d consumer(s)\n", j["algorithm"].get<std::string>().c_str(),
               j["structure"].get<std::string>().c_str(), j["config"]["consumers"].get<int>());
   const Json& t = j["times_s"];
@@ -375,8 +376,7 @@ int main(int argc, char** argv) {
                            "access statistics and the result");
   flags.Add("mesh", &o.mesh, "mesh file (.vtu, legacy .vtk unstructured grid, .vti)");
   flags.Add("sample", &o.sample,
-            "built-in sample instead of a file: " +
-                absl::StrJoin(actopo::io::SampleNames(), "; "));
+            "built-in sample instead of a file: " + absl::StrJoin(actopo::io::SampleNames(), "; "));
   flags.Add("scalar", &o.scalar, "point scalar field (default: first floating-point field)");
   flags.Add("algorithm", &o.algorithm,
             "topo-relations, critical-points, discrete-gradient or morse-smale");
@@ -390,8 +390,7 @@ int main(int argc, char** argv) {
   flags.Add("buffer-ratio", &o.buffer_ratio,
             "compact cache / actopo buffer capacity as a fraction of the blocks, over all "
             "consumers");
-  flags.Add("prefetch", &o.prefetch,
-            "actopo: auto (per algorithm), linear, spatial or adaptive");
+  flags.Add("prefetch", &o.prefetch, "actopo: auto (per algorithm), linear, spatial or adaptive");
   flags.Add("precompute", &o.precompute, "actopo: auto (per algorithm), requested or declared");
   flags.Add("miss-policy", &o.miss_policy,
             "actopo: who computes a missed relation: leader (the paper) or consumer");

@@ -78,9 +78,9 @@ absl::Status FlagParser::Parse(int argc, char** argv) {
 std::string FlagParser::Usage() const {
   std::string out = absl::StrCat(program_, ": ", summary_, "\n\nFlags:\n");
   for (const Flag& f : flags_) {
-    absl::StrAppend(&out, "  --", f.name, f.is_bool ? "" : " VALUE", "\n      ", f.help,
-                    f.default_value.empty() ? "" : absl::StrCat(" (default: ", f.default_value, ")"),
-                    "\n");
+    absl::StrAppend(
+        &out, "  --", f.name, f.is_bool ? "" : " VALUE", "\n      ", f.help,
+        f.default_value.empty() ? "" : absl::StrCat(" (default: ", f.default_value, ")"), "\n");
   }
   return out;
 }

@@ -337,9 +337,12 @@ class ActopoStructure::Consumer {
       DropTasks();
       return;
     }
-    planner_.Make(from, prediction, [&](int32_t b, Relation r) {
-      return buffer_.state(b, r) == RelationBuffer::State::kAbsent;
-    }, plan_);
+    planner_.Make(
+        from, prediction,
+        [&](int32_t b, Relation r) {
+          return buffer_.state(b, r) == RelationBuffer::State::kAbsent;
+        },
+        plan_);
     next_task_ = 0;
     trigger_block_.store(plan_.trigger_block, std::memory_order_relaxed);
     if (!plan_.tasks.empty()) worker_cv_.SignalAll();
@@ -372,7 +375,7 @@ class ActopoStructure::Consumer {
   uint64_t hint_seq_ ABSL_GUARDED_BY(mu_) = 0;
   PrefetchPlanner::Plan plan_ ABSL_GUARDED_BY(mu_);
   size_t next_task_ ABSL_GUARDED_BY(mu_) = 0;
-  bool prefetching_ ABSL_GUARDED_BY(mu_) = true;  // false: re-plans drop the tasks
+  bool prefetching_ ABSL_GUARDED_BY(mu_) = true;       // false: re-plans drop the tasks
   std::shared_ptr<Trace> trace_ ABSL_GUARDED_BY(mu_);  // null: not recording
 
   Counter requests_, hits_, misses_, wait_ns_;
@@ -380,18 +383,17 @@ class ActopoStructure::Consumer {
   Counter busy_ns_;
 };
 
-ActopoStructure::ActopoStructure(std::shared_ptr<const Topology> topology,
-                                 const Options& options)
+ActopoStructure::ActopoStructure(std::shared_ptr<const Topology> topology, const Options& options)
     : topology_(std::move(topology)), options_(options) {}
 
 absl::Status ActopoStructure::Validate(const Options& options) {
   if (options.consumers < 1 || options.consumers > kMaxConsumers) {
-    return absl::InvalidArgumentError(absl::StrCat("consumers: ", options.consumers,
-                                                   " is outside [1, ", kMaxConsumers, "]"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("consumers: ", options.consumers, " is outside [1, ", kMaxConsumers, "]"));
   }
   if (options.producers < 1 || options.producers > kMaxProducers) {
-    return absl::InvalidArgumentError(absl::StrCat("producers: ", options.producers,
-                                                   " is outside [1, ", kMaxProducers, "]"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("producers: ", options.producers, " is outside [1, ", kMaxProducers, "]"));
   }
   if (!(options.buffer_ratio >= 0.0 && options.buffer_ratio <= 1.0)) {
     return absl::InvalidArgumentError(

@@ -97,17 +97,17 @@ std::string_view MissPolicyName(MissPolicy p);
 // Engine counters of one consumer (and summed per session).
 struct EngineStats {
   AccessStats access;
-  int64_t leader_relations = 0;     // (block, relation) computed by leaders
-  int64_t worker_relations = 0;     // ... by workers
-  int64_t consumer_relations = 0;   // ... by consumers (their misses under kConsumer, and
-                                    // every miss once the engine is stopping)
-  int64_t duplicates_avoided = 0;   // tasks skipped because already computing or ready
-  int64_t blocks_inserted = 0;      // blocks that entered the buffer
-  int64_t producer_busy_ns = 0;     // time producers spent computing
-  int64_t buffer_bytes = 0;         // now
+  int64_t leader_relations = 0;    // (block, relation) computed by leaders
+  int64_t worker_relations = 0;    // ... by workers
+  int64_t consumer_relations = 0;  // ... by consumers (their misses under kConsumer, and
+                                   // every miss once the engine is stopping)
+  int64_t duplicates_avoided = 0;  // tasks skipped because already computing or ready
+  int64_t blocks_inserted = 0;     // blocks that entered the buffer
+  int64_t producer_busy_ns = 0;    // time producers spent computing
+  int64_t buffer_bytes = 0;        // now
   int64_t buffer_peak_bytes = 0;
-  int64_t buffer_blocks = 0;        // resident blocks now
-  int64_t buffer_peak_blocks = 0;   // at most capacity + 1 + blocks pinned by the consumer
+  int64_t buffer_blocks = 0;       // resident blocks now
+  int64_t buffer_peak_blocks = 0;  // at most capacity + 1 + blocks pinned by the consumer
 
   EngineStats& operator+=(const EngineStats& o);
 };
@@ -120,7 +120,7 @@ class ActopoStructure {
     double buffer_ratio = 0.2;
     Prefetch prefetch = Prefetch::kLinear;
     Precompute precompute = Precompute::kRequested;
-    RelationSet declared = RelationSet::All();  // used by Precompute::kDeclared
+    RelationSet declared = RelationSet::All();       // used by Precompute::kDeclared
     MissPolicy miss_policy = MissPolicy::kConsumer;  // measured faster; kLeader: the paper
   };
   // The ranges Validate enforces: consumers and producers in [1, 64], buffer_ratio in [0, 1].

@@ -92,19 +92,18 @@ std::string ConfigName(const ::testing::TestParamInfo<EveryConfiguration::ParamT
   const auto& [prefetch, precompute, producers, consumers, ratio, policy] = info.param;
   return std::string(PrefetchName(prefetch)) + "_" + std::string(PrecomputeName(precompute)) +
          "_P" + std::to_string(producers) + "_C" + std::to_string(consumers) + "_ratio" +
-         std::to_string(int(ratio * 100)) + "pct_" + std::string(MissPolicyName(policy)) +
-         "Misses";
+         std::to_string(int(ratio * 100)) + "pct_" + std::string(MissPolicyName(policy)) + "Misses";
 }
 
 INSTANTIATE_TEST_SUITE_P(
     ActopoStructure, EveryConfiguration,
-    ::testing::Combine(
-        ::testing::Values(Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive),
-        ::testing::Values(Precompute::kRequested, Precompute::kDeclared),
-        ::testing::Values(1, 2, 4),                // producers
-        ::testing::Values(1, 2),                   // consumers
-        ::testing::Values(0.01, 0.2, 1.0),         // buffer ratio
-        ::testing::Values(MissPolicy::kLeader, MissPolicy::kConsumer)),
+    ::testing::Combine(::testing::Values(Prefetch::kLinear, Prefetch::kSpatial,
+                                         Prefetch::kAdaptive),
+                       ::testing::Values(Precompute::kRequested, Precompute::kDeclared),
+                       ::testing::Values(1, 2, 4),         // producers
+                       ::testing::Values(1, 2),            // consumers
+                       ::testing::Values(0.01, 0.2, 1.0),  // buffer ratio
+                       ::testing::Values(MissPolicy::kLeader, MissPolicy::kConsumer)),
     ConfigName);
 
 TEST(ActopoStructure, PrefetchingOffComputesOnlyWhatIsMissed) {
@@ -112,10 +111,13 @@ TEST(ActopoStructure, PrefetchingOffComputesOnlyWhatIsMissed) {
   testing::RelationOracle oracle(*topo);
   for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
     for (MissPolicy policy : {MissPolicy::kConsumer, MissPolicy::kLeader}) {
-      auto structure = Create(topo, {.consumers = 1, .producers = 3, .buffer_ratio = 0.2,
-                                     .prefetch = p, .miss_policy = policy});
-      const std::string label = std::string(PrefetchName(p)) + " " +
-                                std::string(MissPolicyName(policy));
+      auto structure = Create(topo, {.consumers = 1,
+                                     .producers = 3,
+                                     .buffer_ratio = 0.2,
+                                     .prefetch = p,
+                                     .miss_policy = policy});
+      const std::string label =
+          std::string(PrefetchName(p)) + " " + std::string(MissPolicyName(policy));
       structure->SetPrefetching(false);
       {
         auto reader = structure->NewReader();
@@ -182,8 +184,8 @@ TEST(ActopoStructure, PrefetchTurnsMissesIntoHits) {
   // ready. (Counts, not times: the workers only need to keep ahead of a consumer that spends
   // time on each block, which the per-element work below guarantees.)
   auto topo = Build(testing::Lattice(16, 16, 16, 2), 64);
-  auto structure = Create(topo, {.producers = 3, .buffer_ratio = 0.5,
-                                 .prefetch = Prefetch::kLinear});
+  auto structure =
+      Create(topo, {.producers = 3, .buffer_ratio = 0.5, .prefetch = Prefetch::kLinear});
   auto reader = structure->NewReader();
   uint64_t sum = 0;
   for (SimplexId v = 0; v < topo->num_vertices(); ++v) {
@@ -195,8 +197,8 @@ TEST(ActopoStructure, PrefetchTurnsMissesIntoHits) {
   EXPECT_GT(sum, 0u);
   const EngineStats s = structure->stats();
   EXPECT_EQ(s.access.requests, topo->num_blocks());
-  EXPECT_GT(s.access.hits, s.access.misses) << "hits " << s.access.hits << " misses "
-                                            << s.access.misses;
+  EXPECT_GT(s.access.hits, s.access.misses)
+      << "hits " << s.access.hits << " misses " << s.access.misses;
   EXPECT_GT(s.blocks_inserted, 0);
   EXPECT_GT(s.buffer_peak_bytes, 0);
 }
@@ -204,8 +206,8 @@ TEST(ActopoStructure, PrefetchTurnsMissesIntoHits) {
 TEST(ActopoStructure, ShutdownWhileConsumersReadKeepsResultsExact) {
   auto topo = Build(testing::Lattice(10, 9, 9, 8), 5);
   testing::RelationOracle oracle(*topo);
-  auto structure = Create(topo, {.consumers = 2, .producers = 3, .buffer_ratio = 0.05,
-                                 .prefetch = Prefetch::kSpatial});
+  auto structure = Create(
+      topo, {.consumers = 2, .producers = 3, .buffer_ratio = 0.05, .prefetch = Prefetch::kSpatial});
   std::atomic<bool> started{false};
   std::vector<std::thread> threads;
   for (int k = 0; k < 2; ++k) {
@@ -225,7 +227,9 @@ TEST(ActopoStructure, ShutdownWhileConsumersReadKeepsResultsExact) {
 TEST(ActopoStructure, DestroyIdleAndBusyStructures) {
   auto topo = Build(testing::Lattice(8, 8, 8, 1), 8);
   for (int round = 0; round < 20; ++round) {
-    auto structure = Create(topo, {.consumers = 2, .producers = 4, .buffer_ratio = 0.3,
+    auto structure = Create(topo, {.consumers = 2,
+                                   .producers = 4,
+                                   .buffer_ratio = 0.3,
                                    .prefetch = Prefetch::kLinear,
                                    .precompute = Precompute::kDeclared});
     if (round % 2 == 1) {
@@ -257,8 +261,8 @@ TEST(ActopoStructure, RejectsBadOptions) {
     EXPECT_EQ(status.message(), c.message);
     EXPECT_EQ(ActopoStructure::Validate(c.options), status);
   }
-  EXPECT_TRUE(ActopoStructure::Validate({.consumers = 64, .producers = 64, .buffer_ratio = 0})
-                  .ok());
+  EXPECT_TRUE(
+      ActopoStructure::Validate({.consumers = 64, .producers = 64, .buffer_ratio = 0}).ok());
 }
 
 }  // namespace

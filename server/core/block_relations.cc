@@ -82,13 +82,14 @@ class BlockComputer {
   }
   // Edge (a, w) for each of `n` ascending upper vertices w of a.
   void EdgesFrom(SimplexId a, const SimplexId* w, int n, SimplexId* out) const {
-    FindInRun(topo_.vertex_first_edge(a), [&](SimplexId e) { return topo_.edge_upper(e); }, w, n,
-              out);
+    FindInRun(
+        topo_.vertex_first_edge(a), [&](SimplexId e) { return topo_.edge_upper(e); }, w, n, out);
   }
   // Triangle (a, b, c) for each of `n` ascending third vertices c of edge e = (a, b).
   void TrianglesOn(SimplexId e, const SimplexId* c, int n, SimplexId* out) const {
-    FindInRun(topo_.edge_first_triangle(e), [&](SimplexId f) { return topo_.triangle_third(f); },
-              c, n, out);
+    FindInRun(
+        topo_.edge_first_triangle(e), [&](SimplexId f) { return topo_.triangle_third(f); }, c, n,
+        out);
   }
   // The 6 edges of sorted tetrahedron s in kTetEdges order: three runs read once each.
   void TetEdges(const SimplexId* s, SimplexId* out) const {
@@ -306,8 +307,8 @@ class BlockComputer {
       auto it = std::find_if(blocks_.begin(), blocks_.end(),
                              [&](const auto& b) { return b->block == block; });
       if (it == blocks_.end()) {
-        blocks_.push_back(std::make_unique<RelationBlock>(
-            BlockComputer(topo_, block, scratch_).Compute(r_)));
+        blocks_.push_back(
+            std::make_unique<RelationBlock>(BlockComputer(topo_, block, scratch_).Compute(r_)));
         it = blocks_.end() - 1;
       }
       return (*it)->row(s - (*it)->first);
@@ -321,8 +322,8 @@ class BlockComputer {
   };
 
   // `out` row by row: the sorted union of `rows` minus the simplex itself.
-  void UnionRows(RelationBlock& out, const std::function<void(SimplexId, std::vector<SimplexId>&)>&
-                                         rows) {
+  void UnionRows(RelationBlock& out,
+                 const std::function<void(SimplexId, std::vector<SimplexId>&)>& rows) {
     out.offsets.assign(size_t(out.count) + 1, 0);
     out.values.clear();
     for (SimplexId i = 0; i < out.count; ++i) {
@@ -470,8 +471,8 @@ class BlockComputer {
         const SimplexId low = s[kTetFaces[f][0]];
         if (low < obegin || low >= oend || !s_.mark[low - obegin]) continue;
         const int64_t key = int64_t(Face(s, f)) << 32;
-        for (const int64_t* r = std::lower_bound(begin, end, key); r != end && (*r >> 32) == (key >> 32);
-             ++r) {
+        for (const int64_t* r = std::lower_bound(begin, end, key);
+             r != end && (*r >> 32) == (key >> 32); ++r) {
           const SimplexId local = SimplexId(*r & 0xffffffff);
           if (first_tet + local != t) Pair(local, t);
         }

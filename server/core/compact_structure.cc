@@ -7,13 +7,11 @@
 
 namespace actopo {
 
-CompactStructure::CompactStructure(std::shared_ptr<const Topology> topology,
-                                   const Options& options)
+CompactStructure::CompactStructure(std::shared_ptr<const Topology> topology, const Options& options)
     : topology_(std::move(topology)) {
   const int consumers = std::max(options.consumers, 1);
-  capacity_ = static_cast<int>(
-                  std::floor(std::max(options.cache_ratio, 0.0) * topology_->num_blocks() /
-                             consumers)) +
+  capacity_ = static_cast<int>(std::floor(std::max(options.cache_ratio, 0.0) *
+                                          topology_->num_blocks() / consumers)) +
               1;
 }
 

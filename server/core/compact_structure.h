@@ -101,7 +101,7 @@ class CompactStructure {
   mutable Mutex mu_;
   AccessStats finished_ ABSL_GUARDED_BY(mu_);
   std::shared_ptr<Trace> trace_ ABSL_GUARDED_BY(mu_);
-  std::atomic<int64_t> bytes_{0};     // over all live readers
+  std::atomic<int64_t> bytes_{0};  // over all live readers
   std::atomic<int64_t> peak_bytes_{0};
 };
 

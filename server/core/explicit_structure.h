@@ -59,7 +59,8 @@ class ExplicitStructure {
       } else if constexpr (R == Relation::kFF) {
         if (!st.present) return TriangleNeighbors(s);
       }
-      if (!st.present) [[unlikely]] MissingRelation(R);
+      if (!st.present) [[unlikely]]
+        MissingRelation(R);
       if constexpr (FixedSize(R) > 0) {
         return {st.values.data() + size_t(s) * FixedSize(R), size_t(FixedSize(R))};
       } else {

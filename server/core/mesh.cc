@@ -17,12 +17,13 @@ const PointField* Mesh::FindField(std::string_view name) const {
 
 absl::Status ValidateMesh(const Mesh& mesh) {
   if (mesh.points.size() % 3 != 0) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "points: ", mesh.points.size(), " coordinates is not a multiple of 3 (x, y, z per vertex)"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("points: ", mesh.points.size(),
+                     " coordinates is not a multiple of 3 (x, y, z per vertex)"));
   }
   if (mesh.tetrahedra.size() % 4 != 0) {
-    return absl::InvalidArgumentError(absl::StrCat("tetrahedra: ", mesh.tetrahedra.size(),
-                                                   " vertex ids is not a multiple of 4"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("tetrahedra: ", mesh.tetrahedra.size(), " vertex ids is not a multiple of 4"));
   }
   if (mesh.points.size() / 3 > static_cast<size_t>(INT32_MAX) ||
       mesh.tetrahedra.size() / 4 > static_cast<size_t>(INT32_MAX)) {
@@ -38,8 +39,7 @@ absl::Status ValidateMesh(const Mesh& mesh) {
       if (!std::isfinite(c)) {
         return absl::InvalidArgumentError(absl::StrCat("points: vertex ", v,
                                                        " has a non-finite coordinate ",
-                                                       std::string(1, "xyz"[k]),
-                                                       " = ", c));
+                                                       std::string(1, "xyz"[k]), " = ", c));
       }
     }
   }
@@ -52,18 +52,17 @@ absl::Status ValidateMesh(const Mesh& mesh) {
       }
       for (int j = 0; j < k; ++j) {
         if (tv[j] == tv[k]) {
-          return absl::InvalidArgumentError(absl::StrCat(
-              "tetrahedra: tetrahedron ", t, " repeats vertex ", tv[k], " (vertices ",
-              absl::StrJoin(std::span<const SimplexId>(tv, 4), " "), ")"));
+          return absl::InvalidArgumentError(
+              absl::StrCat("tetrahedra: tetrahedron ", t, " repeats vertex ", tv[k], " (vertices ",
+                           absl::StrJoin(std::span<const SimplexId>(tv, 4), " "), ")"));
         }
       }
     }
   }
   for (const PointField& f : mesh.point_fields) {
     if (f.values.size() != static_cast<size_t>(nv)) {
-      return absl::InvalidArgumentError(absl::StrCat("point field '", f.name, "' has ",
-                                                     f.values.size(), " values for ", nv,
-                                                     " vertices"));
+      return absl::InvalidArgumentError(absl::StrCat(
+          "point field '", f.name, "' has ", f.values.size(), " values for ", nv, " vertices"));
     }
   }
   return absl::OkStatus();
@@ -72,9 +71,8 @@ absl::Status ValidateMesh(const Mesh& mesh) {
 absl::Status ValidateScalarField(const PointField& field) {
   for (size_t v = 0; v < field.values.size(); ++v) {
     if (!std::isfinite(field.values[v])) {
-      return absl::InvalidArgumentError(absl::StrCat("point field '", field.name,
-                                                     "': vertex ", v, " has non-finite value ",
-                                                     field.values[v]));
+      return absl::InvalidArgumentError(absl::StrCat("point field '", field.name, "': vertex ", v,
+                                                     " has non-finite value ", field.values[v]));
     }
   }
   return absl::OkStatus();
@@ -90,8 +88,9 @@ absl::StatusOr<int> SelectScalarField(const Mesh& mesh, std::string_view name,
     if (chosen < 0) {
       std::vector<std::string> names;
       for (const PointField& f : mesh.point_fields) names.push_back("'" + f.name + "'");
-      return absl::NotFoundError(absl::StrCat("scalar field '", std::string(name), "' not found; point fields: ",
-                                              names.empty() ? "none" : absl::StrJoin(names, ", ")));
+      return absl::NotFoundError(absl::StrCat(
+          "scalar field '", std::string(name),
+          "' not found; point fields: ", names.empty() ? "none" : absl::StrJoin(names, ", ")));
     }
   } else {
     for (size_t i = 0; i < mesh.point_fields.size(); ++i) {

@@ -35,8 +35,8 @@ struct PointField {
 };
 
 struct Mesh {
-  std::vector<double> points;          // x, y, z per vertex
-  std::vector<SimplexId> tetrahedra;   // 4 vertex ids per tetrahedron, as given
+  std::vector<double> points;         // x, y, z per vertex
+  std::vector<SimplexId> tetrahedra;  // 4 vertex ids per tetrahedron, as given
   std::vector<PointField> point_fields;
 
   SimplexId num_vertices() const { return static_cast<SimplexId>(points.size() / 3); }

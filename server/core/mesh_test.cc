@@ -72,7 +72,8 @@ TEST(ValidateMesh, RejectsFieldOfWrongLength) {
 
 TEST(ValidateScalarField, RejectsNaNAndInfinity) {
   PointField f{"s", {0, 1, std::nan(""), 2}};
-  EXPECT_THAT(ValidateScalarField(f).message(), HasSubstr("'s': vertex 2 has non-finite value nan"));
+  EXPECT_THAT(ValidateScalarField(f).message(),
+              HasSubstr("'s': vertex 2 has non-finite value nan"));
   f.values[2] = -std::numeric_limits<double>::infinity();
   EXPECT_THAT(ValidateScalarField(f).message(), HasSubstr("-inf"));
 }

@@ -16,9 +16,7 @@
 namespace actopo {
 
 // Default worker count for preprocessing: the hardware concurrency, at least 1.
-inline int DefaultThreads() {
-  return std::max(1u, std::thread::hardware_concurrency());
-}
+inline int DefaultThreads() { return std::max(1u, std::thread::hardware_concurrency()); }
 
 // The threads of a run when the user names none: one consumer per core for every structure, and
 // for actopo one producer (a leader) per consumer. actopo's threads outnumber the cores, which is

@@ -90,8 +90,8 @@ absl::StatusOr<std::vector<int32_t>> LabelBlocks(std::span<const double> labels)
   for (size_t v = 0; v < labels.size(); ++v) {
     const double l = labels[v];
     if (!std::isfinite(l) || l != std::floor(l) || l < INT32_MIN || l > INT32_MAX) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "block labels: vertex ", v, " has label ", l, ", not a 32-bit integer"));
+      return absl::InvalidArgumentError(
+          absl::StrCat("block labels: vertex ", v, " has label ", l, ", not a 32-bit integer"));
     }
     as_int[v] = static_cast<int64_t>(l);
   }
@@ -100,8 +100,8 @@ absl::StatusOr<std::vector<int32_t>> LabelBlocks(std::span<const double> labels)
   distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
   std::vector<int32_t> block(labels.size());
   for (size_t v = 0; v < labels.size(); ++v) {
-    block[v] = static_cast<int32_t>(
-        std::lower_bound(distinct.begin(), distinct.end(), as_int[v]) - distinct.begin());
+    block[v] = static_cast<int32_t>(std::lower_bound(distinct.begin(), distinct.end(), as_int[v]) -
+                                    distinct.begin());
   }
   return block;
 }
@@ -117,8 +117,8 @@ absl::StatusOr<std::vector<int32_t>> ComputeBlocks(const Mesh& mesh,
   }
   const PointField* labels = mesh.FindField(options.block_label_field);
   if (labels == nullptr) {
-    return absl::NotFoundError(absl::StrCat("block labels: point field '",
-                                            options.block_label_field, "' not found"));
+    return absl::NotFoundError(
+        absl::StrCat("block labels: point field '", options.block_label_field, "' not found"));
   }
   return LabelBlocks(labels->values);
 }

@@ -11,9 +11,8 @@
 
 #include <cstdint>
 #include <span>
-#include <vector>
-
 #include <string>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "server/core/mesh.h"

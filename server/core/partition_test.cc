@@ -49,8 +49,7 @@ TEST(LabelBlocks, RenumbersDensely) {
   const std::vector<double> labels = {7, -2, 7, 100, -2};
   EXPECT_THAT(*LabelBlocks(labels), ::testing::ElementsAre(1, 0, 1, 2, 0));
   const std::vector<double> bad = {1, 2.5};
-  EXPECT_THAT(LabelBlocks(bad).status().message(),
-              ::testing::HasSubstr("vertex 1 has label 2.5"));
+  EXPECT_THAT(LabelBlocks(bad).status().message(), ::testing::HasSubstr("vertex 1 has label 2.5"));
 }
 
 }  // namespace

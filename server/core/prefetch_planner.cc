@@ -108,8 +108,8 @@ void PrefetchPlanner::Make(BlockTask from, std::span<const int32_t> predicted,
   // it), or the first, most likely block of a spatial or learned one.
   out.trigger_block = -1;
   if (!blocks.empty()) {
-    out.trigger_block = options_.prefetch == Prefetch::kLinear ? blocks[blocks.size() / 2]
-                                                               : blocks.front();
+    out.trigger_block =
+        options_.prefetch == Prefetch::kLinear ? blocks[blocks.size() / 2] : blocks.front();
   }
 }
 

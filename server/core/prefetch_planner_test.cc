@@ -104,8 +104,9 @@ TEST_F(PrefetchPlannerTest, DeclaredPlansTheWholeSetOnTheMovedToBlockToo) {
 
 TEST_F(PrefetchPlannerTest, LeavesOutWhatIsNotNeeded) {
   PrefetchPlanner planner(*topo_, {.prefetch = Prefetch::kLinear, .window = 4});
-  planner.Make({.block = 0, .relation = Relation::kVT}, {},
-               [](int32_t b, Relation) { return b % 2 == 0; }, plan_);
+  planner.Make(
+      {.block = 0, .relation = Relation::kVT}, {}, [](int32_t b, Relation) { return b % 2 == 0; },
+      plan_);
   EXPECT_THAT(PlannedBlocks(plan_), ElementsAre(2, 4));
   // The trigger still follows the window, needed or not: the consumer passes those blocks.
   EXPECT_EQ(plan_.trigger_block, 3);

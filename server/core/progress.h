@@ -52,7 +52,8 @@ class Progress {
   // OK, or why the work stops, naming the phase it stopped in.
   absl::Status status(std::string_view phase) const {
     if (options_.cancel != nullptr && options_.cancel->load(std::memory_order_relaxed)) {
-      return absl::CancelledError(absl::StrCat("cancelled while in phase '", std::string(phase), "'"));
+      return absl::CancelledError(
+          absl::StrCat("cancelled while in phase '", std::string(phase), "'"));
     }
     if (options_.deadline != Clock::time_point::max() && Clock::now() >= options_.deadline) {
       return absl::DeadlineExceededError(

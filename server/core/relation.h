@@ -53,7 +53,7 @@ constexpr int SourceDimension(Relation r) {
 
 // Dimension of the simplices in a relation's result; -1 for the boundary predicates.
 constexpr int TargetDimension(Relation r) {
-  constexpr std::array<int8_t, kNumRelations> kDim = {0, 1, 2, 3, 0, 2, 3, 0, 1, 3, 0,
+  constexpr std::array<int8_t, kNumRelations> kDim = {0, 1, 2, 3, 0, 2, 3,  0,  1,  3, 0,
                                                       1, 2, 3, 2, 1, 0, -1, -1, -1, 1, 2};
   return kDim[Index(r)];
 }

@@ -46,7 +46,7 @@ class RelationBuffer {
   enum class State : uint8_t { kAbsent, kComputing, kReady, kEvicting };
 
   struct Stats {
-    int64_t bytes = 0;            // relation data resident now
+    int64_t bytes = 0;  // relation data resident now
     int64_t peak_bytes = 0;
     int64_t blocks = 0;           // blocks with a relation resident now
     int64_t peak_blocks = 0;      // at most capacity + 1 + blocks kept by pins
@@ -86,9 +86,7 @@ class RelationBuffer {
     std::atomic<int32_t> pins{0};
     std::atomic<RelationBlock*> data{nullptr};
   };
-  Cell& cell(int32_t block, Relation r) {
-    return cells_[size_t(block) * kNumRelations + Index(r)];
-  }
+  Cell& cell(int32_t block, Relation r) { return cells_[size_t(block) * kNumRelations + Index(r)]; }
   const Cell& cell(int32_t block, Relation r) const {
     return cells_[size_t(block) * kNumRelations + Index(r)];
   }
@@ -101,7 +99,7 @@ class RelationBuffer {
   std::vector<Cell> cells_;
 
   Mutex mu_;
-  std::vector<int32_t> resident_ ABSL_GUARDED_BY(mu_);   // oldest first
+  std::vector<int32_t> resident_ ABSL_GUARDED_BY(mu_);     // oldest first
   std::vector<uint8_t> is_resident_ ABSL_GUARDED_BY(mu_);  // per block
 
   // Written under mu_ (bytes also by eviction's frees, under mu_ too), read by stats().

@@ -23,7 +23,9 @@ std::unique_ptr<RelationBlock> Block(int32_t block, Relation r, int values = 8) 
   return data;
 }
 
-int64_t BytesOf(int32_t block, Relation r, int values = 8) { return Block(block, r, values)->bytes(); }
+int64_t BytesOf(int32_t block, Relation r, int values = 8) {
+  return Block(block, r, values)->bytes();
+}
 
 void Put(RelationBuffer& buffer, int32_t block, Relation r = Relation::kVT) {
   ASSERT_TRUE(buffer.StartComputing(block, r));

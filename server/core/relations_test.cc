@@ -33,7 +33,8 @@ class RelationsTest : public ::testing::TestWithParam<int> {};
 TEST_P(RelationsTest, ExplicitMatchesOracle) {
   const int capacity = GetParam();
   for (const Case& c : Meshes()) {
-    auto topo = *Topology::Build(c.mesh, OctreeBlocks(c.mesh.points, {.bucket_capacity = capacity}));
+    auto topo =
+        *Topology::Build(c.mesh, OctreeBlocks(c.mesh.points, {.bucket_capacity = capacity}));
     testing::RelationOracle oracle(*topo);
     // Edge and triangle neighbours composed at read time (the default), and stored.
     for (RelationSet relations : {ExplicitStructure::DefaultRelations(), RelationSet::All()}) {
@@ -51,7 +52,8 @@ TEST_P(RelationsTest, ExplicitMatchesOracle) {
 TEST_P(RelationsTest, CompactMatchesOracle) {
   const int capacity = GetParam();
   for (const Case& c : Meshes()) {
-    auto topo = *Topology::Build(c.mesh, OctreeBlocks(c.mesh.points, {.bucket_capacity = capacity}));
+    auto topo =
+        *Topology::Build(c.mesh, OctreeBlocks(c.mesh.points, {.bucket_capacity = capacity}));
     testing::RelationOracle oracle(*topo);
     for (double ratio : {0.0, 0.2, 1.0}) {
       CompactStructure structure(topo, {.cache_ratio = ratio});

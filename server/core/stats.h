@@ -16,9 +16,9 @@ struct AccessStats {
   int64_t requests = 0;
   int64_t hits = 0;
   int64_t misses = 0;
-  int64_t evictions = 0;            // blocks dropped from a cache or buffer
-  int64_t relations_computed = 0;   // (block, relation) computations
-  int64_t wait_ns = 0;              // time consumers waited for missing relations
+  int64_t evictions = 0;           // blocks dropped from a cache or buffer
+  int64_t relations_computed = 0;  // (block, relation) computations
+  int64_t wait_ns = 0;             // time consumers waited for missing relations
 
   AccessStats& operator+=(const AccessStats& o) {
     requests += o.requests;
@@ -41,9 +41,9 @@ struct AccessStats {
 };
 
 struct MemoryStats {
-  int64_t static_bytes = 0;        // the shared Topology
-  int64_t relation_bytes = 0;      // explicit: all stored relations; else cache/buffer now
-  int64_t relation_peak_bytes = 0; // explicit: same as relation_bytes; else the peak
+  int64_t static_bytes = 0;         // the shared Topology
+  int64_t relation_bytes = 0;       // explicit: all stored relations; else cache/buffer now
+  int64_t relation_peak_bytes = 0;  // explicit: same as relation_bytes; else the peak
 };
 
 }  // namespace actopo

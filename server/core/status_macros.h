@@ -11,12 +11,11 @@
 #define ACTOPO_CONCAT_INNER_(a, b) a##b
 #define ACTOPO_CONCAT_(a, b) ACTOPO_CONCAT_INNER_(a, b)
 
-#define RETURN_IF_ERROR(expr)                          \
-  do {                                                 \
-    if (absl::Status actopo_status_ = (expr);          \
-        !actopo_status_.ok()) {                        \
-      return actopo_status_;                           \
-    }                                                  \
+#define RETURN_IF_ERROR(expr)                                         \
+  do {                                                                \
+    if (absl::Status actopo_status_ = (expr); !actopo_status_.ok()) { \
+      return actopo_status_;                                          \
+    }                                                                 \
   } while (0)
 
 #define ACTOPO_ASSIGN_OR_RETURN_IMPL_(tmp, lhs, expr) \

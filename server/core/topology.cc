@@ -20,10 +20,10 @@ int64_t VectorBytes(const std::vector<T>& v) {
 // Edges and triangles owned by one block (lowest vertex inside it), sorted and unique, as the
 // runs the topology stores, with a boundary flag per triangle (one tetrahedron around it).
 struct BlockFaces {
-  std::vector<uint64_t> edges;               // (a << 32) | b
-  std::vector<SimplexId> edge_triangles;     // per edge: its triangles (a, b, *)
-  std::vector<SimplexId> triangle_third;     // c of each triangle (a, b, c), in order
-  std::vector<uint8_t> triangle_boundary;    // per triangle
+  std::vector<uint64_t> edges;             // (a << 32) | b
+  std::vector<SimplexId> edge_triangles;   // per edge: its triangles (a, b, *)
+  std::vector<SimplexId> triangle_third;   // c of each triangle (a, b, c), in order
+  std::vector<uint8_t> triangle_boundary;  // per triangle
 };
 
 // Offsets of per-item counts: out[0] = 0, out[i + 1] = out[i] + counts[i].
@@ -179,8 +179,8 @@ SimplexId Topology::FindTetrahedron(SimplexId a, SimplexId b, SimplexId c, Simpl
 
 TopologyBytes Topology::bytes() const {
   TopologyBytes b;
-  b.vertices = VectorBytes(vertex_block_) + VectorBytes(vertex_input_id_) +
-               VectorBytes(vertex_internal_id_);
+  b.vertices =
+      VectorBytes(vertex_block_) + VectorBytes(vertex_input_id_) + VectorBytes(vertex_internal_id_);
   b.edges = VectorBytes(edge_upper_) + VectorBytes(vertex_edge_begin_) + edge_lowest_.bytes();
   b.triangles = VectorBytes(triangle_third_) + VectorBytes(edge_triangle_begin_) +
                 triangle_edge_.bytes() + VectorBytes(triangle_boundary_);
@@ -200,8 +200,8 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   const SimplexId nt = mesh.num_tetrahedra();
   const int threads = options.threads > 0 ? options.threads : DefaultThreads();
   if (vertex_block.size() != static_cast<size_t>(nv)) {
-    return absl::InvalidArgumentError(absl::StrCat("blocks: ", vertex_block.size(),
-                                                   " block ids for ", nv, " vertices"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("blocks: ", vertex_block.size(), " block ids for ", nv, " vertices"));
   }
   int32_t num_blocks = 0;
   for (SimplexId v = 0; v < nv; ++v) {
@@ -455,8 +455,8 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
 
   // Ids are 32-bit (SimplexId); the sums below would overflow first.
   if (t.triangle_third_.size() > size_t(INT32_MAX)) {
-    return absl::ResourceExhaustedError(absl::StrCat("mesh: ", t.triangle_third_.size(),
-                                                     " triangles exceed the 32-bit id range"));
+    return absl::ResourceExhaustedError(
+        absl::StrCat("mesh: ", t.triangle_third_.size(), " triangles exceed the 32-bit id range"));
   }
   for (SimplexId v = 0; v < nv; ++v) t.vertex_edge_begin_[v + 1] += t.vertex_edge_begin_[v];
   for (size_t e = 1; e < t.edge_triangle_begin_.size(); ++e) {

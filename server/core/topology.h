@@ -2,10 +2,10 @@
 // structure and session on the mesh.
 //
 // This is the part of the localized data structure that is never recomputed: the blocks (vertex
-// clusters, TopoCluster's "clusters"), the sorted edges and triangles (as runs, see Storage), each block's internal
-// and external tetrahedra, block adjacency and boundary-triangle flags. Everything a block needs
-// to compute any relation of its internal simplices on its own is here; the relations themselves
-// are computed by block_relations.h.
+// clusters, TopoCluster's "clusters"), the sorted edges and triangles (as runs, see Storage), each
+// block's internal and external tetrahedra, block adjacency and boundary-triangle flags. Everything
+// a block needs to compute any relation of its internal simplices on its own is here; the relations
+// themselves are computed by block_relations.h.
 //
 //   ASSIGN_OR_RETURN(auto topology, Topology::Build(mesh, OctreeBlocks(mesh.points, {})));
 //   SimplexId e = topology->FindEdge(u, v);   // internal ids, -1 if absent
@@ -13,11 +13,11 @@
 // Ids. Vertices are renumbered so each block is a contiguous range (block order, then input id);
 // tetrahedra are grouped by the block of their lowest vertex, then by that vertex, then input
 // id (so a vertex's star sits in a few short runs whatever the file's cell order). A simplex
-// belongs to the block of its lowest vertex. Edges and triangles are numbered in lexicographic order of their
-// sorted vertex tuples; because blocks are vertex ranges in order, that numbering is also "by
-// block, then lexicographic inside the block", so an edge's id is its block's first edge plus its
-// rank inside the block (TopoCluster's numbering). Both permutations are kept so results can be
-// reported in input ids.
+// belongs to the block of its lowest vertex. Edges and triangles are numbered in lexicographic
+// order of their sorted vertex tuples; because blocks are vertex ranges in order, that numbering is
+// also "by block, then lexicographic inside the block", so an edge's id is its block's first edge
+// plus its rank inside the block (TopoCluster's numbering). Both permutations are kept so results
+// can be reported in input ids.
 //
 // Storage. Faces are stored as runs, not as tuples: the edges (a, *) of a vertex a are a run
 // holding only their upper vertex, the triangles (a, b, *) of an edge (a, b) a run holding only
@@ -58,11 +58,11 @@ struct TopologyOptions {
 
 // Bytes of each part of the static encoding.
 struct TopologyBytes {
-  int64_t vertices = 0;     // block of each vertex, both vertex permutations
-  int64_t edges = 0;        // upper vertices, per-vertex run starts, lowest-vertex lookup
-  int64_t triangles = 0;    // third vertices, per-edge run starts, edge lookup, boundary bits
-  int64_t tetrahedra = 0;   // tetrahedron list and its internal -> input permutation
-  int64_t blocks = 0;       // interval arrays, external tetrahedra, block adjacency
+  int64_t vertices = 0;    // block of each vertex, both vertex permutations
+  int64_t edges = 0;       // upper vertices, per-vertex run starts, lowest-vertex lookup
+  int64_t triangles = 0;   // third vertices, per-edge run starts, edge lookup, boundary bits
+  int64_t tetrahedra = 0;  // tetrahedron list and its internal -> input permutation
+  int64_t blocks = 0;      // interval arrays, external tetrahedra, block adjacency
   int64_t total() const { return vertices + edges + triangles + tetrahedra + blocks; }
 };
 
@@ -182,23 +182,22 @@ class Topology {
  private:
   Topology() = default;
 
-
   SimplexId num_vertices_ = 0;
   int32_t num_blocks_ = 0;
-  std::vector<int32_t> vertex_block_;             // by internal vertex
-  std::vector<SimplexId> block_vertex_begin_;     // B + 1
-  std::vector<SimplexId> block_tet_begin_;        // B + 1
-  std::vector<SimplexId> vertex_edge_begin_;      // V + 1: run of edges (v, *)
-  std::vector<SimplexId> edge_upper_;             // 1 per edge: b of (a, b)
-  RunLookup edge_lowest_;                         // edge -> a
-  std::vector<SimplexId> edge_triangle_begin_;    // E + 1: run of triangles (a, b, *)
-  std::vector<SimplexId> triangle_third_;         // 1 per triangle: c of (a, b, c)
-  RunLookup triangle_edge_;                       // triangle -> edge (a, b)
-  std::vector<uint64_t> triangle_boundary_;       // 1 bit per triangle
-  std::vector<SimplexId> tet_vertices_;           // 4 per tetrahedron, sorted
-  std::vector<SimplexId> external_offsets_;       // B + 1
+  std::vector<int32_t> vertex_block_;           // by internal vertex
+  std::vector<SimplexId> block_vertex_begin_;   // B + 1
+  std::vector<SimplexId> block_tet_begin_;      // B + 1
+  std::vector<SimplexId> vertex_edge_begin_;    // V + 1: run of edges (v, *)
+  std::vector<SimplexId> edge_upper_;           // 1 per edge: b of (a, b)
+  RunLookup edge_lowest_;                       // edge -> a
+  std::vector<SimplexId> edge_triangle_begin_;  // E + 1: run of triangles (a, b, *)
+  std::vector<SimplexId> triangle_third_;       // 1 per triangle: c of (a, b, c)
+  RunLookup triangle_edge_;                     // triangle -> edge (a, b)
+  std::vector<uint64_t> triangle_boundary_;     // 1 bit per triangle
+  std::vector<SimplexId> tet_vertices_;         // 4 per tetrahedron, sorted
+  std::vector<SimplexId> external_offsets_;     // B + 1
   std::vector<SimplexId> external_tets_;
-  std::vector<int32_t> block_neighbor_offsets_;   // B + 1
+  std::vector<int32_t> block_neighbor_offsets_;  // B + 1
   std::vector<int32_t> block_neighbors_;
   std::vector<SimplexId> vertex_input_id_, vertex_internal_id_;
   std::vector<SimplexId> tet_input_id_;

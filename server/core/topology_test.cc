@@ -107,8 +107,8 @@ TEST(Topology, EdgesTrianglesAndBoundaryMatchOracle) {
         EXPECT_GE(f, topo->edge_first_triangle(e));
         EXPECT_LT(f, topo->edge_first_triangle(e + 1));
         EXPECT_EQ(topo->block_of(2, f), topo->vertex_block(tri[0]));
-        EXPECT_EQ(topo->triangle_on_boundary(f),
-                  oracle.rows(Relation::kFB)[f][0] == 1) << "triangle " << f;
+        EXPECT_EQ(topo->triangle_on_boundary(f), oracle.rows(Relation::kFB)[f][0] == 1)
+            << "triangle " << f;
       }
       for (int32_t b = 0; b < topo->num_blocks(); ++b) {
         for (int dim = 0; dim < 4; ++dim) {
@@ -224,8 +224,8 @@ TEST(Topology, ExternalTetrahedraAndBlockAdjacency) {
   }
   const TopologyBytes bytes = topo->bytes();
   EXPECT_GT(bytes.edges, 0);
-  EXPECT_EQ(bytes.total(), bytes.vertices + bytes.edges + bytes.triangles + bytes.tetrahedra +
-                               bytes.blocks);
+  EXPECT_EQ(bytes.total(),
+            bytes.vertices + bytes.edges + bytes.triangles + bytes.tetrahedra + bytes.blocks);
 }
 
 TEST(Topology, RejectsBadBlockArrays) {

@@ -123,8 +123,8 @@ void Trace::WriteJson(std::ostream& out) const {
     MutexLock events_lock(buffer->mu);
     for (const Event& e : buffer->events) {
       next();
-      out << R"({"ph":")" << (e.duration_ns < 0 ? "i" : "X") << R"(","pid":1,"tid":)"
-          << buffer->tid << ",\"name\":";
+      out << R"({"ph":")" << (e.duration_ns < 0 ? "i" : "X") << R"(","pid":1,"tid":)" << buffer->tid
+          << ",\"name\":";
       WriteString(out, e.name);
       out << ",\"cat\":";
       WriteString(out, e.category);

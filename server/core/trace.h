@@ -38,9 +38,9 @@ const std::string& ThreadRole();
 
 // Optional arguments of a trace event, shown in the trace viewer's details.
 struct TraceArgs {
-  int32_t block = -1;               // "block", when >= 0
-  const char* relation = nullptr;   // "relation" (a two-letter code)
-  int64_t count = -1;               // "count", when >= 0
+  int32_t block = -1;              // "block", when >= 0
+  const char* relation = nullptr;  // "relation" (a two-letter code)
+  int64_t count = -1;              // "count", when >= 0
 };
 
 class Trace {
@@ -56,8 +56,8 @@ class Trace {
   using Args = TraceArgs;
 
   // A span [start, end) on the calling thread.
-  void Span(const char* name, const char* category, Clock::time_point start,
-            Clock::time_point end, const Args& args = {});
+  void Span(const char* name, const char* category, Clock::time_point start, Clock::time_point end,
+            const Args& args = {});
   // A point in time on the calling thread.
   void Instant(const char* name, const char* category, const Args& args = {});
 
@@ -92,7 +92,7 @@ class Trace {
   struct Event {
     const char* name;
     const char* category;
-    int64_t start_ns;  // since the recorder's start
+    int64_t start_ns;     // since the recorder's start
     int64_t duration_ns;  // -1: an instant
     Args args;
   };

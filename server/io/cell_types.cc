@@ -44,8 +44,8 @@ absl::Status ValidateCellTypes(std::span<const uint8_t> vtk_cell_types) {
     parts.push_back(
         absl::StrCat(count, " ", std::string(VtkCellTypeName(type)), " (VTK type ", type, ")"));
   }
-  const bool surface_only = found.size() == 1 && (found.begin()->first == 5 ||
-                                                  found.begin()->first == 9);
+  const bool surface_only =
+      found.size() == 1 && (found.begin()->first == 5 || found.begin()->first == 9);
   return absl::InvalidArgumentError(absl::StrCat(
       "cells: only tetrahedral meshes are served; found ", absl::StrJoin(parts, ", "),
       surface_only ? " (a 2D surface mesh; fill its volume, e.g. with TetGen, first)"

@@ -74,7 +74,9 @@ class FrameWriter {
     }
   }
   template <typename T>
-  void Value(T v) { Bytes(&v, sizeof v); }
+  void Value(T v) {
+    Bytes(&v, sizeof v);
+  }
   void String(std::string_view s) {
     Value(uint32_t(s.size()));
     Bytes(s.data(), s.size());
@@ -112,7 +114,8 @@ const char* SignalName(int sig) {
 // message, and gives up (killing the child) once `progress` says stop.
 class ChildPipes {
  public:
-  ChildPipes(int out, int err, const Progress& progress) : out_(out), err_(err), progress_(progress) {}
+  ChildPipes(int out, int err, const Progress& progress)
+      : out_(out), err_(err), progress_(progress) {}
 
   // False at end of stream (the child exited or crashed) or when stopped; see stopped().
   bool Read(void* data, size_t n) {
@@ -137,7 +140,9 @@ class ChildPipes {
     return true;
   }
   template <typename T>
-  bool Value(T& v) { return Read(&v, sizeof v); }
+  bool Value(T& v) {
+    return Read(&v, sizeof v);
+  }
   bool String(std::string& s, uint32_t max_length) {
     uint32_t length = 0;
     if (!Value(length) || length > max_length) return false;
@@ -200,8 +205,8 @@ class Child {
       Wait();
     }
   }
-  absl::Status Spawn(const std::string& reader, const std::vector<std::string>& args,
-                     int out_write, int err_write, int arrays) {
+  absl::Status Spawn(const std::string& reader, const std::vector<std::string>& args, int out_write,
+                     int err_write, int arrays) {
     posix_spawn_file_actions_t actions;
     posix_spawn_file_actions_init(&actions);
     posix_spawn_file_actions_adddup2(&actions, out_write, STDOUT_FILENO);
@@ -227,8 +232,8 @@ class Child {
     posix_spawnattr_destroy(&attr);
     if (error != 0) {
       pid_ = 0;
-      return absl::InternalError(absl::StrCat("cannot start the mesh reader '", reader,
-                                              "': ", std::strerror(error)));
+      return absl::InternalError(
+          absl::StrCat("cannot start the mesh reader '", reader, "': ", std::strerror(error)));
     }
     return absl::OkStatus();
   }
@@ -257,15 +262,14 @@ absl::Status ChildFailure(const std::string& path, int status, const std::string
           path, ": the mesh reader was killed while reading it, most likely out of memory",
           detail));
     }
-    return absl::InvalidArgumentError(absl::StrCat(
-        path, ": VTK's reader crashed on this file (", SignalName(sig), ", signal ", sig,
-        "); the file is corrupt or truncated", detail));
+    return absl::InvalidArgumentError(absl::StrCat(path, ": VTK's reader crashed on this file (",
+                                                   SignalName(sig), ", signal ", sig,
+                                                   "); the file is corrupt or truncated", detail));
   }
   // A sanitizer build reports a crash and exits instead of dying by the signal.
-  return absl::InvalidArgumentError(absl::StrCat(
-      path, ": VTK's reader crashed on this file (exit ",
-      WIFEXITED(status) ? WEXITSTATUS(status) : -1, "); the file is corrupt or truncated",
-      detail));
+  return absl::InvalidArgumentError(absl::StrCat(path, ": VTK's reader crashed on this file (exit ",
+                                                 WIFEXITED(status) ? WEXITSTATUS(status) : -1,
+                                                 "); the file is corrupt or truncated", detail));
 }
 
 }  // namespace
@@ -293,9 +297,9 @@ int ServeMeshRead(const std::string& path, int64_t memory_limit_bytes, int fd, i
     absl::Status status = mesh.status();
     // VTK reports a failed allocation as a read error; under a limit that is the limit.
     if (memory_limit_bytes > 0 && absl::StrContains(status.message(), "allocat")) {
-      status = absl::ResourceExhaustedError(absl::StrCat(
-          status.message(), " (reading is limited to ", memory_limit_bytes >> 20,
-          " MiB by the header's counts; the file announces less than it holds)"));
+      status = absl::ResourceExhaustedError(
+          absl::StrCat(status.message(), " (reading is limited to ", memory_limit_bytes >> 20,
+                       " MiB by the header's counts; the file announces less than it holds)"));
     }
     out.Value(kError);
     out.Value(int32_t(status.code()));
@@ -311,8 +315,8 @@ int ServeMeshRead(const std::string& path, int64_t memory_limit_bytes, int fd, i
   if (!arrays.ok()) {
     out.Value(kError);
     out.Value(int32_t(absl::StatusCode::kResourceExhausted));
-    out.String(absl::StrCat(path, ": the mesh reader could not hand over the arrays: ",
-                            std::strerror(errno)));
+    out.String(absl::StrCat(
+        path, ": the mesh reader could not hand over the arrays: ", std::strerror(errno)));
     return 1;
   }
   out.Value(kMesh);
@@ -343,9 +347,8 @@ absl::StatusOr<Mesh> ReadMeshIsolated(const std::string& path, const IsolatedRea
   }
 
   Child child;
-  RETURN_IF_ERROR(child.Spawn(
-      options.reader, {path, absl::StrCat(options.memory_limit_bytes)}, out_write.fd,
-      err_write.fd, arrays.fd));
+  RETURN_IF_ERROR(child.Spawn(options.reader, {path, absl::StrCat(options.memory_limit_bytes)},
+                              out_write.fd, err_write.fd, arrays.fd));
   out_write.Close();
   err_write.Close();
 
@@ -434,7 +437,8 @@ absl::StatusOr<Mesh> ReadMeshIsolated(const std::string& path, const IsolatedRea
     }
     return true;
   };
-  bool complete = take(mesh.points, 3 * shape.vertices) && take(mesh.tetrahedra, 4 * shape.tetrahedra);
+  bool complete =
+      take(mesh.points, 3 * shape.vertices) && take(mesh.tetrahedra, 4 * shape.tetrahedra);
   for (PointField& f : mesh.point_fields) complete = complete && take(f.values, shape.vertices);
   if (!complete) {
     child.Wait(/*kill=*/true);

@@ -33,8 +33,8 @@ struct MeshShape {
 };
 
 struct IsolatedReadOptions {
-  std::string reader;               // path of the actopo-read-mesh executable
-  int64_t memory_limit_bytes = 0;   // the child's data limit beyond its start-up use; 0: none
+  std::string reader;              // path of the actopo-read-mesh executable
+  int64_t memory_limit_bytes = 0;  // the child's data limit beyond its start-up use; 0: none
   // Called with the counts the child read before the parent allocates for them; an error stops
   // the read with that error (the memory budget: files whose headers understated their size).
   std::function<absl::Status(const MeshShape&)> admit;

@@ -17,8 +17,8 @@ namespace actopo::io {
 namespace {
 
 using ::testing::AllOf;
-using ::testing::HasSubstr;
 using testing::DataTest;
+using ::testing::HasSubstr;
 using testing::MakeTempDir;
 
 IsolatedReadOptions Isolated(int64_t memory_limit_bytes = int64_t(256) << 20) {
@@ -71,9 +71,7 @@ TEST(IsolatedReadTest, AFileVtkCrashesOnIsAnErrorNotACrash) {
 TEST(IsolatedReadTest, ErrorsOfTheReaderComeBackAsTheyAre) {
   const std::filesystem::path dir = MakeTempDir("isolated_errors");
   const std::string garbage = (dir / "garbage.vtu").string();
-  {
-    std::ofstream(garbage) << "not a VTK file";
-  }
+  { std::ofstream(garbage) << "not a VTK file"; }
   absl::StatusOr<Mesh> in_process = ReadMesh(garbage);
   absl::StatusOr<Mesh> isolated = ReadMeshIsolated(garbage, Isolated());
   ASSERT_FALSE(isolated.ok());
@@ -84,17 +82,15 @@ TEST(IsolatedReadTest, ErrorsOfTheReaderComeBackAsTheyAre) {
 
 TEST_F(DataTest, CancellingKillsTheReader) {
   std::atomic<bool> cancel{false};
-  const Progress cancelling({.cancel = &cancel, .report = [&](std::string_view, double) {
-    cancel = true;
-  }});
+  const Progress cancelling(
+      {.cancel = &cancel, .report = [&](std::string_view, double) { cancel = true; }});
   absl::StatusOr<Mesh> mesh =
       ReadMeshIsolated(DataFile("isabel02_s2_tet.vtu"), Isolated(), cancelling);
   EXPECT_EQ(mesh.status().code(), absl::StatusCode::kCancelled) << mesh.status();
   // Cancelled before the start: no child at all.
-  EXPECT_EQ(ReadMeshIsolated(DataFile("isabel02_s2_tet.vtu"), Isolated(), cancelling)
-                .status()
-                .code(),
-            absl::StatusCode::kCancelled);
+  EXPECT_EQ(
+      ReadMeshIsolated(DataFile("isabel02_s2_tet.vtu"), Isolated(), cancelling).status().code(),
+      absl::StatusCode::kCancelled);
 }
 
 TEST_F(DataTest, AdmitSeesTheCountsBeforeAnythingIsAllocated) {

@@ -8,9 +8,9 @@
 #include <vector>
 
 #include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
-#include "absl/strings/match.h"
 #include "absl/strings/str_split.h"
 #include "absl/strings/string_view.h"
 
@@ -127,8 +127,7 @@ absl::StatusOr<MeshCounts> ImageDataCounts(const std::string& path) {
     if (!counts && absl::StartsWith(tag, "<ImageData")) {
       const std::optional<absl::string_view> extent = Attribute(tag, "WholeExtent");
       if (!extent) return false;
-      const std::vector<absl::string_view> parts =
-          absl::StrSplit(*extent, ' ', absl::SkipEmpty());
+      const std::vector<absl::string_view> parts = absl::StrSplit(*extent, ' ', absl::SkipEmpty());
       int64_t e[6];
       if (parts.size() != 6) return false;
       for (int i = 0; i < 6; ++i) {
@@ -197,7 +196,8 @@ absl::StatusOr<MeshCounts> LegacyCounts(const std::string& path) {
       // Version 5 files give the offsets' count (cells + 1), followed by an OFFSETS section.
       std::string next;
       std::getline(in, next);
-      counts.tetrahedra = absl::StartsWith(next, "OFFSETS") ? std::max<int64_t>(cells - 1, 0) : cells;
+      counts.tetrahedra =
+          absl::StartsWith(next, "OFFSETS") ? std::max<int64_t>(cells - 1, 0) : cells;
       return counts;
     }
   }

@@ -86,10 +86,9 @@ TEST(MeshHeaderTest, WhatHasNoCountsIsInvalidArgument) {
   };
   EXPECT_EQ(ReadMeshCounts(write("empty.vtu", "")).status().code(),
             absl::StatusCode::kInvalidArgument);
-  EXPECT_EQ(ReadMeshCounts(write("piece.vtu", "<VTKFile><Piece NumberOfPoints=\"4\">"))
-                .status()
-                .code(),
-            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(
+      ReadMeshCounts(write("piece.vtu", "<VTKFile><Piece NumberOfPoints=\"4\">")).status().code(),
+      absl::StatusCode::kInvalidArgument);
   EXPECT_EQ(ReadMeshCounts(write("noextent.vti", "<VTKFile><ImageData>")).status().code(),
             absl::StatusCode::kInvalidArgument);
   EXPECT_EQ(ReadMeshCounts(write("nopoints.vtk", "# vtk DataFile Version 3.0\nx\nASCII\n"))

@@ -42,8 +42,9 @@ constexpr std::array<SampleKind, 2> kSamples = {{
 }};
 
 absl::Status BadSample(std::string_view name, const std::string& why) {
-  return absl::InvalidArgumentError(absl::StrCat("sample '", std::string(name), "': ", why,
-                                                 "; samples: ", absl::StrJoin(SampleNames(), "; ")));
+  return absl::InvalidArgumentError(
+      absl::StrCat("sample '", std::string(name), "': ", why,
+                   "; samples: ", absl::StrJoin(SampleNames(), "; ")));
 }
 
 absl::StatusOr<Mesh> MakeWavelet(int n) {
@@ -160,8 +161,8 @@ absl::StatusOr<std::pair<const SampleKind*, int>> ParseSample(std::string_view n
       }
     }
     if (n < kind.min_n || n > kind.max_n) {
-      return BadSample(name, absl::StrCat("N = ", n, " is outside [", kind.min_n, ", ",
-                                          kind.max_n, "]"));
+      return BadSample(name,
+                       absl::StrCat("N = ", n, " is outside [", kind.min_n, ", ", kind.max_n, "]"));
     }
     return std::make_pair(&kind, n);
   }

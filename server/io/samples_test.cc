@@ -136,7 +136,8 @@ TEST(JitteredTest, Fields) {
   const PointField* scalar = mesh.FindField("scalar");
   ASSERT_NE(height, nullptr);
   ASSERT_NE(scalar, nullptr);
-  for (int v = 0; v < mesh.num_vertices(); ++v) EXPECT_EQ(height->values[v], mesh.points[3 * v + 2]);
+  for (int v = 0; v < mesh.num_vertices(); ++v)
+    EXPECT_EQ(height->values[v], mesh.points[3 * v + 2]);
   const auto [low, high] = std::minmax_element(scalar->values.begin(), scalar->values.end());
   EXPECT_LT(*low, -1);
   EXPECT_GT(*high, 1);

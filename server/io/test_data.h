@@ -8,12 +8,12 @@
 #ifndef ACTOPO_SERVER_IO_TEST_DATA_H_
 #define ACTOPO_SERVER_IO_TEST_DATA_H_
 
+#include <unistd.h>
+
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
-
-#include <unistd.h>
 
 #include "gtest/gtest.h"
 #include "server/core/mesh.h"

@@ -2,9 +2,9 @@
 
 #include <vtkDataSetTriangleFilter.h>
 #include <vtkNew.h>
-#include <vtkVersion.h>
 #include <vtkUnstructuredGrid.h>
 #include <vtkUnstructuredGridReader.h>
+#include <vtkVersion.h>
 #include <vtkXMLImageDataReader.h>
 #include <vtkXMLUnstructuredGridReader.h>
 
@@ -74,8 +74,7 @@ const char* LegacyDataSetKind(vtkUnstructuredGridReader& reader) {
   return nullptr;
 }
 
-absl::StatusOr<Mesh> ReadLegacyUnstructuredGrid(const std::string& path,
-                                                const Progress& progress) {
+absl::StatusOr<Mesh> ReadLegacyUnstructuredGrid(const std::string& path, const Progress& progress) {
   constexpr char kFormat[] = "a legacy VTK unstructured grid (.vtk)";
   vtkNew<vtkUnstructuredGridReader> reader;
   internal::VtkErrorCollector errors(reader);
@@ -83,9 +82,9 @@ absl::StatusOr<Mesh> ReadLegacyUnstructuredGrid(const std::string& path,
   if (!reader->IsFileUnstructuredGrid()) {
     const char* kind = LegacyDataSetKind(*reader);
     if (kind == nullptr) return Unreadable(path, kFormat, errors);
-    return absl::InvalidArgumentError(absl::StrCat(
-        path, ": the legacy VTK file holds ", kind,
-        ", not an unstructured grid; only unstructured grids of tetrahedra are read"));
+    return absl::InvalidArgumentError(
+        absl::StrCat(path, ": the legacy VTK file holds ", kind,
+                     ", not an unstructured grid; only unstructured grids of tetrahedra are read"));
   }
   // By default the legacy reader keeps only the first SCALARS section of each attribute block.
   reader->ReadAllScalarsOn();

@@ -15,10 +15,10 @@
 namespace actopo::io {
 namespace {
 
-using ::testing::ElementsAre;
-using ::testing::HasSubstr;
 using testing::DataDir;
 using testing::DataTest;
+using ::testing::ElementsAre;
+using ::testing::HasSubstr;
 using testing::MakeTempDir;
 using testing::SignedVolume6;
 
@@ -45,14 +45,13 @@ class ReadDataTest : public DataTest, public ::testing::WithParamInterface<Expec
 // Counts from shared/data/README.md.
 INSTANTIATE_TEST_SUITE_P(
     SharedData, ReadDataTest,
-    ::testing::Values(
-        Expected{"manifoldCheck0_tet.vtu", 29, 24, {"height"}},
-        Expected{"manifoldCheck1_tet.vtu", 24, 24, {"height"}},
-        Expected{"manifoldCheck2_tet.vtu", 20, 24, {"height"}},
-        Expected{"casting_tet.vtu", 14756, 57263, {"eigenfunction4", "height"}},
-        Expected{"fertility_tet.vtu", 14570, 60948, {"eigenfunction4", "height"}},
-        Expected{"isabel02_s2_tet.vtu", 51597, 230640, {"velocityMag"}},
-        Expected{"viscousFingers001_s2_tet.vtu", 32768, 148955, {"density"}}),
+    ::testing::Values(Expected{"manifoldCheck0_tet.vtu", 29, 24, {"height"}},
+                      Expected{"manifoldCheck1_tet.vtu", 24, 24, {"height"}},
+                      Expected{"manifoldCheck2_tet.vtu", 20, 24, {"height"}},
+                      Expected{"casting_tet.vtu", 14756, 57263, {"eigenfunction4", "height"}},
+                      Expected{"fertility_tet.vtu", 14570, 60948, {"eigenfunction4", "height"}},
+                      Expected{"isabel02_s2_tet.vtu", 51597, 230640, {"velocityMag"}},
+                      Expected{"viscousFingers001_s2_tet.vtu", 32768, 148955, {"density"}}),
     [](const auto& info) {
       std::string name = info.param.file.substr(0, info.param.file.find('.'));
       return name;
@@ -146,9 +145,9 @@ TEST_F(DataTest, ReportsReadingAndStopsWhenCancelled) {
     std::atomic<bool> cancel{false};
     int reports = 0;
     const Progress cancelling({.cancel = &cancel, .report = [&](std::string_view, double) {
-      ++reports;
-      cancel = true;
-    }});
+                                 ++reports;
+                                 cancel = true;
+                               }});
     absl::StatusOr<Mesh> stopped = ReadMesh(DataFile(file), {}, cancelling);
     EXPECT_EQ(stopped.status().code(), absl::StatusCode::kCancelled) << file;
     EXPECT_LT(reports, int(fractions.size())) << file;
@@ -158,12 +157,12 @@ TEST_F(DataTest, ReportsReadingAndStopsWhenCancelled) {
 // Found by fuzz/mesh_file_fuzzer: a compressed block header promising an absurd block count
 // made VTK's parser throw std::length_error, which ended the process.
 TEST(ReadMeshTest, ACorruptCompressionHeaderIsAnErrorNotACrash) {
-  const std::string path = std::string(ACTOPO_SOURCE_DIR) +
-                           "/server/io/testdata/compressed_header_overflow.vtu";
+  const std::string path =
+      std::string(ACTOPO_SOURCE_DIR) + "/server/io/testdata/compressed_header_overflow.vtu";
   absl::StatusOr<Mesh> mesh = ReadMesh(path);
   ASSERT_FALSE(mesh.ok());
   EXPECT_THAT(mesh.status().code(), ::testing::AnyOf(absl::StatusCode::kInvalidArgument,
-                                                   absl::StatusCode::kResourceExhausted));
+                                                     absl::StatusCode::kResourceExhausted));
   EXPECT_THAT(mesh.status().message(), HasSubstr("compressed_header_overflow.vtu"));
 }
 

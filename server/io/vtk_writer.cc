@@ -1,6 +1,7 @@
 #include "server/io/vtk_writer.h"
 
 #include <vtkCellArray.h>
+#include <vtkCellData.h>
 #include <vtkDataSetAttributes.h>
 #include <vtkDoubleArray.h>
 #include <vtkErrorCode.h>
@@ -8,7 +9,6 @@
 #include <vtkIntArray.h>
 #include <vtkNew.h>
 #include <vtkPointData.h>
-#include <vtkCellData.h>
 #include <vtkPoints.h>
 #include <vtkPolyData.h>
 #include <vtkSignedCharArray.h>
@@ -36,11 +36,24 @@
 namespace actopo::io {
 namespace {
 
-template <typename T> struct VtkArrayFor;
-template <> struct VtkArrayFor<int32_t> { using type = vtkIntArray; };
-template <> struct VtkArrayFor<int8_t> { using type = vtkSignedCharArray; };
-template <> struct VtkArrayFor<double> { using type = vtkDoubleArray; };
-template <> struct VtkArrayFor<float> { using type = vtkFloatArray; };
+template <typename T>
+struct VtkArrayFor;
+template <>
+struct VtkArrayFor<int32_t> {
+  using type = vtkIntArray;
+};
+template <>
+struct VtkArrayFor<int8_t> {
+  using type = vtkSignedCharArray;
+};
+template <>
+struct VtkArrayFor<double> {
+  using type = vtkDoubleArray;
+};
+template <>
+struct VtkArrayFor<float> {
+  using type = vtkFloatArray;
+};
 
 template <typename T>
 vtkSmartPointer<vtkDataArray> MakeArray(const std::string& name, const std::vector<T>& values) {
@@ -74,9 +87,8 @@ vtkSmartPointer<vtkDataArray> MakeArray(const PointField& field) {
 
 // Adds arrays to point or cell data after checking their names and lengths. `names` collects
 // the names already used in the same attribute set: VTK would silently replace a duplicate.
-absl::Status AddArrays(std::span<const NamedArray> arrays, size_t expected_size,
-                       const char* what, std::set<std::string>& names,
-                       vtkDataSetAttributes& attributes) {
+absl::Status AddArrays(std::span<const NamedArray> arrays, size_t expected_size, const char* what,
+                       std::set<std::string>& names, vtkDataSetAttributes& attributes) {
   for (const NamedArray& array : arrays) {
     if (array.name.empty()) {
       return absl::InvalidArgumentError(absl::StrCat(what, " array: the name is empty"));
@@ -98,15 +110,15 @@ absl::Status AddArrays(std::span<const NamedArray> arrays, size_t expected_size,
 absl::Status CheckOutputPath(const std::string& path, const char* extension) {
   namespace fs = std::filesystem;
   if (absl::AsciiStrToLower(fs::path(path).extension().string()) != extension) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        path, ": the file name must end in ", extension, " (ParaView picks its reader by it)"));
+    return absl::InvalidArgumentError(absl::StrCat(path, ": the file name must end in ", extension,
+                                                   " (ParaView picks its reader by it)"));
   }
   std::error_code error;
   fs::path directory = fs::path(path).parent_path();
   if (directory.empty()) directory = ".";
   if (!fs::is_directory(directory, error)) {
-    return absl::NotFoundError(absl::StrCat(path, ": cannot write, directory '",
-                                            directory.string(), "' does not exist"));
+    return absl::NotFoundError(
+        absl::StrCat(path, ": cannot write, directory '", directory.string(), "' does not exist"));
   }
   if (fs::is_directory(path, error)) {
     return absl::InvalidArgumentError(absl::StrCat(path, ": cannot write, it is a directory"));
@@ -165,8 +177,8 @@ absl::Status ValidateLines(const PolyData& poly) {
   const std::vector<int32_t>& connectivity = poly.line_connectivity;
   if (offsets.empty()) {
     if (connectivity.empty()) return absl::OkStatus();
-    return absl::InvalidArgumentError(absl::StrCat(
-        "line_offsets: empty but line_connectivity has ", connectivity.size(), " ids"));
+    return absl::InvalidArgumentError(absl::StrCat("line_offsets: empty but line_connectivity has ",
+                                                   connectivity.size(), " ids"));
   }
   if (offsets.front() != 0) {
     return absl::InvalidArgumentError(
@@ -174,22 +186,22 @@ absl::Status ValidateLines(const PolyData& poly) {
   }
   for (size_t i = 0; i + 1 < offsets.size(); ++i) {
     if (offsets[i + 1] - offsets[i] < 2) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "line_offsets: line ", i, " has ", offsets[i + 1] - offsets[i],
-          " points; a line needs at least 2"));
+      return absl::InvalidArgumentError(absl::StrCat("line_offsets: line ", i, " has ",
+                                                     offsets[i + 1] - offsets[i],
+                                                     " points; a line needs at least 2"));
     }
   }
   if (static_cast<size_t>(offsets.back()) != connectivity.size()) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("line_offsets: ends at ", offsets.back(), " but line_connectivity has ",
-                     connectivity.size(), " ids"));
+    return absl::InvalidArgumentError(absl::StrCat("line_offsets: ends at ", offsets.back(),
+                                                   " but line_connectivity has ",
+                                                   connectivity.size(), " ids"));
   }
   const size_t num_points = poly.points.size() / 3;
   for (size_t i = 0; i < connectivity.size(); ++i) {
     if (connectivity[i] < 0 || static_cast<size_t>(connectivity[i]) >= num_points) {
       return absl::InvalidArgumentError(absl::StrCat("line_connectivity: entry ", i, " is ",
-                                                     connectivity[i], ", outside [0, ",
-                                                     num_points, ")"));
+                                                     connectivity[i], ", outside [0, ", num_points,
+                                                     ")"));
     }
   }
   return absl::OkStatus();
@@ -215,8 +227,8 @@ absl::Status WriteUnstructuredGrid(const std::string& path, const Mesh& mesh,
     names.insert(field.name);
     grid->GetPointData()->AddArray(MakeArray(field));
   }
-  RETURN_IF_ERROR(AddArrays(extra_point_arrays, mesh.points.size() / 3, "point", names,
-                            *grid->GetPointData()));
+  RETURN_IF_ERROR(
+      AddArrays(extra_point_arrays, mesh.points.size() / 3, "point", names, *grid->GetPointData()));
 
   vtkNew<vtkXMLUnstructuredGridWriter> writer;
   writer->SetInputData(grid);
@@ -226,8 +238,8 @@ absl::Status WriteUnstructuredGrid(const std::string& path, const Mesh& mesh,
 absl::Status WritePolyData(const std::string& path, const PolyData& poly_data) {
   RETURN_IF_ERROR(CheckOutputPath(path, ".vtp"));
   if (poly_data.points.size() % 3 != 0) {
-    return absl::InvalidArgumentError(absl::StrCat("points: ", poly_data.points.size(),
-                                                   " coordinates is not a multiple of 3"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("points: ", poly_data.points.size(), " coordinates is not a multiple of 3"));
   }
   if (poly_data.points.size() / 3 > static_cast<size_t>(INT32_MAX)) {
     return absl::InvalidArgumentError("points: more than 2^31 - 1 points");
@@ -255,8 +267,8 @@ absl::Status WritePolyData(const std::string& path, const PolyData& poly_data) {
   }
 
   std::set<std::string> point_names;
-  RETURN_IF_ERROR(AddArrays(poly_data.point_arrays, num_points, "point", point_names,
-                            *poly->GetPointData()));
+  RETURN_IF_ERROR(
+      AddArrays(poly_data.point_arrays, num_points, "point", point_names, *poly->GetPointData()));
   std::set<std::string> cell_names;
   RETURN_IF_ERROR(AddArrays(poly_data.cell_arrays, num_cells, has_lines ? "line" : "vertex cell",
                             cell_names, *poly->GetCellData()));

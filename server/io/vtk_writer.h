@@ -32,8 +32,8 @@ namespace actopo::io {
 // One value per point (or per cell). The alternatives map to vtkIntArray (Int32),
 // vtkSignedCharArray (Int8), vtkDoubleArray (Float64) and vtkFloatArray (Float32).
 struct NamedArray {
-  using Values =
-      std::variant<std::vector<int32_t>, std::vector<int8_t>, std::vector<double>, std::vector<float>>;
+  using Values = std::variant<std::vector<int32_t>, std::vector<int8_t>, std::vector<double>,
+                              std::vector<float>>;
 
   std::string name;
   Values values;

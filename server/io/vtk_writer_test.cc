@@ -85,13 +85,14 @@ TEST(WriteUnstructuredGridTest, RoundTripWithExtraArrays) {
   EXPECT_EQ(back->tetrahedra, mesh.tetrahedra);
   ASSERT_EQ(back->point_fields.size(), 7u);
   const std::vector<std::pair<std::string, bool>> expected = {
-      {"scalar", false}, {"height", false}, {"label", true},   {"Order", true},
+      {"scalar", false},      {"height", false},      {"label", true}, {"Order", true},
       {"CriticalType", true}, {"Persistence", false}, {"Ratio", false}};
   for (size_t i = 0; i < expected.size(); ++i) {
     EXPECT_EQ(back->point_fields[i].name, expected[i].first);
     EXPECT_EQ(back->point_fields[i].is_integer, expected[i].second) << expected[i].first;
   }
-  for (size_t i = 0; i < 3; ++i) EXPECT_EQ(back->point_fields[i].values, mesh.point_fields[i].values);
+  for (size_t i = 0; i < 3; ++i)
+    EXPECT_EQ(back->point_fields[i].values, mesh.point_fields[i].values);
   for (size_t v = 0; v < n; ++v) {
     EXPECT_EQ(back->point_fields[3].values[v], order[v]);
     EXPECT_EQ(back->point_fields[4].values[v], type[v]);
@@ -102,8 +103,8 @@ TEST(WriteUnstructuredGridTest, RoundTripWithExtraArrays) {
 
 TEST(WriteUnstructuredGridTest, WideIntegerFieldFallsBackToDouble) {
   Mesh mesh = Jittered3();
-  PointField wide{.name = "wide", .values = std::vector<double>(mesh.num_vertices(), 5e9),
-                  .is_integer = true};
+  PointField wide{
+      .name = "wide", .values = std::vector<double>(mesh.num_vertices(), 5e9), .is_integer = true};
   mesh.point_fields.push_back(wide);
   const std::string path = (MakeTempDir("vtu_wide") / "mesh.vtu").string();
   ASSERT_TRUE(WriteUnstructuredGrid(path, mesh).ok());

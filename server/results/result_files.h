@@ -25,7 +25,7 @@ struct ResultContext {
   const Mesh& mesh;
   const Topology& topology;
   std::string scalar_name;
-  std::span<const double> scalars;         // by input vertex id
+  std::span<const double> scalars;          // by input vertex id
   std::vector<uint8_t> vertex_on_boundary;  // by internal vertex id
 };
 

@@ -79,13 +79,14 @@ absl::Status ApplyParameters(const std::map<std::string, std::string>& parameter
       } else if (value == "none") {
         input.critical_points.boundary_rule = BoundaryRule::kNone;
       } else {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "parameters.boundary_rule: unknown value '", value, "'; available: ttk, none"));
+        return absl::InvalidArgumentError(absl::StrCat("parameters.boundary_rule: unknown value '",
+                                                       value, "'; available: ttk, none"));
       }
       continue;
     }
     return absl::InvalidArgumentError(absl::StrCat("parameters: unknown parameter '", name,
-                                                   "' for ", std::string(AlgorithmName(input.algorithm))));
+                                                   "' for ",
+                                                   std::string(AlgorithmName(input.algorithm))));
   }
   return absl::OkStatus();
 }

@@ -4,6 +4,7 @@
 #include <fstream>
 #include <functional>
 #include <tuple>
+
 #include "server/algorithms/digest.h"
 #include "server/io/test_data.h"
 #include "server/service/testing/service_fixture.h"
@@ -108,15 +109,25 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
   using C = grpc::StatusCode;
   std::vector<Case> cases = {
       {"path escaping the data dir", C::INVALID_ARGUMENT, "outside the server's data directory",
-       [](auto* t, auto&, auto&, auto&) { return static_cast<BadInputTest*>(t)->Load("../../etc/passwd"); }},
+       [](auto* t, auto&, auto&, auto&) {
+         return static_cast<BadInputTest*>(t)->Load("../../etc/passwd");
+       }},
       {"absolute path", C::INVALID_ARGUMENT, "outside",
-       [](auto* t, auto&, auto&, auto&) { return static_cast<BadInputTest*>(t)->Load("/etc/passwd"); }},
+       [](auto* t, auto&, auto&, auto&) {
+         return static_cast<BadInputTest*>(t)->Load("/etc/passwd");
+       }},
       {"missing file", C::NOT_FOUND, "nope.vtu",
-       [](auto* t, auto&, auto&, auto&) { return static_cast<BadInputTest*>(t)->Load("nope.vtu"); }},
+       [](auto* t, auto&, auto&, auto&) {
+         return static_cast<BadInputTest*>(t)->Load("nope.vtu");
+       }},
       {"unknown extension", C::INVALID_ARGUMENT, ".txt",
-       [](auto* t, auto&, auto&, auto&) { return static_cast<BadInputTest*>(t)->Load("notamesh.txt"); }},
+       [](auto* t, auto&, auto&, auto&) {
+         return static_cast<BadInputTest*>(t)->Load("notamesh.txt");
+       }},
       {"corrupt vtu", C::INVALID_ARGUMENT, "corrupt.vtu",
-       [](auto* t, auto&, auto&, auto&) { return static_cast<BadInputTest*>(t)->Load("corrupt.vtu"); }},
+       [](auto* t, auto&, auto&, auto&) {
+         return static_cast<BadInputTest*>(t)->Load("corrupt.vtu");
+       }},
       {"empty path", C::INVALID_ARGUMENT, "path",
        [](auto* t, auto&, auto&, auto&) { return static_cast<BadInputTest*>(t)->Load(""); }},
       {"unknown sample", C::INVALID_ARGUMENT, "sample 'teapot'",
@@ -188,7 +199,8 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
        }},
       {"unknown session", C::NOT_FOUND, "session-guess",
        [](auto* t, auto&, auto&, auto&) {
-         return static_cast<BadInputTest*>(t)->Relation("session-guess", v1::RELATION_VERTEX_STAR, 0);
+         return static_cast<BadInputTest*>(t)->Relation("session-guess", v1::RELATION_VERTEX_STAR,
+                                                        0);
        }},
       {"vertex id past the end", C::OUT_OF_RANGE, "vertex id 125",
        [](auto* t, auto&, auto&, auto& s) {
@@ -376,7 +388,8 @@ std::string Legacy(const std::vector<std::string>& points, const std::vector<std
   for (const std::string& c : cells) text += c + "\n";
   text += "CELL_TYPES " + std::to_string(types.size()) + "\n";
   for (int t : types) text += std::to_string(t) + "\n";
-  text += "POINT_DATA " + std::to_string(points.size()) + "\nSCALARS s double 1\n"
+  text += "POINT_DATA " + std::to_string(points.size()) +
+          "\nSCALARS s double 1\n"
           "LOOKUP_TABLE default\n";
   for (size_t i = 0; i < points.size(); ++i) text += std::to_string(i) + " ";
   return text + "\n";
@@ -407,10 +420,11 @@ std::string RawVtu(const std::vector<double>& points, const std::vector<int64_t>
   };
   return "<?xml version=\"1.0\"?><VTKFile type=\"UnstructuredGrid\" version=\"1.0\" "
          "byte_order=\"LittleEndian\" header_type=\"UInt32\"><UnstructuredGrid><Piece "
-         "NumberOfPoints=\"" + std::to_string(points.size() / 3) + "\" NumberOfCells=\"" +
-         std::to_string(cells) + "\"><Points>" + array("Float64", "Points", 3, offsets[0]) +
-         "</Points><Cells>" + array("Int64", "connectivity", 1, offsets[1]) +
-         array("Int64", "offsets", 1, offsets[2]) + array("UInt8", "types", 1, offsets[3]) +
+         "NumberOfPoints=\"" +
+         std::to_string(points.size() / 3) + "\" NumberOfCells=\"" + std::to_string(cells) +
+         "\"><Points>" + array("Float64", "Points", 3, offsets[0]) + "</Points><Cells>" +
+         array("Int64", "connectivity", 1, offsets[1]) + array("Int64", "offsets", 1, offsets[2]) +
+         array("UInt8", "types", 1, offsets[3]) +
          "</Cells></Piece></UnstructuredGrid><AppendedData encoding=\"raw\">_" + data +
          "</AppendedData></VTKFile>";
 }
@@ -485,12 +499,14 @@ TEST_F(BadInputTest, HostileMeshesAndMoreRequests) {
   const std::string session = Open(mesh, v1::STRUCTURE_COMPACT);
   using C = grpc::StatusCode;
   auto load = [](std::string path) {
-    return [path](auto* t, auto&, auto&, auto&) { return static_cast<BadInputTest*>(t)->Load(path); };
+    return
+        [path](auto* t, auto&, auto&, auto&) { return static_cast<BadInputTest*>(t)->Load(path); };
   };
   std::vector<Case> cases = {
-      {"file: NaN coordinate", C::INVALID_ARGUMENT, "vertex 1 has a non-finite coordinate x = nan", load("nan.vtu")},
-      {"file: infinite coordinate", C::INVALID_ARGUMENT, "vertex 2 has a non-finite coordinate y = inf",
-       load("inf.vtu")},
+      {"file: NaN coordinate", C::INVALID_ARGUMENT, "vertex 1 has a non-finite coordinate x = nan",
+       load("nan.vtu")},
+      {"file: infinite coordinate", C::INVALID_ARGUMENT,
+       "vertex 2 has a non-finite coordinate y = inf", load("inf.vtu")},
       {"file: mixed cell types", C::INVALID_ARGUMENT, "only tetrahedral", load("mixed.vtk")},
       {"file: triangles only", C::INVALID_ARGUMENT, "only tetrahedral", load("flat.vtk")},
       {"file: vertex id out of range", C::INVALID_ARGUMENT, "badid.vtk", load("badid.vtk")},
@@ -557,7 +573,8 @@ TEST_F(BadInputTest, HostileMeshesAndMoreRequests) {
        }},
       {"session: NaN buffer ratio", C::INVALID_ARGUMENT, "engine.buffer_ratio: nan",
        [](auto*, auto& stub, auto& m, auto&) {
-         return OpenWith(stub, m, [](auto& r) { r.mutable_engine()->set_buffer_ratio(std::nan("")); });
+         return OpenWith(stub, m,
+                         [](auto& r) { r.mutable_engine()->set_buffer_ratio(std::nan("")); });
        }},
       {"batch: tuples of the wrong width", C::INVALID_ARGUMENT, "vertex_tuples.shape",
        [](auto*, auto& stub, auto&, auto& s) {

@@ -7,10 +7,10 @@ namespace actopo::service {
 absl::Status MemoryBudget::Reserve(int64_t bytes, const std::string& what) {
   std::lock_guard<std::mutex> lock(mu_);
   if (used_ + bytes > limit_) {
-    return absl::ResourceExhaustedError(absl::StrCat(
-        what, " needs about ", bytes >> 20, " MiB but the server's memory budget has ",
-        (limit_ - used_) >> 20, " MiB left of ", limit_ >> 20,
-        " MiB (delete meshes or close sessions, or raise --memory-budget-mib)"));
+    return absl::ResourceExhaustedError(
+        absl::StrCat(what, " needs about ", bytes >> 20, " MiB but the server's memory budget has ",
+                     (limit_ - used_) >> 20, " MiB left of ", limit_ >> 20,
+                     " MiB (delete meshes or close sessions, or raise --memory-budget-mib)"));
   }
   used_ += bytes;
   return absl::OkStatus();

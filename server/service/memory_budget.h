@@ -34,7 +34,9 @@ class Reservation {
   // An empty reservation can be resized too, once it knows its budget.
   explicit Reservation(MemoryBudget* budget) : budget_(budget) {}
   Reservation(MemoryBudget* budget, int64_t bytes) : budget_(budget), bytes_(bytes) {}
-  Reservation(Reservation&& o) noexcept : budget_(o.budget_), bytes_(o.bytes_) { o.budget_ = nullptr; }
+  Reservation(Reservation&& o) noexcept : budget_(o.budget_), bytes_(o.bytes_) {
+    o.budget_ = nullptr;
+  }
   Reservation& operator=(Reservation&& o) noexcept {
     if (this != &o) {
       Reset();

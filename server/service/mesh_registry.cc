@@ -47,9 +47,9 @@ int64_t MeshRegistry::EstimateBytes(int64_t vertices, int64_t tetrahedra, int po
 absl::Status MeshRegistry::CheckCapacity() const {
   std::lock_guard<std::mutex> lock(mu_);
   if (int(meshes_.size()) >= options_.max_meshes) {
-    return absl::ResourceExhaustedError(absl::StrCat(
-        "meshes: the server holds its maximum of ", options_.max_meshes,
-        " meshes; delete one first (--max-meshes raises the limit)"));
+    return absl::ResourceExhaustedError(
+        absl::StrCat("meshes: the server holds its maximum of ", options_.max_meshes,
+                     " meshes; delete one first (--max-meshes raises the limit)"));
   }
   return absl::OkStatus();
 }
@@ -78,13 +78,12 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFile(
   // bytes per vertex and 57 per tetrahedron); else, for a header without counts, a bound from
   // the file's size (compressed files expand).
   absl::StatusOr<io::MeshCounts> counts = io::ReadMeshCounts(full.string());
-  const int64_t need = counts.ok() ? EstimateBytes(counts->vertices, counts->tetrahedra,
-                                                   counts->point_fields)
-                                   : int64_t(fs::file_size(full, ec)) * 4;
+  const int64_t need =
+      counts.ok() ? EstimateBytes(counts->vertices, counts->tetrahedra, counts->point_fields)
+                  : int64_t(fs::file_size(full, ec)) * 4;
   RETURN_IF_ERROR(budget_->Reserve(
-      need, counts.ok() ? absl::StrCat("loading '", path, "' (", counts->vertices,
-                                       " vertices and ", counts->tetrahedra,
-                                       " tetrahedra by its header)")
+      need, counts.ok() ? absl::StrCat("loading '", path, "' (", counts->vertices, " vertices and ",
+                                       counts->tetrahedra, " tetrahedra by its header)")
                         : absl::StrCat("loading '", path, "'")));
   Reservation reading(budget_, need);
   const auto start = std::chrono::steady_clock::now();
@@ -100,9 +99,9 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFile(
         .admit = [&](const io::MeshShape& shape) {
           const int64_t bytes = EstimateBytes(shape.vertices, shape.tetrahedra, shape.point_fields);
           if (bytes <= reading.bytes()) return absl::OkStatus();
-          return reading.Resize(bytes, absl::StrCat("loading '", path, "' (", shape.vertices,
-                                                    " vertices and ", shape.tetrahedra,
-                                                    " tetrahedra, more than its header said)"));
+          return reading.Resize(
+              bytes, absl::StrCat("loading '", path, "' (", shape.vertices, " vertices and ",
+                                  shape.tetrahedra, " tetrahedra, more than its header said)"));
         }};
     read = io::ReadMeshIsolated(full.string(), isolated, progress);
   }
@@ -136,8 +135,8 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Add(
     const PartitionOptions& partition, const Progress& progress, Reservation reserved) {
   RETURN_IF_ERROR(CheckCapacity());
   RETURN_IF_ERROR(ValidateMesh(mesh));
-  const int64_t estimate = EstimateBytes(mesh.num_vertices(), mesh.num_tetrahedra(),
-                                         int(mesh.point_fields.size()));
+  const int64_t estimate =
+      EstimateBytes(mesh.num_vertices(), mesh.num_tetrahedra(), int(mesh.point_fields.size()));
   if (reserved.bytes() == 0) reserved = Reservation(budget_);
   RETURN_IF_ERROR(reserved.Resize(estimate, absl::StrCat("mesh '", name, "'")));
   auto loaded = std::make_unique<LoadedMesh>();

@@ -95,8 +95,8 @@ absl::StatusOr<std::unique_ptr<Metrics>> Metrics::Create(const std::string& host
   m->f_->sessions = gauge("actopo_sessions", "Open sessions");
   m->f_->budget_used = gauge("actopo_memory_budget_used_bytes",
                              "Bytes reserved by meshes and sessions in the memory budget");
-  m->f_->budget_limit = gauge("actopo_memory_budget_limit_bytes",
-                              "The memory budget (--memory-budget-mib)");
+  m->f_->budget_limit =
+      gauge("actopo_memory_budget_limit_bytes", "The memory budget (--memory-budget-mib)");
   m->f_->rss = gauge("actopo_process_resident_bytes", "Resident memory of the server");
   m->f_->threads = gauge("actopo_engine_threads", "Engine threads reserved");
   m->collectable_ = std::make_shared<ScrapeTimeGauges>(m->registry_, m->f_.get());

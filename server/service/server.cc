@@ -57,11 +57,11 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& o) {
       MeshRegistryOptions{
           .data_dir = o.data_dir, .max_meshes = o.max_meshes, .reader = o.mesh_reader},
       s.budget.get());
-  s.sessions = std::make_unique<SessionManager>(
-      SessionLimits{.max_sessions = o.max_sessions,
-                    .max_engine_threads = o.max_engine_threads,
-                    .idle_timeout = o.session_idle_timeout},
-      s.budget.get());
+  s.sessions =
+      std::make_unique<SessionManager>(SessionLimits{.max_sessions = o.max_sessions,
+                                                     .max_engine_threads = o.max_engine_threads,
+                                                     .idle_timeout = o.session_idle_timeout},
+                                       s.budget.get());
   s.service = std::make_unique<TopologyServiceImpl>(
       s.meshes.get(), s.sessions.get(), s.budget.get(), s.metrics.get(),
       ServiceLimits{.max_batch_size = o.max_batch_size,
@@ -69,8 +69,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& o) {
                     .max_meshes = o.max_meshes,
                     .max_sessions = o.max_sessions,
                     .max_engine_threads = o.max_engine_threads,
-                    .session_idle_timeout_seconds =
-                        absl::ToInt64Seconds(o.session_idle_timeout)},
+                    .session_idle_timeout_seconds = absl::ToInt64Seconds(o.session_idle_timeout)},
       o.token);
 
   std::shared_ptr<grpc::ServerCredentials> credentials = grpc::InsecureServerCredentials();

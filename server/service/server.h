@@ -21,19 +21,19 @@ namespace actopo::service {
 
 struct ServerOptions {
   std::string host = "0.0.0.0";
-  int port = 50051;                  // 0: pick a free port (see Server::port())
-  std::string data_dir;              // LoadMesh paths are relative to it; empty: no files
-  std::string mesh_reader;           // actopo-read-mesh: files read in a child; empty: in process
-  int metrics_port = 0;              // Prometheus /metrics; 0: off
+  int port = 50051;         // 0: pick a free port (see Server::port())
+  std::string data_dir;     // LoadMesh paths are relative to it; empty: no files
+  std::string mesh_reader;  // actopo-read-mesh: files read in a child; empty: in process
+  int metrics_port = 0;     // Prometheus /metrics; 0: off
   int max_meshes = 16;
   int max_sessions = 64;
   int max_engine_threads = 64;
-  int64_t memory_budget_bytes = 0;   // 0: 75% of physical memory
+  int64_t memory_budget_bytes = 0;  // 0: 75% of physical memory
   int64_t max_message_bytes = 64 << 20;
   int max_batch_size = 1 << 20;
   absl::Duration session_idle_timeout = absl::Minutes(30);
   std::string tls_cert_file, tls_key_file;  // both set: TLS
-  std::string token;                 // non-empty: require "authorization: Bearer TOKEN"
+  std::string token;                        // non-empty: require "authorization: Bearer TOKEN"
 };
 
 class Server {

@@ -43,7 +43,6 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
   void Drain();
   bool draining() const { return draining_.load(); }
 
-
   grpc::ServerUnaryReactor* GetServerInfo(grpc::CallbackServerContext*,
                                           const v1::GetServerInfoRequest*,
                                           v1::GetServerInfoResponse*) override;
@@ -59,8 +58,7 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
                                     v1::GetMeshResponse*) override;
   grpc::ServerUnaryReactor* DeleteMesh(grpc::CallbackServerContext*, const v1::DeleteMeshRequest*,
                                        v1::DeleteMeshResponse*) override;
-  grpc::ServerUnaryReactor* OpenSession(grpc::CallbackServerContext*,
-                                        const v1::OpenSessionRequest*,
+  grpc::ServerUnaryReactor* OpenSession(grpc::CallbackServerContext*, const v1::OpenSessionRequest*,
                                         v1::OpenSessionResponse*) override;
   grpc::ServerUnaryReactor* GetSession(grpc::CallbackServerContext*, const v1::GetSessionRequest*,
                                        v1::GetSessionResponse*) override;
@@ -73,14 +71,13 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
   grpc::ServerUnaryReactor* GetSessionStats(grpc::CallbackServerContext*,
                                             const v1::GetSessionStatsRequest*,
                                             v1::GetSessionStatsResponse*) override;
-  grpc::ServerUnaryReactor* GetRelation(grpc::CallbackServerContext*,
-                                        const v1::GetRelationRequest*,
+  grpc::ServerUnaryReactor* GetRelation(grpc::CallbackServerContext*, const v1::GetRelationRequest*,
                                         v1::GetRelationResponse*) override;
   grpc::ServerUnaryReactor* GetRelationBatch(grpc::CallbackServerContext*,
                                              const v1::GetRelationBatchRequest*,
                                              v1::GetRelationBatchResponse*) override;
-  grpc::ServerBidiReactor<v1::StreamRelationsRequest, v1::StreamRelationsResponse>*
-  StreamRelations(grpc::CallbackServerContext*) override;
+  grpc::ServerBidiReactor<v1::StreamRelationsRequest, v1::StreamRelationsResponse>* StreamRelations(
+      grpc::CallbackServerContext*) override;
   grpc::ServerWriteReactor<v1::RunJobResponse>* RunJob(grpc::CallbackServerContext*,
                                                        const v1::RunJobRequest*) override;
   grpc::ServerUnaryReactor* CancelJob(grpc::CallbackServerContext*, const v1::CancelJobRequest*,
@@ -100,9 +97,8 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
     absl::Status status;
   };
   absl::Status AnswerBatch(const std::string& session_id, v1::Relation relation,
-                           const v1::Array* ids, const v1::Array* vertex_tuples,
-                           v1::Array* offsets, v1::Array* values,
-                           std::vector<ItemFailure>* failures);
+                           const v1::Array* ids, const v1::Array* vertex_tuples, v1::Array* offsets,
+                           v1::Array* values, std::vector<ItemFailure>* failures);
   // The mesh a LoadMesh request names, loaded, partitioned and registered.
   absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadRequested(
       const v1::LoadMeshRequest& request, const Progress& progress);

@@ -91,8 +91,8 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
       return absl::InvalidArgumentError("chunk: only one header per upload; then send chunks");
     }
     if (data_.size() + message_.chunk().size() > expected_) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "chunk: received more than the ", expected_, " bytes the header announced"));
+      return absl::InvalidArgumentError(
+          absl::StrCat("chunk: received more than the ", expected_, " bytes the header announced"));
     }
     data_.append(message_.chunk());
     return absl::OkStatus();
@@ -104,8 +104,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
     RETURN_IF_ERROR(service_->meshes().CheckCapacity());
     // Everything is reserved before a byte arrives: the raw bytes, held until the mesh is
     // decoded, and the mesh with its encodings, handed to the registry.
-    const int64_t mesh_bytes =
-        MeshRegistry::EstimateBytes(nv, nt, header_.fields_size());
+    const int64_t mesh_bytes = MeshRegistry::EstimateBytes(nv, nt, header_.fields_size());
     RETURN_IF_ERROR(service_->budget().Reserve(
         int64_t(expected_) + mesh_bytes,
         absl::StrCat("uploading ", nv, " vertices and ", nt, " tetrahedra (raw data and mesh)")));
@@ -124,11 +123,10 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
     RETURN_IF_ERROR(progress.Update("read", 1));
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-    ASSIGN_OR_RETURN(auto loaded,
-                     service_->meshes().Add(header_.name().empty() ? "upload" : header_.name(),
-                                            "upload", std::move(mesh), seconds,
-                                            FromProto(header_.partition()), progress,
-                                            std::move(mesh_reservation_)));
+    ASSIGN_OR_RETURN(auto loaded, service_->meshes().Add(
+                                      header_.name().empty() ? "upload" : header_.name(), "upload",
+                                      std::move(mesh), seconds, FromProto(header_.partition()),
+                                      progress, std::move(mesh_reservation_)));
     Fill(*loaded, 0, response_->mutable_mesh());
     return absl::OkStatus();
   }
@@ -170,11 +168,10 @@ class LoadProgressReactor final
     }
     const Progress::Clock::time_point deadline = SteadyDeadline(*context);
     service_->background().Run(cancel_, [this, request, deadline] {
-      const Progress progress({.cancel = cancel_.get(),
-                               .deadline = deadline,
-                               .report = [this](std::string_view phase, double fraction) {
-                                 Report(phase, fraction);
-                               }});
+      const Progress progress(
+          {.cancel = cancel_.get(),
+           .deadline = deadline,
+           .report = [this](std::string_view phase, double fraction) { Report(phase, fraction); }});
       absl::StatusOr<std::shared_ptr<const LoadedMesh>> mesh =
           service_->LoadRequested(request->load(), progress);
       absl::Status status = mesh.status();
@@ -244,7 +241,7 @@ class LoadProgressReactor final
   const Progress::Clock::time_point start_;
   const BackgroundWork::CancelFlag cancel_ = std::make_shared<std::atomic<bool>>(false);
   std::mutex mu_;
-  v1::LoadMeshWithProgressResponse last_;  // the report being written
+  v1::LoadMeshWithProgressResponse last_;                 // the report being written
   std::deque<v1::LoadMeshWithProgressResponse> waiting_;  // the newest report of each phase
   v1::LoadMeshWithProgressResponse final_message_;        // the mesh
   bool writing_ = false;

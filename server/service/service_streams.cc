@@ -360,8 +360,8 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
 
   TopologyServiceImpl* service_;
   std::shared_ptr<Session> session_;
-  JobLease lease_;             // released by the job's thread when the algorithm returns
-  std::shared_ptr<Job> job_;   // its cancel flag, for OnCancel and OnWriteDone
+  JobLease lease_;            // released by the job's thread when the algorithm returns
+  std::shared_ptr<Job> job_;  // its cancel flag, for OnCancel and OnWriteDone
   std::string job_id_;
   AlgorithmInput input_;
   bool include_arrays_ = false;

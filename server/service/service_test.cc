@@ -115,7 +115,7 @@ TEST_F(ServiceTest, RelationsMatchTheCore) {
         v1::GetRelationRequest q;
         q.set_session_id(session);
         q.set_relation(static_cast<v1::Relation>(Index(r) + 1));
-        const SimplexId wire = dim == 0 ? topo->vertex_input_id(s)
+        const SimplexId wire = dim == 0   ? topo->vertex_input_id(s)
                                : dim == 3 ? topo->tetrahedron_input_id(s)
                                           : s;
         q.mutable_simplex()->set_id(wire);
@@ -128,7 +128,7 @@ TEST_F(ServiceTest, RelationsMatchTheCore) {
         std::vector<std::pair<std::vector<int64_t>, int64_t>> keyed;
         for (size_t i = 0; i < row.size(); ++i) {
           const SimplexId x = row[i];
-          const int64_t id = t == 0 ? topo->vertex_input_id(x)
+          const int64_t id = t == 0   ? topo->vertex_input_id(x)
                              : t == 3 ? topo->tetrahedron_input_id(x)
                                       : x;
           std::vector<int64_t> key = {id};
@@ -179,8 +179,8 @@ TEST_F(ServiceTest, BatchEqualsSingles) {
     batch.set_relation(v1::RELATION_VERTEX_EDGES);
     batch.mutable_ids()->set_dtype(v1::DATA_TYPE_INT64);
     batch.mutable_ids()->add_shape(int64_t(ids.size()));
-    batch.mutable_ids()->set_data(std::string(reinterpret_cast<const char*>(ids.data()),
-                                              ids.size() * sizeof(int64_t)));
+    batch.mutable_ids()->set_data(
+        std::string(reinterpret_cast<const char*>(ids.data()), ids.size() * sizeof(int64_t)));
     v1::GetRelationBatchResponse response;
     ASSERT_TRUE(stub_->GetRelationBatch(Context().get(), batch, &response).ok());
     std::vector<int64_t> offsets(response.offsets().data().size() / 8);
@@ -212,8 +212,8 @@ TEST_F(ServiceTest, AnAnswerOverTheMessageLimitIsRefusedWithAdvice) {
   batch.set_relation(v1::RELATION_VERTEX_STAR);
   batch.mutable_ids()->set_dtype(v1::DATA_TYPE_INT64);
   batch.mutable_ids()->add_shape(int64_t(ids.size()));
-  batch.mutable_ids()->set_data(std::string(reinterpret_cast<const char*>(ids.data()),
-                                            ids.size() * sizeof(int64_t)));
+  batch.mutable_ids()->set_data(
+      std::string(reinterpret_cast<const char*>(ids.data()), ids.size() * sizeof(int64_t)));
   v1::GetRelationBatchResponse response;
   const grpc::Status s = stub_->GetRelationBatch(Context().get(), batch, &response);
   EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
@@ -241,7 +241,8 @@ std::vector<int64_t> Int64s(const v1::Array& a) {
 std::vector<std::vector<int64_t>> Rows(const v1::Array& offsets, const v1::Array& values) {
   const std::vector<int64_t> o = Int64s(offsets), v = Int64s(values);
   std::vector<std::vector<int64_t>> rows;
-  for (size_t i = 0; i + 1 < o.size(); ++i) rows.emplace_back(v.begin() + o[i], v.begin() + o[i + 1]);
+  for (size_t i = 0; i + 1 < o.size(); ++i)
+    rows.emplace_back(v.begin() + o[i], v.begin() + o[i + 1]);
   return rows;
 }
 
@@ -453,7 +454,8 @@ TEST_F(ServiceTest, JobsStreamAcceptedProgressArraysSummaryStats) {
       const v1::RunJobResponse& summary = run.messages[run.messages.size() - 2];
       ASSERT_TRUE(summary.has_summary());
       std::string json;
-      ASSERT_TRUE(google::protobuf::util::MessageToJsonString(summary.summary().result(), &json).ok());
+      ASSERT_TRUE(
+          google::protobuf::util::MessageToJsonString(summary.summary().result(), &json).ok());
       EXPECT_EQ(nlohmann::json::parse(json), nlohmann::json::parse(expected))
           << AlgorithmName(a) << " on structure " << int(kind);
       int progress = 0;

@@ -157,9 +157,9 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::CloseSession(grpc::CallbackServer
   });
 }
 
-grpc::ServerUnaryReactor* TopologyServiceImpl::GetSessionStats(
-    grpc::CallbackServerContext* c, const v1::GetSessionStatsRequest* in,
-    v1::GetSessionStatsResponse* out) {
+grpc::ServerUnaryReactor* TopologyServiceImpl::GetSessionStats(grpc::CallbackServerContext* c,
+                                                               const v1::GetSessionStatsRequest* in,
+                                                               v1::GetSessionStatsResponse* out) {
   return Unary(c, "GetSessionStats", [&]() -> absl::Status {
     ASSIGN_OR_RETURN(auto session, sessions_->Get(in->session_id()));
     const SessionStats s = session->stats();
@@ -181,8 +181,7 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::GetSessionStats(
 }
 
 absl::Status TopologyServiceImpl::AnswerRelation(const std::string& session_id,
-                                                 v1::Relation relation,
-                                                 const v1::Simplex& simplex,
+                                                 v1::Relation relation, const v1::Simplex& simplex,
                                                  bool include_vertices, std::vector<int64_t>& ids,
                                                  std::vector<int64_t>* vertices) {
   ASSIGN_OR_RETURN(auto session, sessions_->Get(session_id));
@@ -196,8 +195,9 @@ absl::Status TopologyServiceImpl::AnswerRelation(const std::string& session_id,
     }
     case v1::Simplex::kVertices: {
       const auto& v = simplex.vertices().ids();
-      ASSIGN_OR_RETURN(s, session->ResolveVertices(dim, std::span<const int64_t>(v.data(), v.size()),
-                                                   "simplex.vertices"));
+      ASSIGN_OR_RETURN(s,
+                       session->ResolveVertices(dim, std::span<const int64_t>(v.data(), v.size()),
+                                                "simplex.vertices"));
       break;
     }
     default: return absl::InvalidArgumentError("simplex: set id or vertices");
@@ -219,9 +219,8 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::GetRelation(grpc::CallbackServerC
   });
 }
 
-absl::Status TopologyServiceImpl::AnswerBatch(const std::string& session_id,
-                                              v1::Relation relation, const v1::Array* ids,
-                                              const v1::Array* vertex_tuples,
+absl::Status TopologyServiceImpl::AnswerBatch(const std::string& session_id, v1::Relation relation,
+                                              const v1::Array* ids, const v1::Array* vertex_tuples,
                                               v1::Array* offsets_out, v1::Array* values_out,
                                               std::vector<ItemFailure>* failures) {
   ASSIGN_OR_RETURN(auto session, sessions_->Get(session_id));
@@ -236,8 +235,8 @@ absl::Status TopologyServiceImpl::AnswerBatch(const std::string& session_id,
                    UnpackIntegers(by_tuple ? *vertex_tuples : *ids, field));
   const int k = by_tuple ? dim + 1 : 1;
   if (by_tuple && (vertex_tuples->shape_size() != 2 || vertex_tuples->shape(1) != k)) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "vertex_tuples.shape: must be (n, ", k, ") for ", RelationName(r).data()));
+    return absl::InvalidArgumentError(
+        absl::StrCat("vertex_tuples.shape: must be (n, ", k, ") for ", RelationName(r).data()));
   }
   const int64_t n = int64_t(flat.size()) / k;
   if (n > limits_.max_batch_size) {
@@ -276,9 +275,9 @@ absl::Status TopologyServiceImpl::AnswerBatch(const std::string& session_id,
   const auto start = std::chrono::steady_clock::now();
   Pack("offsets", offsets, offsets_out);
   Pack("values", values, values_out);
-  session->AddQuerySerializeTime(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                     std::chrono::steady_clock::now() - start)
-                                     .count());
+  session->AddQuerySerializeTime(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start)
+          .count());
   return absl::OkStatus();
 }
 

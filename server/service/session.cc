@@ -72,8 +72,7 @@ absl::StatusOr<std::unique_ptr<Session>> Session::Open(std::shared_ptr<const Loa
   const int64_t estimate = EstimateBytes(*mesh, options);
   RETURN_IF_ERROR(budget->Reserve(
       estimate, absl::StrCat("a ", std::string(StructureName(options.structure.kind)),
-                             " session on mesh '",
-                             mesh->id, "'")));
+                             " session on mesh '", mesh->id, "'")));
   s->reservation_ = Reservation(budget, estimate);
   s->id_ = NewId("session");
   s->mesh_ = mesh;
@@ -118,10 +117,11 @@ absl::Time Session::last_used() const {
   return absl::FromUnixNanos(last_used_ns_.load(std::memory_order_relaxed));
 }
 
-void Session::Touch() { last_used_ns_.store(absl::GetCurrentTimeNanos(), std::memory_order_relaxed); }
+void Session::Touch() {
+  last_used_ns_.store(absl::GetCurrentTimeNanos(), std::memory_order_relaxed);
+}
 
-absl::StatusOr<SimplexId> Session::ResolveId(int dimension, int64_t id,
-                                             FieldRef field) const {
+absl::StatusOr<SimplexId> Session::ResolveId(int dimension, int64_t id, FieldRef field) const {
   const Topology& topo = *mesh_->topology;
   const int64_t n = topo.num_simplices(dimension);
   if (id < 0 || id >= n) {
@@ -134,14 +134,13 @@ absl::StatusOr<SimplexId> Session::ResolveId(int dimension, int64_t id,
   return SimplexId(id);
 }
 
-absl::StatusOr<SimplexId> Session::ResolveVertices(int dimension,
-                                                   std::span<const int64_t> vertices,
+absl::StatusOr<SimplexId> Session::ResolveVertices(int dimension, std::span<const int64_t> vertices,
                                                    FieldRef field) const {
   const Topology& topo = *mesh_->topology;
   if (int(vertices.size()) != dimension + 1) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        field.ToString(), ": a ", std::string(kDimensionNames[dimension]), " has ",
-        dimension + 1, " vertices, got ", vertices.size()));
+    return absl::InvalidArgumentError(
+        absl::StrCat(field.ToString(), ": a ", std::string(kDimensionNames[dimension]), " has ",
+                     dimension + 1, " vertices, got ", vertices.size()));
   }
   std::array<SimplexId, 4> v{};
   for (int i = 0; i <= dimension; ++i) {
@@ -160,9 +159,9 @@ absl::StatusOr<SimplexId> Session::ResolveVertices(int dimension,
     default: found = topo.FindTetrahedron(v[0], v[1], v[2], v[3]); break;
   }
   if (found < 0) {
-    return absl::NotFoundError(absl::StrCat(
-        field.ToString(), ": (", absl::StrJoin(vertices, ", "), ") is not a ",
-        std::string(kDimensionNames[dimension]), " of mesh '", mesh_->id, "'"));
+    return absl::NotFoundError(absl::StrCat(field.ToString(), ": (", absl::StrJoin(vertices, ", "),
+                                            ") is not a ", std::string(kDimensionNames[dimension]),
+                                            " of mesh '", mesh_->id, "'"));
   }
   return found;
 }
@@ -251,8 +250,7 @@ void Session::AppendRows(Reader& reader, Relation r, std::span<const SimplexId> 
 template <class Reader>
 void Session::AppendRowsInBlockOrder(Reader& reader, Relation r,
                                      std::span<const SimplexId> simplices,
-                                     std::vector<int64_t>& offsets,
-                                     std::vector<int64_t>& values,
+                                     std::vector<int64_t>& offsets, std::vector<int64_t>& values,
                                      std::vector<int64_t>* vertices) const {
   if (vertices != nullptr || std::is_sorted(simplices.begin(), simplices.end())) {
     AppendRows(reader, r, simplices, offsets, values, vertices);
@@ -279,9 +277,8 @@ void Session::AppendRowsInBlockOrder(Reader& reader, Relation r,
   }
 }
 
-void Session::Query(Relation r, std::span<const SimplexId> simplices,
-                    std::vector<int64_t>& offsets, std::vector<int64_t>& values,
-                    std::vector<int64_t>* vertices) {
+void Session::Query(Relation r, std::span<const SimplexId> simplices, std::vector<int64_t>& offsets,
+                    std::vector<int64_t>& values, std::vector<int64_t>* vertices) {
   const auto arrived = Clock::now();
   Touch();
   auto compute_since = arrived;
@@ -329,14 +326,13 @@ const ResultContext& Session::result_context() {
     for (SimplexId v = 0; v < SimplexId(on_boundary.size()); ++v) {
       on_boundary[v] = reader.vertex_on_boundary(v);
     }
-    result_context_.emplace(ResultContext{m, *mesh_->topology, scalar_name_, field->values,
-                                          std::move(on_boundary)});
+    result_context_.emplace(
+        ResultContext{m, *mesh_->topology, scalar_name_, field->values, std::move(on_boundary)});
   }
   return *result_context_;
 }
 
-absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input,
-                                           const RunContext& context) {
+absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input, const RunContext& context) {
   Touch();
   const auto start = Clock::now();
   RunContext ctx = context;
@@ -385,7 +381,7 @@ SessionStats Session::stats() const {
     s.memory.relation_peak_bytes = relation_peak_bytes_;
   }
   if (query_engine_) s.engine += query_engine_->stats();
-  MemoryStats now = explicit_ ? explicit_->memory()
+  MemoryStats now = explicit_  ? explicit_->memory()
                     : compact_ ? compact_->memory()
                                : query_engine_->memory();
   if (query_compact_) {

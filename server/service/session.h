@@ -35,7 +35,6 @@
 
 namespace actopo::service {
 
-
 struct SessionOptions {
   std::string scalar_field;    // empty: the first floating-point field
   StructureOptions structure;  // with WithDefaults applied; validated as the request's engine.*

@@ -33,9 +33,9 @@ absl::StatusOr<std::shared_ptr<Session>> SessionManager::Open(
   {
     std::lock_guard<std::mutex> lock(mu_);
     if (int(sessions_.size()) + opening_ >= limits_.max_sessions) {
-      return absl::ResourceExhaustedError(absl::StrCat(
-          "sessions: the server holds its maximum of ", limits_.max_sessions,
-          " sessions; close one first (--max-sessions raises the limit)"));
+      return absl::ResourceExhaustedError(
+          absl::StrCat("sessions: the server holds its maximum of ", limits_.max_sessions,
+                       " sessions; close one first (--max-sessions raises the limit)"));
     }
     const int query = Session::QueryThreads(options), job = Session::JobThreads(options);
     if (query + job > limits_.max_engine_threads) {
@@ -52,7 +52,8 @@ absl::StatusOr<std::shared_ptr<Session>> SessionManager::Open(
     threads_ += query;
     ++opening_;  // the slot is held while the session is built, outside the lock
   }
-  absl::StatusOr<std::unique_ptr<Session>> session = Session::Open(mesh, options, budget_, progress);
+  absl::StatusOr<std::unique_ptr<Session>> session =
+      Session::Open(mesh, options, budget_, progress);
   std::lock_guard<std::mutex> lock(mu_);
   --opening_;
   if (!session.ok()) {
@@ -141,9 +142,9 @@ absl::StatusOr<JobLease> SessionManager::StartJob(const std::string& session_id,
                                             "' (closed, timed out after idling, or never opened)"));
   }
   if (auto running = job_of_session_.find(session_id); running != job_of_session_.end()) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        "session_id: session '", session_id, "' is running job '", running->second,
-        "'; wait for it or cancel it (CancelJob)"));
+    return absl::FailedPreconditionError(absl::StrCat("session_id: session '", session_id,
+                                                      "' is running job '", running->second,
+                                                      "'; wait for it or cancel it (CancelJob)"));
   }
   const int needed = session->second->job_threads();
   if (threads_ + needed > limits_.max_engine_threads) {

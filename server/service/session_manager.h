@@ -35,7 +35,7 @@ namespace actopo::service {
 
 struct SessionLimits {
   int max_sessions = 64;
-  int max_engine_threads = 64;   // producers of all sessions plus running jobs' threads
+  int max_engine_threads = 64;  // producers of all sessions plus running jobs' threads
   absl::Duration idle_timeout = absl::Minutes(30);
 };
 
@@ -113,8 +113,8 @@ class SessionManager {
   MemoryBudget* budget_;
   mutable std::mutex mu_;
   std::map<std::string, std::shared_ptr<Session>> sessions_;
-  std::map<std::string, std::shared_ptr<Job>> jobs_;      // by job id
-  std::map<std::string, std::string> job_of_session_;     // session id -> job id
+  std::map<std::string, std::shared_ptr<Job>> jobs_;   // by job id
+  std::map<std::string, std::string> job_of_session_;  // session id -> job id
   int threads_ = 0;
   int opening_ = 0;  // sessions being opened: each holds a slot of max_sessions
   bool draining_ = false;

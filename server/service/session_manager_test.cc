@@ -24,7 +24,8 @@ class SessionManagerTest : public ::testing::Test {
   std::shared_ptr<Session> OpenSession(StructureKind structure = StructureKind::kCompact) {
     auto mesh = meshes_.LoadSample("jittered:6", {});
     EXPECT_TRUE(mesh.ok()) << mesh.status();
-    auto session = sessions_.Open(*mesh, SessionOptions{.structure = WithDefaults({.kind = structure})});
+    auto session =
+        sessions_.Open(*mesh, SessionOptions{.structure = WithDefaults({.kind = structure})});
     EXPECT_TRUE(session.ok()) << session.status();
     return *session;
   }
@@ -121,9 +122,9 @@ TEST_F(SessionManagerTest, ThreadBudgetRefusesAJobThatDoesNotFit) {
   std::vector<std::string> ids;
   for (int i = 0; i < 2; ++i) {
     auto s = sessions_.Open(*mesh, SessionOptions{.structure = {.kind = StructureKind::kActopo,
-                                                                 .consumers = 2,
-                                                                 .producers = 3,
-                                                                 .query_readers = 1}});
+                                                                .consumers = 2,
+                                                                .producers = 3,
+                                                                .query_readers = 1}});
     ASSERT_TRUE(s.ok()) << s.status();
     ids.push_back((*s)->id());
   }
@@ -148,16 +149,17 @@ TEST_F(SessionManagerTest, ConcurrentQueriesShareTheSessionsReaders) {
     session.Query(r, all, offsets, values);
     return std::make_pair(offsets, values);
   };
-  auto reference = sessions_.Open(*mesh, SessionOptions{.structure = WithDefaults({.kind = StructureKind::kExplicit})});
+  auto reference = sessions_.Open(
+      *mesh, SessionOptions{.structure = WithDefaults({.kind = StructureKind::kExplicit})});
   ASSERT_TRUE(reference.ok());
   const Relation relations[] = {Relation::kVT, Relation::kVE, Relation::kVL};
   std::vector<std::pair<std::vector<int64_t>, std::vector<int64_t>>> expected;
   for (Relation r : relations) expected.push_back(answer(**reference, r));
   for (StructureKind kind : {StructureKind::kCompact, StructureKind::kActopo}) {
-    auto session = sessions_.Open(*mesh, SessionOptions{.structure = WithDefaults({.kind = kind,
-                                                                       .producers = 1,
-                                                                       .buffer_ratio = 0.05,
-                                                                       .query_readers = 2})});
+    auto session = sessions_.Open(
+        *mesh, SessionOptions{
+                   .structure = WithDefaults(
+                       {.kind = kind, .producers = 1, .buffer_ratio = 0.05, .query_readers = 2})});
     ASSERT_TRUE(session.ok()) << session.status();
     std::atomic<int> mismatches{0};
     std::vector<std::thread> threads;
@@ -189,7 +191,10 @@ TEST(ServiceLimits, HoldUnderConcurrentLoadsOpensAndCloses) {
     auto mesh = meshes.LoadSample("jittered:6", {});
     ASSERT_TRUE(mesh.ok()) << mesh.status();
     mesh_bytes = roomy.used();
-    ASSERT_TRUE(sessions.Open(*mesh, SessionOptions{.structure = WithDefaults({.kind = StructureKind::kExplicit})}).ok());
+    ASSERT_TRUE(sessions
+                    .Open(*mesh, SessionOptions{.structure = WithDefaults(
+                                                    {.kind = StructureKind::kExplicit})})
+                    .ok());
     session_bytes = roomy.used() - mesh_bytes;
   }
   ASSERT_GT(mesh_bytes, 0);
@@ -221,8 +226,10 @@ TEST(ServiceLimits, HoldUnderConcurrentLoadsOpensAndCloses) {
           refusal(mesh.status());
           continue;
         }
-        const StructureKind kind = (t + round) % 2 ? StructureKind::kExplicit : StructureKind::kCompact;
-        auto session = sessions.Open(*mesh, SessionOptions{.structure = WithDefaults({.kind = kind})});
+        const StructureKind kind =
+            (t + round) % 2 ? StructureKind::kExplicit : StructureKind::kCompact;
+        auto session =
+            sessions.Open(*mesh, SessionOptions{.structure = WithDefaults({.kind = kind})});
         check_limits();
         if (session.ok()) {
           std::vector<int64_t> offsets = {0}, values;  // Query appends each row's end

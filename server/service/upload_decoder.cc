@@ -38,15 +38,15 @@ absl::StatusOr<size_t> CheckUploadHeader(const v1::UploadMeshHeader& header) {
   }
   if (header.points_dtype() != v1::DATA_TYPE_FLOAT32 &&
       header.points_dtype() != v1::DATA_TYPE_FLOAT64) {
-    return absl::InvalidArgumentError(absl::StrCat("header.points_dtype: ",
-                                                   v1::DataType_Name(header.points_dtype()),
-                                                   " is not FLOAT32 or FLOAT64"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("header.points_dtype: ", v1::DataType_Name(header.points_dtype()),
+                     " is not FLOAT32 or FLOAT64"));
   }
   if (header.tetrahedra_dtype() != v1::DATA_TYPE_INT32 &&
       header.tetrahedra_dtype() != v1::DATA_TYPE_INT64) {
-    return absl::InvalidArgumentError(absl::StrCat("header.tetrahedra_dtype: ",
-                                                   v1::DataType_Name(header.tetrahedra_dtype()),
-                                                   " is not INT32 or INT64"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("header.tetrahedra_dtype: ", v1::DataType_Name(header.tetrahedra_dtype()),
+                     " is not INT32 or INT64"));
   }
   size_t bytes = size_t(nv) * 3 * DataTypeSize(header.points_dtype()) +
                  size_t(nt) * 4 * DataTypeSize(header.tetrahedra_dtype());
@@ -73,13 +73,13 @@ absl::StatusOr<size_t> CheckUploadHeader(const v1::UploadMeshHeader& header) {
 absl::StatusOr<Mesh> DecodeUpload(const v1::UploadMeshHeader& header, std::string_view data) {
   ASSIGN_OR_RETURN(const size_t expected, CheckUploadHeader(header));
   if (data.size() != expected) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "chunk: the upload ended after ", data.size(), " of ", expected, " bytes (truncated)"));
+    return absl::InvalidArgumentError(absl::StrCat("chunk: the upload ended after ", data.size(),
+                                                   " of ", expected, " bytes (truncated)"));
   }
   const std::string digest = Sha256Hex(data);
   if (digest != header.sha256()) {
-    return absl::DataLossError(absl::StrCat("header.sha256: the data hashes to ", digest,
-                                            ", not ", header.sha256(), " (corrupted upload)"));
+    return absl::DataLossError(absl::StrCat("header.sha256: the data hashes to ", digest, ", not ",
+                                            header.sha256(), " (corrupted upload)"));
   }
   Mesh mesh;
   const int64_t nv = header.num_vertices(), nt = header.num_tetrahedra();

@@ -144,9 +144,9 @@ void Fill(const LoadedMesh& mesh, int sessions, pb::MeshInfo* out) {
   for (const PointField& f : mesh.mesh.point_fields) {
     pb::FieldInfo* fi = out->add_fields();
     fi->set_name(f.name);
-    fi->set_dtype(f.is_integer ? (f.source_bytes == 4 ? pb::DATA_TYPE_INT32 : pb::DATA_TYPE_INT64)
-                               : (f.source_bytes == 4 ? pb::DATA_TYPE_FLOAT32
-                                                      : pb::DATA_TYPE_FLOAT64));
+    fi->set_dtype(f.is_integer
+                      ? (f.source_bytes == 4 ? pb::DATA_TYPE_INT32 : pb::DATA_TYPE_INT64)
+                      : (f.source_bytes == 4 ? pb::DATA_TYPE_FLOAT32 : pb::DATA_TYPE_FLOAT64));
     if (!f.values.empty()) {
       const auto [lo, hi] = std::minmax_element(f.values.begin(), f.values.end());
       fi->set_min(*lo);
@@ -239,8 +239,7 @@ void FillCriticalPoints(const CriticalPointsResult& r, Struct* out) {
   SetString(out, "vertices_sha256", r.VerticesDigest());
 }
 
-void FillDiscreteGradient(const DiscreteGradientResult& r, const Topology& topology,
-                          Struct* out) {
+void FillDiscreteGradient(const DiscreteGradientResult& r, const Topology& topology, Struct* out) {
   SetList(out, "critical_cells", r.critical_cells);
   SetList(out, "pairs_count", r.pairs);
   SetString(out, "critical_cells_sha256", r.CriticalCellsDigest(topology));
@@ -335,8 +334,8 @@ absl::StatusOr<std::vector<int64_t>> UnpackIntegers(const pb::Array& array,
                                                     std::string_view field) {
   const size_t size = DataTypeSize(array.dtype());
   if (array.dtype() != pb::DATA_TYPE_INT32 && array.dtype() != pb::DATA_TYPE_INT64) {
-    return absl::InvalidArgumentError(absl::StrCat(std::string(field), ".dtype: ",
-                                                   pb::DataType_Name(array.dtype()),
+    return absl::InvalidArgumentError(absl::StrCat(std::string(field),
+                                                   ".dtype: ", pb::DataType_Name(array.dtype()),
                                                    " is not an integer type; use INT32 or INT64"));
   }
   for (int64_t d : array.shape()) {
@@ -360,9 +359,9 @@ absl::StatusOr<std::vector<int64_t>> UnpackIntegers(const pb::Array& array,
     count *= d;
   }
   if (!fits || array.data().size() != size_t(count) * size) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        std::string(field), ".data: ", array.data().size(), " bytes for shape [",
-        absl::StrJoin(array.shape(), ", "), "] of ", size, "-byte values"));
+    return absl::InvalidArgumentError(
+        absl::StrCat(std::string(field), ".data: ", array.data().size(), " bytes for shape [",
+                     absl::StrJoin(array.shape(), ", "), "] of ", size, "-byte values"));
   }
   std::vector<int64_t> out(count);
   const char* p = array.data().data();

@@ -116,8 +116,7 @@ void Pack(const std::string& name, const io::NamedArray& values, pb::Array* out)
 void PackPoints(const std::string& name, std::span<const double> xyz, pb::Array* out);
 size_t DataTypeSize(pb::DataType t);
 // Reads an integer array (INT32 or INT64) of any shape; `field` names it in errors.
-absl::StatusOr<std::vector<int64_t>> UnpackIntegers(const pb::Array& array,
-                                                    std::string_view field);
+absl::StatusOr<std::vector<int64_t>> UnpackIntegers(const pb::Array& array, std::string_view field);
 
 }  // namespace actopo::service
 

@@ -129,10 +129,10 @@ absl::StatusOr<std::vector<T>> Array::As() const {
 struct ServerLimits {
   int32_t max_meshes = 0;
   int32_t max_sessions = 0;
-  int32_t max_engine_threads = 0;      // consumers and producers over all sessions
-  int64_t memory_budget_bytes = 0;     // meshes and sessions
-  int64_t max_message_bytes = 0;       // largest gRPC message accepted
-  int32_t max_batch_size = 0;          // most simplices in one RelationBatch request
+  int32_t max_engine_threads = 0;   // consumers and producers over all sessions
+  int64_t memory_budget_bytes = 0;  // meshes and sessions
+  int64_t max_message_bytes = 0;    // largest gRPC message accepted
+  int32_t max_batch_size = 0;       // most simplices in one RelationBatch request
   int64_t session_idle_timeout_seconds = 0;
 };
 
@@ -140,9 +140,9 @@ struct ServerLimits {
 struct ServerInfo {
   std::string version;
   std::map<std::string, std::string> library_versions;  // e.g. "grpc" -> "1.51.1"
-  std::vector<std::string> algorithms;  // "topo-relations", "critical-points", ...
-  std::vector<std::string> relations;   // "vertex_neighbors", "vertex_edges", ...
-  std::vector<std::string> samples;     // built-in samples with their descriptions
+  std::vector<std::string> algorithms;                  // "topo-relations", "critical-points", ...
+  std::vector<std::string> relations;                   // "vertex_neighbors", "vertex_edges", ...
+  std::vector<std::string> samples;                     // built-in samples with their descriptions
   ServerLimits limits;
 };
 
@@ -269,10 +269,10 @@ struct EngineStats {
 
 // Memory of a session.
 struct MemoryStats {
-  int64_t static_bytes = 0;         // the mesh's static encodings (shared by its sessions)
-  int64_t relation_bytes = 0;       // relations stored or buffered now
+  int64_t static_bytes = 0;    // the mesh's static encodings (shared by its sessions)
+  int64_t relation_bytes = 0;  // relations stored or buffered now
   int64_t relation_peak_bytes = 0;
-  int64_t process_rss_bytes = 0;    // resident memory of the server process
+  int64_t process_rss_bytes = 0;  // resident memory of the server process
 };
 
 // Statistics of a session over its life.
@@ -443,7 +443,7 @@ struct JobOptions {
 
 // How far a load has got (Client::LoadMeshWithProgress).
 struct LoadProgress {
-  std::string phase;  // "read", "partition" (the octree) or "encode" (the static encoding)
+  std::string phase;    // "read", "partition" (the octree) or "encode" (the static encoding)
   double fraction = 0;  // of the phase, 0 to 1
   double elapsed_seconds = 0;
 };
@@ -605,8 +605,7 @@ class Client {
 
   // One relation of one simplex: client->Relation(session_id, "vertex_star", 7).
   absl::StatusOr<std::vector<int64_t>> Relation(std::string_view session_id,
-                                                std::string_view relation,
-                                                const Simplex& simplex);
+                                                std::string_view relation, const Simplex& simplex);
   // The same, with the vertex tuples of result edges and triangles.
   absl::StatusOr<RelationResult> RelationWithVertices(std::string_view session_id,
                                                       std::string_view relation,
@@ -614,8 +613,7 @@ class Client {
   // One relation of many simplices by id. An input that fits one request goes in a
   // GetRelationBatch call; larger ones go over one stream, in requests of up to 65536 simplices
   // written ahead of the answers, which are merged. The first failing simplex fails the call.
-  absl::StatusOr<RelationCsr> RelationBatch(std::string_view session_id,
-                                            std::string_view relation,
+  absl::StatusOr<RelationCsr> RelationBatch(std::string_view session_id, std::string_view relation,
                                             std::span<const int64_t> ids);
   // One relation of many simplices by vertex tuples: `tuples` holds `tuple_size` input vertex
   // ids per simplex (2 for edges, 3 for triangles, ...).

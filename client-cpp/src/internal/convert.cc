@@ -142,9 +142,9 @@ void PackInt64(std::span<const int64_t> values, std::span<const int64_t> shape, 
 
 absl::StatusOr<std::vector<int64_t>> UnpackInt64(const v1::Array& array, std::string_view field) {
   if (array.dtype() != v1::DATA_TYPE_INT64 || array.data().size() % sizeof(int64_t) != 0) {
-    return absl::InternalError(absl::StrCat(
-        std::string(field), ": the server sent ", v1::DataType_Name(array.dtype()), " with ",
-        array.data().size(), " bytes, not an int64 array"));
+    return absl::InternalError(absl::StrCat(std::string(field), ": the server sent ",
+                                            v1::DataType_Name(array.dtype()), " with ",
+                                            array.data().size(), " bytes, not an int64 array"));
   }
   std::vector<int64_t> values(array.data().size() / sizeof(int64_t));
   if (!values.empty()) std::memcpy(values.data(), array.data().data(), array.data().size());

@@ -12,8 +12,8 @@ namespace {
 // The retry policy of ClientOptions::retries, the same as the Python client's.
 std::string RetryServiceConfig() {
   std::string names;
-  for (const char* method : {"GetServerInfo", "ListMeshes", "GetMesh", "ListSessions",
-                             "GetSession", "GetSessionStats", "GetRelation", "GetRelationBatch"}) {
+  for (const char* method : {"GetServerInfo", "ListMeshes", "GetMesh", "ListSessions", "GetSession",
+                             "GetSessionStats", "GetRelation", "GetRelationBatch"}) {
     absl::StrAppend(&names, names.empty() ? "" : ",", "{\"service\":\"",
                     v1::TopologyService::service_full_name(), "\",\"method\":\"", method, "\"}");
   }
@@ -50,8 +50,7 @@ absl::StatusOr<std::string> AffinityKey(std::string key) {
 
 absl::Status FromGrpc(const grpc::Status& status) {
   if (status.ok()) return absl::OkStatus();
-  return absl::Status(static_cast<absl::StatusCode>(status.error_code()),
-                      status.error_message());
+  return absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message());
 }
 
 std::unique_ptr<grpc::ClientContext> Core::Context(std::chrono::milliseconds timeout) const {
@@ -75,8 +74,7 @@ absl::StatusOr<std::shared_ptr<Core>> NewCore(std::string target, const ClientOp
   }
   if (options.max_message_bytes <= 0) {
     return absl::InvalidArgumentError(
-        absl::StrCat("options.max_message_bytes: ", options.max_message_bytes,
-                     " is not positive"));
+        absl::StrCat("options.max_message_bytes: ", options.max_message_bytes, " is not positive"));
   }
   std::shared_ptr<grpc::ChannelCredentials> credentials;
   if (options.use_tls) {
@@ -119,9 +117,8 @@ absl::StatusOr<std::shared_ptr<Core>> NewCore(std::string target, const ClientOp
   if (options.connect_timeout.count() > 0 &&
       !core->channel->WaitForConnected(std::chrono::system_clock::now() +
                                        options.connect_timeout)) {
-    return absl::UnavailableError(absl::StrCat("target: could not connect to ", target,
-                                               " within ", options.connect_timeout.count(),
-                                               " ms"));
+    return absl::UnavailableError(absl::StrCat("target: could not connect to ", target, " within ",
+                                               options.connect_timeout.count(), " ms"));
   }
   return core;
 }

@@ -18,11 +18,11 @@
 namespace actopo::client::internal {
 
 // Debian's Abseil has no status macros.
-#define ACTOPO_RETURN_IF_ERROR(expr)               \
-  do {                                             \
-    if (::absl::Status _s = (expr); !_s.ok()) {    \
-      return _s;                                   \
-    }                                              \
+#define ACTOPO_RETURN_IF_ERROR(expr)            \
+  do {                                          \
+    if (::absl::Status _s = (expr); !_s.ok()) { \
+      return _s;                                \
+    }                                           \
   } while (0)
 
 #define ACTOPO_CONCAT_INNER(a, b) a##b
@@ -44,21 +44,20 @@ struct Core {
   std::unique_ptr<v1::TopologyService::Stub> stub;
   std::atomic<int64_t> max_batch_size{0};  // from GetServerInfo, 0 until asked
 
-  // A context carrying the token and the affinity key, with a deadline `timeout` from now (none if zero).
+  // A context carrying the token and the affinity key, with a deadline `timeout` from now (none if
+  // zero).
   std::unique_ptr<grpc::ClientContext> Context(std::chrono::milliseconds timeout) const;
   std::unique_ptr<grpc::ClientContext> QuickContext() const {
     return Context(options.default_timeout);
   }
-  std::unique_ptr<grpc::ClientContext> MeshContext() const {
-    return Context(options.mesh_timeout);
-  }
+  std::unique_ptr<grpc::ClientContext> MeshContext() const { return Context(options.mesh_timeout); }
 
   // One unary call: client->Unary(&Stub::GetMesh, request, QuickContext()).
   template <class Request, class Response>
-  absl::StatusOr<Response> Unary(
-      grpc::Status (v1::TopologyService::Stub::*method)(grpc::ClientContext*, const Request&,
-                                                        Response*),
-      const Request& request, std::unique_ptr<grpc::ClientContext> context) const {
+  absl::StatusOr<Response> Unary(grpc::Status (v1::TopologyService::Stub::*method)(
+                                     grpc::ClientContext*, const Request&, Response*),
+                                 const Request& request,
+                                 std::unique_ptr<grpc::ClientContext> context) const {
     Response response;
     const grpc::Status status = (stub.get()->*method)(context.get(), request, &response);
     if (!status.ok()) return FromGrpc(status);

@@ -40,8 +40,8 @@ Shared& GetShared() {
       return;
     }
     shared->server = std::move(*server);
-    auto client = Client::Connect(shared->server->target(),
-                                  {.connect_timeout = std::chrono::seconds(30)});
+    auto client =
+        Client::Connect(shared->server->target(), {.connect_timeout = std::chrono::seconds(30)});
     if (!client.ok()) {
       shared->error = client.status().ToString();
       return;
@@ -60,8 +60,7 @@ class StopServer : public ::testing::Environment {
     shared->server.reset();
   }
 };
-::testing::Environment* const stop_server =
-    ::testing::AddGlobalTestEnvironment(new StopServer);
+::testing::Environment* const stop_server = ::testing::AddGlobalTestEnvironment(new StopServer);
 
 }  // namespace
 
@@ -73,9 +72,8 @@ nlohmann::json BenchResult(const std::string& file, const std::string& scalar,
                            const std::string& algorithm) {
   static std::mutex mu;
   static std::map<std::string, nlohmann::json> cache;
-  const std::string command = BenchBinary() + " --mesh '" + DataDir() + "/" + file +
-                              "' --scalar " + scalar + " --algorithm " + algorithm +
-                              " --structure compact --json";
+  const std::string command = BenchBinary() + " --mesh '" + DataDir() + "/" + file + "' --scalar " +
+                              scalar + " --algorithm " + algorithm + " --structure compact --json";
   std::lock_guard<std::mutex> lock(mu);
   if (auto it = cache.find(command); it != cache.end()) return it->second;
   FILE* pipe = popen(command.c_str(), "r");

@@ -7,9 +7,9 @@
 #define ACTOPO_CLIENT_TESTS_TESTING_FIXTURE_H_
 
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -37,13 +37,13 @@ template <class T>
 const absl::Status& StatusOf(const absl::StatusOr<T>& s) {
   return s.status();
 }
-#define ACTOPO_CHECK_OK_(expr, on_failure)                                                  \
-  switch (0)                                                                               \
-  case 0:                                                                                  \
-  default:                                                                                 \
-    if (const ::absl::Status actopo_status_ = ::actopo::client::testing::StatusOf(expr);           \
-        actopo_status_.ok()) {                                                              \
-    } else                                                                                 \
+#define ACTOPO_CHECK_OK_(expr, on_failure)                                               \
+  switch (0)                                                                             \
+  case 0:                                                                                \
+  default:                                                                               \
+    if (const ::absl::Status actopo_status_ = ::actopo::client::testing::StatusOf(expr); \
+        actopo_status_.ok()) {                                                           \
+    } else                                                                               \
       on_failure() << #expr << ": " << actopo_status_ << " "
 #define ASSERT_OK(expr) ACTOPO_CHECK_OK_(expr, GTEST_FAIL)
 #define EXPECT_OK(expr) ACTOPO_CHECK_OK_(expr, ADD_FAILURE)

@@ -77,7 +77,7 @@ absl::StatusOr<std::unique_ptr<ChildProcess>> ChildProcess::Start(
   if (pid < 0) return absl::InternalError(absl::StrCat("fork: ", std::strerror(errno)));
   if (pid == 0) {
     prctl(PR_SET_PDEATHSIG, SIGKILL);
-    if (getppid() != parent) _exit(126);  // the parent died before prctl
+    if (getppid() != parent) _exit(126);                 // the parent died before prctl
     if (stdout_fd >= 0) dup2(stdout_fd, STDOUT_FILENO);  // dup2 clears O_CLOEXEC on the copy
     execve(argv[0], argv.data(), envp.data());
     _exit(127);
@@ -102,15 +102,13 @@ ChildProcess::~ChildProcess() {
 }
 
 absl::StatusOr<std::unique_ptr<ServerProcess>> ServerProcess::Start(
-    const std::string& binary, const std::string& data_dir,
-    const std::vector<std::string>& extra) {
+    const std::string& binary, const std::string& data_dir, const std::vector<std::string>& extra) {
   if (access(binary.c_str(), X_OK) != 0) {
     return absl::NotFoundError(absl::StrCat("actopo-server not found at ", binary,
                                             " (build the server or set ACTOPO_SERVER_BIN)"));
   }
-  std::vector<std::string> args = {binary,   "--host",     "127.0.0.1", "--port",
-                                   "0",      "--data-dir", data_dir,    "--grace-s",
-                                   "2"};
+  std::vector<std::string> args = {binary,       "--host", "127.0.0.1", "--port", "0",
+                                   "--data-dir", data_dir, "--grace-s", "2"};
   args.insert(args.end(), extra.begin(), extra.end());
   int fds[2];
   if (pipe2(fds, O_CLOEXEC) != 0) {
@@ -126,9 +124,9 @@ absl::StatusOr<std::unique_ptr<ServerProcess>> ServerProcess::Start(
   std::string line;
   if (!ReadLine(fds[0], std::chrono::seconds(60), line) ||
       line.rfind(std::string(kListening), 0) != 0) {
-    return absl::UnavailableError(absl::StrCat(
-        binary, " did not print '", std::string(kListening), "HOST:PORT' (first line: '", line,
-        "'); its stderr is above"));
+    return absl::UnavailableError(absl::StrCat(binary, " did not print '", std::string(kListening),
+                                               "HOST:PORT' (first line: '", line,
+                                               "'); its stderr is above"));
   }
   server->target_ = line.substr(kListening.size());
   server->port_ = std::stoi(server->target_.substr(server->target_.rfind(':') + 1));

@@ -36,8 +36,8 @@ int CompareWithOracle(Reader& reader, const RelationOracle& oracle, const std::s
 // Random access across all relations, holding a span of one relation while reading others, so
 // caches evict and the lifetime rule of structure.h is exercised.
 template <class Reader>
-void CompareRandomAccess(Reader& reader, const RelationOracle& oracle, uint64_t seed,
-                         int queries, const std::string& label) {
+void CompareRandomAccess(Reader& reader, const RelationOracle& oracle, uint64_t seed, int queries,
+                         const std::string& label) {
   std::mt19937_64 rng(seed);
   const auto& vt_expected = oracle.rows(Relation::kVT);
   for (int q = 0; q < queries; ++q) {

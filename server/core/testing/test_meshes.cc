@@ -70,7 +70,8 @@ Mesh TwoComponents() {
   Mesh a = Lattice(4, 3, 3, 7);
   const Mesh b = Lattice(3, 5, 2, 11);
   const SimplexId shift = a.num_vertices();
-  for (size_t i = 0; i < b.points.size(); ++i) a.points.push_back(b.points[i] + (i % 3 == 0 ? 50 : 0));
+  for (size_t i = 0; i < b.points.size(); ++i)
+    a.points.push_back(b.points[i] + (i % 3 == 0 ? 50 : 0));
   for (SimplexId v : b.tetrahedra) a.tetrahedra.push_back(v + shift);
   for (size_t f = 0; f < a.point_fields.size(); ++f) {
     auto& values = a.point_fields[f].values;
@@ -81,12 +82,12 @@ Mesh TwoComponents() {
 
 Mesh NonManifold() {
   Mesh m;
-  m.points = {0, 0, 0,  1, 0, 0,  0, 1, 0,  0, 0, 1,  0, 0, -1, 1, 1, -1,   // 0-5
-              0, 0, 2,  1, 0, 2,  0, 1, 2,  3, 3, 3,  4, 3, 3,  3, 4, 3,   // 6-11
-              3, 3, 4,  5, 5, 5};                                            // 12-13
-  m.tetrahedra = {0, 1, 2, 3,  0, 1, 2, 4,  0, 1, 2, 5,   // triangle (0,1,2) in three tets
-                  3, 6, 7, 8,                               // touches the first at vertex 3
-                  9, 10, 11, 12,  10, 11, 13, 8};           // last two share only edge (10,11)
+  m.points = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 1, 1, -1,  // 0-5
+              0, 0, 2, 1, 0, 2, 0, 1, 2, 3, 3, 3, 4, 3, 3,  3, 4, 3,   // 6-11
+              3, 3, 4, 5, 5, 5};                                       // 12-13
+  m.tetrahedra = {0, 1,  2,  3,  0,  1,  2,  4, 0, 1, 2, 5,  // triangle (0,1,2) in three tets
+                  3, 6,  7,  8,                              // touches the first at vertex 3
+                  9, 10, 11, 12, 10, 11, 13, 8};             // last two share only edge (10,11)
   std::vector<double> h;
   for (SimplexId v = 0; v < m.num_vertices(); ++v) h.push_back(0.1 * v + m.points[3 * v + 2]);
   m.point_fields.push_back({"height", h});

@@ -122,9 +122,9 @@ absl::Status CopyTetrahedra(const Id* offsets, const Id* connectivity, vtkIdType
   for (vtkIdType c = 0; c <= num_cells; ++c) {
     if (offsets[c] != static_cast<Id>(4 * c)) {
       const vtkIdType bad = c == 0 ? 0 : c - 1;
-      return absl::InvalidArgumentError(absl::StrCat(
-          "cells: tetrahedron ", bad, " has ", offsets[bad + 1] - offsets[bad],
-          " points instead of 4"));
+      return absl::InvalidArgumentError(absl::StrCat("cells: tetrahedron ", bad, " has ",
+                                                     offsets[bad + 1] - offsets[bad],
+                                                     " points instead of 4"));
     }
   }
   tetrahedra.resize(4 * static_cast<size_t>(num_cells));
@@ -132,9 +132,8 @@ absl::Status CopyTetrahedra(const Id* offsets, const Id* connectivity, vtkIdType
     const Id id = connectivity[i];
     // Checking the range before narrowing also rejects ids that do not fit in int32.
     if (id < 0 || id >= static_cast<Id>(num_points)) {
-      return absl::InvalidArgumentError(absl::StrCat("cells: tetrahedron ", i / 4,
-                                                     " has vertex id ", id, " outside [0, ",
-                                                     num_points, ")"));
+      return absl::InvalidArgumentError(absl::StrCat(
+          "cells: tetrahedron ", i / 4, " has vertex id ", id, " outside [0, ", num_points, ")"));
     }
     tetrahedra[i] = static_cast<SimplexId>(id);
   }
