@@ -49,43 +49,48 @@ std::string ValueName(P value) {
   return d != nullptr ? d->name() : std::to_string(int(value));
 }
 
-template <class P, class C, size_t N>
+// `hint()` (what to set instead) is only built for an error: relations are converted on every
+// query.
+template <class P, class C, size_t N, class Hint>
 absl::StatusOr<C> FromProtoOrError(const EnumMapping<P, C> (&mapping)[N], P proto,
-                                   const char* field, const char* what,
-                                   const std::string& hint = "") {
+                                   const char* field, const char* what, Hint hint) {
   if (std::optional<C> core = CoreValue(mapping, proto)) return *core;
   return absl::InvalidArgumentError(
-      absl::StrCat(field, ": ", ValueName(proto), " is not ", what, hint));
+      absl::StrCat(field, ": ", ValueName(proto), " is not ", what, hint()));
 }
+
+std::string NoHint() { return ""; }
 
 }  // namespace
 
 absl::StatusOr<Relation> FromProto(pb::Relation r) {
-  const std::string hint =
-      absl::StrCat("; set one of ", ValueName(std::begin(kRelationMapping)->proto), " ... ",
-                   ValueName(std::rbegin(kRelationMapping)->proto));
-  return FromProtoOrError(kRelationMapping, r, "relation", "a relation", hint);
+  return FromProtoOrError(kRelationMapping, r, "relation", "a relation", [] {
+    return absl::StrCat("; set one of ", ValueName(std::begin(kRelationMapping)->proto), " ... ",
+                        ValueName(std::rbegin(kRelationMapping)->proto));
+  });
 }
 
 absl::StatusOr<Algorithm> FromProto(pb::Algorithm a) {
-  std::string hint = "; set ";
-  for (size_t i = 0; i < std::size(kAlgorithmMapping); ++i) {
-    const char* separator = i == 0 ? "" : i + 1 < std::size(kAlgorithmMapping) ? ", " : " or ";
-    absl::StrAppend(&hint, separator, ValueName(kAlgorithmMapping[i].proto));
-  }
-  return FromProtoOrError(kAlgorithmMapping, a, "algorithm", "an algorithm", hint);
+  return FromProtoOrError(kAlgorithmMapping, a, "algorithm", "an algorithm", [] {
+    std::string hint = "; set ";
+    for (size_t i = 0; i < std::size(kAlgorithmMapping); ++i) {
+      const char* separator = i == 0 ? "" : i + 1 < std::size(kAlgorithmMapping) ? ", " : " or ";
+      absl::StrAppend(&hint, separator, ValueName(kAlgorithmMapping[i].proto));
+    }
+    return hint;
+  });
 }
 
 absl::StatusOr<StructureKind> FromProto(pb::Structure s) {
-  return FromProtoOrError(kStructureMapping, s, "structure", "a structure");
+  return FromProtoOrError(kStructureMapping, s, "structure", "a structure", NoHint);
 }
 
 absl::StatusOr<Prefetch> FromProto(pb::Prefetch p) {
-  return FromProtoOrError(kPrefetchMapping, p, "engine.prefetch", "a prefetch mode");
+  return FromProtoOrError(kPrefetchMapping, p, "engine.prefetch", "a prefetch mode", NoHint);
 }
 
 absl::StatusOr<Precompute> FromProto(pb::Precompute p) {
-  return FromProtoOrError(kPrecomputeMapping, p, "engine.precompute", "a scope");
+  return FromProtoOrError(kPrecomputeMapping, p, "engine.precompute", "a scope", NoHint);
 }
 
 pb::Relation ToProto(Relation r) { return ProtoValue(kRelationMapping, r); }

@@ -75,9 +75,10 @@ TEST(WireMapping, StructuresPrefetchAndPrecomputeOneRowPerValueBothWays) {
   ExpectComplete(kStructureMapping, "STRUCTURE_", StructureName);
   ExpectComplete(kPrefetchMapping, "PREFETCH_", PrefetchName);
   ExpectComplete(kPrecomputeMapping, "PRECOMPUTE_", PrecomputeName);
-  // Every core value the names know has a row (the names give "?" past the last one).
-  for (int i = 0; StructureName(StructureKind(i)) != "?"; ++i) {
-    EXPECT_NE(ToProto(StructureKind(i)), v1::STRUCTURE_UNSPECIFIED) << i;
+  // Every core value has a row: the structures are listed, the prefetch modes named up to the
+  // last ("?" past it).
+  for (StructureKind kind : AllStructures()) {
+    EXPECT_EQ(*FromProto(ToProto(kind)), kind) << StructureName(kind);
   }
   for (int i = 0; PrefetchName(Prefetch(i)) != "?"; ++i) {
     EXPECT_NE(ToProto(Prefetch(i)), v1::PREFETCH_UNSPECIFIED) << i;
