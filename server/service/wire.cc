@@ -208,89 +208,39 @@ namespace {
 
 using google::protobuf::Struct;
 
-void SetNumber(Struct* s, const std::string& key, double number) {
-  (*s->mutable_fields())[key].set_number_value(number);
-}
-
-void SetString(Struct* s, const std::string& key, std::string text) {
-  (*s->mutable_fields())[key].set_string_value(std::move(text));
-}
-
-void SetList(Struct* s, const std::string& key, std::span<const int64_t> numbers) {
-  google::protobuf::ListValue* list = (*s->mutable_fields())[key].mutable_list_value();
-  for (int64_t n : numbers) list->add_values()->set_number_value(double(n));
-}
-
-Struct* SetStruct(Struct* s, const std::string& key) {
-  return (*s->mutable_fields())[key].mutable_struct_value();
-}
-
-void FillTopoRelations(const TopoRelationsResult& r, Struct* out) {
-  Struct* totals = SetStruct(out, "relation_totals");
-  for (Relation rel : TopoRelationsSweeps()) {
-    SetNumber(totals, std::string(RelationName(rel)), double(r.totals[Index(rel)]));
+// One node of a summary's JSON tree as a protobuf Value: objects to structs, arrays to lists,
+// numbers to doubles (as google.protobuf.Value holds them), strings and booleans as they are.
+void ToValue(const nlohmann::ordered_json& json, google::protobuf::Value* out) {
+  using Type = nlohmann::ordered_json::value_t;
+  switch (json.type()) {
+    case Type::object: {
+      Struct* fields = out->mutable_struct_value();
+      for (const auto& [key, value] : json.items())
+        ToValue(value, &(*fields->mutable_fields())[key]);
+      break;
+    }
+    case Type::array: {
+      google::protobuf::ListValue* list = out->mutable_list_value();
+      for (const auto& value : json) ToValue(value, list->add_values());
+      break;
+    }
+    case Type::string: out->set_string_value(json.get<std::string>()); break;
+    case Type::boolean: out->set_bool_value(json.get<bool>()); break;
+    case Type::number_integer:
+    case Type::number_unsigned:
+    case Type::number_float: out->set_number_value(json.get<double>()); break;
+    default: out->set_null_value(google::protobuf::NULL_VALUE); break;
   }
-  SetString(out, "checksum", r.checksum_hex());
-}
-
-void FillCriticalPoints(const CriticalPointsResult& r, Struct* out) {
-  Struct* counts = SetStruct(out, "counts");
-  const auto count = [&](CriticalType t) { return double(r.counts[int(t)]); };
-  SetNumber(counts, "minimum", count(CriticalType::kMinimum));
-  SetNumber(counts, "saddle1", count(CriticalType::kSaddle1));
-  SetNumber(counts, "saddle2", count(CriticalType::kSaddle2));
-  SetNumber(counts, "degenerate", count(CriticalType::kDegenerate));
-  SetNumber(counts, "maximum", count(CriticalType::kMaximum));
-  SetString(out, "vertices_sha256", r.VerticesDigest());
-}
-
-void FillDiscreteGradient(const DiscreteGradientResult& r, const Topology& topology, Struct* out) {
-  SetList(out, "critical_cells", r.critical_cells);
-  SetList(out, "pairs_count", r.pairs);
-  SetString(out, "critical_cells_sha256", r.CriticalCellsDigest(topology));
-  SetString(out, "pairs_sha256", r.PairsDigest(topology));
-}
-
-void FillMorseSmale(const MorseSmaleResult& r, Struct* out) {
-  SetList(out, "critical_cells", r.gradient.critical_cells);
-  Struct* separatrices = SetStruct(out, "separatrices");
-  SetNumber(separatrices, "descending", double(r.CountSeparatrices(SeparatrixType::kDescending)));
-  SetNumber(separatrices, "ascending", double(r.CountSeparatrices(SeparatrixType::kAscending)));
-  SetNumber(separatrices, "saddle_connectors",
-            double(r.CountSeparatrices(SeparatrixType::kSaddleConnector)));
-  SetNumber(separatrices, "segments", double(r.Segments()));
-  Struct* regions = SetStruct(out, "regions");
-  SetNumber(regions, "descending", double(MorseSmaleResult::Regions(r.descending)));
-  SetNumber(regions, "ascending", double(MorseSmaleResult::Regions(r.ascending)));
-  SetNumber(regions, "morse_smale", double(MorseSmaleResult::Regions(r.morse_smale)));
-  Struct* sizes = SetStruct(out, "manifold_size_sum");
-  SetNumber(sizes, "minima", double(absl::c_accumulate(r.minimum_sizes, int64_t{0})));
-  SetNumber(sizes, "maxima", double(absl::c_accumulate(r.maximum_sizes, int64_t{0})));
-  Struct* unlabelled = SetStruct(out, "unlabelled_vertices");
-  SetNumber(unlabelled, "descending", double(absl::c_count(r.descending, -1)));
-  SetNumber(unlabelled, "ascending", double(absl::c_count(r.ascending, -1)));
-  SetNumber(unlabelled, "morse_smale", double(absl::c_count(r.morse_smale, -1)));
-  Struct* digests = SetStruct(out, "segmentation_sha256");
-  SetString(digests, "descending", MorseSmaleResult::SegmentationDigest(r.descending));
-  SetString(digests, "ascending", MorseSmaleResult::SegmentationDigest(r.ascending));
-  SetString(digests, "morse_smale", MorseSmaleResult::SegmentationDigest(r.morse_smale));
 }
 
 }  // namespace
 
 void FillSummary(const AlgorithmResult& result, const Topology& topology, Struct* out) {
   out->Clear();
-  std::visit(
-      [&](const auto& r) {
-        using T = std::decay_t<decltype(r)>;
-        if constexpr (std::is_same_v<T, TopoRelationsResult>) FillTopoRelations(r, out);
-        if constexpr (std::is_same_v<T, CriticalPointsResult>) FillCriticalPoints(r, out);
-        if constexpr (std::is_same_v<T, DiscreteGradientResult>) {
-          FillDiscreteGradient(r, topology, out);
-        }
-        if constexpr (std::is_same_v<T, MorseSmaleResult>) FillMorseSmale(r, out);
-      },
-      result);
+  // Summarize spells the summary's keys once, for actopo-bench's JSON and for the wire; its tree
+  // is copied node by node, without a text round trip.
+  const nlohmann::ordered_json summary = Summarize(result, topology);
+  for (const auto& [key, value] : summary.items()) ToValue(value, &(*out->mutable_fields())[key]);
 }
 
 void Pack(const std::string& name, std::span<const int64_t> values, pb::Array* out) {

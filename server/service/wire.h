@@ -105,8 +105,8 @@ void Fill(Session& session, const std::string& running_job, pb::SessionInfo* out
 void Fill(const EngineStats& stats, pb::EngineStats* out);
 void Fill(const MemoryStats& memory, pb::MemoryStats* out);
 
-// A job's summary: the keys and values of actopo-bench's "result" (Summarize in
-// run_algorithm.h), built from the result itself. Numbers are doubles, as in any Struct.
+// A job's summary: actopo-bench's "result" (Summarize in run_algorithm.h, the one place that
+// spells its keys) copied node by node into a Struct. Numbers are doubles, as in any Struct.
 void FillSummary(const AlgorithmResult& result, const Topology& topology,
                  google::protobuf::Struct* out);
 
