@@ -1,5 +1,6 @@
 // critical-points and discrete-gradient against upstream TTK's results on the same files
 // (../shared/data/expected-ttk.json): counts and SHA-256 digests, on every structure.
+#include <cctype>
 #include <fstream>
 #include <type_traits>
 
@@ -55,6 +56,23 @@ Loaded Load(const std::string& file, const std::string& field) {
 
 class MatchesTtk : public io::testing::DataTest {};
 
+// One test per (file, field) of expected-ttk.json.
+class MatchesTtkOn : public io::testing::DataTest, public ::testing::WithParamInterface<Case> {};
+
+void PrintTo(const Case& c, std::ostream* out) { *out << c.file << " / " << c.field; }
+
+std::string CaseName(const ::testing::TestParamInfo<Case>& info) {
+  std::string name = info.param.file.substr(0, info.param.file.find('.')) + "_" + info.param.field;
+  for (char& c : name) {
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  }
+  return name;
+}
+
+TEST_F(MatchesTtk, ExpectedResultsAreThere) {
+  EXPECT_FALSE(Cases().empty()) << "expected-ttk.json not found in " << io::testing::DataDir();
+}
+
 // Runs `check(structure_label, run)` for every structure with 1, 2 and 3 consumers (actopo with
 // 1 to 3 producers and two buffer ratios): results must not depend on any of them.
 template <class Check>
@@ -76,76 +94,72 @@ void ForEveryStructureAndThreadCount(const Loaded& in, Prefetch prefetch, Check&
   }
 }
 
-TEST_F(MatchesTtk, CriticalPointsAndDiscreteGradient) {
-  const std::vector<Case> cases = Cases();
-  ASSERT_FALSE(cases.empty()) << "expected-ttk.json not found in " << io::testing::DataDir();
-  for (const Case& c : cases) {
-    SCOPED_TRACE(c.file + " / " + c.field);
-    const Loaded in = Load(c.file, c.field);
-    const Json& cp = c.expected["critical_points"];
-    const Json& dg = c.expected["discrete_gradient"];
-    ForEveryStructureAndThreadCount(
-        in, Prefetch::kLinear,
-        [&](const std::string& label, auto& structure, const RunContext& context) {
-          SCOPED_TRACE(label);
-          const CriticalPointsResult r = *RunCriticalPoints(structure, in.order, {}, context);
-          EXPECT_EQ(r.counts[int(CriticalType::kMinimum)], cp["counts"]["minimum"].get<int64_t>());
-          EXPECT_EQ(r.counts[int(CriticalType::kSaddle1)], cp["counts"]["saddle1"].get<int64_t>());
-          EXPECT_EQ(r.counts[int(CriticalType::kSaddle2)], cp["counts"]["saddle2"].get<int64_t>());
-          EXPECT_EQ(r.counts[int(CriticalType::kMaximum)], cp["counts"]["maximum"].get<int64_t>());
-          EXPECT_EQ(r.counts[int(CriticalType::kDegenerate)],
-                    cp["counts"]["degenerate"].get<int64_t>());
-          EXPECT_EQ(r.VerticesDigest(), cp["vertices_sha256"].get<std::string>());
+TEST_P(MatchesTtkOn, CriticalPointsAndDiscreteGradient) {
+  const Case& c = GetParam();
+  const Loaded in = Load(c.file, c.field);
+  const Json& cp = c.expected["critical_points"];
+  const Json& dg = c.expected["discrete_gradient"];
+  ForEveryStructureAndThreadCount(
+      in, Prefetch::kLinear,
+      [&](const std::string& label, auto& structure, const RunContext& context) {
+        SCOPED_TRACE(label);
+        const CriticalPointsResult r = *RunCriticalPoints(structure, in.order, {}, context);
+        EXPECT_EQ(r.counts[int(CriticalType::kMinimum)], cp["counts"]["minimum"].get<int64_t>());
+        EXPECT_EQ(r.counts[int(CriticalType::kSaddle1)], cp["counts"]["saddle1"].get<int64_t>());
+        EXPECT_EQ(r.counts[int(CriticalType::kSaddle2)], cp["counts"]["saddle2"].get<int64_t>());
+        EXPECT_EQ(r.counts[int(CriticalType::kMaximum)], cp["counts"]["maximum"].get<int64_t>());
+        EXPECT_EQ(r.counts[int(CriticalType::kDegenerate)],
+                  cp["counts"]["degenerate"].get<int64_t>());
+        EXPECT_EQ(r.VerticesDigest(), cp["vertices_sha256"].get<std::string>());
 
-          const DiscreteGradientResult g = *RunDiscreteGradient(structure, in.order, context);
-          if constexpr (std::is_same_v<std::decay_t<decltype(structure)>, ExplicitStructure>) {
-            testing::ExpectValidGradient(g, structure);  // the digests below cover the others
-          }
-          EXPECT_EQ(Json(g.critical_cells), dg["critical_cells"]);
-          EXPECT_EQ(Json(g.pairs), dg["pairs_count"]);
-          EXPECT_EQ(g.CriticalCellsDigest(*in.topology),
-                    dg["critical_cells_sha256"].get<std::string>());
-          EXPECT_EQ(g.PairsDigest(*in.topology), dg["pairs_sha256"].get<std::string>());
-        });
-  }
+        const DiscreteGradientResult g = *RunDiscreteGradient(structure, in.order, context);
+        if constexpr (std::is_same_v<std::decay_t<decltype(structure)>, ExplicitStructure>) {
+          testing::ExpectValidGradient(g, structure);  // the digests below cover the others
+        }
+        EXPECT_EQ(Json(g.critical_cells), dg["critical_cells"]);
+        EXPECT_EQ(Json(g.pairs), dg["pairs_count"]);
+        EXPECT_EQ(g.CriticalCellsDigest(*in.topology),
+                  dg["critical_cells_sha256"].get<std::string>());
+        EXPECT_EQ(g.PairsDigest(*in.topology), dg["pairs_sha256"].get<std::string>());
+      });
 }
 
-TEST_F(MatchesTtk, MorseSmale) {
-  const std::vector<Case> cases = Cases();
-  ASSERT_FALSE(cases.empty());
-  for (const Case& c : cases) {
-    SCOPED_TRACE(c.file + " / " + c.field);
-    const Loaded in = Load(c.file, c.field);
-    const Json& ms = c.expected["morse_smale"];
-    // Linear: the default; morse_smale_test.cc covers the other prefetch modes.
-    ForEveryStructureAndThreadCount(
-        in, Prefetch::kLinear,
-        [&](const std::string& label, auto& structure, const RunContext& context) {
-          SCOPED_TRACE(label);
-          const MorseSmaleResult r = *RunMorseSmale(structure, in.order, in.tetrahedra, context);
-          EXPECT_EQ(Json(r.gradient.critical_cells), ms["critical_cells"]);
-          EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kDescending),
-                    ms["separatrices"]["descending"].get<int64_t>());
-          EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kAscending),
-                    ms["separatrices"]["ascending"].get<int64_t>());
-          EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kSaddleConnector),
-                    ms["separatrices"]["saddle_connectors"].get<int64_t>());
-          EXPECT_EQ(r.Segments(), ms["separatrices"]["segments"].get<int64_t>());
-          EXPECT_EQ(MorseSmaleResult::Regions(r.descending),
-                    ms["regions"]["descending"].get<int64_t>());
-          EXPECT_EQ(MorseSmaleResult::Regions(r.ascending),
-                    ms["regions"]["ascending"].get<int64_t>());
-          EXPECT_EQ(MorseSmaleResult::Regions(r.morse_smale),
-                    ms["regions"]["morse_smale"].get<int64_t>());
-          EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.descending),
-                    ms["segmentation_sha256"]["descending"].get<std::string>());
-          EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.ascending),
-                    ms["segmentation_sha256"]["ascending"].get<std::string>());
-          EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.morse_smale),
-                    ms["segmentation_sha256"]["morse_smale"].get<std::string>());
-        });
-  }
+TEST_P(MatchesTtkOn, MorseSmale) {
+  const Case& c = GetParam();
+  const Loaded in = Load(c.file, c.field);
+  const Json& ms = c.expected["morse_smale"];
+  // Linear: the default; morse_smale_test.cc covers the other prefetch modes.
+  ForEveryStructureAndThreadCount(
+      in, Prefetch::kLinear,
+      [&](const std::string& label, auto& structure, const RunContext& context) {
+        SCOPED_TRACE(label);
+        const MorseSmaleResult r = *RunMorseSmale(structure, in.order, in.tetrahedra, context);
+        EXPECT_EQ(Json(r.gradient.critical_cells), ms["critical_cells"]);
+        EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kDescending),
+                  ms["separatrices"]["descending"].get<int64_t>());
+        EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kAscending),
+                  ms["separatrices"]["ascending"].get<int64_t>());
+        EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kSaddleConnector),
+                  ms["separatrices"]["saddle_connectors"].get<int64_t>());
+        EXPECT_EQ(r.Segments(), ms["separatrices"]["segments"].get<int64_t>());
+        EXPECT_EQ(MorseSmaleResult::Regions(r.descending),
+                  ms["regions"]["descending"].get<int64_t>());
+        EXPECT_EQ(MorseSmaleResult::Regions(r.ascending),
+                  ms["regions"]["ascending"].get<int64_t>());
+        EXPECT_EQ(MorseSmaleResult::Regions(r.morse_smale),
+                  ms["regions"]["morse_smale"].get<int64_t>());
+        EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.descending),
+                  ms["segmentation_sha256"]["descending"].get<std::string>());
+        EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.ascending),
+                  ms["segmentation_sha256"]["ascending"].get<std::string>());
+        EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.morse_smale),
+                  ms["segmentation_sha256"]["morse_smale"].get<std::string>());
+      });
 }
+
+INSTANTIATE_TEST_SUITE_P(ExpectedTtk, MatchesTtkOn, ::testing::ValuesIn(Cases()), CaseName);
+// Without the data folder there are no cases; ExpectedResultsAreThere says so.
+GTEST_ALLOW_UNINSTANTIATED_PARAMETERIZED_TEST(MatchesTtkOn);
 
 TEST_F(MatchesTtk, GradientInvariantsOnOtherMeshes) {
   for (const auto& [file, field] : {std::pair{"casting_tet.vtu", "eigenfunction4"},
