@@ -1,5 +1,6 @@
-// critical-points and discrete-gradient against upstream TTK's results on the same files
-// (../shared/data/expected-ttk.json): counts and SHA-256 digests, on every structure.
+// critical-points, discrete-gradient, morse-smale and persistence-diagram against upstream TTK's
+// results on the same files (../shared/data/expected-ttk.json): counts and SHA-256 digests, on
+// every structure.
 #include <cctype>
 #include <fstream>
 #include <set>
@@ -10,6 +11,7 @@
 #include "server/algorithms/critical_points.h"
 #include "server/algorithms/discrete_gradient.h"
 #include "server/algorithms/morse_smale.h"
+#include "server/algorithms/persistence_diagram.h"
 #include "server/algorithms/testing/gradient_checks.h"
 #include "server/algorithms/vertex_order.h"
 #include "server/core/actopo_structure.h"
@@ -56,6 +58,7 @@ struct Loaded {
   std::shared_ptr<const Topology> topology;
   std::vector<SimplexId> order;
   std::vector<SimplexId> tetrahedra;  // as in the file
+  std::vector<double> scalars;        // by input vertex id
 };
 
 Loaded Load(const std::string& file, const std::string& field) {
@@ -63,7 +66,8 @@ Loaded Load(const std::string& file, const std::string& field) {
   EXPECT_TRUE(mesh.ok()) << mesh.status();
   const int f = *SelectScalarField(*mesh, field);
   auto topo = *Topology::Build(*mesh, OctreeBlocks(mesh->points, {.bucket_capacity = 1000}));
-  return {topo, VertexOrder(*topo, mesh->point_fields[f].values), mesh->tetrahedra};
+  return {topo, VertexOrder(*topo, mesh->point_fields[f].values), mesh->tetrahedra,
+          mesh->point_fields[f].values};
 }
 
 class MatchesTtk : public io::testing::DataTest {};
@@ -175,6 +179,38 @@ TEST_P(MatchesTtkOn, MorseSmale) {
                   ms["segmentation_sha256"]["ascending"].get<std::string>());
         EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.morse_smale),
                   ms["segmentation_sha256"]["morse_smale"].get<std::string>());
+      });
+}
+
+TEST_P(MatchesTtkOn, PersistenceDiagram) {
+  const Case& c = GetParam();
+  const Json expected = Expected(c);
+  const Loaded in = Load(c.file, c.field);
+  ASSERT_TRUE(expected.contains("persistence_diagram")) << c.file << " / " << c.field;
+  const Json& pd = expected["persistence_diagram"];
+  ForEveryStructureAndThreadCount(
+      in, Prefetch::kLinear,
+      [&](const std::string& label, auto& structure, const RunContext& context) {
+        SCOPED_TRACE(label);
+        const auto r = RunPersistenceDiagram(structure, in.order, in.scalars, context);
+        ASSERT_TRUE(r.ok()) << r.status();
+        EXPECT_EQ(int64_t(r->pairs.size()), pd["pairs"].get<int64_t>());
+        Json counts = Json::object();
+        for (int k = 0; k < 3; ++k) {
+          if (r->finite[k] > 0) counts[std::to_string(k)] = r->finite[k];
+          if (r->infinite[k] > 0) counts[std::to_string(k) + "_infinite"] = r->infinite[k];
+        }
+        EXPECT_EQ(counts, pd["counts_by_type"]);
+        EXPECT_EQ(r->PairsDigest(), pd["pairs_sha256"].get<std::string>());
+        EXPECT_NEAR(r->MaxPersistence(), pd["max_persistence"].get<double>(), 1e-9);
+        if (pd.contains("lines")) {  // small diagrams: the pairs themselves, for a readable diff
+          std::set<std::vector<int64_t>> got, want;
+          for (const PersistencePair& p : r->pairs) {
+            got.insert({p.type, p.birth, p.death, p.finite() ? 1 : 0});
+          }
+          for (const Json& line : pd["lines"]) want.insert(line.get<std::vector<int64_t>>());
+          EXPECT_EQ(got, want);
+        }
       });
 }
 

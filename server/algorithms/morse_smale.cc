@@ -4,11 +4,11 @@
 #include <iterator>
 #include <optional>
 #include <queue>
-#include <type_traits>
 
 #include "absl/container/flat_hash_set.h"
 #include "absl/strings/str_cat.h"
 #include "server/algorithms/digest.h"
+#include "server/algorithms/prefetch_off.h"
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
@@ -290,25 +290,6 @@ void ResolveAscendingLabels(std::vector<SimplexId>& next) {
   }
   for (SimplexId& code : next) code = LabelCode(code);  // its own inverse
 }
-
-// Switches an actopo structure's prefetching off for its lifetime (the other structures have
-// none): for phases whose reads follow walls and paths, not blocks.
-template <class Structure>
-class PrefetchOff {
- public:
-  explicit PrefetchOff(Structure& structure) : structure_(structure) {
-    if constexpr (kActopo) structure_.SetPrefetching(false);
-  }
-  ~PrefetchOff() {
-    if constexpr (kActopo) structure_.SetPrefetching(true);
-  }
-  PrefetchOff(const PrefetchOff&) = delete;
-  PrefetchOff& operator=(const PrefetchOff&) = delete;
-
- private:
-  static constexpr bool kActopo = std::is_same_v<Structure, ActopoStructure>;
-  Structure& structure_;
-};
 
 std::vector<SimplexId> FinalSegmentation(const std::vector<SimplexId>& descending,
                                          const std::vector<SimplexId>& ascending,

@@ -8,13 +8,15 @@
 #include "server/algorithms/critical_points.h"
 #include "server/algorithms/discrete_gradient.h"
 #include "server/algorithms/morse_smale.h"
+#include "server/algorithms/persistence_diagram.h"
 #include "server/algorithms/topo_relations.h"
 
 namespace actopo {
 namespace {
 
-constexpr std::array<Algorithm, 4> kAll = {Algorithm::kTopoRelations, Algorithm::kCriticalPoints,
-                                           Algorithm::kDiscreteGradient, Algorithm::kMorseSmale};
+constexpr std::array<Algorithm, 5> kAll = {Algorithm::kTopoRelations, Algorithm::kCriticalPoints,
+                                           Algorithm::kDiscreteGradient, Algorithm::kMorseSmale,
+                                           Algorithm::kPersistenceDiagram};
 
 }  // namespace
 
@@ -24,6 +26,7 @@ std::string_view AlgorithmName(Algorithm a) {
     case Algorithm::kCriticalPoints: return "critical-points";
     case Algorithm::kDiscreteGradient: return "discrete-gradient";
     case Algorithm::kMorseSmale: return "morse-smale";
+    case Algorithm::kPersistenceDiagram: return "persistence-diagram";
   }
   return "?";
 }
@@ -51,6 +54,7 @@ RelationSet DeclaredRelations(Algorithm a) {
     case Algorithm::kCriticalPoints: return CriticalPointsDeclared();
     case Algorithm::kDiscreteGradient: return DiscreteGradientDeclared();
     case Algorithm::kMorseSmale: return MorseSmaleDeclared();
+    case Algorithm::kPersistenceDiagram: return PersistenceDiagramDeclared();
   }
   return {};
 }
@@ -64,8 +68,11 @@ Prefetch DefaultPrefetch(Algorithm) {
 }
 
 Precompute DefaultPrecompute(Algorithm a) {
-  return a == Algorithm::kTopoRelations || a == Algorithm::kMorseSmale ? Precompute::kRequested
-                                                                       : Precompute::kDeclared;
+  // The persistence diagram declares FT and FE for its paths and boundaries, read after the
+  // gradient with prefetching off: precomputing them with the lower stars would be waste.
+  return a == Algorithm::kCriticalPoints || a == Algorithm::kDiscreteGradient
+             ? Precompute::kDeclared
+             : Precompute::kRequested;
 }
 
 }  // namespace actopo

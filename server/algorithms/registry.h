@@ -20,6 +20,7 @@ enum class Algorithm : uint8_t {
   kCriticalPoints,
   kDiscreteGradient,
   kMorseSmale,
+  kPersistenceDiagram,
 };
 
 std::string_view AlgorithmName(Algorithm a);  // "critical-points"
@@ -32,8 +33,8 @@ RelationSet DeclaredRelations(Algorithm a);
 bool NeedsScalar(Algorithm a);
 
 // Engine modes per algorithm: linear prefetch for all (each consumer sweeps its blocks in
-// order); topo-relations and Morse-Smale precompute the requested relation, critical points and
-// discrete gradient every declared one.
+// order); critical points and discrete gradient precompute every declared relation, the others
+// the requested one.
 Prefetch DefaultPrefetch(Algorithm a);
 Precompute DefaultPrecompute(Algorithm a);
 

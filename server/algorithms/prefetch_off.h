@@ -1,0 +1,37 @@
+// Switches an actopo structure's prefetching off for a scope (the other structures have none):
+// for phases whose reads follow V-paths and walls across blocks, not blocks in order, where
+// speculative block computations only compete with the consumers.
+//
+//   {
+//     PrefetchOff<Structure> off(structure);
+//     ... trace paths ...
+//   }
+#ifndef ACTOPO_SERVER_ALGORITHMS_PREFETCH_OFF_H_
+#define ACTOPO_SERVER_ALGORITHMS_PREFETCH_OFF_H_
+
+#include <type_traits>
+
+#include "server/core/actopo_structure.h"
+
+namespace actopo {
+
+template <class Structure>
+class PrefetchOff {
+ public:
+  explicit PrefetchOff(Structure& structure) : structure_(structure) {
+    if constexpr (kActopo) structure_.SetPrefetching(false);
+  }
+  ~PrefetchOff() {
+    if constexpr (kActopo) structure_.SetPrefetching(true);
+  }
+  PrefetchOff(const PrefetchOff&) = delete;
+  PrefetchOff& operator=(const PrefetchOff&) = delete;
+
+ private:
+  static constexpr bool kActopo = std::is_same_v<Structure, ActopoStructure>;
+  Structure& structure_;
+};
+
+}  // namespace actopo
+
+#endif  // ACTOPO_SERVER_ALGORITHMS_PREFETCH_OFF_H_
