@@ -51,6 +51,9 @@ struct PersistenceDiagramResult {
   // Ascending vertex order of the birth vertex (TTK's sort), then type, then death order.
   std::vector<PersistencePair> pairs;
   std::array<int64_t, 3> finite{}, infinite{};  // pairs per type
+  // Outputs place the pairs at their vertices instead of (birth, death) (TTK's "embedded in
+  // the domain"); set by the caller.
+  bool embed_in_domain = false;
 
   // Largest Persistence() over all pairs (0 without pairs).
   double MaxPersistence() const;

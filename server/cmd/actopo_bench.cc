@@ -220,6 +220,7 @@ absl::StatusOr<Json> Run(BenchOptions o) {
                                                                      : BoundaryRule::kTtk}};
   if (!scalars.empty()) input.order = VertexOrder(*topology, scalars);
   input.input_tetrahedra = std::move(input_tetrahedra);
+  if (algorithm == Algorithm::kPersistenceDiagram) input.scalars = scalars;
   const double order_s = Seconds(start);
   Phase(trace, "vertex order", start);
   const RelationSet declared = DeclaredRelations(algorithm);
@@ -378,8 +379,9 @@ int main(int argc, char** argv) {
   flags.Add("sample", &o.sample,
             "built-in sample instead of a file: " + absl::StrJoin(actopo::io::SampleNames(), "; "));
   flags.Add("scalar", &o.scalar, "point scalar field (default: first floating-point field)");
-  flags.Add("algorithm", &o.algorithm,
-            "topo-relations, critical-points, discrete-gradient or morse-smale");
+  flags.Add(
+      "algorithm", &o.algorithm,
+      "topo-relations, critical-points, discrete-gradient, morse-smale or persistence-diagram");
   flags.Add("boundary-rule", &o.boundary_rule,
             "critical-points: ttk (TTK >= 1.1 boundary saddles) or none");
   flags.Add("structure", &o.structure, "explicit, compact or actopo");

@@ -56,17 +56,20 @@ struct VtkArrayFor<float> {
 };
 
 template <typename T>
-vtkSmartPointer<vtkDataArray> MakeArray(const std::string& name, const std::vector<T>& values) {
+vtkSmartPointer<vtkDataArray> MakeArray(const std::string& name, const std::vector<T>& values,
+                                        int components = 1) {
   auto array = vtkSmartPointer<typename VtkArrayFor<T>::type>::New();
   array->SetName(name.c_str());
+  array->SetNumberOfComponents(components);
   array->SetNumberOfValues(static_cast<vtkIdType>(values.size()));
   std::copy(values.begin(), values.end(), array->GetPointer(0));
   return array;
 }
 
 vtkSmartPointer<vtkDataArray> MakeArray(const NamedArray& array) {
-  return std::visit([&](const auto& values) { return MakeArray(array.name, values); },
-                    array.values);
+  return std::visit(
+      [&](const auto& values) { return MakeArray(array.name, values, array.components); },
+      array.values);
 }
 
 // Int32 keeps label fields integral in ParaView; a value outside int32 (the source array was
@@ -97,6 +100,11 @@ absl::Status AddArrays(std::span<const NamedArray> arrays, size_t expected_size,
       return absl::InvalidArgumentError(
           absl::StrCat(what, " array '", array.name, "': the name is used twice"));
     }
+    const size_t values = std::visit([](const auto& v) { return v.size(); }, array.values);
+    if (array.components < 1 || values % size_t(array.components) != 0) {
+      return absl::InvalidArgumentError(absl::StrCat(what, " array '", array.name, "' has ", values,
+                                                     " values in tuples of ", array.components));
+    }
     if (array.size() != expected_size) {
       return absl::InvalidArgumentError(absl::StrCat(what, " array '", array.name, "' has ",
                                                      array.size(), " values, expected ",
@@ -107,11 +115,15 @@ absl::Status AddArrays(std::span<const NamedArray> arrays, size_t expected_size,
   return absl::OkStatus();
 }
 
-absl::Status CheckOutputPath(const std::string& path, const char* extension) {
+absl::Status CheckOutputPath(const std::string& path, const std::string& extension,
+                             const std::string& other_extension = "") {
   namespace fs = std::filesystem;
-  if (absl::AsciiStrToLower(fs::path(path).extension().string()) != extension) {
-    return absl::InvalidArgumentError(absl::StrCat(path, ": the file name must end in ", extension,
-                                                   " (ParaView picks its reader by it)"));
+  const std::string ext = absl::AsciiStrToLower(fs::path(path).extension().string());
+  if (ext != extension && (other_extension.empty() || ext != other_extension)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(path, ": the file name must end in ", extension,
+                     other_extension.empty() ? std::string() : " or " + other_extension,
+                     " (ParaView picks its reader by it)"));
   }
   std::error_code error;
   fs::path directory = fs::path(path).parent_path();
@@ -236,7 +248,9 @@ absl::Status WriteUnstructuredGrid(const std::string& path, const Mesh& mesh,
 }
 
 absl::Status WritePolyData(const std::string& path, const PolyData& poly_data) {
-  RETURN_IF_ERROR(CheckOutputPath(path, ".vtp"));
+  RETURN_IF_ERROR(CheckOutputPath(path, ".vtp", ".vtu"));
+  const bool grid =
+      absl::AsciiStrToLower(std::filesystem::path(path).extension().string()) == ".vtu";
   if (poly_data.points.size() % 3 != 0) {
     return absl::InvalidArgumentError(
         absl::StrCat("points: ", poly_data.points.size(), " coordinates is not a multiple of 3"));
@@ -249,13 +263,18 @@ absl::Status WritePolyData(const std::string& path, const PolyData& poly_data) {
   const bool has_lines = poly_data.line_offsets.size() > 1;
 
   vtkNew<vtkPolyData> poly;
+  vtkNew<vtkUnstructuredGrid> unstructured;
+  vtkDataSet& data_set = grid ? static_cast<vtkDataSet&>(*unstructured) : *poly;
   poly->SetPoints(MakePoints(poly_data.points));
+  unstructured->SetPoints(poly->GetPoints());
   vtkNew<vtkCellArray> cells;
   size_t num_cells = 0;
   if (has_lines) {
     num_cells = poly_data.line_offsets.size() - 1;
     cells->SetData(MakeIdArray(poly_data.line_offsets), MakeIdArray(poly_data.line_connectivity));
     poly->SetLines(cells);
+    const bool segments = poly_data.line_connectivity.size() == 2 * num_cells;
+    unstructured->SetCells(segments ? VTK_LINE : VTK_POLY_LINE, cells);
   } else {
     // ParaView draws no points of a poly data without cells, so each point gets a vertex cell.
     num_cells = num_points;
@@ -264,15 +283,21 @@ absl::Status WritePolyData(const std::string& path, const PolyData& poly_data) {
     std::vector<int32_t> vertex_ids(ids.begin(), ids.end() - 1);
     cells->SetData(MakeIdArray(ids), MakeIdArray(vertex_ids));
     poly->SetVerts(cells);
+    unstructured->SetCells(VTK_VERTEX, cells);
   }
 
   std::set<std::string> point_names;
-  RETURN_IF_ERROR(
-      AddArrays(poly_data.point_arrays, num_points, "point", point_names, *poly->GetPointData()));
+  RETURN_IF_ERROR(AddArrays(poly_data.point_arrays, num_points, "point", point_names,
+                            *data_set.GetPointData()));
   std::set<std::string> cell_names;
   RETURN_IF_ERROR(AddArrays(poly_data.cell_arrays, num_cells, has_lines ? "line" : "vertex cell",
-                            cell_names, *poly->GetCellData()));
+                            cell_names, *data_set.GetCellData()));
 
+  if (grid) {
+    vtkNew<vtkXMLUnstructuredGridWriter> writer;
+    writer->SetInputData(unstructured);
+    return Write(*writer, path);
+  }
   vtkNew<vtkXMLPolyDataWriter> writer;
   writer->SetInputData(poly);
   return Write(*writer, path);

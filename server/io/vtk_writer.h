@@ -37,9 +37,11 @@ struct NamedArray {
 
   std::string name;
   Values values;
+  int components = 1;  // values per tuple, e.g. 3 for TTK's Coordinates
 
+  // Tuples: one per point (or cell).
   size_t size() const {
-    return std::visit([](const auto& v) { return v.size(); }, values);
+    return std::visit([](const auto& v) { return v.size(); }, values) / size_t(components);
   }
 };
 
@@ -60,7 +62,8 @@ struct PolyData {
 absl::Status WriteUnstructuredGrid(const std::string& path, const Mesh& mesh,
                                    std::span<const NamedArray> extra_point_arrays = {});
 
-// Writes `poly_data` as a .vtp file.
+// Writes `poly_data` as a .vtp file, or as a .vtu file (an unstructured grid of line cells, as
+// TTK's persistence diagrams are) when the path ends in .vtu.
 absl::Status WritePolyData(const std::string& path, const PolyData& poly_data);
 
 }  // namespace actopo::io

@@ -1,5 +1,6 @@
 #include "server/io/vtk_writer.h"
 
+#include <vtkCell.h>
 #include <vtkCellArray.h>
 #include <vtkCellData.h>
 #include <vtkDataArray.h>
@@ -7,7 +8,9 @@
 #include <vtkPointData.h>
 #include <vtkPolyData.h>
 #include <vtkType.h>
+#include <vtkUnstructuredGrid.h>
 #include <vtkXMLPolyDataReader.h>
+#include <vtkXMLUnstructuredGridReader.h>
 
 #include <filesystem>
 #include <fstream>
@@ -218,6 +221,40 @@ TEST(WritePolyDataTest, EmptyPolyData) {
   const std::string path = (MakeTempDir("vtp_empty") / "nothing.vtp").string();
   ASSERT_TRUE(WritePolyData(path, PolyData{}).ok());
   EXPECT_EQ(ReadPolyData(path)->GetNumberOfPoints(), 0);
+}
+
+// TTK's persistence diagrams: line cells in an unstructured grid, a 3-component point array.
+TEST(WritePolyDataTest, LinesAsAnUnstructuredGridWithTuples) {
+  PolyData poly;
+  poly.points = {0, 0, 0, 0, 1, 0, 1, 1, 0, 1, 3, 0};
+  poly.line_offsets = {0, 2, 4};
+  poly.line_connectivity = {0, 1, 2, 3};
+  poly.point_arrays.push_back(
+      {"Coordinates", std::vector<float>{1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12}, 3});
+  poly.cell_arrays.push_back({"PairIdentifier", std::vector<int32_t>{0, 1}});
+  const std::string path = (MakeTempDir("vtu_lines") / "diagram.vtu").string();
+  ASSERT_TRUE(WritePolyData(path, poly).ok());
+
+  vtkNew<vtkXMLUnstructuredGridReader> reader;
+  reader->SetFileName(path.c_str());
+  reader->Update();
+  vtkUnstructuredGrid* back = reader->GetOutput();
+  ASSERT_EQ(back->GetNumberOfPoints(), 4);
+  ASSERT_EQ(back->GetNumberOfCells(), 2);
+  EXPECT_EQ(back->GetCellType(1), VTK_LINE);
+  EXPECT_EQ(back->GetCell(1)->GetPointId(1), 3);
+  vtkDataArray* coordinates = back->GetPointData()->GetArray("Coordinates");
+  ASSERT_NE(coordinates, nullptr);
+  EXPECT_EQ(coordinates->GetDataType(), VTK_FLOAT);
+  EXPECT_EQ(coordinates->GetNumberOfComponents(), 3);
+  EXPECT_EQ(coordinates->GetComponent(2, 1), 8);
+  EXPECT_THAT(Values(back->GetCellData()->GetArray("PairIdentifier")), ElementsAre(0, 1));
+
+  poly.point_arrays[0].values = std::vector<float>(11, 0.0f);
+  const absl::Status status = WritePolyData(path, poly);
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(status.message(), HasSubstr("'Coordinates' has 11 values in tuples of 3"));
+  EXPECT_THAT(WritePolyData(path + ".vtk", poly).message(), HasSubstr("must end in .vtp or .vtu"));
 }
 
 TEST(WritePolyDataTest, RefusesMalformedInput) {

@@ -1,7 +1,11 @@
 #include "server/results/result_files.h"
 
 #include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 
+#include "absl/strings/str_cat.h"
 #include "server/core/status_macros.h"
 #include "server/io/vtk_writer.h"
 
@@ -136,6 +140,104 @@ void AddMorseSmaleOutputs(const ResultContext& c, const MorseSmaleResult& r, Res
       {"MorseSmaleManifold", std::vector<int32_t>(r.morse_smale.begin(), r.morse_smale.end())}};
 }
 
+// TTK's CriticalType of a pair's birth and death vertices.
+int32_t BirthType(const PersistencePair& p) { return p.type; }
+int32_t DeathType(const PersistencePair& p) { return p.finite() && p.type < 2 ? p.type + 1 : 3; }
+
+// TTK's diagram: two points per pair, (birth, birth, 0) and (birth, death, 0), or the two
+// vertices' positions when embedded in the domain; a line per pair; the diagonal last (not when
+// embedded).
+PolyData DiagramPolyData(const ResultContext& c, const PersistenceDiagramResult& r) {
+  PolyData out;
+  std::vector<int32_t> vertex, critical_type, pair_id, pair_type;
+  std::vector<float> coordinates;
+  std::vector<double> persistence, birth;
+  std::vector<int8_t> finite;
+  out.line_offsets.push_back(0);
+  const auto add_point = [&](SimplexId v, int32_t type, double x, double y) {
+    const double* p = &c.mesh.points[3 * size_t(v)];
+    if (r.embed_in_domain) {
+      out.points.insert(out.points.end(), p, p + 3);
+    } else {
+      out.points.insert(out.points.end(), {x, y, 0.0});
+    }
+    out.line_connectivity.push_back(int32_t(vertex.size()));
+    vertex.push_back(v);
+    critical_type.push_back(type);
+    coordinates.insert(coordinates.end(), {float(p[0]), float(p[1]), float(p[2])});
+  };
+  for (size_t i = 0; i < r.pairs.size(); ++i) {
+    const PersistencePair& p = r.pairs[i];
+    add_point(p.birth, BirthType(p), p.birth_value, p.birth_value);
+    add_point(p.death, DeathType(p), p.birth_value, p.death_value);
+    out.line_offsets.push_back(int32_t(out.line_connectivity.size()));
+    pair_id.push_back(int32_t(i));
+    pair_type.push_back(p.type);
+    persistence.push_back(p.Persistence());
+    birth.push_back(p.birth_value);
+    finite.push_back(p.finite());
+  }
+  if (!r.pairs.empty() && !r.embed_in_domain) {
+    out.line_connectivity.insert(out.line_connectivity.end(),
+                                 {0, int32_t(2 * (r.pairs.size() - 1))});
+    out.line_offsets.push_back(int32_t(out.line_connectivity.size()));
+    pair_id.push_back(-1);
+    pair_type.push_back(-1);
+    persistence.push_back(2 * persistence[0]);
+    birth.push_back(0);
+    finite.push_back(0);
+  }
+  if (r.pairs.empty()) out.line_offsets.clear();
+  out.point_arrays = {{"ttkVertexScalarField", std::move(vertex)},
+                      {"CriticalType", std::move(critical_type)},
+                      {"Coordinates", std::move(coordinates), 3}};
+  out.cell_arrays = {{"PairIdentifier", std::move(pair_id)},
+                     {"PairType", std::move(pair_type)},
+                     {"Persistence", std::move(persistence)},
+                     {"Birth", std::move(birth)},
+                     {"IsFinite", std::move(finite)}};
+  return out;
+}
+
+// TTK's persistence curves, one after another: per type 0, 1, 2 and then all pairs (-1).
+std::vector<io::NamedArray> CurveTable(const PersistenceDiagramResult& r) {
+  std::vector<double> persistence;
+  std::vector<int32_t> pairs;
+  std::vector<int8_t> type;
+  for (int t : {0, 1, 2, -1}) {
+    const PersistenceCurve curve = ComputePersistenceCurve(r, t);
+    persistence.insert(persistence.end(), curve.persistence.begin(), curve.persistence.end());
+    pairs.insert(pairs.end(), curve.pairs.begin(), curve.pairs.end());
+    type.insert(type.end(), curve.pairs.size(), int8_t(t));
+  }
+  return {{"PairType", std::move(type)},
+          {"Persistence", std::move(persistence)},
+          {"NumberOfPairs", std::move(pairs)}};
+}
+
+absl::Status WriteCsv(const std::string& path, std::span<const io::NamedArray> columns) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) {
+    return absl::InvalidArgumentError(absl::StrCat(path, ": cannot write: ", std::strerror(errno)));
+  }
+  for (size_t k = 0; k < columns.size(); ++k) {
+    std::fprintf(f, "%s%s", k ? "," : "", columns[k].name.c_str());
+  }
+  std::fprintf(f, "\n");
+  const size_t rows = columns.empty() ? 0 : columns[0].size();
+  for (size_t i = 0; i < rows; ++i) {
+    for (size_t k = 0; k < columns.size(); ++k) {
+      std::visit([&](const auto& v) { std::fprintf(f, "%s%.17g", k ? "," : "", double(v[i])); },
+                 columns[k].values);
+    }
+    std::fprintf(f, "\n");
+  }
+  if (std::fclose(f) != 0) {
+    return absl::InternalError(absl::StrCat(path, ": cannot write: ", std::strerror(errno)));
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace
 
 std::vector<SimplexId> CellInputVertices(const Topology& topology, int d, SimplexId c) {
@@ -153,6 +255,9 @@ ResultOutputs BuildOutputs(const ResultContext& c, const AlgorithmResult& result
         {"critical_cells", CriticalCellPoints(c, CriticalCells(c.topology, g->gradient), nullptr)});
   } else if (const auto* m = std::get_if<MorseSmaleResult>(&result)) {
     AddMorseSmaleOutputs(c, *m, out);
+  } else if (const auto* d = std::get_if<PersistenceDiagramResult>(&result)) {
+    out.poly_data.push_back({"diagram", DiagramPolyData(c, *d)});
+    out.tables.push_back({"persistence_curve", CurveTable(*d)});
   }
   return out;
 }
@@ -163,8 +268,14 @@ absl::StatusOr<std::vector<std::string>> WriteResultFiles(const std::string& pre
   const ResultOutputs outputs = BuildOutputs(c, result);
   std::vector<std::string> written;
   for (const auto& [group, poly_data] : outputs.poly_data) {
-    const std::string path = prefix + "_" + group + ".vtp";
+    // TTK's diagrams are unstructured grids.
+    const std::string path = prefix + "_" + group + (group == "diagram" ? ".vtu" : ".vtp");
     RETURN_IF_ERROR(io::WritePolyData(path, poly_data));
+    written.push_back(path);
+  }
+  for (const auto& [name, columns] : outputs.tables) {
+    const std::string path = prefix + "_" + name + ".csv";
+    RETURN_IF_ERROR(WriteCsv(path, columns));
     written.push_back(path);
   }
   if (!outputs.segmentation.empty()) {

@@ -3,6 +3,8 @@
 //   PREFIX_critical_cells.vtp    critical cells at their barycentres (discrete-gradient)
 //   PREFIX_separatrices.vtp      1-separatrices as polylines (morse-smale)
 //   PREFIX_segmentation.vtu      the mesh with the three manifold arrays (morse-smale)
+//   PREFIX_diagram.vtu           the persistence diagram, TTK's grid (persistence-diagram)
+//   PREFIX_persistence_curve.csv pairs alive above each persistence, per type (persistence-diagram)
 #ifndef ACTOPO_SERVER_RESULTS_RESULT_FILES_H_
 #define ACTOPO_SERVER_RESULTS_RESULT_FILES_H_
 
@@ -35,6 +37,8 @@ struct ResultContext {
 struct ResultOutputs {
   std::vector<std::pair<std::string, io::PolyData>> poly_data;
   std::vector<io::NamedArray> segmentation;  // one value per input vertex
+  // Tables ("persistence_curve"): columns of equal length.
+  std::vector<std::pair<std::string, std::vector<io::NamedArray>>> tables;
 };
 ResultOutputs BuildOutputs(const ResultContext& context, const AlgorithmResult& result);
 
@@ -42,8 +46,8 @@ ResultOutputs BuildOutputs(const ResultContext& context, const AlgorithmResult& 
 // place a cell and what they report of it.
 std::vector<SimplexId> CellInputVertices(const Topology& topology, int d, SimplexId c);
 
-// Writes PREFIX_<group>.vtp for each poly data group and PREFIX_segmentation.vtu; returns the
-// paths written.
+// Writes PREFIX_<group>.vtp for each poly data group (.vtu for the diagram), PREFIX_<table>.csv
+// for each table and PREFIX_segmentation.vtu; returns the paths written.
 absl::StatusOr<std::vector<std::string>> WriteResultFiles(const std::string& prefix,
                                                           const ResultContext& context,
                                                           const AlgorithmResult& result);

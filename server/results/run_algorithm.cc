@@ -68,6 +68,19 @@ Json MorseSmaleJson(const MorseSmaleResult& r) {
             {"morse_smale", MorseSmaleResult::SegmentationDigest(r.morse_smale)}}}};
 }
 
+Json PersistenceDiagramJson(const PersistenceDiagramResult& r) {
+  Json counts = Json::object();
+  for (int k = 0; k < 3; ++k) {
+    if (r.finite[k] > 0) counts[std::to_string(k)] = r.finite[k];
+    if (r.infinite[k] > 0) counts[absl::StrCat(k, "_infinite")] = r.infinite[k];
+  }
+  return {{"pairs", r.pairs.size()},
+          {"counts_by_type", counts},
+          {"critical_cells", r.gradient.critical_cells},
+          {"max_persistence", r.MaxPersistence()},
+          {"pairs_sha256", r.PairsDigest()}};
+}
+
 }  // namespace
 
 absl::Status ApplyParameters(const std::map<std::string, std::string>& parameters,
@@ -82,6 +95,14 @@ absl::Status ApplyParameters(const std::map<std::string, std::string>& parameter
         return absl::InvalidArgumentError(absl::StrCat("parameters.boundary_rule: unknown value '",
                                                        value, "'; available: ttk, none"));
       }
+      continue;
+    }
+    if (name == "embedding" && input.algorithm == Algorithm::kPersistenceDiagram) {
+      if (value != "diagram" && value != "domain") {
+        return absl::InvalidArgumentError(absl::StrCat("parameters.embedding: unknown value '",
+                                                       value, "'; available: diagram, domain"));
+      }
+      input.embed_diagram_in_domain = value == "domain";
       continue;
     }
     return absl::InvalidArgumentError(absl::StrCat("parameters: unknown parameter '", name,
@@ -126,6 +147,13 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
                        RunMorseSmale(structure, in.order, in.input_tetrahedra, context));
       break;
     }
+    case Algorithm::kPersistenceDiagram: {
+      ASSIGN_OR_RETURN(PersistenceDiagramResult diagram,
+                       RunPersistenceDiagram(structure, in.order, in.scalars, context));
+      diagram.embed_in_domain = in.embed_diagram_in_domain;
+      out.result = std::move(diagram);
+      break;
+    }
   }
   out.run_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   out.peak_rss_after_run = PeakRssBytes();
@@ -149,6 +177,9 @@ Json Summarize(const AlgorithmResult& result, const Topology& topology) {
           return DiscreteGradientJson(r, topology);
         }
         if constexpr (std::is_same_v<T, MorseSmaleResult>) return MorseSmaleJson(r);
+        if constexpr (std::is_same_v<T, PersistenceDiagramResult>) {
+          return PersistenceDiagramJson(r);
+        }
       },
       result);
 }

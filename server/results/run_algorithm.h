@@ -18,6 +18,7 @@
 #include "server/algorithms/critical_points.h"
 #include "server/algorithms/discrete_gradient.h"
 #include "server/algorithms/morse_smale.h"
+#include "server/algorithms/persistence_diagram.h"
 #include "server/algorithms/registry.h"
 #include "server/algorithms/topo_relations.h"
 
@@ -27,16 +28,20 @@ struct AlgorithmInput {
   Algorithm algorithm = Algorithm::kTopoRelations;
   std::vector<SimplexId> order;             // VertexOrder(); empty for topo-relations
   std::vector<SimplexId> input_tetrahedra;  // the mesh's tetrahedra as given (morse-smale)
+  std::vector<double> scalars;              // the field by input vertex id (persistence-diagram)
   CriticalPointsOptions critical_points;
+  bool embed_diagram_in_domain = false;  // persistence-diagram outputs
 };
 
 // Algorithm parameters by name, as the service receives them: "boundary_rule" = "ttk" | "none"
-// (critical-points). Unknown names and values are errors naming them.
+// (critical-points); "embedding" = "diagram" | "domain" (persistence-diagram: pairs at
+// (birth, death) or at their vertices). Unknown names and values are errors naming them.
 absl::Status ApplyParameters(const std::map<std::string, std::string>& parameters,
                              AlgorithmInput& input);
 
-using AlgorithmResult = std::variant<TopoRelationsResult, CriticalPointsResult,
-                                     DiscreteGradientResult, MorseSmaleResult>;
+using AlgorithmResult =
+    std::variant<TopoRelationsResult, CriticalPointsResult, DiscreteGradientResult,
+                 MorseSmaleResult, PersistenceDiagramResult>;
 
 struct AlgorithmOutcome {
   AlgorithmResult result;

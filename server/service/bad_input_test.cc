@@ -275,6 +275,15 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
          (*r.mutable_parameters())["boundary_rule"] = "maybe";
          return RunToEnd(stub, r);
        }},
+      {"bad diagram embedding", C::INVALID_ARGUMENT,
+       "parameters.embedding: unknown value 'sideways'; available: diagram, domain",
+       [](auto*, auto& stub, auto&, auto& s) {
+         v1::RunJobRequest r;
+         r.set_session_id(s);
+         r.set_algorithm(v1::ALGORITHM_PERSISTENCE_DIAGRAM);
+         (*r.mutable_parameters())["embedding"] = "sideways";
+         return RunToEnd(stub, r);
+       }},
       {"unknown job", C::NOT_FOUND, "job-x",
        [](auto*, auto& stub, auto&, auto&) {
          v1::CancelJobRequest r;

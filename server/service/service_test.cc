@@ -26,7 +26,8 @@ using testing::ServiceTest;
 TEST_F(ServiceTest, ServerInfo) {
   v1::GetServerInfoResponse info;
   ASSERT_TRUE(stub_->GetServerInfo(Context().get(), {}, &info).ok());
-  EXPECT_EQ(info.algorithms_size(), 4);
+  EXPECT_EQ(info.algorithms_size(), 5);
+  EXPECT_EQ(info.algorithms(4), "persistence-diagram");
   EXPECT_EQ(info.relations_size(), kNumRelations);
   EXPECT_EQ(info.relations(0), "vertex_neighbors");
   EXPECT_FALSE(info.library_versions().at("grpc").empty());
@@ -435,6 +436,7 @@ TEST_F(ServiceTest, JobsStreamAcceptedProgressArraysSummaryStats) {
   AlgorithmInput input;
   input.order = VertexOrder(*topo, mesh.point_fields[0].values);
   input.input_tetrahedra = mesh.tetrahedra;
+  input.scalars = mesh.point_fields[0].values;
   for (v1::Structure kind : {v1::STRUCTURE_EXPLICIT, v1::STRUCTURE_COMPACT, v1::STRUCTURE_ACTOPO}) {
     const std::string session = Open(mesh_id, kind, 2);
     for (Algorithm a : AllAlgorithms()) {
@@ -474,6 +476,13 @@ TEST_F(ServiceTest, JobsStreamAcceptedProgressArraysSummaryStats) {
       }
       if (a == Algorithm::kCriticalPoints) {
         EXPECT_TRUE(arrays.count("critical_points/CriticalType"));
+      }
+      if (a == Algorithm::kPersistenceDiagram) {
+        for (const char* name :
+             {"diagram/Points", "diagram/Offsets", "diagram/Coordinates", "diagram/PairIdentifier",
+              "diagram/Persistence", "persistence_curve/NumberOfPairs"}) {
+          EXPECT_TRUE(arrays.count(name)) << name;
+        }
       }
     }
   }

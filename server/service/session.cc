@@ -84,6 +84,7 @@ absl::StatusOr<std::unique_ptr<Session>> Session::Open(std::shared_ptr<const Loa
   RETURN_IF_ERROR(progress.Update("precompute", 0));
   s->base_.order = VertexOrder(*mesh->topology, m.point_fields[field].values);
   s->base_.input_tetrahedra = m.tetrahedra;
+  s->base_.scalars = m.point_fields[field].values;
   const StructureOptions& structure = options.structure;
   switch (structure.kind) {
     case StructureKind::kExplicit: {

@@ -253,6 +253,7 @@ void Pack(const std::string& name, std::span<const int64_t> values, pb::Array* o
 void Pack(const std::string& name, const io::NamedArray& array, pb::Array* out) {
   out->set_name(name);
   out->add_shape(int64_t(array.size()));
+  if (array.components > 1) out->add_shape(array.components);
   std::visit(
       [&](const auto& v) {
         using T = typename std::decay_t<decltype(v)>::value_type;

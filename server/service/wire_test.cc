@@ -97,8 +97,8 @@ TEST(WireMapping, UnknownValuesNameTheFieldAndValue) {
               HasSubstr("relation: RELATION_UNSPECIFIED is not a relation"));
   EXPECT_THAT(message(FromProto(static_cast<v1::Algorithm>(7))),
               HasSubstr("algorithm: 7 is not an algorithm; set ALGORITHM_TOPO_RELATIONS, "
-                        "ALGORITHM_CRITICAL_POINTS, ALGORITHM_DISCRETE_GRADIENT or "
-                        "ALGORITHM_MORSE_SMALE"));
+                        "ALGORITHM_CRITICAL_POINTS, ALGORITHM_DISCRETE_GRADIENT, "
+                        "ALGORITHM_MORSE_SMALE or ALGORITHM_PERSISTENCE_DIAGRAM"));
   v1::OpenSessionRequest request;
   request.set_structure(static_cast<v1::Structure>(42));
   EXPECT_THAT(message(FromProto(request)), HasSubstr("structure: 42 is not a structure"));
@@ -140,6 +140,7 @@ TEST(WireSummary, EqualsTheBenchJsonForEveryAlgorithm) {
   AlgorithmInput input;
   input.order = VertexOrder(*topology, mesh.point_fields[0].values);
   input.input_tetrahedra = mesh.tetrahedra;
+  input.scalars = mesh.point_fields[0].values;
   for (Algorithm a : AllAlgorithms()) {
     input.algorithm = a;
     const absl::StatusOr<AlgorithmOutcome> outcome = RunAlgorithm(*structure, input, {});

@@ -1,0 +1,128 @@
+#include "server/results/result_files.h"
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "server/algorithms/vertex_order.h"
+#include "server/core/explicit_structure.h"
+#include "server/core/partition.h"
+#include "server/core/testing/test_meshes.h"
+
+namespace actopo {
+namespace {
+
+using ::testing::ElementsAre;
+
+template <class T>
+const std::vector<T>& Get(const std::vector<io::NamedArray>& arrays, const std::string& name) {
+  for (const io::NamedArray& a : arrays) {
+    if (a.name == name) return std::get<std::vector<T>>(a.values);
+  }
+  ADD_FAILURE() << "no array " << name;
+  static const std::vector<T> kEmpty;
+  return kEmpty;
+}
+
+struct Diagram {
+  Mesh mesh;
+  std::shared_ptr<const Topology> topology;
+  PersistenceDiagramResult result;
+};
+
+Diagram MakeDiagram() {
+  Diagram d{testing::Lattice(6, 5, 4, 9)};
+  d.topology = *Topology::Build(d.mesh, OctreeBlocks(d.mesh.points, {.bucket_capacity = 20}));
+  auto structure = *ExplicitStructure::Build(d.topology, {});
+  const std::vector<double>& scalars = d.mesh.point_fields[0].values;
+  d.result = *RunPersistenceDiagram(*structure, VertexOrder(*d.topology, scalars), scalars, {});
+  return d;
+}
+
+TEST(PersistenceDiagramOutputs, TtkDiagramGridWithItsDiagonal) {
+  Diagram d = MakeDiagram();
+  const ResultContext context{d.mesh, *d.topology, "height", d.mesh.point_fields[0].values, {}};
+  const ResultOutputs out = BuildOutputs(context, d.result);
+  ASSERT_EQ(out.poly_data.size(), 1u);
+  EXPECT_EQ(out.poly_data[0].first, "diagram");
+  const io::PolyData& grid = out.poly_data[0].second;
+  const size_t n = d.result.pairs.size();
+  ASSERT_GT(n, 2u);
+  ASSERT_EQ(grid.points.size(), 3 * 2 * n);
+  ASSERT_EQ(grid.line_offsets.size(), n + 2);  // a line per pair and the diagonal
+  const auto& ids = Get<int32_t>(grid.cell_arrays, "PairIdentifier");
+  const auto& types = Get<int32_t>(grid.cell_arrays, "PairType");
+  const auto& persistence = Get<double>(grid.cell_arrays, "Persistence");
+  const auto& finite = Get<int8_t>(grid.cell_arrays, "IsFinite");
+  const auto& vertex = Get<int32_t>(grid.point_arrays, "ttkVertexScalarField");
+  const auto& critical = Get<int32_t>(grid.point_arrays, "CriticalType");
+  for (size_t i = 0; i < n; ++i) {
+    const PersistencePair& p = d.result.pairs[i];
+    EXPECT_EQ(ids[i], int32_t(i));
+    EXPECT_EQ(types[i], p.type);
+    EXPECT_EQ(persistence[i], p.Persistence());
+    EXPECT_EQ(finite[i], p.finite());
+    EXPECT_EQ(vertex[2 * i], p.birth);
+    EXPECT_EQ(vertex[2 * i + 1], p.death);
+    EXPECT_EQ(critical[2 * i], p.type);
+    // Points at (birth, birth) and (birth, death).
+    EXPECT_EQ(grid.points[6 * i + 0], p.birth_value);
+    EXPECT_EQ(grid.points[6 * i + 1], p.birth_value);
+    EXPECT_EQ(grid.points[6 * i + 4], p.death_value);
+  }
+  // The infinite pair of the global minimum dies at the global maximum, a "maximum".
+  EXPECT_EQ(critical[1], 3);
+  EXPECT_EQ(finite[0], 0);
+  // The diagonal: first point to the last pair's birth point, PairIdentifier -1.
+  EXPECT_EQ(ids[n], -1);
+  EXPECT_EQ(types[n], -1);
+  EXPECT_EQ(persistence[n], 2 * persistence[0]);
+  EXPECT_THAT(std::vector<int32_t>(grid.line_connectivity.end() - 2, grid.line_connectivity.end()),
+              ElementsAre(0, int32_t(2 * (n - 1))));
+  // Coordinates: the vertices' positions, three floats per point.
+  const auto& coordinates = Get<float>(grid.point_arrays, "Coordinates");
+  ASSERT_EQ(coordinates.size(), 3 * 2 * n);
+  EXPECT_EQ(coordinates[3], float(d.mesh.points[3 * size_t(d.result.pairs[0].death)]));
+
+  ASSERT_EQ(out.tables.size(), 1u);
+  const auto& curve = out.tables[0].second;
+  const auto& curve_type = Get<int8_t>(curve, "PairType");
+  const auto& alive = Get<int32_t>(curve, "NumberOfPairs");
+  // The curve of all pairs comes last and starts with every pair.
+  const size_t all = std::find(curve_type.begin(), curve_type.end(), -1) - curve_type.begin();
+  ASSERT_LT(all, alive.size());
+  EXPECT_EQ(alive[all], int32_t(n));
+}
+
+TEST(PersistenceDiagramOutputs, EmbeddedInTheDomainAndWritten) {
+  Diagram d = MakeDiagram();
+  d.result.embed_in_domain = true;
+  const ResultContext context{d.mesh, *d.topology, "height", d.mesh.point_fields[0].values, {}};
+  const ResultOutputs out = BuildOutputs(context, d.result);
+  const io::PolyData& grid = out.poly_data[0].second;
+  const size_t n = d.result.pairs.size();
+  EXPECT_EQ(grid.line_offsets.size(), n + 1);  // no diagonal
+  const PersistencePair& p = d.result.pairs[1];
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(grid.points[6 + k], d.mesh.points[3 * size_t(p.birth) + k]);
+    EXPECT_EQ(grid.points[9 + k], d.mesh.points[3 * size_t(p.death) + k]);
+  }
+  const std::filesystem::path dir =
+      std::filesystem::path(::testing::TempDir()) / ("actopo_results_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string prefix = (dir / "run").string();
+  const auto written = WriteResultFiles(prefix, context, d.result);
+  ASSERT_TRUE(written.ok()) << written.status();
+  EXPECT_THAT(*written, ElementsAre(prefix + "_diagram.vtu", prefix + "_persistence_curve.csv"));
+  std::ifstream csv(prefix + "_persistence_curve.csv");
+  std::string header;
+  std::getline(csv, header);
+  EXPECT_EQ(header, "PairType,Persistence,NumberOfPairs");
+}
+
+}  // namespace
+}  // namespace actopo
