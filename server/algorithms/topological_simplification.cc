@@ -1,0 +1,473 @@
+#include "server/algorithms/topological_simplification.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <limits>
+#include <queue>
+#include <tuple>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "server/algorithms/digest.h"
+#include "server/core/actopo_structure.h"
+#include "server/core/compact_structure.h"
+#include "server/core/explicit_structure.h"
+#include "server/core/status_macros.h"
+
+namespace actopo {
+namespace {
+
+constexpr const char* kName = "topological-simplification";
+
+// A superlevel-set component growing from one maximum (LTS's "propagation"): a max-heap of
+// (order, vertex) on its frontier; merged components share the heap of the dominant one.
+struct Propagation {
+  int32_t uf_parent;                // union-find, path-compressed
+  int32_t parent;                   // the component it was merged into (itself while it grows)
+  std::vector<SimplexId> critical;  // [0] the maximum, then the saddles it met
+  std::priority_queue<std::pair<SimplexId, SimplexId>> queue;
+  int64_t segment_size = 0;
+  std::vector<SimplexId> segment;
+};
+
+// Removes the maxima that are not `authorized` from `order` (internal ids, ranks 0..n-1),
+// LTS's detectAndRemoveUnauthorizedMaxima; returns the components that were flattened.
+template <class Reader>
+class MaximaRemoval {
+ public:
+  MaximaRemoval(Reader& reader, std::vector<SimplexId>& order, const std::vector<bool>& authorized,
+                bool any_authorized)
+      : r_(reader),
+        topo_(reader.topology()),
+        order_(order),
+        authorized_(authorized),
+        any_authorized_(any_authorized),
+        n_(topo_.num_vertices()) {}
+
+  absl::Status Run() {
+    segmentation_.assign(n_, -1);
+    queue_mask_.assign(n_, -1);
+    local_order_.assign(n_, -1);
+    owner_.assign(n_, -1);
+    InitializePropagations();
+    for (size_t p = 0; p < props_.size(); ++p) RETURN_IF_ERROR(Propagate(int32_t(p)));
+    for (size_t p = 0; p < props_.size(); ++p) {
+      if (props_[p].parent == int32_t(p)) parents_.push_back(int32_t(p));
+    }
+    for (int32_t p : parents_) RETURN_IF_ERROR(ComputeSegment(props_[p]));
+    for (int32_t p : parents_) RETURN_IF_ERROR(ComputeLocalOrder(props_[p]));
+    for (int32_t p : parents_) {
+      local_order_[props_[p].critical.back()] = std::numeric_limits<SimplexId>::max();
+    }
+    for (int32_t p : parents_) {  // flatten the order to the saddle's
+      const SimplexId saddle_order = order_[props_[p].critical.back()];
+      for (SimplexId v : props_[p].segment) order_[v] = saddle_order;
+    }
+    GlobalOrder();
+    return absl::OkStatus();
+  }
+
+  // The flattened components: their vertices take the value of their saddle.
+  std::vector<std::pair<SimplexId, std::vector<SimplexId>>> TakeSegments() {
+    std::vector<std::pair<SimplexId, std::vector<SimplexId>>> out;
+    for (int32_t p : parents_) {
+      out.emplace_back(props_[p].critical.back(), std::move(props_[p].segment));
+    }
+    return out;
+  }
+  int64_t removed() const { return int64_t(props_.size()); }
+
+ private:
+  // Local maxima that are not authorized, ascending order; with no authorized vertex at all,
+  // the highest is kept.
+  void InitializePropagations() {
+    std::vector<SimplexId> maxima;
+    for (SimplexId v = 0; v < n_; ++v) {
+      if (authorized_[v]) continue;
+      bool larger = false;
+      for (SimplexId u : r_.vertex_neighbors(v)) {
+        if (order_[u] > order_[v]) {
+          larger = true;
+          break;
+        }
+      }
+      if (!larger) maxima.push_back(v);
+    }
+    std::sort(maxima.begin(), maxima.end(),
+              [&](SimplexId a, SimplexId b) { return order_[a] < order_[b]; });
+    if (!any_authorized_ && !maxima.empty()) maxima.pop_back();
+    props_.resize(maxima.size());
+    for (size_t p = 0; p < maxima.size(); ++p) {
+      props_[p].uf_parent = props_[p].parent = int32_t(p);
+      props_[p].critical = {maxima[p]};
+    }
+  }
+
+  int32_t Find(int32_t p) {
+    int32_t root = p;
+    while (props_[root].uf_parent != root) root = props_[root].uf_parent;
+    while (props_[p].uf_parent != root) p = std::exchange(props_[p].uf_parent, root);
+    return root;
+  }
+
+  void Unify(int32_t into, int32_t other) {
+    if (other < 0) return;
+    into = Find(into);
+    other = Find(other);
+    if (into == other) return;
+    Propagation& a = props_[into];
+    Propagation& b = props_[other];
+    b.parent = into;
+    b.uf_parent = into;
+    a.segment_size += b.segment_size;
+    if (a.queue.size() < b.queue.size()) std::swap(a.queue, b.queue);
+    while (!b.queue.empty()) {
+      a.queue.push(b.queue.top());
+      b.queue.pop();
+    }
+  }
+
+  // Grows propagation p from its maximum, highest frontier vertex first, until a saddle: a
+  // vertex with a larger neighbour outside the component. There it stops unless every larger
+  // neighbour has been reached by some component, in which case the components around the saddle
+  // merge into the one of the highest maximum, which goes on.
+  absl::Status Propagate(int32_t p) {
+    int32_t current = p;
+    SimplexId segment_id = props_[current].critical[0];
+    props_[current].queue.emplace(order_[segment_id], segment_id);
+    queue_mask_[segment_id] = segment_id;
+    while (!props_[current].queue.empty()) {
+      const SimplexId v = props_[current].queue.top().second;
+      props_[current].queue.pop();
+      if (owner_[v] >= 0) continue;
+      bool saddle = false;
+      SimplexId larger = 0, larger_here = 0;
+      for (SimplexId u : r_.vertex_neighbors(v)) {
+        if (order_[u] > order_[v]) {
+          ++larger;
+          if (owner_[u] < 0 || Find(owner_[u]) != current) {
+            saddle = true;
+          } else {
+            ++larger_here;
+          }
+        } else if (queue_mask_[u] != segment_id) {
+          props_[current].queue.emplace(order_[u], u);
+          queue_mask_[u] = segment_id;
+        }
+      }
+      if (saddle) {
+        props_[current].critical.push_back(v);
+        segmentation_[v] -= larger_here;  // counts the larger neighbours reached so far
+        if (segmentation_[v] != -larger - 1) return absl::OkStatus();
+        neighbors_.clear();
+        for (SimplexId u : r_.vertex_neighbors(v)) {
+          if (owner_[u] < 0) continue;
+          const int32_t root = Find(owner_[u]);
+          neighbors_.push_back(root);
+          if (order_[props_[root].critical[0]] > order_[props_[current].critical[0]]) {
+            current = root;
+          }
+        }
+        for (int32_t other : neighbors_) Unify(current, other);
+        segment_id = props_[current].critical[0];
+      }
+      owner_[v] = current;
+      segmentation_[v] = segment_id;
+      ++props_[current].segment_size;
+    }
+    return absl::FailedPreconditionError(absl::StrCat(
+        kName, ": the component of maximum ", topo_.vertex_input_id(props_[p].critical[0]),
+        " grew over the whole mesh: the constraints must keep a global extremum"));
+  }
+
+  // The component's vertices: those reached above its saddle, connected to its maximum.
+  absl::Status ComputeSegment(Propagation& prop) {
+    const SimplexId extremum = prop.critical[0];
+    const SimplexId saddle_order = order_[prop.critical.back()];
+    prop.segment.clear();
+    if (prop.segment_size > 0) {
+      std::vector<SimplexId> stack{extremum};
+      segmentation_[extremum] = kVisited;
+      while (!stack.empty()) {
+        const SimplexId v = stack.back();
+        stack.pop_back();
+        prop.segment.push_back(v);
+        for (SimplexId u : r_.vertex_neighbors(v)) {
+          if (segmentation_[u] >= 0 && order_[u] > saddle_order) {
+            segmentation_[u] = kVisited;
+            stack.push_back(u);
+          }
+        }
+      }
+    }
+    if (int64_t(prop.segment.size()) != prop.segment_size) {
+      return absl::InternalError(
+          absl::StrCat(kName, ": the component of maximum ", topo_.vertex_input_id(extremum),
+                       " has ", prop.segment.size(), " vertices, expected ", prop.segment_size));
+    }
+    for (SimplexId v : prop.segment) segmentation_[v] = extremum;
+    return absl::OkStatus();
+  }
+
+  // An order of the component's vertices without extrema inside it: alternately by superlevel
+  // sets from the saddle and by sublevel sets from the component's boundary, until neither leaves
+  // a maximum nor a minimum (LTS's computeLocalOrderOfSegment).
+  absl::Status ComputeLocalOrder(Propagation& prop) {
+    if (prop.segment_size == 1) {
+      local_order_[prop.segment[0]] = -2;
+      return absl::OkStatus();
+    }
+    for (SimplexId v : prop.segment) local_order_[v] = order_[v] - n_;
+    const SimplexId extremum = prop.critical[0];
+    const SimplexId saddle = prop.critical.back();
+    std::vector<SimplexId> boundary, sequence(prop.segment.size() + 1);
+    bool superlevel = true;
+    // TTK warns after 20 iterations and has no bound; a bound keeps a server thread from spinning.
+    for (int iteration = 0; iteration < kMaxLocalOrderIterations; ++iteration) {
+      LocalOrderIteration(prop, superlevel, boundary, sequence, extremum, saddle);
+      superlevel = !superlevel;
+      size_t on_boundary = 0;
+      int64_t residual = 0;
+      for (SimplexId v : prop.segment) {
+        bool outside = false, smaller = false, greater = false;
+        const SimplexId mine = local_order_[v];
+        for (SimplexId u : r_.vertex_neighbors(v)) {
+          if (u == saddle) {
+            greater = true;
+          } else if (segmentation_[u] != extremum) {
+            outside = true;
+          } else if (local_order_[u] > mine) {
+            greater = true;
+          } else {
+            smaller = true;
+          }
+        }
+        residual += !greater;
+        if (outside) {
+          sequence[on_boundary++] = v;
+        } else if (!smaller) {
+          ++residual;
+        }
+      }
+      if (residual == 0) return absl::OkStatus();
+      if (boundary.empty()) boundary.assign(sequence.begin(), sequence.begin() + on_boundary);
+    }
+    return absl::InternalError(
+        absl::StrCat(kName, ": the component of maximum ", topo_.vertex_input_id(extremum),
+                     " keeps extrema after ", kMaxLocalOrderIterations, " reorderings"));
+  }
+
+  void LocalOrderIteration(const Propagation& prop, bool superlevel,
+                           const std::vector<SimplexId>& boundary, std::vector<SimplexId>& sequence,
+                           SimplexId extremum, SimplexId saddle) {
+    const SimplexId size = SimplexId(prop.segment.size());
+    std::priority_queue<std::pair<SimplexId, SimplexId>> queue;
+    if (superlevel) {
+      queue.emplace(std::numeric_limits<SimplexId>::max(), saddle);
+    } else {
+      const SimplexId offset = -size - 1;  // keeps the inverted orders negative
+      for (SimplexId v : prop.segment) local_order_[v] = offset - local_order_[v];
+      for (SimplexId v : boundary) {
+        queue.emplace(local_order_[v], v);
+        local_order_[v] = 0;
+      }
+      queue.emplace(std::numeric_limits<SimplexId>::min(), saddle);
+    }
+    size_t q = 0;
+    while (!queue.empty()) {
+      const SimplexId v = queue.top().second;
+      queue.pop();
+      sequence[q++] = v;
+      for (SimplexId u : r_.vertex_neighbors(v)) {
+        if (segmentation_[u] == extremum && local_order_[u] < 0) {
+          queue.emplace(local_order_[u], u);
+          local_order_[u] = 0;
+        }
+      }
+    }
+    if (superlevel) {
+      for (SimplexId i = 1; i <= size; ++i) local_order_[sequence[i]] = -i;
+    } else {
+      for (SimplexId i = 0; i < size; ++i) local_order_[sequence[i]] = i - size;
+    }
+  }
+
+  // Ranks of (order, local order, input id): flattened components sit just below their saddle.
+  void GlobalOrder() {
+    std::vector<std::tuple<SimplexId, SimplexId, SimplexId, SimplexId>> keys(n_);
+    for (SimplexId v = 0; v < n_; ++v) {
+      keys[v] = {order_[v], local_order_[v], topo_.vertex_input_id(v), v};
+    }
+    std::sort(keys.begin(), keys.end());
+    for (SimplexId i = 0; i < n_; ++i) order_[std::get<3>(keys[i])] = i;
+  }
+
+  static constexpr SimplexId kVisited = -1000;
+  static constexpr int kMaxLocalOrderIterations = 1000;
+
+  Reader& r_;
+  const Topology& topo_;
+  std::vector<SimplexId>& order_;
+  const std::vector<bool>& authorized_;
+  const bool any_authorized_;
+  const SimplexId n_;
+  std::vector<SimplexId> segmentation_, queue_mask_, local_order_;
+  std::vector<int32_t> owner_;  // the propagation that reached a vertex (not its root)
+  std::vector<Propagation> props_;
+  std::vector<int32_t> parents_, neighbors_;
+};
+
+void Invert(std::vector<SimplexId>& order) {
+  const SimplexId last = SimplexId(order.size()) - 1;
+  for (SimplexId& o : order) o = last - o;
+}
+
+std::string LinesDigest(size_t n, const std::function<void(size_t, std::string&)>& line) {
+  StreamedText text;
+  for (size_t v = 0; v < n; ++v) {
+    line(v, text.buffer());
+    text.Flush();
+  }
+  return text.HexDigest();
+}
+
+}  // namespace
+
+std::string SimplificationResult::ScalarsDigest() const {
+  return LinesDigest(scalars.size(), [&](size_t v, std::string& out) {
+    char value[32];
+    std::snprintf(value, sizeof(value), "%.17g", scalars[v]);
+    absl::StrAppend(&out, v, " ", value, "\n");
+  });
+}
+
+std::string SimplificationResult::OrderDigest() const {
+  return LinesDigest(order.size(), [&](size_t v, std::string& out) {
+    absl::StrAppend(&out, v, " ", order[v], "\n");
+  });
+}
+
+RelationSet TopologicalSimplificationDeclared() {
+  RelationSet s = PersistenceDiagramDeclared();
+  s.Add(Relation::kVV);
+  return s;
+}
+
+absl::Status ValidateSimplificationOptions(const SimplificationOptions& options) {
+  if (!std::isfinite(options.threshold) || options.threshold < 0 ||
+      (options.relative && options.threshold > 1)) {
+    return absl::InvalidArgumentError(absl::StrCat("threshold: ", options.threshold, " is not a ",
+                                                   options.relative
+                                                       ? "fraction of the scalar range in [0, 1]"
+                                                       : "finite, non-negative persistence"));
+  }
+  return absl::OkStatus();
+}
+
+template <class Structure>
+absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
+    Structure& structure, std::span<const SimplexId> order, std::span<const double> scalars,
+    const SimplificationOptions& options, const RunContext& context) {
+  RETURN_IF_ERROR(ValidateSimplificationOptions(options));
+  const Topology& topo = structure.topology();
+  RunContext diagram_context = context;
+  if (context.progress) {
+    diagram_context.progress = [&context](double f) { context.progress(0.8 * f); };
+  }
+  SimplificationResult result;
+  ASSIGN_OR_RETURN(result.diagram,
+                   RunPersistenceDiagram(structure, order, scalars, diagram_context));
+  const auto [lo, hi] = std::minmax_element(scalars.begin(), scalars.end());
+  result.threshold = options.relative ? options.threshold * (*hi - *lo) : options.threshold;
+
+  // The kept pairs' vertices, as TTK's constraints.
+  const SimplexId n = topo.num_vertices();
+  std::vector<bool> authorized(n, false);
+  for (const PersistencePair& p : result.diagram.pairs) {
+    if (p.Persistence() < result.threshold) {
+      ++result.stats.removed_pairs;
+      continue;
+    }
+    ++result.stats.kept_pairs;
+    for (SimplexId v : {p.birth, p.death}) {
+      const SimplexId internal = topo.vertex_internal_id(v);
+      result.stats.constraints += !authorized[internal];
+      authorized[internal] = true;
+    }
+  }
+
+  std::vector<SimplexId> new_order(order.begin(), order.end());
+  result.scalars.assign(scalars.begin(), scalars.end());
+  if (result.stats.constraints > 0) {
+    Trace::Scope span(context.trace.get(), "simplify", "phase");
+    auto reader = structure.NewReader();
+    // TTK decides which passes to run from the first neighbour of each constraint.
+    bool has_maxima = false, has_minima = false;
+    for (SimplexId v = 0; v < n && !(has_maxima && has_minima); ++v) {
+      if (!authorized[v]) continue;
+      const auto neighbors = reader.vertex_neighbors(v);
+      if (neighbors.empty()) continue;
+      (order[v] > order[neighbors[0]] ? has_maxima : has_minima) = true;
+    }
+    std::vector<std::pair<SimplexId, std::vector<SimplexId>>> segments;
+    if (has_maxima) {
+      MaximaRemoval removal(reader, new_order, authorized, true);
+      RETURN_IF_ERROR(removal.Run());
+      result.stats.removed_maxima = removal.removed();
+      segments = removal.TakeSegments();
+    }
+    if (context.progress) context.progress(0.9);
+    if (has_minima) {
+      Invert(new_order);
+      MaximaRemoval removal(reader, new_order, authorized, true);
+      RETURN_IF_ERROR(removal.Run());
+      Invert(new_order);
+      result.stats.removed_minima = removal.removed();
+      auto minima_segments = removal.TakeSegments();
+      // Values: the maxima's components first, then the minima's, as TTK.
+      for (const auto& [saddle, segment] : segments) {
+        for (SimplexId v : segment) {
+          result.scalars[topo.vertex_input_id(v)] = result.scalars[topo.vertex_input_id(saddle)];
+        }
+      }
+      segments = std::move(minima_segments);
+    }
+    for (const auto& [saddle, segment] : segments) {
+      for (SimplexId v : segment) {
+        result.scalars[topo.vertex_input_id(v)] = result.scalars[topo.vertex_input_id(saddle)];
+      }
+    }
+    // Statistics of the simplified field: its extrema and what changed.
+    for (SimplexId v = 0; v < n; ++v) {
+      bool lower = false, higher = false;
+      for (SimplexId u : reader.vertex_neighbors(v)) {
+        (new_order[u] < new_order[v] ? lower : higher) = true;
+      }
+      result.stats.minima += !lower;
+      result.stats.maxima += !higher;
+      const SimplexId input = topo.vertex_input_id(v);
+      result.stats.flattened_vertices +=
+          result.scalars[input] != scalars[input] || new_order[v] != order[v];
+    }
+  }
+  result.order.resize(n);
+  for (SimplexId v = 0; v < n; ++v) result.order[topo.vertex_input_id(v)] = new_order[v];
+  result.internal_order = std::move(new_order);
+  if (context.cancel != nullptr && context.cancel->load()) return absl::CancelledError(kName);
+  if (context.progress) context.progress(1.0);
+  return result;
+}
+
+template absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
+    ExplicitStructure&, std::span<const SimplexId>, std::span<const double>,
+    const SimplificationOptions&, const RunContext&);
+template absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
+    CompactStructure&, std::span<const SimplexId>, std::span<const double>,
+    const SimplificationOptions&, const RunContext&);
+template absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
+    ActopoStructure&, std::span<const SimplexId>, std::span<const double>,
+    const SimplificationOptions&, const RunContext&);
+
+}  // namespace actopo

@@ -1,0 +1,151 @@
+// topological-simplification and the Morse-Smale complex of the simplified field against
+// upstream TTK's filters chained the same way (tests/ttk_reference/simplification-ttk.json, made
+// by simplification_reference.py there): the simplified values and order value for value, and
+// the complex's counts and segmentation digests; on every structure.
+#include <cctype>
+#include <fstream>
+#include <set>
+
+#include "gtest/gtest.h"
+#include "nlohmann/json.hpp"
+#include "server/algorithms/morse_smale.h"
+#include "server/algorithms/topological_simplification.h"
+#include "server/algorithms/vertex_order.h"
+#include "server/core/actopo_structure.h"
+#include "server/core/compact_structure.h"
+#include "server/core/explicit_structure.h"
+#include "server/core/partition.h"
+#include "server/io/test_data.h"
+#include "server/io/vtk_reader.h"
+
+namespace actopo {
+namespace {
+
+using Json = nlohmann::json;
+
+struct Case {
+  std::string file, field, fraction;
+};
+// Listed, not read from the file, so the tests exist however ctest lists them;
+// EveryReferenceIsTested keeps the list equal to the file.
+const Case kCases[] = {
+    {"manifoldCheck0_tet.vtu", "height", "0.01"},
+    {"manifoldCheck0_tet.vtu", "height", "0.05"},
+    {"fertility_tet.vtu", "eigenfunction4", "0.01"},
+    {"fertility_tet.vtu", "eigenfunction4", "0.05"},
+    {"fertility_tet.vtu", "height", "0.01"},
+    {"fertility_tet.vtu", "height", "0.05"},
+    {"viscousFingers001_s2_tet.vtu", "density", "0.01"},
+    {"viscousFingers001_s2_tet.vtu", "density", "0.05"},
+    {"isabel02_s2_tet.vtu", "velocityMag", "0.01"},
+    {"isabel02_s2_tet.vtu", "velocityMag", "0.05"},
+};
+
+Json References() {
+  std::ifstream in(std::string(ACTOPO_TTK_REFERENCE_DIR) + "/simplification-ttk.json");
+  return in ? Json::parse(in)["results"] : Json();
+}
+
+void PrintTo(const Case& c, std::ostream* out) {
+  *out << c.file << " / " << c.field << " / " << c.fraction;
+}
+
+std::string CaseName(const ::testing::TestParamInfo<Case>& info) {
+  std::string name = info.param.file.substr(0, info.param.file.find('.')) + "_" + info.param.field +
+                     "_" + info.param.fraction;
+  for (char& c : name) {
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  }
+  return name;
+}
+
+class SimplificationMatchesTtk : public io::testing::DataTest,
+                                 public ::testing::WithParamInterface<Case> {};
+
+TEST(SimplificationReferences, EveryReferenceIsTested) {
+  const Json all = References();
+  ASSERT_FALSE(all.is_null()) << "simplification-ttk.json not found in "
+                              << ACTOPO_TTK_REFERENCE_DIR;
+  std::set<std::tuple<std::string, std::string, std::string>> in_file, tested;
+  for (const auto& [file, fields] : all.items()) {
+    for (const auto& [field, fractions] : fields.items()) {
+      for (const auto& [fraction, entry] : fractions.items())
+        in_file.emplace(file, field, fraction);
+    }
+  }
+  for (const Case& c : kCases) tested.emplace(c.file, c.field, c.fraction);
+  EXPECT_EQ(in_file, tested);
+}
+
+void ExpectMorseSmale(const MorseSmaleResult& r, const Json& ms) {
+  EXPECT_EQ(Json(r.gradient.critical_cells), ms["critical_cells"]);
+  EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kDescending),
+            ms["separatrices"]["descending"].get<int64_t>());
+  EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kAscending),
+            ms["separatrices"]["ascending"].get<int64_t>());
+  EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kSaddleConnector),
+            ms["separatrices"]["saddle_connectors"].get<int64_t>());
+  EXPECT_EQ(r.Segments(), ms["separatrices"]["segments"].get<int64_t>());
+  EXPECT_EQ(MorseSmaleResult::Regions(r.descending), ms["regions"]["descending"].get<int64_t>());
+  EXPECT_EQ(MorseSmaleResult::Regions(r.ascending), ms["regions"]["ascending"].get<int64_t>());
+  EXPECT_EQ(MorseSmaleResult::Regions(r.morse_smale), ms["regions"]["morse_smale"].get<int64_t>());
+  EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.descending),
+            ms["segmentation_sha256"]["descending"].get<std::string>());
+  EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.ascending),
+            ms["segmentation_sha256"]["ascending"].get<std::string>());
+  EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.morse_smale),
+            ms["segmentation_sha256"]["morse_smale"].get<std::string>());
+}
+
+TEST_P(SimplificationMatchesTtk, ValuesOrderAndMorseSmale) {
+  const Case& c = GetParam();
+  const Json all = References();
+  ASSERT_TRUE(all.contains(c.file) && all[c.file].contains(c.field) &&
+              all[c.file][c.field].contains(c.fraction));
+  const Json& expected = all[c.file][c.field][c.fraction];
+  auto mesh = io::ReadMesh(io::testing::DataDir() + "/" + c.file);
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  const int f = *SelectScalarField(*mesh, c.field);
+  const std::vector<double>& scalars = mesh->point_fields[f].values;
+  auto topo = *Topology::Build(*mesh, OctreeBlocks(mesh->points, {.bucket_capacity = 1000}));
+  const std::vector<SimplexId> order = VertexOrder(*topo, scalars);
+  const SimplificationOptions options{.threshold = std::stod(c.fraction), .relative = true};
+
+  const auto check = [&](const std::string& label, auto& structure, const RunContext& context) {
+    SCOPED_TRACE(label);
+    const auto r = RunTopologicalSimplification(structure, order, scalars, options, context);
+    ASSERT_TRUE(r.ok()) << r.status();
+    EXPECT_NEAR(r->threshold, expected["threshold"].get<double>(), 1e-12);
+    EXPECT_EQ(r->stats.kept_pairs, expected["kept_pairs"].get<int64_t>());
+    int64_t changed = 0;
+    for (size_t v = 0; v < scalars.size(); ++v) changed += r->scalars[v] != scalars[v];
+    EXPECT_EQ(changed, expected["changed_values"].get<int64_t>());
+    if (expected.contains("changes")) {
+      for (const Json& change : expected["changes"]) {
+        const auto v = change[0].get<size_t>();
+        EXPECT_EQ(r->scalars[v], change[1].get<double>()) << "vertex " << v;
+      }
+    }
+    EXPECT_EQ(r->ScalarsDigest(), expected["scalars_sha256"].get<std::string>());
+    EXPECT_EQ(r->OrderDigest(), expected["order_sha256"].get<std::string>());
+    const auto ms = RunMorseSmale(structure, r->internal_order, mesh->tetrahedra, context);
+    ASSERT_TRUE(ms.ok()) << ms.status();
+    ExpectMorseSmale(*ms, expected["morse_smale"]);
+  };
+  auto explicit_structure = *ExplicitStructure::Build(topo, {});
+  for (int consumers : {1, 2}) {
+    const RunContext context{.consumers = consumers};
+    const std::string n = " C=" + std::to_string(consumers);
+    check("explicit" + n, *explicit_structure, context);
+    CompactStructure compact(topo, {.cache_ratio = 0.1, .consumers = consumers});
+    check("compact" + n, compact, context);
+    auto actopo = *ActopoStructure::Create(topo, {.consumers = consumers, .producers = 2});
+    check("actopo" + n, *actopo, context);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(TtkReference, SimplificationMatchesTtk, ::testing::ValuesIn(kCases),
+                         CaseName);
+
+}  // namespace
+}  // namespace actopo
