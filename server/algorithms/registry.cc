@@ -10,13 +10,15 @@
 #include "server/algorithms/morse_smale.h"
 #include "server/algorithms/persistence_diagram.h"
 #include "server/algorithms/topo_relations.h"
+#include "server/algorithms/topological_simplification.h"
 
 namespace actopo {
 namespace {
 
-constexpr std::array<Algorithm, 5> kAll = {Algorithm::kTopoRelations, Algorithm::kCriticalPoints,
-                                           Algorithm::kDiscreteGradient, Algorithm::kMorseSmale,
-                                           Algorithm::kPersistenceDiagram};
+constexpr std::array<Algorithm, 6> kAll = {
+    Algorithm::kTopoRelations,      Algorithm::kCriticalPoints,
+    Algorithm::kDiscreteGradient,   Algorithm::kMorseSmale,
+    Algorithm::kPersistenceDiagram, Algorithm::kTopologicalSimplification};
 
 }  // namespace
 
@@ -27,6 +29,7 @@ std::string_view AlgorithmName(Algorithm a) {
     case Algorithm::kDiscreteGradient: return "discrete-gradient";
     case Algorithm::kMorseSmale: return "morse-smale";
     case Algorithm::kPersistenceDiagram: return "persistence-diagram";
+    case Algorithm::kTopologicalSimplification: return "topological-simplification";
   }
   return "?";
 }
@@ -55,11 +58,17 @@ RelationSet DeclaredRelations(Algorithm a) {
     case Algorithm::kDiscreteGradient: return DiscreteGradientDeclared();
     case Algorithm::kMorseSmale: return MorseSmaleDeclared();
     case Algorithm::kPersistenceDiagram: return PersistenceDiagramDeclared();
+    case Algorithm::kTopologicalSimplification: return TopologicalSimplificationDeclared();
   }
   return {};
 }
 
 bool NeedsScalar(Algorithm a) { return a != Algorithm::kTopoRelations; }
+
+bool NeedsScalarValues(Algorithm a) {
+  return a == Algorithm::kPersistenceDiagram || a == Algorithm::kTopologicalSimplification ||
+         a == Algorithm::kMorseSmale;
+}
 
 Prefetch DefaultPrefetch(Algorithm) {
   // Every algorithm reads relations block by block on every consumer (Morse-Smale's

@@ -21,6 +21,7 @@ enum class Algorithm : uint8_t {
   kDiscreteGradient,
   kMorseSmale,
   kPersistenceDiagram,
+  kTopologicalSimplification,
 };
 
 std::string_view AlgorithmName(Algorithm a);  // "critical-points"
@@ -31,6 +32,9 @@ std::span<const Algorithm> AllAlgorithms();
 RelationSet DeclaredRelations(Algorithm a);
 // Whether the algorithm reads a scalar field.
 bool NeedsScalar(Algorithm a);
+// Whether it needs the field's values, not only their order: the persistence diagram reports
+// them and the simplification (alone or before Morse-Smale) rewrites them.
+bool NeedsScalarValues(Algorithm a);
 
 // Engine modes per algorithm: linear prefetch for all (each consumer sweeps its blocks in
 // order); critical points and discrete gradient precompute every declared relation, the others

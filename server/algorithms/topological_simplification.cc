@@ -448,8 +448,7 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
       result.stats.minima += !lower;
       result.stats.maxima += !higher;
       const SimplexId input = topo.vertex_input_id(v);
-      result.stats.flattened_vertices +=
-          result.scalars[input] != scalars[input] || new_order[v] != order[v];
+      result.stats.changed_values += result.scalars[input] != scalars[input];
     }
   }
   result.order.resize(n);

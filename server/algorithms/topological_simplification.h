@@ -41,7 +41,7 @@ struct SimplificationStats {
   int64_t kept_pairs = 0, removed_pairs = 0;
   int64_t constraints = 0;  // distinct vertices of the kept pairs
   int64_t removed_maxima = 0, removed_minima = 0;
-  int64_t flattened_vertices = 0;  // vertices whose value or order changed
+  int64_t changed_values = 0;      // vertices whose value changed
   int64_t maxima = 0, minima = 0;  // local extrema of the simplified field
 };
 

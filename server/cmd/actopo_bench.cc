@@ -11,6 +11,7 @@
 #include <cstring>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <optional>
 
 #include "absl/strings/str_cat.h"
@@ -55,6 +56,8 @@ struct BenchOptions {
   int block_size = 1000;
   std::string block_labels;
   std::string boundary_rule = "ttk";
+  std::string persistence_threshold, relative_threshold;  // as given, parsed by ApplyParameters
+  std::string embedding;
   std::string output;
   std::string trace;  // Chrome trace-event JSON file
   int threads = 0;
@@ -220,7 +223,14 @@ absl::StatusOr<Json> Run(BenchOptions o) {
                                                                      : BoundaryRule::kTtk}};
   if (!scalars.empty()) input.order = VertexOrder(*topology, scalars);
   input.input_tetrahedra = std::move(input_tetrahedra);
-  if (algorithm == Algorithm::kPersistenceDiagram) input.scalars = scalars;
+  if (NeedsScalarValues(algorithm)) input.scalars = scalars;
+  // Thresholds go through the service's parameter parser: one spelling, one set of errors.
+  std::map<std::string, std::string> parameters;
+  if (!o.persistence_threshold.empty())
+    parameters["persistence_threshold"] = o.persistence_threshold;
+  if (!o.relative_threshold.empty()) parameters["relative_threshold"] = o.relative_threshold;
+  if (!o.embedding.empty()) parameters["embedding"] = o.embedding;
+  RETURN_IF_ERROR(ApplyParameters(parameters, input));
   const double order_s = Seconds(start);
   Phase(trace, "vertex order", start);
   const RelationSet declared = DeclaredRelations(algorithm);
@@ -381,9 +391,17 @@ int main(int argc, char** argv) {
   flags.Add("scalar", &o.scalar, "point scalar field (default: first floating-point field)");
   flags.Add(
       "algorithm", &o.algorithm,
-      "topo-relations, critical-points, discrete-gradient, morse-smale or persistence-diagram");
+      "topo-relations, critical-points, discrete-gradient, morse-smale, persistence-diagram or "
+      "topological-simplification");
   flags.Add("boundary-rule", &o.boundary_rule,
             "critical-points: ttk (TTK >= 1.1 boundary saddles) or none");
+  flags.Add("persistence-threshold", &o.persistence_threshold,
+            "topological-simplification, morse-smale: keep the persistence pairs at least this "
+            "persistent (absolute) and simplify the rest away first");
+  flags.Add("relative-threshold", &o.relative_threshold,
+            "as --persistence-threshold, as a fraction of the field's range (e.g. 0.01)");
+  flags.Add("embedding", &o.embedding,
+            "persistence-diagram --output: diagram (TTK's birth-death plane) or domain");
   flags.Add("structure", &o.structure, "explicit, compact or actopo");
   flags.Add("consumers", &o.consumers,
             "consumer threads running the algorithm (0: from the cores, see DefaultThreadPlan)");

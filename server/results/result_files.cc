@@ -238,6 +238,13 @@ absl::Status WriteCsv(const std::string& path, std::span<const io::NamedArray> c
   return absl::OkStatus();
 }
 
+// TTK's TopologicalSimplification outputs: the field under its own name and its order.
+std::vector<io::NamedArray> SimplifiedArrays(const ResultContext& c,
+                                             const SimplificationResult& s) {
+  return {{c.scalar_name, s.scalars},
+          {c.scalar_name + "_Order", std::vector<int32_t>(s.order.begin(), s.order.end())}};
+}
+
 }  // namespace
 
 std::vector<SimplexId> CellInputVertices(const Topology& topology, int d, SimplexId c) {
@@ -258,6 +265,11 @@ ResultOutputs BuildOutputs(const ResultContext& c, const AlgorithmResult& result
   } else if (const auto* d = std::get_if<PersistenceDiagramResult>(&result)) {
     out.poly_data.push_back({"diagram", DiagramPolyData(c, *d)});
     out.tables.push_back({"persistence_curve", CurveTable(*d)});
+  } else if (const auto* s = std::get_if<SimplificationResult>(&result)) {
+    out.simplified = SimplifiedArrays(c, *s);
+  } else if (const auto* sm = std::get_if<SimplifiedMorseSmaleResult>(&result)) {
+    AddMorseSmaleOutputs(c, sm->morse_smale, out);
+    out.simplified = SimplifiedArrays(c, sm->simplification);
   }
   return out;
 }
@@ -276,6 +288,19 @@ absl::StatusOr<std::vector<std::string>> WriteResultFiles(const std::string& pre
   for (const auto& [name, columns] : outputs.tables) {
     const std::string path = prefix + "_" + name + ".csv";
     RETURN_IF_ERROR(WriteCsv(path, columns));
+    written.push_back(path);
+  }
+  if (!outputs.simplified.empty()) {
+    // The mesh with the simplified field in place of the original one, and its order.
+    Mesh mesh = c.mesh;
+    for (PointField& field : mesh.point_fields) {
+      if (field.name == c.scalar_name) {
+        field.values = std::get<std::vector<double>>(outputs.simplified[0].values);
+      }
+    }
+    const std::string path = prefix + "_simplified.vtu";
+    RETURN_IF_ERROR(io::WriteUnstructuredGrid(
+        path, mesh, std::span<const io::NamedArray>(outputs.simplified).subspan(1)));
     written.push_back(path);
   }
   if (!outputs.segmentation.empty()) {

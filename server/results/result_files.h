@@ -5,6 +5,8 @@
 //   PREFIX_segmentation.vtu      the mesh with the three manifold arrays (morse-smale)
 //   PREFIX_diagram.vtu           the persistence diagram, TTK's grid (persistence-diagram)
 //   PREFIX_persistence_curve.csv pairs alive above each persistence, per type (persistence-diagram)
+//   PREFIX_simplified.vtu        the mesh with the simplified field and its order
+//                                (topological-simplification, morse-smale with a threshold)
 #ifndef ACTOPO_SERVER_RESULTS_RESULT_FILES_H_
 #define ACTOPO_SERVER_RESULTS_RESULT_FILES_H_
 
@@ -37,6 +39,9 @@ struct ResultContext {
 struct ResultOutputs {
   std::vector<std::pair<std::string, io::PolyData>> poly_data;
   std::vector<io::NamedArray> segmentation;  // one value per input vertex
+  // The simplified field and its order, one value per input vertex (topological-simplification,
+  // morse-smale with a threshold), under the field's name and "<field>_Order".
+  std::vector<io::NamedArray> simplified;
   // Tables ("persistence_curve"): columns of equal length.
   std::vector<std::pair<std::string, std::vector<io::NamedArray>>> tables;
 };

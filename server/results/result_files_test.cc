@@ -124,5 +124,29 @@ TEST(PersistenceDiagramOutputs, EmbeddedInTheDomainAndWritten) {
   EXPECT_EQ(header, "PairType,Persistence,NumberOfPairs");
 }
 
+TEST(SimplificationOutputs, FieldAndOrderStreamedAndWritten) {
+  Mesh mesh = testing::Lattice(6, 5, 4, 9);
+  auto topology = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 20}));
+  auto structure = *ExplicitStructure::Build(topology, {});
+  const std::vector<double>& scalars = mesh.point_fields[0].values;
+  const SimplificationResult r =
+      *RunTopologicalSimplification(*structure, VertexOrder(*topology, scalars), scalars,
+                                    {.threshold = 0.2, .relative = true}, {});
+  ASSERT_GT(r.stats.changed_values, 0);
+  const ResultContext context{mesh, *topology, "height", scalars, {}};
+  const ResultOutputs out = BuildOutputs(context, r);
+  ASSERT_EQ(out.simplified.size(), 2u);
+  EXPECT_EQ(out.simplified[0].name, "height");
+  EXPECT_EQ(std::get<std::vector<double>>(out.simplified[0].values), r.scalars);
+  EXPECT_EQ(out.simplified[1].name, "height_Order");
+  const std::filesystem::path dir = std::filesystem::path(::testing::TempDir()) /
+                                    ("actopo_simplified_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  const auto written = WriteResultFiles((dir / "run").string(), context, r);
+  ASSERT_TRUE(written.ok()) << written.status();
+  EXPECT_THAT(*written, ElementsAre((dir / "run_simplified.vtu").string()));
+  EXPECT_GT(std::filesystem::file_size(dir / "run_simplified.vtu"), 0u);
+}
+
 }  // namespace
 }  // namespace actopo

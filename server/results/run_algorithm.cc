@@ -1,7 +1,9 @@
 #include "server/results/run_algorithm.h"
 
 #include <chrono>
+#include <cmath>
 
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
@@ -81,6 +83,44 @@ Json PersistenceDiagramJson(const PersistenceDiagramResult& r) {
           {"pairs_sha256", r.PairsDigest()}};
 }
 
+Json SimplificationJson(const SimplificationResult& r) {
+  const SimplificationStats& s = r.stats;
+  return {{"threshold", r.threshold},
+          {"pairs", r.diagram.pairs.size()},
+          {"kept_pairs", s.kept_pairs},
+          {"removed_pairs", s.removed_pairs},
+          {"constraints", s.constraints},
+          {"removed_maxima", s.removed_maxima},
+          {"removed_minima", s.removed_minima},
+          {"changed_values", s.changed_values},
+          {"minima", s.minima},
+          {"maxima", s.maxima},
+          {"scalars_sha256", r.ScalarsDigest()},
+          {"order_sha256", r.OrderDigest()}};
+}
+
+// A threshold parameter: a finite number.
+absl::StatusOr<double> ParseThreshold(const std::string& name, const std::string& value) {
+  double t = 0;
+  if (!absl::SimpleAtod(value, &t) || !std::isfinite(t)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("parameters.", name, ": '", value, "' is not a number"));
+  }
+  return t;
+}
+
+// The default threshold of topological-simplification: 1% of the field's range.
+constexpr SimplificationOptions kDefaultSimplification{.threshold = 0.01, .relative = true};
+
+// `context` reporting progress in [from, to] of the whole.
+RunContext Phase(const RunContext& context, double from, double to) {
+  RunContext c = context;
+  if (context.progress) {
+    c.progress = [&context, from, to](double f) { context.progress(from + (to - from) * f); };
+  }
+  return c;
+}
+
 }  // namespace
 
 absl::Status ApplyParameters(const std::map<std::string, std::string>& parameters,
@@ -103,6 +143,22 @@ absl::Status ApplyParameters(const std::map<std::string, std::string>& parameter
                                                        value, "'; available: diagram, domain"));
       }
       input.embed_diagram_in_domain = value == "domain";
+      continue;
+    }
+    const bool simplifies = input.algorithm == Algorithm::kTopologicalSimplification ||
+                            input.algorithm == Algorithm::kMorseSmale;
+    if ((name == "persistence_threshold" || name == "relative_threshold") && simplifies) {
+      if (parameters.contains("persistence_threshold") &&
+          parameters.contains("relative_threshold")) {
+        return absl::InvalidArgumentError(
+            "parameters: give persistence_threshold or relative_threshold, not both");
+      }
+      ASSIGN_OR_RETURN(const double t, ParseThreshold(name, value));
+      const SimplificationOptions options{.threshold = t, .relative = name == "relative_threshold"};
+      if (absl::Status s = ValidateSimplificationOptions(options); !s.ok()) {
+        return absl::InvalidArgumentError(absl::StrCat("parameters.", name, ": ", s.message()));
+      }
+      input.simplification = options;
       continue;
     }
     return absl::InvalidArgumentError(absl::StrCat("parameters: unknown parameter '", name,
@@ -143,8 +199,20 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
       break;
     }
     case Algorithm::kMorseSmale: {
-      ASSIGN_OR_RETURN(out.result,
-                       RunMorseSmale(structure, in.order, in.input_tetrahedra, context));
+      if (!in.simplification) {
+        ASSIGN_OR_RETURN(out.result,
+                         RunMorseSmale(structure, in.order, in.input_tetrahedra, context));
+        break;
+      }
+      // As a TTK user chains the filters: simplify, then the complex of the simplified field
+      // with its order (TTK's "<field>_Order").
+      SimplifiedMorseSmaleResult r;
+      ASSIGN_OR_RETURN(r.simplification,
+                       RunTopologicalSimplification(structure, in.order, in.scalars,
+                                                    *in.simplification, Phase(context, 0, 0.5)));
+      ASSIGN_OR_RETURN(r.morse_smale, RunMorseSmale(structure, r.simplification.internal_order,
+                                                    in.input_tetrahedra, Phase(context, 0.5, 1)));
+      out.result = std::move(r);
       break;
     }
     case Algorithm::kPersistenceDiagram: {
@@ -152,6 +220,13 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
                        RunPersistenceDiagram(structure, in.order, in.scalars, context));
       diagram.embed_in_domain = in.embed_diagram_in_domain;
       out.result = std::move(diagram);
+      break;
+    }
+    case Algorithm::kTopologicalSimplification: {
+      ASSIGN_OR_RETURN(out.result,
+                       RunTopologicalSimplification(
+                           structure, in.order, in.scalars,
+                           in.simplification.value_or(kDefaultSimplification), context));
       break;
     }
   }
@@ -179,6 +254,12 @@ Json Summarize(const AlgorithmResult& result, const Topology& topology) {
         if constexpr (std::is_same_v<T, MorseSmaleResult>) return MorseSmaleJson(r);
         if constexpr (std::is_same_v<T, PersistenceDiagramResult>) {
           return PersistenceDiagramJson(r);
+        }
+        if constexpr (std::is_same_v<T, SimplificationResult>) return SimplificationJson(r);
+        if constexpr (std::is_same_v<T, SimplifiedMorseSmaleResult>) {
+          Json j = MorseSmaleJson(r.morse_smale);
+          j["simplification"] = SimplificationJson(r.simplification);
+          return j;
         }
       },
       result);

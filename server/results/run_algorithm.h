@@ -8,6 +8,7 @@
 #define ACTOPO_SERVER_RESULTS_RUN_ALGORITHM_H_
 
 #include <map>
+#include <optional>
 #include <string>
 #include <variant>
 #include <vector>
@@ -21,6 +22,7 @@
 #include "server/algorithms/persistence_diagram.h"
 #include "server/algorithms/registry.h"
 #include "server/algorithms/topo_relations.h"
+#include "server/algorithms/topological_simplification.h"
 
 namespace actopo {
 
@@ -28,20 +30,33 @@ struct AlgorithmInput {
   Algorithm algorithm = Algorithm::kTopoRelations;
   std::vector<SimplexId> order;             // VertexOrder(); empty for topo-relations
   std::vector<SimplexId> input_tetrahedra;  // the mesh's tetrahedra as given (morse-smale)
-  std::vector<double> scalars;              // the field by input vertex id (persistence-diagram)
+  // The field by input vertex id (persistence-diagram, topological-simplification, morse-smale).
+  std::vector<double> scalars;
   CriticalPointsOptions critical_points;
   bool embed_diagram_in_domain = false;  // persistence-diagram outputs
+  // topological-simplification (default: 1% of the range); morse-smale simplifies first when set.
+  std::optional<SimplificationOptions> simplification;
+};
+
+// morse-smale with a persistence threshold: the complex of the simplified field.
+struct SimplifiedMorseSmaleResult {
+  SimplificationResult simplification;
+  MorseSmaleResult morse_smale;
 };
 
 // Algorithm parameters by name, as the service receives them: "boundary_rule" = "ttk" | "none"
 // (critical-points); "embedding" = "diagram" | "domain" (persistence-diagram: pairs at
-// (birth, death) or at their vertices). Unknown names and values are errors naming them.
+// (birth, death) or at their vertices); "persistence_threshold" = an absolute persistence, or
+// "relative_threshold" = a fraction of the field's range (topological-simplification, and
+// morse-smale, which then runs on the simplified field). Unknown names and values are errors
+// naming them.
 absl::Status ApplyParameters(const std::map<std::string, std::string>& parameters,
                              AlgorithmInput& input);
 
 using AlgorithmResult =
     std::variant<TopoRelationsResult, CriticalPointsResult, DiscreteGradientResult,
-                 MorseSmaleResult, PersistenceDiagramResult>;
+                 MorseSmaleResult, PersistenceDiagramResult, SimplificationResult,
+                 SimplifiedMorseSmaleResult>;
 
 struct AlgorithmOutcome {
   AlgorithmResult result;

@@ -284,6 +284,34 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
          (*r.mutable_parameters())["embedding"] = "sideways";
          return RunToEnd(stub, r);
        }},
+      {"threshold not a number", C::INVALID_ARGUMENT,
+       "parameters.relative_threshold: 'lots' is not a number",
+       [](auto*, auto& stub, auto&, auto& s) {
+         v1::RunJobRequest r;
+         r.set_session_id(s);
+         r.set_algorithm(v1::ALGORITHM_TOPOLOGICAL_SIMPLIFICATION);
+         (*r.mutable_parameters())["relative_threshold"] = "lots";
+         return RunToEnd(stub, r);
+       }},
+      {"relative threshold above 1", C::INVALID_ARGUMENT,
+       "parameters.relative_threshold: threshold: 1.5 is not a fraction",
+       [](auto*, auto& stub, auto&, auto& s) {
+         v1::RunJobRequest r;
+         r.set_session_id(s);
+         r.set_algorithm(v1::ALGORITHM_MORSE_SMALE);
+         (*r.mutable_parameters())["relative_threshold"] = "1.5";
+         return RunToEnd(stub, r);
+       }},
+      {"two thresholds", C::INVALID_ARGUMENT,
+       "give persistence_threshold or relative_threshold, not both",
+       [](auto*, auto& stub, auto&, auto& s) {
+         v1::RunJobRequest r;
+         r.set_session_id(s);
+         r.set_algorithm(v1::ALGORITHM_TOPOLOGICAL_SIMPLIFICATION);
+         (*r.mutable_parameters())["relative_threshold"] = "0.1";
+         (*r.mutable_parameters())["persistence_threshold"] = "2";
+         return RunToEnd(stub, r);
+       }},
       {"unknown job", C::NOT_FOUND, "job-x",
        [](auto*, auto& stub, auto&, auto&) {
          v1::CancelJobRequest r;

@@ -220,7 +220,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     const AlgorithmInput& base = session_->base_input();
     input_.order = base.order;
     if (input_.algorithm == Algorithm::kMorseSmale) input_.input_tetrahedra = base.input_tetrahedra;
-    if (input_.algorithm == Algorithm::kPersistenceDiagram) input_.scalars = base.scalars;
+    if (NeedsScalarValues(input_.algorithm)) input_.scalars = base.scalars;
     std::map<std::string, std::string> parameters(request.parameters().begin(),
                                                   request.parameters().end());
     RETURN_IF_ERROR(ApplyParameters(parameters, input_));
@@ -281,6 +281,11 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
             SendArray(a);
           }
         }
+      }
+      for (const io::NamedArray& named : outputs.simplified) {
+        v1::Array a;
+        Pack("simplified/" + named.name, named, &a);
+        SendArray(a);
       }
       for (const auto& [table, columns] : outputs.tables) {
         for (const io::NamedArray& named : columns) {

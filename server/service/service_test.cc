@@ -26,8 +26,9 @@ using testing::ServiceTest;
 TEST_F(ServiceTest, ServerInfo) {
   v1::GetServerInfoResponse info;
   ASSERT_TRUE(stub_->GetServerInfo(Context().get(), {}, &info).ok());
-  EXPECT_EQ(info.algorithms_size(), 5);
+  EXPECT_EQ(info.algorithms_size(), 6);
   EXPECT_EQ(info.algorithms(4), "persistence-diagram");
+  EXPECT_EQ(info.algorithms(5), "topological-simplification");
   EXPECT_EQ(info.relations_size(), kNumRelations);
   EXPECT_EQ(info.relations(0), "vertex_neighbors");
   EXPECT_FALSE(info.library_versions().at("grpc").empty());
@@ -476,6 +477,11 @@ TEST_F(ServiceTest, JobsStreamAcceptedProgressArraysSummaryStats) {
       }
       if (a == Algorithm::kCriticalPoints) {
         EXPECT_TRUE(arrays.count("critical_points/CriticalType"));
+      }
+      if (a == Algorithm::kTopologicalSimplification) {
+        const std::string field = "simplified/" + mesh.point_fields[0].name;
+        EXPECT_TRUE(arrays.count(field)) << field;
+        EXPECT_TRUE(arrays.count(field + "_Order")) << field;
       }
       if (a == Algorithm::kPersistenceDiagram) {
         for (const char* name :

@@ -69,6 +69,7 @@ inline constexpr EnumMapping<pb::Algorithm, Algorithm> kAlgorithmMapping[] = {
     {pb::ALGORITHM_DISCRETE_GRADIENT, Algorithm::kDiscreteGradient},
     {pb::ALGORITHM_MORSE_SMALE, Algorithm::kMorseSmale},
     {pb::ALGORITHM_PERSISTENCE_DIAGRAM, Algorithm::kPersistenceDiagram},
+    {pb::ALGORITHM_TOPOLOGICAL_SIMPLIFICATION, Algorithm::kTopologicalSimplification},
 };
 inline constexpr EnumMapping<pb::Structure, StructureKind> kStructureMapping[] = {
     {pb::STRUCTURE_EXPLICIT, StructureKind::kExplicit},

@@ -98,7 +98,8 @@ TEST(WireMapping, UnknownValuesNameTheFieldAndValue) {
   EXPECT_THAT(message(FromProto(static_cast<v1::Algorithm>(7))),
               HasSubstr("algorithm: 7 is not an algorithm; set ALGORITHM_TOPO_RELATIONS, "
                         "ALGORITHM_CRITICAL_POINTS, ALGORITHM_DISCRETE_GRADIENT, "
-                        "ALGORITHM_MORSE_SMALE or ALGORITHM_PERSISTENCE_DIAGRAM"));
+                        "ALGORITHM_MORSE_SMALE, ALGORITHM_PERSISTENCE_DIAGRAM or "
+                        "ALGORITHM_TOPOLOGICAL_SIMPLIFICATION"));
   v1::OpenSessionRequest request;
   request.set_structure(static_cast<v1::Structure>(42));
   EXPECT_THAT(message(FromProto(request)), HasSubstr("structure: 42 is not a structure"));

@@ -1,0 +1,165 @@
+#include "server/algorithms/topological_simplification.h"
+
+#include <random>
+#include <set>
+
+#include "gtest/gtest.h"
+#include "server/algorithms/vertex_order.h"
+#include "server/core/actopo_structure.h"
+#include "server/core/compact_structure.h"
+#include "server/core/explicit_structure.h"
+#include "server/core/partition.h"
+#include "server/core/testing/test_meshes.h"
+
+namespace actopo {
+namespace {
+
+struct Input {
+  Mesh mesh;
+  std::shared_ptr<const Topology> topo;
+  std::vector<SimplexId> order;
+  std::vector<double> scalars;
+};
+
+// A lattice with a noisy field: many extrema of low persistence around a few big ones.
+Input Noisy(int n, uint64_t seed, int block_size = 40) {
+  Input in{testing::Lattice(n, n, n, seed)};
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0, 0.15);
+  in.scalars = in.mesh.point_fields[0].values;
+  for (double& v : in.scalars) v += noise(rng);
+  in.mesh.point_fields[0].values = in.scalars;
+  in.topo =
+      *Topology::Build(in.mesh, OctreeBlocks(in.mesh.points, {.bucket_capacity = block_size}));
+  in.order = VertexOrder(*in.topo, in.scalars);
+  return in;
+}
+
+// Input ids of the local minima and maxima of an order given by input id (lower link empty,
+// upper link empty).
+std::pair<std::set<SimplexId>, std::set<SimplexId>> Extrema(const Input& in, auto& structure,
+                                                            std::span<const SimplexId> by_input) {
+  auto reader = structure.NewReader();
+  std::set<SimplexId> minima, maxima;
+  const Topology& topo = *in.topo;
+  for (SimplexId v = 0; v < topo.num_vertices(); ++v) {
+    bool lower = false, higher = false;
+    const SimplexId mine = by_input[topo.vertex_input_id(v)];
+    for (SimplexId u : reader.vertex_neighbors(v)) {
+      (by_input[topo.vertex_input_id(u)] < mine ? lower : higher) = true;
+    }
+    if (!lower) minima.insert(topo.vertex_input_id(v));
+    if (!higher) maxima.insert(topo.vertex_input_id(v));
+  }
+  return {minima, maxima};
+}
+
+// What TTK guarantees: the simplified field's extrema are exactly the extrema among the kept
+// pairs' vertices (saddle-saddle pairs are not controlled); the rest is flattened to saddles.
+TEST(TopologicalSimplification, KeepsExactlyTheExtremaOfTheKeptPairs) {
+  const Input in = Noisy(9, 5);
+  auto structure = *ExplicitStructure::Build(in.topo, {});
+  std::vector<SimplexId> input_order(in.order.size());
+  for (SimplexId v = 0; v < in.topo->num_vertices(); ++v) {
+    input_order[in.topo->vertex_input_id(v)] = in.order[v];
+  }
+  const auto [minima_before, maxima_before] = Extrema(in, *structure, input_order);
+  for (double fraction : {0.02, 0.1, 0.3}) {
+    SCOPED_TRACE(fraction);
+    const auto r = RunTopologicalSimplification(*structure, in.order, in.scalars,
+                                                {.threshold = fraction, .relative = true}, {});
+    ASSERT_TRUE(r.ok()) << r.status();
+    std::set<SimplexId> kept;
+    for (const PersistencePair& p : r->diagram.pairs) {
+      if (p.Persistence() >= r->threshold) kept.insert({p.birth, p.death});
+    }
+    std::set<SimplexId> want_minima, want_maxima;
+    for (SimplexId v : kept) {
+      if (minima_before.contains(v)) want_minima.insert(v);
+      if (maxima_before.contains(v)) want_maxima.insert(v);
+    }
+    const auto [minima, maxima] = Extrema(in, *structure, r->order);
+    EXPECT_EQ(minima, want_minima);
+    EXPECT_EQ(maxima, want_maxima);
+    EXPECT_LT(minima.size() + maxima.size(), minima_before.size() + maxima_before.size());
+    EXPECT_EQ(r->stats.minima, int64_t(minima.size()));
+    EXPECT_EQ(r->stats.maxima, int64_t(maxima.size()));
+    // Values change only by flattening to a value the field had, and the order stays a
+    // permutation consistent with the values.
+    std::set<double> values(in.scalars.begin(), in.scalars.end());
+    int64_t changed = 0;
+    for (size_t v = 0; v < in.scalars.size(); ++v) {
+      EXPECT_TRUE(values.contains(r->scalars[v]));
+      changed += r->scalars[v] != in.scalars[v];
+    }
+    EXPECT_EQ(changed, r->stats.changed_values);
+    EXPECT_GT(changed, 0);
+    std::vector<SimplexId> by_rank(in.scalars.size());
+    std::vector<bool> seen(in.scalars.size(), false);
+    for (size_t v = 0; v < r->order.size(); ++v) {
+      ASSERT_FALSE(seen[r->order[v]]);
+      seen[r->order[v]] = true;
+      by_rank[r->order[v]] = SimplexId(v);
+    }
+    for (size_t i = 1; i < by_rank.size(); ++i) {
+      EXPECT_LE(r->scalars[by_rank[i - 1]], r->scalars[by_rank[i]]);
+    }
+  }
+}
+
+// Threshold 0 keeps every pair; as in TTK, the field still loses the PL extrema that the
+// gradient pairs away inside a lower star (no pair stands for them), and keeps every other.
+TEST(TopologicalSimplification, ThresholdZeroKeepsEveryPair) {
+  const Input in = Noisy(6, 3);
+  auto structure = *ExplicitStructure::Build(in.topo, {});
+  const auto r = *RunTopologicalSimplification(*structure, in.order, in.scalars, {}, {});
+  EXPECT_EQ(r.stats.removed_pairs, 0);
+  EXPECT_EQ(r.stats.kept_pairs, int64_t(r.diagram.pairs.size()));
+  EXPECT_EQ(r.stats.minima, r.diagram.gradient.critical_cells[0]);
+  EXPECT_LE(r.stats.changed_values, int64_t(in.scalars.size()) / 10);
+}
+
+TEST(TopologicalSimplification, DoesNotDependOnTheStructureThreadsOrBlocks) {
+  const Input in = Noisy(8, 11);
+  const SimplificationOptions options{.threshold = 0.05, .relative = true};
+  auto explicit_structure = *ExplicitStructure::Build(in.topo, {});
+  const auto reference =
+      *RunTopologicalSimplification(*explicit_structure, in.order, in.scalars, options, {});
+  const auto digests = [](const SimplificationResult& r) {
+    return std::make_pair(r.ScalarsDigest(), r.OrderDigest());
+  };
+  ASSERT_GT(reference.stats.changed_values, 0);
+  for (int consumers : {1, 2, 3}) {
+    const RunContext context{.consumers = consumers};
+    CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = consumers});
+    EXPECT_EQ(
+        digests(*RunTopologicalSimplification(compact, in.order, in.scalars, options, context)),
+        digests(reference));
+    auto actopo =
+        *ActopoStructure::Create(in.topo, {.consumers = consumers,
+                                           .producers = 2,
+                                           .buffer_ratio = 0.05,
+                                           .declared = TopologicalSimplificationDeclared()});
+    EXPECT_EQ(
+        digests(*RunTopologicalSimplification(*actopo, in.order, in.scalars, options, context)),
+        digests(reference));
+  }
+  const Input other = Noisy(8, 11, /*block_size=*/7);
+  auto s = *ExplicitStructure::Build(other.topo, {});
+  EXPECT_EQ(digests(*RunTopologicalSimplification(*s, other.order, other.scalars, options, {})),
+            digests(reference));
+}
+
+TEST(TopologicalSimplification, RejectsBadThresholds) {
+  for (const SimplificationOptions& bad :
+       {SimplificationOptions{.threshold = -1}, SimplificationOptions{.threshold = NAN},
+        SimplificationOptions{.threshold = 1.5, .relative = true}}) {
+    const absl::Status s = ValidateSimplificationOptions(bad);
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_NE(s.message().find("threshold"), std::string::npos) << s;
+  }
+  EXPECT_TRUE(ValidateSimplificationOptions({.threshold = 3}).ok());
+}
+
+}  // namespace
+}  // namespace actopo
