@@ -27,12 +27,19 @@ class LowerStarPairing {
  public:
   explicit LowerStarPairing(GradientField& gradient) : gradient_(gradient) {}
 
+  // The critical cells and the pairs (per lower dimension) of the lower stars processed so far.
+  std::array<std::vector<SimplexId>, 4>& critical() { return critical_; }
+  const std::array<int64_t, 3>& pairs() const { return pairs_; }
+
   template <class Reader>
   void Process(Reader& reader, SimplexId x, std::span<const SimplexId> order) {
     Build(reader, x, order);
     IndexCofacets();
     auto& edges = star_[1];
-    if (edges.empty()) return;  // a minimum
+    if (edges.empty()) {  // a minimum
+      critical_[0].push_back(x);
+      return;
+    }
     size_t delta = 0;
     for (size_t i = 1; i < edges.size(); ++i) {
       if (edges[i].key[0] < edges[delta].key[0]) delta = i;
@@ -61,6 +68,7 @@ class LowerStarPairing {
         const Ref gamma = zero_.top();
         zero_.pop();
         Get(gamma).paired = true;  // critical
+        critical_[gamma.dim].push_back(Get(gamma).id);
         PushCofacets(gamma.dim, gamma.index);
       }
     }
@@ -179,6 +187,7 @@ class LowerStarPairing {
   }
 
   void Pair(StarCell& alpha, StarCell& beta) {
+    ++pairs_[alpha.dim];
     gradient_.up[alpha.dim][alpha.id] = beta.id;
     gradient_.down[beta.dim][beta.id] = alpha.id;
     alpha.paired = true;
@@ -186,6 +195,8 @@ class LowerStarPairing {
   }
 
   GradientField& gradient_;
+  std::array<std::vector<SimplexId>, 4> critical_;
+  std::array<int64_t, 3> pairs_{};
   std::array<std::vector<StarCell>, 4> star_;
   std::array<std::vector<int32_t>, 3> cofacet_begin_, cofacets_;  // [1] and [2] used
   std::vector<int32_t> cursor_;
@@ -274,15 +285,7 @@ void AppendCellLine(std::string& line, const Topology& topology, const DecimalTa
 }  // namespace
 
 std::string DiscreteGradientResult::CriticalCellsDigest(const Topology& topology) const {
-  // Critical cells are few: list them once instead of scanning every cell per pass.
   const DecimalTable decimal(topology.num_vertices());
-  std::array<std::vector<SimplexId>, 4> critical;
-  for (int d = 0; d < 4; ++d) {
-    critical[d].reserve(critical_cells[d]);
-    for (SimplexId c = 0; c < topology.num_simplices(d); ++c) {
-      if (gradient.IsCritical(d, c)) critical[d].push_back(c);
-    }
-  }
   std::vector<LineGroup> groups;
   for (int d = 0; d < 4; ++d) {
     const std::vector<SimplexId>& cells = critical[d];
@@ -335,24 +338,34 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,
   for (int d = 0; d < 3; ++d) g.up[d].assign(topo.num_simplices(d), -1);
   for (int d = 1; d < 4; ++d) g.down[d].assign(topo.num_simplices(d), -1);
   // Every cell lies in the lower star of exactly one vertex (its highest), so consumers on
-  // different blocks write disjoint entries.
+  // different blocks write disjoint entries. Each counts what it pairs and lists what it leaves
+  // critical, so no pass over every cell follows.
+  std::vector<std::array<std::vector<SimplexId>, 4>> critical(std::max(context.consumers, 1));
+  std::vector<std::array<int64_t, 3>> pairs(critical.size());
   const absl::Status status = RunOnConsumers(
-      context, topo, topo.num_blocks(), [&](int, BlockRange range, WorkTracker& tracker) {
+      context, topo, topo.num_blocks(), [&](int consumer, BlockRange range, WorkTracker& tracker) {
         auto reader = structure.NewReader();
         LowerStarPairing pairing(g);
         for (int32_t b = range.begin; b < range.end; ++b) {
           for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
             pairing.Process(reader, v, order);
           }
-          if (!tracker.Done()) return;
+          if (!tracker.Done()) break;
         }
+        critical[consumer] = std::move(pairing.critical());
+        pairs[consumer] = pairing.pairs();
       });
   if (!status.ok()) return status;
-  for (int d = 0; d < 4; ++d) {
-    for (SimplexId c = 0; c < topo.num_simplices(d); ++c) {
-      result.critical_cells[d] += g.IsCritical(d, c);
-      if (d < 3) result.pairs[d] += g.up[d][c] >= 0;
+  for (size_t c = 0; c < critical.size(); ++c) {
+    for (int d = 0; d < 4; ++d) {
+      result.critical[d].insert(result.critical[d].end(), critical[c][d].begin(),
+                                critical[c][d].end());
+      if (d < 3) result.pairs[d] += pairs[c][d];
     }
+  }
+  for (int d = 0; d < 4; ++d) {
+    std::sort(result.critical[d].begin(), result.critical[d].end());
+    result.critical_cells[d] = int64_t(result.critical[d].size());
   }
   return result;
 }

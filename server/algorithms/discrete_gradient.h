@@ -36,7 +36,9 @@ struct GradientField {
 struct DiscreteGradientResult {
   GradientField gradient;
   std::array<int64_t, 4> critical_cells{};  // per dimension
-  std::array<int64_t, 3> pairs{};           // (0,1), (1,2), (2,3)
+  // The critical cells of each dimension, ascending internal id.
+  std::array<std::vector<SimplexId>, 4> critical;
+  std::array<int64_t, 3> pairs{};  // (0,1), (1,2), (2,3)
 
   // "<d> <ids>\n" per critical cell, input vertex ids ascending, lines in byte order.
   std::string CriticalCellsDigest(const Topology& topology) const;

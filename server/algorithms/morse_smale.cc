@@ -19,9 +19,8 @@ namespace {
 // Descending 1-separatrices: from each 1-saddle's two vertices down the vertex-edge pairs to a
 // minimum. Needs no relation.
 void DescendingSeparatrices(const Topology& topo, const GradientField& g,
-                            std::vector<Separatrix>& out) {
-  for (SimplexId e = 0; e < topo.num_edges(); ++e) {
-    if (!g.IsCritical(1, e)) continue;
+                            std::span<const SimplexId> saddles, std::vector<Separatrix>& out) {
+  for (SimplexId e : saddles) {
     for (SimplexId start : topo.edge(e)) {
       Separatrix s{SeparatrixType::kDescending, {1, e}, {}, {{1, e}}};
       SimplexId v = start;
@@ -232,12 +231,10 @@ std::vector<SimplexId> ToInputOrder(const Topology& topo,
 // Minima labelled 0.. in ascending input vertex id; each vertex takes its V-path's minimum.
 // Needs no relation.
 std::vector<SimplexId> DescendingSegmentation(const Topology& topo, const GradientField& g,
+                                              std::span<const SimplexId> critical_vertices,
                                               std::vector<int64_t>& sizes) {
   const SimplexId nv = topo.num_vertices();
-  std::vector<SimplexId> minima;
-  for (SimplexId v = 0; v < nv; ++v) {
-    if (g.IsCritical(0, v)) minima.push_back(v);
-  }
+  std::vector<SimplexId> minima(critical_vertices.begin(), critical_vertices.end());
   std::sort(minima.begin(), minima.end(), [&](SimplexId a, SimplexId b) {
     return topo.vertex_input_id(a) < topo.vertex_input_id(b);
   });
@@ -370,16 +367,13 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
     result.gradient = std::move(*gradient);
   }
   const GradientField& g = result.gradient.gradient;
-  DescendingSeparatrices(topo, g, result.separatrices);
+  DescendingSeparatrices(topo, g, result.gradient.critical[1], result.separatrices);
 
   // Per 2-saddle, in ascending id: its ascending separatrices and its saddle connectors, on
   // every consumer (walls differ in size, so saddles go to whichever consumer is free). Walls
   // and paths wander across blocks: actopo computes what they miss, without prefetching
   // (part_10M.vtu: this phase 18.5 s with linear prefetch, 8.2 s on compact).
-  std::vector<SimplexId> saddles;
-  for (SimplexId f = 0; f < topo.num_triangles(); ++f) {
-    if (g.IsCritical(2, f)) saddles.push_back(f);
-  }
+  const std::vector<SimplexId>& saddles = result.gradient.critical[2];
   std::vector<std::vector<Separatrix>> ascending(saddles.size()), connectors(saddles.size());
   std::optional<PrefetchOff<Structure>> prefetch_off(structure);
   absl::Status status =
@@ -404,15 +398,13 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
     }
   }
 
-  result.descending = DescendingSegmentation(topo, g, result.minimum_sizes);
+  result.descending =
+      DescendingSegmentation(topo, g, result.gradient.critical[0], result.minimum_sizes);
 
   // Ascending: maxima labelled 0.. in ascending input tetrahedron id; each tetrahedron follows
   // its path up (-1 if it leaves through the boundary); a vertex takes the label of the
   // tetrahedron of its star with the lowest input id.
-  std::vector<SimplexId> maxima;
-  for (SimplexId t = 0; t < topo.num_tetrahedra(); ++t) {
-    if (g.IsCritical(3, t)) maxima.push_back(t);
-  }
+  std::vector<SimplexId> maxima = result.gradient.critical[3];
   std::sort(maxima.begin(), maxima.end(), [&](SimplexId a, SimplexId b) {
     return topo.tetrahedron_input_id(a) < topo.tetrahedron_input_id(b);
   });

@@ -84,6 +84,33 @@ class Components {
   std::vector<bool> paired_;
 };
 
+// The tetrahedra of triangle f's star, from the star of its lowest vertex (VT, which the
+// gradient reads anyway, is far cheaper per block than FT), other than `skip`; at most two.
+template <class Reader>
+int TriangleStar(Reader& reader, SimplexId f, SimplexId skip, std::array<SimplexId, 2>& out) {
+  const Topology& topo = reader.topology();
+  const auto fv = topo.triangle(f);
+  int n = 0;
+  for (SimplexId t : reader.vertex_star(fv[0])) {
+    if (t == skip) continue;
+    const auto tv = topo.tetrahedron(t);  // sorted: fv[1] and fv[2] come after fv[0]
+    if (std::binary_search(tv.begin(), tv.end(), fv[1]) &&
+        std::binary_search(tv.begin(), tv.end(), fv[2])) {
+      out[n++] = t;
+      if (n == 2) break;
+    }
+  }
+  return n;
+}
+
+// Triangle f's three edges, from the static encoding: its edge (a, b), and (a, c), (b, c) found
+// among the few edges of their lowest vertex.
+std::array<SimplexId, 3> TriangleEdges(const Topology& topo, SimplexId f) {
+  const SimplexId ab = topo.triangle_edge(f);
+  const SimplexId a = topo.edge_lowest(ab), b = topo.edge_upper(ab), c = topo.triangle_third(f);
+  return {ab, topo.FindEdge(a, c), topo.FindEdge(b, c)};
+}
+
 // A cell that the saddle-max pairing sees when an ascending path leaves through the boundary.
 constexpr int32_t kBoundary = -1;
 
@@ -131,8 +158,12 @@ template <class Structure>
 class DiagramBuilder {
  public:
   DiagramBuilder(Structure& structure, std::span<const SimplexId> order,
-                 const GradientField& gradient)
-      : structure_(structure), topo_(structure.topology()), order_(order), g_(gradient) {}
+                 const DiscreteGradientResult& gradient)
+      : structure_(structure),
+        topo_(structure.topology()),
+        order_(order),
+        g_(gradient.gradient),
+        critical_(gradient.critical) {}
 
   absl::Status Run(std::vector<PersistencePair>& pairs, const RunContext& paths_context,
                    const RunContext& reduction_context) {
@@ -159,9 +190,7 @@ class DiagramBuilder {
   void CollectCriticalCells() {
     std::array<std::vector<CriticalCell>*, 4> lists = {&minima_, &saddles1_, &saddles2_, &maxima_};
     for (int d = 0; d < 4; ++d) {
-      for (SimplexId c = 0; c < topo_.num_simplices(d); ++c) {
-        if (g_.IsCritical(d, c)) lists[d]->push_back(MakeCriticalCell(topo_, order_, d, c));
-      }
+      for (SimplexId c : critical_[d]) lists[d]->push_back(MakeCriticalCell(topo_, order_, d, c));
       std::sort(lists[d]->begin(), lists[d]->end());
     }
     for (size_t i = 0; i < minima_.size(); ++i) minimum_index_[minima_[i].id] = int32_t(i);
@@ -238,15 +267,14 @@ class DiagramBuilder {
           [&](int, ItemQueue& queue, WorkTracker& tracker) {
             auto reader = structure_.NewReader();
             std::vector<int32_t> reached;
-            std::vector<SimplexId> star;
+            std::array<SimplexId, 2> star;
             int64_t begin, end;
             while (queue.Next(begin, end)) {
               for (int64_t i = begin; i < end; ++i) {
                 const SimplexId f = saddles2_[i].id;
                 reached.clear();
-                const auto s = reader.triangle_star(f);
-                star.assign(s.begin(), s.end());
-                for (SimplexId t : star) reached.push_back(AscendToMaximum(reader, t));
+                const int n = TriangleStar(reader, f, -1, star);
+                for (int k = 0; k < n; ++k) reached.push_back(AscendToMaximum(reader, star[k]));
                 if (topo_.triangle_on_boundary(f)) reached.push_back(kBoundary);
                 // Maxima ascending, the boundary last.
                 std::sort(reached.begin(), reached.end(),
@@ -284,14 +312,10 @@ class DiagramBuilder {
   // when the path leaves through the boundary.
   template <class Reader>
   int32_t AscendToMaximum(Reader& reader, SimplexId t) const {
+    std::array<SimplexId, 2> next;
     while (!g_.IsCritical(3, t)) {
-      const SimplexId f = g_.down[3][t];
-      SimplexId next = -1;
-      for (SimplexId u : reader.triangle_star(f)) {
-        if (u != t) next = u;
-      }
-      if (next < 0) return kBoundary;
-      t = next;
+      if (TriangleStar(reader, g_.down[3][t], t, next) == 0) return kBoundary;
+      t = next[0];
     }
     return maximum_index_.at(t);
   }
@@ -303,7 +327,7 @@ class DiagramBuilder {
   }
 
   // The 2-saddles left, oldest first, reduce their boundary chains; the pivot of a reduced chain
-  // is the 1-saddle it kills. Sequential (one consumer): each reduction reads the earlier ones.
+  // is the 1-saddle it kills. Sequential (one thread): each reduction reads the earlier ones.
   absl::Status SaddleSaddlePairs(std::vector<PersistencePair>& pairs, const RunContext& context) {
     std::vector<size_t> todo;
     for (size_t k = 0; k < saddles2_.size(); ++k) {
@@ -313,14 +337,13 @@ class DiagramBuilder {
     absl::flat_hash_map<int32_t, std::vector<ChainEdge>> partner_chain;
     absl::Status error;
     {
-      PrefetchOff<Structure> off(structure_);
+      // Reads no relation: triangle edges come from the static encoding.
       RETURN_IF_ERROR(RunOnConsumersShared(
           context, int64_t(todo.size()), /*chunk=*/1,
           [&](int, ItemQueue& queue, WorkTracker& tracker) {
-            auto reader = structure_.NewReader();
             EdgeChain chain;
             const auto add_triangle = [&](SimplexId f, SimplexId skip) {
-              for (SimplexId e : reader.triangle_edges(f)) {
+              for (SimplexId e : TriangleEdges(topo_, f)) {
                 if (e != skip) chain.Add(EdgeOf(e));
               }
             };
@@ -367,6 +390,7 @@ class DiagramBuilder {
   const Topology& topo_;
   std::span<const SimplexId> order_;
   const GradientField& g_;
+  const std::array<std::vector<SimplexId>, 4>& critical_;  // by id
   // Critical cells per dimension, in filtration order.
   std::vector<CriticalCell> minima_, saddles1_, saddles2_, maxima_;
   absl::flat_hash_map<SimplexId, int32_t> minimum_index_, maximum_index_, saddle1_index_;
@@ -412,9 +436,7 @@ PersistenceCurve ComputePersistenceCurve(const PersistenceDiagramResult& diagram
   return curve;
 }
 
-RelationSet PersistenceDiagramDeclared() {
-  return {Relation::kVE, Relation::kVF, Relation::kVT, Relation::kFT, Relation::kFE};
-}
+RelationSet PersistenceDiagramDeclared() { return {Relation::kVE, Relation::kVF, Relation::kVT}; }
 
 template <class Structure>
 absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(Structure& structure,
@@ -445,7 +467,7 @@ absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(Structure& struct
   std::vector<PersistencePair>& pairs = result.pairs;
   {
     Trace::Scope span(context.trace.get(), "pairs", "phase");
-    DiagramBuilder<Structure> builder(structure, order, result.gradient.gradient);
+    DiagramBuilder<Structure> builder(structure, order, result.gradient);
     RETURN_IF_ERROR(builder.Run(pairs, phase(0.6, 0.85, context.consumers), phase(0.85, 1.0, 1)));
   }
   for (PersistencePair& p : pairs) {

@@ -69,8 +69,8 @@ struct PersistenceCurve {
 };
 PersistenceCurve ComputePersistenceCurve(const PersistenceDiagramResult& diagram, int type);
 
-// The gradient's lower stars (VE, VF, VT), triangle stars for the ascending paths (FT) and
-// triangle edges for the saddle-saddle boundaries (FE).
+// The gradient's lower stars (VE, VF, VT); the ascending paths find a triangle's tetrahedra in
+// the star of its lowest vertex (VT) and the boundaries its edges in the static encoding.
 RelationSet PersistenceDiagramDeclared();
 
 // `scalars`: the field by input vertex id, only reported (births, deaths, persistence).

@@ -77,11 +77,10 @@ Prefetch DefaultPrefetch(Algorithm) {
 }
 
 Precompute DefaultPrecompute(Algorithm a) {
-  // The persistence diagram declares FT and FE for its paths and boundaries, read after the
-  // gradient with prefetching off: precomputing them with the lower stars would be waste.
-  return a == Algorithm::kCriticalPoints || a == Algorithm::kDiscreteGradient
-             ? Precompute::kDeclared
-             : Precompute::kRequested;
+  // The persistence diagram and the simplification read the gradient's lower stars, then a few
+  // stars along paths: like the gradient.
+  return a == Algorithm::kTopoRelations || a == Algorithm::kMorseSmale ? Precompute::kRequested
+                                                                       : Precompute::kDeclared;
 }
 
 }  // namespace actopo

@@ -137,7 +137,6 @@ SimplexId Topology::block_begin(int dimension, int32_t b) const {
 }
 
 SimplexId Topology::FindEdge(SimplexId a, SimplexId b) const {
-  // Edges starting at a are few (tens) and sorted by their second vertex.
   // Edges starting at a are few (tens), sorted by their upper vertex: a short linear scan.
   const SimplexId end = vertex_edge_begin_[a + 1];
   for (SimplexId e = vertex_edge_begin_[a]; e < end; ++e) {

@@ -67,12 +67,10 @@ PolyData CriticalCellPoints(const ResultContext& c, const std::vector<Cell>& cel
   return out;
 }
 
-std::vector<Cell> CriticalCells(const Topology& topology, const GradientField& g) {
+std::vector<Cell> CriticalCells(const DiscreteGradientResult& g) {
   std::vector<Cell> cells;
   for (int d = 0; d < 4; ++d) {
-    for (SimplexId id = 0; id < topology.num_simplices(d); ++id) {
-      if (g.IsCritical(d, id)) cells.push_back({int8_t(d), id});
-    }
+    for (SimplexId id : g.critical[d]) cells.push_back({int8_t(d), id});
   }
   return cells;
 }
@@ -98,7 +96,7 @@ PolyData CriticalPointsPolyData(const ResultContext& c, const CriticalPointsResu
 
 void AddMorseSmaleOutputs(const ResultContext& c, const MorseSmaleResult& r, ResultOutputs& out) {
   // Critical points with the size of their manifold (minima: descending, maxima: ascending).
-  const std::vector<Cell> cells = CriticalCells(c.topology, r.gradient.gradient);
+  const std::vector<Cell> cells = CriticalCells(r.gradient);
   std::vector<int32_t> manifold_size(cells.size(), 0);
   std::vector<std::pair<SimplexId, size_t>> minima, maxima;  // (input id, index in cells)
   for (size_t i = 0; i < cells.size(); ++i) {
@@ -258,8 +256,7 @@ ResultOutputs BuildOutputs(const ResultContext& c, const AlgorithmResult& result
   if (const auto* r = std::get_if<CriticalPointsResult>(&result)) {
     out.poly_data.push_back({"critical_points", CriticalPointsPolyData(c, *r)});
   } else if (const auto* g = std::get_if<DiscreteGradientResult>(&result)) {
-    out.poly_data.push_back(
-        {"critical_cells", CriticalCellPoints(c, CriticalCells(c.topology, g->gradient), nullptr)});
+    out.poly_data.push_back({"critical_cells", CriticalCellPoints(c, CriticalCells(*g), nullptr)});
   } else if (const auto* m = std::get_if<MorseSmaleResult>(&result)) {
     AddMorseSmaleOutputs(c, *m, out);
   } else if (const auto* d = std::get_if<PersistenceDiagramResult>(&result)) {
