@@ -1,20 +1,43 @@
 #include "server/algorithms/vertex_order.h"
 
 #include <algorithm>
-#include <numeric>
+
+#include "server/core/parallel.h"
 
 namespace actopo {
+namespace {
+
+// Sorted by value, then input id. Sorting these keys themselves, not ids compared through the
+// scalar array, keeps the comparisons in cache (2M vertices: about half the time).
+struct Key {
+  double value;
+  SimplexId id;
+  bool operator<(const Key& o) const { return value < o.value || (value == o.value && id < o.id); }
+};
+
+}  // namespace
 
 std::vector<SimplexId> VertexOrder(const Topology& topology, std::span<const double> scalars) {
   const SimplexId n = topology.num_vertices();
-  std::vector<SimplexId> by_rank(n);  // input ids, ascending (scalar, id)
-  std::iota(by_rank.begin(), by_rank.end(), 0);
-  std::sort(by_rank.begin(), by_rank.end(), [&](SimplexId a, SimplexId b) {
-    return scalars[a] < scalars[b] || (scalars[a] == scalars[b] && a < b);
+  std::vector<Key> keys(n);
+  for (SimplexId v = 0; v < n; ++v) keys[v] = {scalars[v], v};
+  // Runs sorted on every core, then merged pairwise.
+  const int64_t runs = std::clamp<int64_t>(DefaultThreads(), 1, std::max<int64_t>(n / 65536, 1));
+  std::vector<int64_t> bound(runs + 1);
+  for (int64_t r = 0; r <= runs; ++r) bound[r] = n * r / runs;
+  ParallelFor(runs, int(runs), [&](int64_t r, int) {
+    std::sort(keys.begin() + bound[r], keys.begin() + bound[r + 1]);
   });
+  for (int64_t width = 1; width < runs; width *= 2) {
+    for (int64_t r = 0; r + width < runs; r += 2 * width) {
+      const int64_t end = bound[std::min(r + 2 * width, runs)];
+      std::inplace_merge(keys.begin() + bound[r], keys.begin() + bound[r + width],
+                         keys.begin() + end);
+    }
+  }
   std::vector<SimplexId> order(n);
   for (SimplexId rank = 0; rank < n; ++rank)
-    order[topology.vertex_internal_id(by_rank[rank])] = rank;
+    order[topology.vertex_internal_id(keys[rank].id)] = rank;
   return order;
 }
 

@@ -1,0 +1,35 @@
+#include "server/algorithms/vertex_order.h"
+
+#include <algorithm>
+#include <numeric>
+#include <random>
+
+#include "gtest/gtest.h"
+#include "server/core/partition.h"
+#include "server/core/testing/test_meshes.h"
+
+namespace actopo {
+namespace {
+
+// Against a plain sort of (value, input id), on enough vertices to be sorted in several runs and
+// merged, with many equal values (plateaus are ordered by id).
+TEST(VertexOrder, RanksByValueThenInputId) {
+  const Mesh mesh = testing::Lattice(64, 50, 48, 3);
+  auto topo = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 500}));
+  std::mt19937_64 rng(1);
+  std::uniform_int_distribution<int> level(0, 999);
+  std::vector<double> scalars(mesh.num_vertices());
+  for (double& s : scalars) s = level(rng) * 0.5;
+  const std::vector<SimplexId> order = VertexOrder(*topo, scalars);
+
+  std::vector<SimplexId> by_rank(scalars.size());
+  std::iota(by_rank.begin(), by_rank.end(), 0);
+  std::stable_sort(by_rank.begin(), by_rank.end(),
+                   [&](SimplexId a, SimplexId b) { return scalars[a] < scalars[b]; });
+  for (SimplexId rank = 0; rank < SimplexId(by_rank.size()); ++rank) {
+    ASSERT_EQ(order[topo->vertex_internal_id(by_rank[rank])], rank) << "rank " << rank;
+  }
+}
+
+}  // namespace
+}  // namespace actopo
