@@ -10,7 +10,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = Path(os.environ.get("ACTOPO_BUILD", ROOT / "build")) / "server/cmd/actopo-bench"
-ALGORITHMS = ["topo-relations", "critical-points", "discrete-gradient", "morse-smale"]
+ALGORITHMS = ["topo-relations", "critical-points", "discrete-gradient", "morse-smale",
+              "persistence-diagram", "topological-simplification"]
+DATA = Path(os.environ.get("ACTOPO_DATA_DIR", ROOT.parent / "shared/data"))
 
 
 def bench(*args, check=True):
@@ -60,6 +62,45 @@ def test_result_keys_per_algorithm():
     r = run_json("--sample", "wavelet:8", "--algorithm", "discrete-gradient")
     c = r["result"]["critical_cells"]
     assert c[0] - c[1] + c[2] - c[3] == 1  # a ball
+
+
+def test_persistence_diagram_equals_ttk_and_writes_the_diagram(tmp_path):
+    expected = json.loads((DATA / "expected-ttk.json").read_text())
+    want = expected["fertility_tet.vtu"]["height"]["upstream"]["persistence_diagram"]
+    prefix = tmp_path / "pd"
+    r = run_json("--mesh", str(DATA / "fertility_tet.vtu"), "--scalar", "height",
+                 "--algorithm", "persistence-diagram", "--structure", "actopo",
+                 "--output", str(prefix))
+    assert r["result"]["pairs_sha256"] == want["pairs_sha256"]
+    assert r["result"]["counts_by_type"] == want["counts_by_type"]
+    assert [Path(f).name for f in r["files"]] == ["pd_diagram.vtu", "pd_persistence_curve.csv"]
+    assert b"UnstructuredGrid" in (tmp_path / "pd_diagram.vtu").read_bytes()[:300]
+
+
+@pytest.mark.parametrize("structure", ["explicit", "compact", "actopo"])
+def test_simplified_morse_smale_on_every_structure(structure, tmp_path):
+    """morse-smale with a threshold reads the simplification's relations too (VV): the explicit
+    structure must have stored them."""
+    r = run_json("--sample", "jittered:12", "--algorithm", "morse-smale", "--structure", structure,
+                 "--relative-threshold", "0.05", "--output", str(tmp_path / "ms"))
+    s = r["result"]["simplification"]
+    assert s["kept_pairs"] + s["removed_pairs"] == s["pairs"]
+    assert s["removed_maxima"] + s["removed_minima"] > 0
+    assert r["result"]["critical_cells"][0] < s["pairs"]
+    assert (tmp_path / "ms_simplified.vtu").stat().st_size > 0
+    plain = run_json("--sample", "jittered:12", "--algorithm", "morse-smale", "--structure",
+                     structure)
+    assert plain["result"]["critical_cells"][0] > r["result"]["critical_cells"][0]
+
+
+def test_bad_thresholds_are_named():
+    proc = bench("--sample", "jittered:4", "--algorithm", "topological-simplification",
+                 "--relative-threshold", "2", check=False)
+    assert proc.returncode == 1
+    assert "relative_threshold" in proc.stderr and "[0, 1]" in proc.stderr
+    proc = bench("--sample", "jittered:4", "--algorithm", "morse-smale",
+                 "--relative-threshold", "0.1", "--persistence-threshold", "3", check=False)
+    assert "not both" in proc.stderr
 
 
 def test_output_files(tmp_path):

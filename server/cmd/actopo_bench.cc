@@ -233,7 +233,7 @@ absl::StatusOr<Json> Run(BenchOptions o) {
   RETURN_IF_ERROR(ApplyParameters(parameters, input));
   const double order_s = Seconds(start);
   Phase(trace, "vertex order", start);
-  const RelationSet declared = DeclaredRelations(algorithm);
+  const RelationSet declared = DeclaredRelations(input);
   RunContext context{.consumers = o.consumers, .trace = trace};
   RunOutput out;
   if (options.kind == StructureKind::kExplicit) {
@@ -247,7 +247,8 @@ absl::StatusOr<Json> Run(BenchOptions o) {
     out.preprocess_s = preprocess_s;
     out.memory = structure->memory();
   } else if (options.kind == StructureKind::kActopo) {
-    const ActopoStructure::Options engine = EngineOptions(options, algorithm);
+    ActopoStructure::Options engine = EngineOptions(options, algorithm);
+    engine.declared = declared;
     start = Clock::now();
     ASSIGN_OR_RETURN(auto structure, ActopoStructure::Create(topology, engine));
     const double preprocess_s = Seconds(start);

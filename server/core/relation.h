@@ -94,6 +94,11 @@ class RelationSet {
   constexpr bool empty() const { return bits_ == 0; }
   constexpr uint32_t bits() const { return bits_; }
   constexpr bool operator==(const RelationSet&) const = default;
+  constexpr RelationSet operator|(const RelationSet& o) const {
+    RelationSet s;
+    s.bits_ = bits_ | o.bits_;
+    return s;
+  }
 
  private:
   uint32_t bits_ = 0;

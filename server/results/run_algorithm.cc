@@ -168,6 +168,12 @@ absl::Status ApplyParameters(const std::map<std::string, std::string>& parameter
   return absl::OkStatus();
 }
 
+RelationSet DeclaredRelations(const AlgorithmInput& input) {
+  RelationSet relations = DeclaredRelations(input.algorithm);
+  if (input.simplification) relations = relations | TopologicalSimplificationDeclared();
+  return relations;
+}
+
 template <class Structure>
 absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const AlgorithmInput& in,
                                               const RunContext& context) {

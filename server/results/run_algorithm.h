@@ -64,6 +64,10 @@ struct AlgorithmOutcome {
   int64_t peak_rss_after_run = 0;  // before summaries, which can be large
 };
 
+// The relations a run of `input` reads: its algorithm's declared set, and the simplification's
+// when morse-smale simplifies first.
+RelationSet DeclaredRelations(const AlgorithmInput& input);
+
 // Defined for the explicit, compact and actopo structures.
 template <class Structure>
 absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const AlgorithmInput& input,

@@ -351,9 +351,9 @@ absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input, const Ru
     out.memory = compact_->memory();
   } else {
     const auto engine_start = Clock::now();
-    ASSIGN_OR_RETURN(auto engine,
-                     ActopoStructure::Create(mesh_->topology,
-                                             EngineOptions(options_.structure, input.algorithm)));
+    ActopoStructure::Options engine_options = EngineOptions(options_.structure, input.algorithm);
+    engine_options.declared = DeclaredRelations(input);
+    ASSIGN_OR_RETURN(auto engine, ActopoStructure::Create(mesh_->topology, engine_options));
     if (ctx.trace) ctx.trace->Span("start engine", "phase", engine_start, Clock::now());
     absl::StatusOr<AlgorithmOutcome> outcome = RunAlgorithm(*engine, input, ctx);
     out.engine = engine->stats();
