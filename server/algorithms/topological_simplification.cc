@@ -413,6 +413,7 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
     }
     std::vector<std::pair<SimplexId, std::vector<SimplexId>>> segments;
     if (has_maxima) {
+      Trace::Scope pass(context.trace.get(), "remove maxima", "phase");
       MaximaRemoval removal(reader, new_order, authorized, true);
       RETURN_IF_ERROR(removal.Run());
       result.stats.removed_maxima = removal.removed();
@@ -420,6 +421,7 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
     }
     if (context.progress) context.progress(0.9);
     if (has_minima) {
+      Trace::Scope pass(context.trace.get(), "remove minima", "phase");
       Invert(new_order);
       MaximaRemoval removal(reader, new_order, authorized, true);
       RETURN_IF_ERROR(removal.Run());
@@ -440,6 +442,7 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
       }
     }
     // Statistics of the simplified field: its extrema and what changed.
+    Trace::Scope statistics(context.trace.get(), "simplification statistics", "phase");
     for (SimplexId v = 0; v < n; ++v) {
       bool lower = false, higher = false;
       for (SimplexId u : reader.vertex_neighbors(v)) {
