@@ -61,11 +61,14 @@ class MaximaRemoval {
     for (int32_t p : parents_) {
       local_order_[props_[p].critical.back()] = std::numeric_limits<SimplexId>::max();
     }
+    // Vertices by rank before flattening: the ones left alone keep their relative order.
+    std::vector<SimplexId> by_rank(n_);
+    for (SimplexId v = 0; v < n_; ++v) by_rank[order_[v]] = v;
     for (int32_t p : parents_) {  // flatten the order to the saddle's
       const SimplexId saddle_order = order_[props_[p].critical.back()];
       for (SimplexId v : props_[p].segment) order_[v] = saddle_order;
     }
-    GlobalOrder();
+    GlobalOrder(by_rank);
     return absl::OkStatus();
   }
 
@@ -295,13 +298,32 @@ class MaximaRemoval {
   }
 
   // Ranks of (order, local order, input id): flattened components sit just below their saddle.
-  void GlobalOrder() {
-    std::vector<std::tuple<SimplexId, SimplexId, SimplexId, SimplexId>> keys(n_);
-    for (SimplexId v = 0; v < n_; ++v) {
-      keys[v] = {order_[v], local_order_[v], topo_.vertex_input_id(v), v};
+  // TTK sorts every vertex by that key; the vertices left alone are already in order
+  // (`by_rank`, their orders unique), so only the flattened ones are sorted, then merged in.
+  void GlobalOrder(const std::vector<SimplexId>& by_rank) {
+    using Key = std::tuple<SimplexId, SimplexId, SimplexId, SimplexId>;
+    const auto key = [&](SimplexId v) -> Key {
+      return {order_[v], local_order_[v], topo_.vertex_input_id(v), v};
+    };
+    std::vector<bool> flattened(n_, false);
+    std::vector<Key> moved;
+    for (int32_t p : parents_) {
+      for (SimplexId v : props_[p].segment) {
+        flattened[v] = true;
+        moved.push_back(key(v));
+      }
     }
-    std::sort(keys.begin(), keys.end());
-    for (SimplexId i = 0; i < n_; ++i) order_[std::get<3>(keys[i])] = i;
+    std::sort(moved.begin(), moved.end());
+    SimplexId rank = 0;
+    size_t next = 0;
+    for (SimplexId v : by_rank) {
+      if (flattened[v]) continue;
+      const Key k = key(v);
+      for (; next < moved.size() && moved[next] < k; ++next)
+        order_[std::get<3>(moved[next])] = rank++;
+      order_[v] = rank++;
+    }
+    for (; next < moved.size(); ++next) order_[std::get<3>(moved[next])] = rank++;
   }
 
   static constexpr SimplexId kVisited = -1000;
