@@ -37,14 +37,13 @@ struct Propagation {
 template <class Reader>
 class MaximaRemoval {
  public:
-  MaximaRemoval(Reader& reader, std::vector<SimplexId>& order, const std::vector<bool>& authorized,
-                bool any_authorized)
+  // `maxima`: the local maxima of `order` that are not authorized.
+  MaximaRemoval(Reader& reader, std::vector<SimplexId>& order, std::vector<SimplexId> maxima)
       : r_(reader),
         topo_(reader.topology()),
         order_(order),
-        authorized_(authorized),
-        any_authorized_(any_authorized),
-        n_(topo_.num_vertices()) {}
+        n_(topo_.num_vertices()),
+        maxima_(std::move(maxima)) {}
 
   absl::Status Run() {
     segmentation_.assign(n_, -1);
@@ -83,24 +82,12 @@ class MaximaRemoval {
   int64_t removed() const { return int64_t(props_.size()); }
 
  private:
-  // Local maxima that are not authorized, ascending order; with no authorized vertex at all,
-  // the highest is kept.
+  // A propagation per maximum to remove, ascending order. (With no constraint at all TTK keeps
+  // the highest maximum; the caller does not simplify then.)
   void InitializePropagations() {
-    std::vector<SimplexId> maxima;
-    for (SimplexId v = 0; v < n_; ++v) {
-      if (authorized_[v]) continue;
-      bool larger = false;
-      for (SimplexId u : r_.vertex_neighbors(v)) {
-        if (order_[u] > order_[v]) {
-          larger = true;
-          break;
-        }
-      }
-      if (!larger) maxima.push_back(v);
-    }
+    std::vector<SimplexId>& maxima = maxima_;
     std::sort(maxima.begin(), maxima.end(),
               [&](SimplexId a, SimplexId b) { return order_[a] < order_[b]; });
-    if (!any_authorized_ && !maxima.empty()) maxima.pop_back();
     props_.resize(maxima.size());
     for (size_t p = 0; p < maxima.size(); ++p) {
       props_[p].uf_parent = props_[p].parent = int32_t(p);
@@ -332,14 +319,49 @@ class MaximaRemoval {
   Reader& r_;
   const Topology& topo_;
   std::vector<SimplexId>& order_;
-  const std::vector<bool>& authorized_;
-  const bool any_authorized_;
   const SimplexId n_;
+  std::vector<SimplexId> maxima_;
   std::vector<SimplexId> segmentation_, queue_mask_, local_order_;
   std::vector<int32_t> owner_;  // the propagation that reached a vertex (not its root)
   std::vector<Propagation> props_;
   std::vector<int32_t> parents_, neighbors_;
 };
+
+// Whether v is a local minimum (bit 0) or maximum (bit 1) of `order`: no lower, no higher
+// neighbour.
+constexpr uint8_t kMinimum = 1, kMaximum = 2;
+template <class Reader>
+uint8_t ExtremumFlags(Reader& reader, SimplexId v, std::span<const SimplexId> order) {
+  bool lower = false, higher = false;
+  for (SimplexId u : reader.vertex_neighbors(v)) (order[u] < order[v] ? lower : higher) = true;
+  return (lower ? 0 : kMinimum) | (higher ? 0 : kMaximum);
+}
+
+// After a pass, only the flattened vertices and their neighbours can have changed their flags:
+// the others keep their relative order.
+template <class Reader>
+void RefreshFlags(Reader& reader, std::span<const SimplexId> order,
+                  const std::vector<std::pair<SimplexId, std::vector<SimplexId>>>& segments,
+                  std::vector<uint8_t>& flags) {
+  std::vector<SimplexId> touched;
+  for (const auto& segment : segments) {
+    for (SimplexId v : segment.second) {
+      touched.push_back(v);
+      for (SimplexId u : reader.vertex_neighbors(v)) touched.push_back(u);
+    }
+  }
+  for (SimplexId v : touched) flags[v] = ExtremumFlags(reader, v, order);
+}
+
+// The vertices whose flags have `bit` and that are not authorized.
+std::vector<SimplexId> Unauthorized(const std::vector<uint8_t>& flags, uint8_t bit,
+                                    const std::vector<bool>& authorized) {
+  std::vector<SimplexId> out;
+  for (SimplexId v = 0; v < SimplexId(flags.size()); ++v) {
+    if ((flags[v] & bit) && !authorized[v]) out.push_back(v);
+  }
+  return out;
+}
 
 void Invert(std::vector<SimplexId>& order) {
   const SimplexId last = SimplexId(order.size()) - 1;
@@ -424,6 +446,22 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
   result.scalars.assign(scalars.begin(), scalars.end());
   if (result.stats.constraints > 0) {
     Trace::Scope span(context.trace.get(), "simplify", "phase");
+    // The input's extrema, on every consumer; the passes then refresh only around what they
+    // flatten (LTS scans every vertex before each pass, and we did after the last).
+    std::vector<uint8_t> flags(n, 0);
+    {
+      RunContext sweep = context;
+      sweep.progress = nullptr;
+      RETURN_IF_ERROR(RunOnConsumers(sweep, topo, topo.num_blocks(),
+                                     [&](int, BlockRange range, WorkTracker& tracker) {
+                                       auto reader = structure.NewReader();
+                                       for (SimplexId v = topo.block_vertex_begin(range.begin);
+                                            v < topo.block_vertex_begin(range.end); ++v) {
+                                         flags[v] = ExtremumFlags(reader, v, order);
+                                       }
+                                       tracker.Done(range.end - range.begin);
+                                     }));
+    }
     auto reader = structure.NewReader();
     // TTK decides which passes to run from the first neighbour of each constraint.
     bool has_maxima = false, has_minima = false;
@@ -436,20 +474,22 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
     std::vector<std::pair<SimplexId, std::vector<SimplexId>>> segments;
     if (has_maxima) {
       Trace::Scope pass(context.trace.get(), "remove maxima", "phase");
-      MaximaRemoval removal(reader, new_order, authorized, true);
+      MaximaRemoval removal(reader, new_order, Unauthorized(flags, kMaximum, authorized));
       RETURN_IF_ERROR(removal.Run());
       result.stats.removed_maxima = removal.removed();
       segments = removal.TakeSegments();
+      RefreshFlags(reader, new_order, segments, flags);
     }
     if (context.progress) context.progress(0.9);
     if (has_minima) {
       Trace::Scope pass(context.trace.get(), "remove minima", "phase");
       Invert(new_order);
-      MaximaRemoval removal(reader, new_order, authorized, true);
+      MaximaRemoval removal(reader, new_order, Unauthorized(flags, kMinimum, authorized));
       RETURN_IF_ERROR(removal.Run());
       Invert(new_order);
       result.stats.removed_minima = removal.removed();
       auto minima_segments = removal.TakeSegments();
+      RefreshFlags(reader, new_order, minima_segments, flags);
       // Values: the maxima's components first, then the minima's, as TTK.
       for (const auto& [saddle, segment] : segments) {
         for (SimplexId v : segment) {
@@ -464,14 +504,9 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
       }
     }
     // Statistics of the simplified field: its extrema and what changed.
-    Trace::Scope statistics(context.trace.get(), "simplification statistics", "phase");
     for (SimplexId v = 0; v < n; ++v) {
-      bool lower = false, higher = false;
-      for (SimplexId u : reader.vertex_neighbors(v)) {
-        (new_order[u] < new_order[v] ? lower : higher) = true;
-      }
-      result.stats.minima += !lower;
-      result.stats.maxima += !higher;
+      result.stats.minima += (flags[v] & kMinimum) != 0;
+      result.stats.maxima += (flags[v] & kMaximum) != 0;
       const SimplexId input = topo.vertex_input_id(v);
       result.stats.changed_values += result.scalars[input] != scalars[input];
     }
