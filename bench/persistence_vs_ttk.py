@@ -39,7 +39,8 @@ def summary(values):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--ttk", required=True, help="TTK's build directory (bin/, lib/)")
     ap.add_argument("--mesh", action="append", required=True, help="FILE:FIELD, repeatable")
     ap.add_argument("--runs", type=int, default=3)
@@ -78,7 +79,8 @@ def main():
                 result = json.loads(o[2])["result"]
             rows.append((Path(path).name, name, ttk_runs, our_runs, ratios, result))
             print(f"{Path(path).name} {name}: done", file=sys.stderr)
-    print("| mesh | workload | TTK wall s | TTK peak MiB | ours wall s | ours peak MiB | time ratio | memory ratio |")
+    print("| mesh | workload | TTK wall s | TTK peak MiB | ours wall s | ours peak MiB "
+          "| time ratio | memory ratio |")
     print("|---|---|---|---|---|---|---|---|")
     for mesh, name, t, o, ratios, _ in rows:
         tw, tm = summary([r[0] for r in t]), summary([r[1] for r in t])
@@ -87,7 +89,7 @@ def main():
         print(f"| {mesh} | {name} | {tw[0]:.2f} ({tw[1]:.2f}-{tw[2]:.2f}) | {tm[0]:.0f} | "
               f"{ow[0]:.2f} ({ow[1]:.2f}-{ow[2]:.2f}) | {om[0]:.0f} | {rw[0]:.2f}x "
               f"({rw[1]:.2f}-{rw[2]:.2f}) | {om[0] / tm[0]:.2f}x |")
-    for mesh, name, *_, result in rows:
+    for mesh, _, *_, result in rows:
         if "pairs_sha256" in result:
             print(f"\n{mesh}: {result['pairs']} pairs, pairs_sha256 {result['pairs_sha256']}")
 

@@ -11,7 +11,11 @@ result. Upstream TTK's public filters, its defaults; for timing beside actopo-be
 import sys
 
 import vtk
-from topologytoolkit import ttkMorseSmaleComplex, ttkPersistenceDiagram, ttkTopologicalSimplification
+from topologytoolkit import (
+    ttkMorseSmaleComplex,
+    ttkPersistenceDiagram,
+    ttkTopologicalSimplification,
+)
 from vtk.util.numpy_support import vtk_to_numpy
 
 POINTS = vtk.vtkDataObject.FIELD_ASSOCIATION_POINTS

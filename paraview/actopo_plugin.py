@@ -1,6 +1,6 @@
 """ParaView plugin: TTK's topological filters computed by a running actopo-server.
 
-Three filters take a tetrahedral vtkUnstructuredGrid and a point scalar field, send them to the
+Four filters take a tetrahedral vtkUnstructuredGrid and a point scalar field, send them to the
 server with the Python client (``actopo``), and return what TTK's filter of the same name returns,
 with TTK's array names:
 
@@ -10,7 +10,11 @@ with TTK's array names:
   CellDimension, CellId, ttkVertexScalarField, IsOnBoundary and the scalar;
 - ACTOPO Morse-Smale Complex (MorseSmaleComplex 3D): port 0 the critical points (+ ManifoldSize),
   port 1 the 1-separatrices as polylines (SourceId, DestinationId, SeparatrixId, SeparatrixType),
-  port 2 the input grid with DescendingManifold, AscendingManifold and MorseSmaleManifold.
+  port 2 the input grid with DescendingManifold, AscendingManifold and MorseSmaleManifold;
+- ACTOPO Persistence Diagram (PersistenceDiagram): TTK's diagram, a vtkUnstructuredGrid of
+  VTK_LINE cells, a line per pair and the diagonal, with ttkVertexScalarField, CriticalType and
+  Coordinates per point and PairIdentifier, PairType, Persistence, Birth and IsFinite per line;
+  Embedding "domain" puts the points at the pairs' vertices (no diagonal).
 
 Every output carries the session's statistics as field data (ActopoEngineWaitSeconds,
 ActopoEngineHits, ActopoEngineMisses, ActopoMemoryStaticBytes, ..., ActopoSummary as JSON).
@@ -52,6 +56,7 @@ from vtkmodules.util import numpy_support
 from vtkmodules.util.vtkConstants import (
     VTK_DOUBLE,
     VTK_FLOAT,
+    VTK_LINE,
     VTK_SIGNED_CHAR,
     VTK_TETRA,
 )
@@ -84,6 +89,7 @@ STRUCTURES = ("explicit", "compact", "actopo")
 PREFETCH = ("auto", "linear", "spatial", "adaptive")
 PRECOMPUTE = ("auto", "requested", "declared")
 BOUNDARY_RULES = ("ttk", "none")
+EMBEDDINGS = ("diagram", "domain")
 
 _HERE = Path(__file__).resolve().parent
 
@@ -171,6 +177,7 @@ class Settings:
         self.precompute = "auto"
         self.block_size = 0
         self.boundary_rule = "ttk"
+        self.embedding = "diagram"
 
     def target(self) -> str:
         return self.server.strip() or os.environ.get("ACTOPO_SERVER") or DEFAULT_SERVER
@@ -395,6 +402,21 @@ def segmentation_grid(source: vtkUnstructuredGrid, group: Mapping[str, np.ndarra
         output.GetPointData().AddArray(_vtk_array(name, values))
 
 
+def diagram_grid(grid: Any, output: vtkUnstructuredGrid) -> None:
+    """TTK's persistence diagram from the client's DiagramGrid (PersistenceDiagram.ttk_grid():
+    the diagonal rebuilt, which the wire's offsets cannot carry): a VTK_LINE cell per row of
+    `lines`, the point and cell arrays by TTK's names."""
+    output.SetPoints(_points(grid.points))
+    lines = np.asarray(grid.lines).reshape(-1, 2)
+    cells = vtkCellArray()
+    cells.SetData(_id_array(np.arange(0, 2 * len(lines) + 1, 2)), _id_array(lines.reshape(-1)))
+    output.SetCells(VTK_LINE, cells)
+    for name, values in grid.point_data.items():
+        output.GetPointData().AddArray(_vtk_array(name, values))
+    for name, values in grid.cell_data.items():
+        output.GetCellData().AddArray(_vtk_array(name, values))
+
+
 def _camel(name: str) -> str:
     return "".join(part.capitalize() for part in name.split("_"))
 
@@ -608,3 +630,33 @@ class ActopoMorseSmaleComplex(ActopoFilter):
         segmentation_grid(grid, result.group("segmentation"), outputs[2])
         point_group_polydata(result.group("critical_points"), outputs[0])
         separatrices_polydata(result.group("separatrices"), outputs[1])
+
+
+@smproxy.filter(name="ActopoPersistenceDiagram", label="ACTOPO Persistence Diagram")
+@smhint.xml(_MENU)
+@smproperty.xml(_SCALAR_PROPERTY)
+@smproperty.input(name="Input", port_index=0)
+@smdomain.datatype(dataTypes=["vtkUnstructuredGrid"], composite_data_supported=False)
+@smdomain.xml(_INPUT_ARRAYS)
+@_connection_properties
+class ActopoPersistenceDiagram(ActopoFilter):
+    """TTK PersistenceDiagram (DiscreteMorseSandwich) on the server: TTK's diagram grid."""
+
+    algorithm = "persistence-diagram"
+    label = "ACTOPO Persistence Diagram"
+    output_types = ("vtkUnstructuredGrid",)
+
+    @smproperty.intvector(name="Embedding", default_values=0)
+    @_enumeration(EMBEDDINGS)
+    @_doc("diagram: the points in the birth-death plane, (birth, birth) and (birth, death), "
+          "with TTK's diagonal; domain: the points at the pairs' vertices, no diagonal.")
+    def SetEmbedding(self, value: int) -> None:
+        self.set_option("embedding", EMBEDDINGS[value])
+
+    def parameters(self) -> dict[str, str]:
+        return {"embedding": self.settings.embedding}
+
+    def fill(self, grid: vtkUnstructuredGrid, result: Any, outputs: list[Any]) -> None:
+        if result.diagram is None:
+            raise PluginError(f"job {result.job_id}: the server sent no diagram")
+        diagram_grid(result.diagram.ttk_grid(), outputs[0])

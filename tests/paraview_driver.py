@@ -1,7 +1,8 @@
 """Run by pvbatch for tests/test_paraview_plugin.py: loads the ACTOPO plugin with
 paraview/load_actopo.py, applies each case's filter to its mesh, and writes what every output port
-holds: arrays.npz (points, line offsets, point and cell arrays by "<case>/<port>/<kind>/<name>")
-and outputs.json (types, counts, field data, the Python modules the plugin ended up using).
+holds: arrays.npz (points, line offsets, an unstructured grid's cell types, offsets and
+connectivity, point and cell arrays by "<case>/<port>/<kind>/<name>") and outputs.json (types,
+counts, field data, the Python modules the plugin ended up using).
 
     pvbatch tests/paraview_driver.py CASES.json OUT_DIR [PLUGIN_DIR]
 
@@ -54,6 +55,13 @@ def describe(output, prefix, arrays):
         port["lines"] = output.GetNumberOfLines()
         arrays[f"{prefix}/geometry/LineOffsets"] = numpy_support.vtk_to_numpy(
             output.GetLines().GetOffsetsArray())
+    elif output.IsA("vtkUnstructuredGrid") and output.GetNumberOfCells():
+        arrays[f"{prefix}/geometry/CellTypes"] = numpy_support.vtk_to_numpy(
+            output.GetCellTypesArray())
+        arrays[f"{prefix}/geometry/CellOffsets"] = numpy_support.vtk_to_numpy(
+            output.GetCells().GetOffsetsArray())
+        arrays[f"{prefix}/geometry/Connectivity"] = numpy_support.vtk_to_numpy(
+            output.GetCells().GetConnectivityArray())
     return port
 
 

@@ -2,10 +2,10 @@
 paraview/load_actopo.py, reads shared meshes with ParaView's reader, applies each filter against a
 running actopo-server (tests/paraview_driver.py), and writes what the outputs hold. Every array
 must equal what the Python client returns for the same mesh, scalar, structure and options: same
-TTK names, dtypes and values, points, polylines, the segmentation on the input grid, the summary
-in the field data beside the session's statistics. Failures (an unknown scalar, an unreachable
-server, a wrong token, triangles) must print the server's or client's message and leave pvbatch
-running.
+TTK names, dtypes and values, points, polylines, the segmentation on the input grid, TTK's
+persistence diagram as lines with its diagonal, the summary in the field data beside the
+session's statistics. Failures (an unknown scalar, an unreachable server, a wrong token,
+triangles) must print the server's or client's message and leave pvbatch running.
 
 The plugin finds the client on its own (the repository's .venv and client-py/, after ParaView's
 numpy); the test checks it runs on ParaView's numpy with the client's protobuf and gRPC, that a
@@ -70,6 +70,18 @@ CASES: list[dict[str, Any]] = [
                 "session": {"structure": "actopo", "consumers": 2, "producers": 2,
                             "buffer_ratio": 0.3, "prefetch": "spatial",
                             "precompute": "declared"}}},
+    {"name": "persistence_diagram", "filter": "ACTOPOPersistenceDiagram", "mesh": FINGERS,
+     "properties": {"ScalarField": ["POINTS", "density"], "Structure": "compact"},
+     "client": {"algorithm": "persistence-diagram", "scalar": "density",
+                "session": {"structure": "compact"},
+                "parameters": {"embedding": "diagram"}}},
+    {"name": "persistence_diagram_domain", "filter": "ACTOPOPersistenceDiagram",
+     "mesh": FERTILITY,
+     "properties": {"ScalarField": ["POINTS", "eigenfunction4"], "Structure": "explicit",
+                    "Embedding": "domain"},
+     "client": {"algorithm": "persistence-diagram", "scalar": "eigenfunction4",
+                "session": {"structure": "explicit"},
+                "parameters": {"embedding": "domain"}}},
 ]
 # Failing runs: name, filter, properties, what pvbatch's output must say (mesh: fertility).
 ERRORS: list[dict[str, Any]] = [
@@ -88,7 +100,9 @@ ERRORS: list[dict[str, Any]] = [
      "message": "only tetrahedral meshes are supported, found cell types: 36290 vtkTriangle"},
 ]
 GROUP_OF_PORT = {"critical-points": ["critical_points"], "discrete-gradient": ["critical_cells"],
-                 "morse-smale": ["critical_points", "separatrices", "segmentation"]}
+                 "morse-smale": ["critical_points", "separatrices", "segmentation"],
+                 "persistence-diagram": ["diagram"]}
+VTK_LINE = 3
 STATISTICS = ["ActopoEngineWaitSeconds", "ActopoEngineRequests", "ActopoEngineHits",
               "ActopoEngineMisses", "ActopoEngineEvictions", "ActopoEngineHitRate",
               "ActopoEngineBufferPeakBytes", "ActopoMemoryStaticBytes",
@@ -204,6 +218,35 @@ def assert_same_array(actual: np.ndarray, wanted: np.ndarray, what: str) -> None
     assert np.array_equal(actual, wanted), f"{what}: values differ from the client's"
 
 
+def assert_same_diagram(run: Run, name: str, port: int, result: Any, where: str) -> None:
+    """TTK's diagram grid: a VTK_LINE per pair, and in the birth-death plane TTK's diagonal from
+    the first point to the last pair's birth point; its points and every point and cell array
+    equal what the server streamed, the diagonal's cell values included."""
+    output = run.port(name, port)
+    group = result.group("diagram")
+    diagram = result.diagram
+    n = len(diagram)
+    with_diagonal = diagram.embedding == "diagram"
+    assert output["type"] == "vtkUnstructuredGrid"
+    assert output["points"] == 2 * n and output["cells"] == n + with_diagonal
+    cell_types = run.array(name, port, "geometry", "CellTypes")
+    assert cell_types.tolist() == [VTK_LINE] * output["cells"]
+    lines = run.array(name, port, "geometry", "Connectivity").reshape(-1, 2)
+    np.testing.assert_array_equal(lines[:n], np.arange(2 * n).reshape(-1, 2))
+    assert lines[n:].tolist() == ([[0, 2 * (n - 1)]] if with_diagonal else [])
+    assert_same_array(run.array(name, port, "geometry", "CellOffsets"),
+                      np.arange(0, 2 * output["cells"] + 1, 2), f"{where} cell offsets")
+    assert_same_array(run.array(name, port, "geometry", "Points"), group["Points"],
+                      f"{where} Points")
+    point_arrays = ["ttkVertexScalarField", "CriticalType", "Coordinates"]
+    cell_arrays = ["PairIdentifier", "PairType", "Persistence", "Birth", "IsFinite"]
+    assert sorted(output["point_arrays"]) == sorted(point_arrays)
+    assert sorted(output["cell_arrays"]) == sorted(cell_arrays)
+    for kind, names in (("point", point_arrays), ("cell", cell_arrays)):
+        for key in names:
+            assert_same_array(run.array(name, port, kind, key), group[key], f"{where} {key}")
+
+
 @pytest.mark.parametrize("case", CASES, ids=[c["name"] for c in CASES])
 def test_outputs_equal_the_python_clients_results(run: Run, expected: dict[str, Any],
                                                   case: dict[str, Any]) -> None:
@@ -227,6 +270,9 @@ def test_outputs_equal_the_python_clients_results(run: Run, expected: dict[str, 
                                   np.asarray(grid.point_data[key]), f"{where} {key}")
             for key, values in group.items():
                 assert_same_array(run.array(name, port, "point", key), values, f"{where} {key}")
+            continue
+        if group_name == "diagram":
+            assert_same_diagram(run, name, port, result, where)
             continue
         assert output["type"] == "vtkPolyData"
         assert_same_array(run.array(name, port, "geometry", "Points"),

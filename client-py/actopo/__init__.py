@@ -2,7 +2,8 @@
 
 Load or upload tetrahedral meshes, open sessions on a topological data structure (explicit,
 compact or the task-parallel actopo engine), query relations and run TTK-compatible algorithms
-(critical points, discrete gradient, Morse-Smale complex), with numpy in and out.
+(critical points, discrete gradient, Morse-Smale complex, persistence diagram, topological
+simplification), with numpy in and out.
 
     import actopo
 

@@ -5,7 +5,8 @@
 
 `--server` (or `--target`, before or after the command) defaults to $ACTOPO_SERVER. Every
 listing command takes --json. Exit status: 0 on success, 1 on a service error, 2 on a usage
-error, 130 on Ctrl-C (the running load or job is cancelled on the server).
+error, 130 on Ctrl-C (the running load or job is cancelled on the server). `run` takes the
+algorithm as `--algorithm NAME` or as its first word (`actopo run persistence-diagram ...`).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
 import statistics
 import sys
@@ -25,13 +27,18 @@ from actopo import _names
 from actopo._bench import MODES, ORDERS, Bench, Load
 from actopo._client import Client, Session
 from actopo._errors import ActopoError, InvalidArgumentError
-from actopo._literals import Structure
+from actopo._literals import Algorithm, Structure
 from actopo._mesh import MeshArrays, mesh_arrays
 from actopo._results import JobResult
 from actopo._types import MeshInfo, SessionInfo, SessionStats, plain
 
 STRUCTURES = list(_names.STRUCTURES)
 ALGORITHMS = list(_names.ALGORITHMS)
+DIAGRAM = "persistence-diagram"
+
+
+class UsageError(Exception):
+    """A combination of arguments argparse cannot check (exit status 2, as argparse's own)."""
 
 
 def _print_json(value: Any) -> None:
@@ -277,18 +284,74 @@ def _parameters(args: argparse.Namespace) -> dict[str, str]:
     return parameters
 
 
+def _threshold(text: str) -> tuple[float, bool]:
+    """An argparse type: a persistence, absolute ("0.68") or a percentage of the scalar field's
+    range ("1%"); (value, whether it is a percentage)."""
+    number = text.strip().removesuffix("%")
+    try:
+        value = float(number)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number or a percentage: '{text}'") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"must be a number >= 0, got {text}")
+    return value, number != text.strip()
+
+
+def _run_algorithm(args: argparse.Namespace) -> Algorithm:
+    """The algorithm of `run` (--algorithm NAME or the first word), with the options that only
+    drawing a persistence diagram takes checked against it."""
+    algorithm = cast(Algorithm, args.algorithm or args.algorithm_word)
+    if args.threshold is not None and not args.plot:
+        raise UsageError("--threshold is the line of the plot: give --plot PATH.png too")
+    if args.plot and algorithm != DIAGRAM:
+        raise UsageError(f"--plot draws a persistence diagram: run {DIAGRAM}, not {algorithm}")
+    return algorithm
+
+
+def _pair_counts(counts: dict[str, int]) -> str:
+    """A diagram's counts_by_type as a reader says them: "type 0: 245 + 1 infinite, ..."."""
+    parts = []
+    for kind in range(3):
+        finite, infinite = counts.get(str(kind), 0), counts.get(f"{kind}_infinite", 0)
+        if finite or infinite:
+            parts.append(f"type {kind}: {finite}" + (f" + {infinite} infinite" if infinite
+                                                      else ""))
+    return ", ".join(parts)
+
+
+def _save_plot(path: str, threshold: tuple[float, bool] | None, mesh: MeshInfo, scalar: str,
+          result: JobResult) -> str:
+    """Draws the job's persistence diagram into `path`. A percentage threshold is taken of the
+    scalar field's range, as the server's relative_threshold of a simplification is."""
+    diagram = result.diagram
+    if diagram is None:
+        raise ActopoError(f"job {result.job_id}: the server sent no diagram arrays to plot")
+    line = None
+    if threshold is not None:
+        value, relative = threshold
+        field = {f.name: f for f in mesh.fields}[scalar]
+        line = value / 100 * (field.max - field.min) if relative else value
+    title = (f"{mesh.name}, {scalar}: {len(diagram)} pairs\n"
+             f"{_pair_counts(diagram.counts_by_type())}")
+    return diagram.save_plot(path, threshold=line, title=title)
+
+
 def cmd_run(client: Client, args: argparse.Namespace) -> None:
     start = time.perf_counter()
+    algorithm = _run_algorithm(args)
     parameters = _parameters(args)
     with _mesh(client, args) as mesh, _open(client, mesh.info, args) as session:
-        result = session.run(args.algorithm, parameters=parameters,
-                             include_arrays=bool(args.output), trace=bool(args.trace),
-                             progress=_progress(args))
+        result = session.run(algorithm, parameters=parameters,
+                             include_arrays=bool(args.output or args.plot),
+                             trace=bool(args.trace), progress=_progress(args))
         stats = session.stats()
         report = _report(mesh.info, session, result, stats, parameters,
                          time.perf_counter() - start)
         if args.trace:
             report["trace"] = result.save_trace(args.trace)
+        if args.plot:
+            report["plot"] = _save_plot(args.plot, args.threshold, mesh.info,
+                                   session.info.scalar_field, result)
         if args.output:
             geometry = _geometry(args, mesh)
             report["files"] = result.write(args.output, geometry)
@@ -304,7 +367,7 @@ def cmd_run(client: Client, args: argparse.Namespace) -> None:
           f"relations peak {_mib(report['memory']['relation_peak_bytes'])}, "
           f"rss {_mib(report['memory']['process_rss_bytes'])}")
     print("result: " + json.dumps(result.summary, indent=1))
-    for path in report.get("files", []):
+    for path in [*report.get("files", []), *([report["plot"]] if "plot" in report else [])]:
         print(f"wrote {path}")
     if "trace" in report:
         print(f"wrote {report['trace']} (open it in ui.perfetto.dev or chrome://tracing)")
@@ -565,14 +628,24 @@ def parser() -> argparse.ArgumentParser:
     c.add_argument("session_ids", nargs="+", metavar="SESSION_ID")
 
     c = command("run", cmd_run, "run an algorithm on a mesh and print its result")
+    which = c.add_mutually_exclusive_group(required=True)
+    which.add_argument("algorithm_word", nargs="?", choices=ALGORITHMS, metavar="ALGORITHM",
+                       help="the algorithm, as the first word or as --algorithm")
+    which.add_argument("--algorithm", choices=ALGORITHMS)
     _add_mesh_source(c)
-    c.add_argument("--algorithm", required=True, choices=ALGORITHMS)
     _add_engine(c)
     c.add_argument("--boundary-rule", choices=["ttk", "none"], help="critical-points")
     c.add_argument("--param", action="append", metavar="NAME=VALUE",
-                   help="an algorithm parameter (repeatable)")
+                   help="an algorithm parameter (repeatable), e.g. embedding=domain "
+                   "(persistence-diagram)")
     c.add_argument("--output", metavar="PREFIX",
                    help="write PREFIX_critical_points.vtp, ... for ParaView")
+    c.add_argument("--plot", metavar="PATH.png",
+                   help=f"{DIAGRAM}: draw the diagram (birth, death) into this image with "
+                   "matplotlib (pip install 'actopo[plot]')")
+    c.add_argument("--threshold", type=_threshold, metavar="T",
+                   help="with --plot: draw the line death = birth + T; T is a persistence, or "
+                   "a percentage of the scalar field's range such as 1%%")
     c.add_argument("--trace", metavar="FILE",
                    help="write a Chrome trace of the job's threads (block relations computed, "
                    "consumer waits, evictions, phases) for ui.perfetto.dev or chrome://tracing")
@@ -656,6 +729,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         with Client(args.server, token=args.token, tls=args.tls, timeout=args.timeout,
                     affinity_key=args.affinity_key) as client:
             args.func(client, args)
+    except UsageError as e:
+        print(f"actopo: error: {e}", file=sys.stderr)
+        return 2
     except ActopoError as e:
         print(f"actopo: error: {e}", file=sys.stderr)
         return 1

@@ -122,7 +122,8 @@ class Client:
         """Versions, algorithms, relations, samples and limits of the server.
 
         >>> client.server_info().algorithms
-        ['topo-relations', 'critical-points', 'discrete-gradient', 'morse-smale']
+        ['topo-relations', 'critical-points', 'discrete-gradient', 'morse-smale',
+         'persistence-diagram', 'topological-simplification']
         """
         info = _convert.server_info(self._call("GetServerInfo", pb.GetServerInfoRequest()))
         self._max_batch = info.limits.max_batch_size or _requests.DEFAULT_BATCH
@@ -423,8 +424,10 @@ class Session:
             timeout: float | None = None) -> JobResult:
         """Runs an algorithm and returns its result.
 
-        `algorithm`: "critical-points", "discrete-gradient", "morse-smale" or "topo-relations"
-        ("morse_smale" works too). `parameters`: e.g. ``{"boundary_rule": "none"}``.
+        `algorithm`: "critical-points", "discrete-gradient", "morse-smale",
+        "persistence-diagram", "topological-simplification" or "topo-relations" ("morse_smale"
+        works too). `parameters`: e.g. ``{"boundary_rule": "none"}``, ``{"embedding":
+        "domain"}`` (persistence-diagram: its points at the vertices).
         `progress`: True for a progress bar on stderr, or a callable(fraction).
         `include_arrays`: False to receive only the summary and statistics.
         `trace`: True to record where the job's threads spent their time, as a Chrome trace

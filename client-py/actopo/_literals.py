@@ -14,7 +14,8 @@ Structure: TypeAlias = Literal["explicit", "compact", "actopo"]
 """A topological data structure: the explicit one, the compact one, or the actopo engine."""
 
 Algorithm: TypeAlias = Literal["topo-relations", "critical-points", "discrete-gradient",
-                               "morse-smale"]
+                               "morse-smale", "persistence-diagram",
+                               "topological-simplification"]
 """An algorithm that Session.run() runs."""
 
 Relation: TypeAlias = Literal[

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from actopo import _convert, _vtk
+from actopo import _convert, _diagram, _vtk
 from actopo._arrays import dtype_of
+from actopo._diagram import PersistenceDiagram
 from actopo._errors import ActopoError
 from actopo._literals import Algorithm
 from actopo._proto import pb
@@ -31,10 +33,13 @@ class JobResult:
 
     Groups (see the proto's ResultChunk): ``critical_points`` (critical-points, morse-smale),
     ``critical_cells`` (discrete-gradient), ``separatrices`` and ``segmentation``
-    (morse-smale). Each group is a dict of TTK array names::
+    (morse-smale), ``diagram`` and ``persistence_curve`` (persistence-diagram), ``simplified``
+    (topological-simplification). Each group is a dict of TTK array names::
 
         result.critical_points["CriticalType"]        # int8, one per critical vertex
         result.segmentation["MorseSmaleManifold"]     # int32, one per vertex
+
+    A persistence diagram also comes typed, one entry per pair: ``result.diagram``.
     """
 
     algorithm: Algorithm
@@ -76,6 +81,13 @@ class JobResult:
     def segmentation(self) -> dict[str, np.ndarray]:
         return self.group("segmentation")
 
+    @cached_property
+    def diagram(self) -> PersistenceDiagram | None:
+        """The pairs of a persistence-diagram job as a PersistenceDiagram (TTK's diagonal set
+        apart); None for the other algorithms and for a job run without its arrays."""
+        group = self.group("diagram")
+        return _diagram.from_arrays(group, self.group("persistence_curve")) if group else None
+
     def save_trace(self, path: str | os.PathLike[str]) -> str:
         """Writes the job's trace (run with ``trace=True``) to `path`, for ui.perfetto.dev or
         chrome://tracing, and returns the path."""
@@ -90,17 +102,26 @@ class JobResult:
         Critical points and cells become PolyData vertices with their arrays as point data,
         separatrices PolyData polylines with per-line cell data. The segmentation needs the
         mesh's geometry, which stays on the server: pass the mesh you uploaded (any form
-        upload_mesh() takes) to get it as an UnstructuredGrid, else it is left out.
+        upload_mesh() takes) to get it as an UnstructuredGrid, else it is left out. A
+        persistence diagram becomes TTK's diagram, an UnstructuredGrid of lines
+        (PersistenceDiagram.to_pyvista()).
         """
-        return _vtk.to_pyvista(self._groups(), mesh)
+        datasets = _vtk.to_pyvista(self._groups(), mesh)
+        if self.diagram is not None:
+            datasets["diagram"] = self.diagram.to_pyvista()
+        return datasets
 
     def write(self, prefix: str, mesh: Any = None) -> list[str]:
         """Writes files for ParaView as actopo-bench does (PREFIX_critical_points.vtp, ...).
 
         Uses pyvista if installed, else meshio (then every file is a .vtu). The segmentation is
-        written only when `mesh` gives the geometry. Returns the paths written.
+        written only when `mesh` gives the geometry; a persistence diagram as
+        PREFIX_diagram.vtu and PREFIX_persistence_curve.csv. Returns the paths written.
         """
-        return _vtk.write_files(self._groups(), prefix, mesh)
+        written = _vtk.write_files(self._groups(), prefix, mesh)
+        if self.diagram is not None:
+            written += self.diagram.write(prefix)
+        return written
 
 
 class Assembler:

@@ -1,7 +1,8 @@
 """Results as pyvista datasets and as files for ParaView (pyvista, else meshio).
 
-It takes a result's arrays by group ({"critical_points": {"Points": ..., ...}, ...}), not the
-JobResult, so that _results depends on this module and not the other way round.
+It takes a result's arrays by group ({"critical_points": {"Points": ..., ...}, ...}), or plain
+arrays (line grids), not the JobResult or the PersistenceDiagram, so that _results and _diagram
+depend on this module and not the other way round.
 """
 
 from __future__ import annotations
@@ -37,11 +38,16 @@ def _lines(group: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, dic
     return points, connectivity, arrays
 
 
-def to_pyvista(groups: Groups, mesh: Any = None) -> dict[str, Any]:
+def _pyvista() -> Any:
     try:
         import pyvista as pv
     except ImportError:
         raise ImportError("to_pyvista() needs pyvista: pip install 'actopo[pyvista]'") from None
+    return pv
+
+
+def to_pyvista(groups: Groups, mesh: Any = None) -> dict[str, Any]:
+    pv = _pyvista()
     out: dict[str, Any] = {}
     for name in POINT_GROUPS:
         group = _group(groups, name)
@@ -127,3 +133,39 @@ def write_files(groups: Groups, prefix: str, mesh: Any = None) -> list[str]:
         dataset.save(path)
         written.append(path)
     return written
+
+
+def line_grid(points: np.ndarray, lines: np.ndarray, point_data: Mapping[str, np.ndarray],
+              cell_data: Mapping[str, np.ndarray]) -> Any:
+    """An UnstructuredGrid of VTK_LINE cells, `lines` being (m, 2) point ids: the shape of TTK's
+    persistence diagram, whose diagonal reuses two points of other lines (so no polylines)."""
+    pv = _pyvista()
+    if not len(lines):
+        return pv.UnstructuredGrid()
+    grid = pv.UnstructuredGrid({pv.CellType.LINE: np.asarray(lines, dtype=np.int64)},
+                               np.asarray(points, dtype=np.float64).reshape(-1, 3))
+    for key, values in point_data.items():
+        grid.point_data[key] = values
+    for key, values in cell_data.items():
+        grid.cell_data[key] = values
+    return grid
+
+
+def write_line_grid(path: str, points: np.ndarray, lines: np.ndarray,
+                    point_data: Mapping[str, np.ndarray],
+                    cell_data: Mapping[str, np.ndarray]) -> str:
+    """Writes line_grid()'s grid as a .vtu file with pyvista, else meshio; returns the path."""
+    try:
+        import pyvista  # noqa: F401
+    except ImportError:
+        try:
+            import meshio
+        except ImportError:
+            raise ImportError("writing result files needs pyvista or meshio: "
+                              "pip install 'actopo[pyvista]'") from None
+        meshio.Mesh(np.asarray(points, dtype=np.float64).reshape(-1, 3), [("line", lines)],
+                    point_data=dict(point_data),
+                    cell_data={k: [v] for k, v in cell_data.items()}).write(path)
+        return path
+    line_grid(points, lines, point_data, cell_data).save(path)
+    return path

@@ -10,6 +10,7 @@ JobResult); the rest are here only:
         return f"{stats.engine.hit_rate:.0%} hits, {stats.engine.wait_seconds:.3f} s waited"
 """
 
+from actopo._diagram import DiagramGrid, PersistenceCurve, PersistenceDiagram
 from actopo._results import JobResult
 from actopo._types import (
     Counter,
@@ -32,8 +33,8 @@ from actopo._types import (
 )
 
 __all__ = [
-    "Counter", "EngineOptions", "EngineStats", "FailedItem", "FieldInfo", "JobResult",
-    "JobStats", "LoadProgress", "MemoryStats", "MeshInfo", "QueryBreakdown", "RelationBatch",
-    "ServerInfo", "ServerLimits", "SessionInfo", "SessionStats", "SimplexRelation",
-    "StreamItem",
+    "Counter", "DiagramGrid", "EngineOptions", "EngineStats", "FailedItem", "FieldInfo",
+    "JobResult", "JobStats", "LoadProgress", "MemoryStats", "MeshInfo", "PersistenceCurve",
+    "PersistenceDiagram", "QueryBreakdown", "RelationBatch", "ServerInfo", "ServerLimits",
+    "SessionInfo", "SessionStats", "SimplexRelation", "StreamItem",
 ]

@@ -33,7 +33,8 @@ def _json(cli, *args):
     return json.loads(out)
 
 
-@pytest.mark.parametrize("algorithm", ["critical-points", "discrete-gradient", "morse-smale"])
+@pytest.mark.parametrize("algorithm", ["critical-points", "discrete-gradient", "morse-smale",
+                                       "persistence-diagram"])
 def test_acceptance_run_json_equals_actopo_bench(server, data_dir, bench, algorithm):
     """The issue's acceptance command, run as a user would."""
     out = subprocess.run(

@@ -30,7 +30,7 @@ def test_docstring_examples(client):
 
 def test_readme_examples(server, monkeypatch, capsys):
     blocks = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
-    assert len(blocks) == 5
+    assert len(blocks) == 6
     monkeypatch.setenv("ACTOPO_SERVER", server)
     monkeypatch.chdir(README.parents[1])
     for code in blocks:
@@ -40,3 +40,5 @@ def test_readme_examples(server, monkeypatch, capsys):
     assert "found cell types: 36290 triangle; hint:" in out
     assert "True\n1 ids[1]: vertex id 1000000000 is outside [0, 8000)\nTrue\nTrue\n" in out
     assert "['read', 'partition', 'encode'] 355914\nstopped in partition\n" in out
+    assert ("655 {'0': 245, '0_infinite': 1, '1': 330, '2': 79}\nTrue\n"
+            "141 {'0': 63, '0_infinite': 1, '1': 61, '2': 16}\n0 0 6408 False\n") in out

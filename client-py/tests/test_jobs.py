@@ -15,7 +15,7 @@ import pytest
 
 import actopo
 
-ALGORITHMS = ["critical-points", "discrete-gradient", "morse-smale"]
+ALGORITHMS = ["critical-points", "discrete-gradient", "morse-smale", "persistence-diagram"]
 
 
 @pytest.fixture(scope="module")

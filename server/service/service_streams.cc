@@ -273,6 +273,18 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
           v1::Array a;
           Pack(group + "/Offsets", offsets, &a);
           SendArray(a);
+          // Lines run through consecutive points (separatrices) unless a line reuses points
+          // (the diagram's diagonal): then the point ids go too.
+          bool consecutive = true;
+          for (size_t i = 0; i < poly.line_connectivity.size() && consecutive; ++i) {
+            consecutive = poly.line_connectivity[i] == int32_t(i);
+          }
+          if (!consecutive) {
+            std::vector<int64_t> ids(poly.line_connectivity.begin(), poly.line_connectivity.end());
+            v1::Array c;
+            Pack(group + "/Connectivity", ids, &c);
+            SendArray(c);
+          }
         }
         for (const auto* arrays : {&poly.point_arrays, &poly.cell_arrays}) {
           for (const io::NamedArray& named : *arrays) {

@@ -485,8 +485,8 @@ TEST_F(ServiceTest, JobsStreamAcceptedProgressArraysSummaryStats) {
       }
       if (a == Algorithm::kPersistenceDiagram) {
         for (const char* name :
-             {"diagram/Points", "diagram/Offsets", "diagram/Coordinates", "diagram/PairIdentifier",
-              "diagram/Persistence", "persistence_curve/NumberOfPairs"}) {
+             {"diagram/Points", "diagram/Offsets", "diagram/Connectivity", "diagram/Coordinates",
+              "diagram/PairIdentifier", "diagram/Persistence", "persistence_curve/NumberOfPairs"}) {
           EXPECT_TRUE(arrays.count(name)) << name;
         }
       }

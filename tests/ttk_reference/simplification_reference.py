@@ -21,7 +21,11 @@ import os
 import sys
 
 import vtk
-from topologytoolkit import ttkMorseSmaleComplex, ttkPersistenceDiagram, ttkTopologicalSimplification
+from topologytoolkit import (
+    ttkMorseSmaleComplex,
+    ttkPersistenceDiagram,
+    ttkTopologicalSimplification,
+)
 from vtk.util.numpy_support import vtk_to_numpy
 
 CASES = [
@@ -90,7 +94,8 @@ def morse_smale(mesh, field):
     seps = ms.GetOutput(1)
     sep_id = vtk_to_numpy(seps.GetCellData().GetArray("SeparatrixId"))
     sep_type = vtk_to_numpy(seps.GetCellData().GetArray("SeparatrixType"))
-    by_type = {t: len({int(i) for i, tt in zip(sep_id, sep_type) if tt == t}) for t in (0, 1, 2)}
+    by_type = {t: len({int(i) for i, tt in zip(sep_id, sep_type, strict=True) if tt == t})
+               for t in (0, 1, 2)}
     seg = ms.GetOutput(3).GetPointData()
     result = {
         "critical_cells": [int((dims == d).sum()) for d in range(4)],
@@ -101,7 +106,8 @@ def morse_smale(mesh, field):
                       ("morse_smale", "MorseSmaleManifold")):
         labels = vtk_to_numpy(seg.GetArray(name))
         result["regions"][key] = len(set(labels.tolist()))
-        result["segmentation_sha256"][key] = sha256(f"{v} {int(l)}\n" for v, l in enumerate(labels))
+        result["segmentation_sha256"][key] = sha256(
+            f"{v} {int(label)}\n" for v, label in enumerate(labels))
     return result
 
 
