@@ -35,6 +35,13 @@ step "critical points (TTK ScalarFieldCriticalPoints) on the actopo structure"
 step "Morse-Smale complex (TTK MorseSmaleComplex 3D) on the actopo structure"
 "$actopo" run --mesh-id "$mesh" --algorithm morse-smale --structure actopo
 
+step "persistence diagram (TTK PersistenceDiagram, Discrete Morse Sandwich), pairs per type"
+"$actopo" run --mesh-id "$mesh" --algorithm persistence-diagram --structure actopo
+
+step "Morse-Smale complex after simplifying away the pairs below 5% of the range"
+"$actopo" run --mesh-id "$mesh" --algorithm morse-smale --structure actopo \
+  --param relative_threshold=0.05
+
 step "relation queries: the star of vertex 0, the triangles around edge (0,1), vertex 7 on the boundary?"
 "$actopo" relation --mesh-id "$mesh" vertex_star 0
 "$actopo" relation --mesh-id "$mesh" --vertices edge_triangles 0,1

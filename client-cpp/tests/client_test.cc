@@ -19,8 +19,10 @@ TEST_F(ServerTest, ServerInfo) {
   absl::StatusOr<ServerInfo> info = client().GetServerInfo();
   ASSERT_OK(info);
   EXPECT_FALSE(info->version.empty());
-  EXPECT_EQ(info->algorithms, (std::vector<std::string>{"topo-relations", "critical-points",
-                                                        "discrete-gradient", "morse-smale"}));
+  EXPECT_EQ(info->algorithms,
+            (std::vector<std::string>{"topo-relations", "critical-points", "discrete-gradient",
+                                      "morse-smale", "persistence-diagram",
+                                      "topological-simplification"}));
   ASSERT_EQ(info->relations.size(), 22u);
   EXPECT_EQ(info->relations.front(), "vertex_neighbors");
   EXPECT_EQ(info->relations.back(), "triangle_neighbors");
@@ -38,6 +40,13 @@ TEST_F(ServerTest, ServerInfo) {
   const std::string session = Open(mesh, {.structure = Structure::kExplicit});
   for (const std::string& relation : info->relations) {
     EXPECT_OK(client().Relation(session, relation, 0)) << relation;
+  }
+  // And every algorithm.
+  for (const std::string& algorithm : info->algorithms) {
+    absl::StatusOr<JobResult> job =
+        client().RunJob(session, algorithm, {}, {.include_arrays = false});
+    ASSERT_OK(job) << algorithm;
+    EXPECT_EQ(job->algorithm, algorithm);
   }
 }
 

@@ -70,6 +70,13 @@ TEST_P(BenchEqualityTest, SummaryEqualsBenchAndArraysAreComplete) {
     EXPECT_OK(result->Get<int32_t>("critical_cells/CellId"));
   } else if (algorithm == "topo-relations") {
     EXPECT_TRUE(result->arrays.empty());
+  } else if (algorithm == "persistence-diagram") {
+    absl::StatusOr<std::vector<PersistencePair>> pairs = result->PersistencePairs();
+    ASSERT_OK(pairs);
+    EXPECT_EQ(int64_t(pairs->size()), expected["pairs"].get<int64_t>());
+    EXPECT_OK(result->Get<int32_t>("diagram/CriticalType"));
+    EXPECT_OK(result->Get<float>("diagram/Coordinates"));
+    EXPECT_OK(result->Get<int32_t>("persistence_curve/NumberOfPairs"));
   } else {
     absl::StatusOr<std::vector<int32_t>> labels =
         result->Get<int32_t>("segmentation/MorseSmaleManifold");
@@ -90,7 +97,7 @@ TEST_P(BenchEqualityTest, SummaryEqualsBenchAndArraysAreComplete) {
 
 INSTANTIATE_TEST_SUITE_P(Fertility, BenchEqualityTest,
                          ::testing::Values("topo-relations", "critical-points", "discrete-gradient",
-                                           "morse-smale"));
+                                           "morse-smale", "persistence-diagram"));
 
 TEST_F(ServerTest, SummaryOnlyAndParameters) {
   const std::string session = Open(LoadSample("jittered:8"), {.structure = Structure::kCompact});

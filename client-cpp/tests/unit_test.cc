@@ -6,6 +6,7 @@
 #include <iostream>
 #include <thread>
 
+#include "absl/strings/str_cat.h"
 #include "actopo/client.h"
 
 namespace actopo::client {
@@ -75,6 +76,193 @@ TEST(JobResultTest, GetFindsArraysByName) {
   EXPECT_EQ(result.Get<int8_t>("critical_points/Nope").status().code(),
             absl::StatusCode::kNotFound);
   EXPECT_EQ(result.Find("x"), nullptr);
+}
+
+// The diagram/ arrays a persistence-diagram job streams for `pairs` (TTK's grid): two points and
+// a line per pair, then TTK's diagonal unless embedded in the domain, where the points are the
+// vertices' positions (here (vertex, 0, 0)).
+JobResult DiagramResult(const std::vector<PersistencePair>& pairs, bool domain = false) {
+  const int64_t n = int64_t(pairs.size()), lines = n + (domain || n == 0 ? 0 : 1);
+  std::vector<double> points, persistence, birth;
+  std::vector<int64_t> offsets;
+  std::vector<int32_t> vertex, critical_type, identifier, type;
+  std::vector<int8_t> finite;
+  for (int64_t i = 0; i < n; ++i) {
+    const PersistencePair& p = pairs[size_t(i)];
+    if (domain) {
+      points.insert(points.end(), {double(p.birth_vertex), 0, 0, double(p.death_vertex), 0, 0});
+    } else {
+      points.insert(points.end(), {p.birth, p.birth, 0, p.birth, p.death, 0});
+    }
+    offsets.push_back(2 * i);
+    vertex.insert(vertex.end(), {int32_t(p.birth_vertex), int32_t(p.death_vertex)});
+    critical_type.insert(critical_type.end(), {p.type, p.finite && p.type < 2 ? p.type + 1 : 3});
+    identifier.push_back(int32_t(i));
+    type.push_back(p.type);
+    persistence.push_back(p.persistence);
+    birth.push_back(p.birth);
+    finite.push_back(p.finite);
+  }
+  if (lines > n) {
+    // Its two point ids (0 and the last pair's birth) are in no array: the entry counts them.
+    offsets.insert(offsets.end(), {2 * n, 2 * n + 2});
+    identifier.push_back(-1);
+    type.push_back(-1);
+    persistence.push_back(2 * persistence[0]);
+    birth.push_back(0);
+    finite.push_back(0);
+  } else if (n > 0) {
+    offsets.push_back(2 * n);
+  }
+  JobResult result;
+  const auto add = [&](Array array) { result.arrays[array.name] = std::move(array); };
+  add(MakeArray<double>("diagram/Points", points, {2 * n, 3}));
+  if (!offsets.empty()) add(MakeArray<int64_t>("diagram/Offsets", offsets, {lines + 1}));
+  add(MakeArray<int32_t>("diagram/ttkVertexScalarField", vertex, {2 * n}));
+  add(MakeArray<int32_t>("diagram/CriticalType", critical_type, {2 * n}));
+  add(MakeArray<float>("diagram/Coordinates", std::vector<float>(6 * size_t(n)), {2 * n, 3}));
+  add(MakeArray<int32_t>("diagram/PairIdentifier", identifier, {lines}));
+  add(MakeArray<int32_t>("diagram/PairType", type, {lines}));
+  add(MakeArray<double>("diagram/Persistence", persistence, {lines}));
+  add(MakeArray<double>("diagram/Birth", birth, {lines}));
+  add(MakeArray<int8_t>("diagram/IsFinite", finite, {lines}));
+  return result;
+}
+
+PersistencePair Pair(int type, int64_t birth_vertex, int64_t death_vertex, bool finite,
+                     double birth, double death) {
+  return {.type = type,
+          .birth_vertex = birth_vertex,
+          .death_vertex = death_vertex,
+          .birth = birth,
+          .death = death,
+          .persistence = death - birth,
+          .finite = finite};
+}
+
+// An infinite pair (the global minimum's), then one pair of each type. 0.2 + (0.9 - 0.2) is not
+// 0.9 in double, so a death rebuilt as birth + persistence differs from the streamed one.
+const std::vector<PersistencePair> kPairs = {
+    Pair(0, 10, 40, false, 0.0, 9.0), Pair(0, 9, 12, true, 0.2, 0.9),
+    Pair(1, 12, 30, true, 0.9, 6.0), Pair(2, 30, 40, true, 6.0, 9.0)};
+
+std::string Describe(const std::vector<PersistencePair>& pairs) {
+  std::string text;
+  for (const PersistencePair& p : pairs) {
+    text += absl::StrCat(p.type, " ", p.birth_vertex, " ", p.death_vertex, " ", int(p.finite), " ",
+                         p.birth, " ", p.death, " ", p.persistence, "\n");
+  }
+  return text;
+}
+
+void ExpectSamePairs(const std::vector<PersistencePair>& got,
+                     const std::vector<PersistencePair>& want) {
+  ASSERT_EQ(got.size(), want.size()) << Describe(got);
+  for (size_t i = 0; i < got.size(); ++i) {
+    EXPECT_EQ(got[i].type, want[i].type) << i;
+    EXPECT_EQ(got[i].birth_vertex, want[i].birth_vertex) << i;
+    EXPECT_EQ(got[i].death_vertex, want[i].death_vertex) << i;
+    EXPECT_EQ(got[i].finite, want[i].finite) << i;
+    EXPECT_EQ(got[i].birth, want[i].birth) << i;
+    EXPECT_EQ(got[i].death, want[i].death) << i;
+    EXPECT_EQ(got[i].persistence, want[i].persistence) << i;
+  }
+}
+
+TEST(PersistencePairsTest, ThePairsWithoutTheDiagonal) {
+  const JobResult result = DiagramResult(kPairs);
+  ASSERT_EQ(result.Find("diagram/PairIdentifier")->size(), 5);  // the diagonal's line is there
+  absl::StatusOr<std::vector<PersistencePair>> pairs = result.PersistencePairs();
+  ASSERT_TRUE(pairs.ok()) << pairs.status();
+  ExpectSamePairs(*pairs, kPairs);
+  EXPECT_FALSE((*pairs)[0].finite);
+  EXPECT_TRUE((*pairs)[1].finite);
+  EXPECT_EQ((*pairs)[1].death, 0.9);  // from the death point, not 0.2 + (0.9 - 0.2)
+}
+
+TEST(PersistencePairsTest, EmbeddedInTheDomainTheDeathIsBirthPlusPersistence) {
+  const JobResult result = DiagramResult(kPairs, /*domain=*/true);
+  ASSERT_EQ(result.Find("diagram/PairIdentifier")->size(), 4);  // no diagonal
+  absl::StatusOr<std::vector<PersistencePair>> pairs = result.PersistencePairs();
+  ASSERT_TRUE(pairs.ok()) << pairs.status();
+  std::vector<PersistencePair> want = kPairs;
+  for (PersistencePair& p : want) p.death = p.birth + p.persistence;
+  ExpectSamePairs(*pairs, want);
+  EXPECT_NE((*pairs)[1].death, 0.9);  // one bit off the field's value
+  EXPECT_DOUBLE_EQ((*pairs)[1].death, 0.9);
+}
+
+TEST(PersistencePairsTest, AnEmptyDiagramHasNoPairs) {
+  const JobResult result = DiagramResult({});
+  EXPECT_EQ(result.Find("diagram/Offsets"), nullptr);  // as the server leaves it out
+  absl::StatusOr<std::vector<PersistencePair>> pairs = result.PersistencePairs();
+  ASSERT_TRUE(pairs.ok()) << pairs.status();
+  EXPECT_TRUE(pairs->empty());
+}
+
+// Ids are read by value, whatever their integer width.
+TEST(PersistencePairsTest, WiderIdsAreRead) {
+  JobResult result = DiagramResult(kPairs);
+  const int64_t far = int64_t{1} << 40;
+  result.arrays["diagram/ttkVertexScalarField"] = MakeArray<int64_t>(
+      "diagram/ttkVertexScalarField", {far, 40, 9, 12, 12, 30, 30, far + 1}, {8});
+  absl::StatusOr<std::vector<PersistencePair>> pairs = result.PersistencePairs();
+  ASSERT_TRUE(pairs.ok()) << pairs.status();
+  EXPECT_EQ((*pairs)[0].birth_vertex, far);
+  EXPECT_EQ((*pairs)[3].death_vertex, far + 1);
+}
+
+TEST(PersistencePairsTest, MissingArraysAreNamed) {
+  absl::StatusOr<std::vector<PersistencePair>> none = JobResult().PersistencePairs();
+  EXPECT_EQ(none.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_NE(none.status().message().find("'diagram/PairIdentifier' not found"), std::string::npos)
+      << none.status();
+  EXPECT_NE(none.status().message().find("include_arrays"), std::string::npos) << none.status();
+  for (const char* name : {"diagram/Offsets", "diagram/Birth", "diagram/Points"}) {
+    JobResult result = DiagramResult(kPairs);
+    result.arrays.erase(name);
+    absl::StatusOr<std::vector<PersistencePair>> pairs = result.PersistencePairs();
+    EXPECT_EQ(pairs.status().code(), absl::StatusCode::kNotFound) << name;
+    EXPECT_NE(pairs.status().message().find(absl::StrCat("'", name, "' not found")),
+              std::string::npos)
+        << pairs.status();
+  }
+}
+
+// Each way the arrays can miss TTK's layout, and the message that names the array.
+TEST(PersistencePairsTest, MalformedArraysAreNamed) {
+  Array ragged = MakeArray<int8_t>("diagram/IsFinite", {0, 1, 1, 1, 0}, {5});
+  ragged.data.pop_back();
+  const struct {
+    Array array;  // in place of its namesake among kPairs' arrays
+    std::string message;
+  } cases[] = {
+      {MakeArray<double>("diagram/Birth", {0, 1, 2, 3}, {4}),
+       "result array 'diagram/Birth': 4 values, expected 5 (one per line)"},
+      {MakeArray<int64_t>("diagram/Offsets", {0, 3, 4, 6, 8, 10}, {6}),
+       "result array 'diagram/Offsets': entry 1 is 3, not 2: the pairs' lines are not two points "
+       "each"},
+      {MakeArray<int64_t>("diagram/Offsets", {0, 2, 4, 6, 8}, {5}),
+       "result array 'diagram/Offsets': 5 values, expected 6 (one more than the lines)"},
+      {MakeArray<int32_t>("diagram/ttkVertexScalarField", {10, 40, 9}, {3}),
+       "result array 'diagram/ttkVertexScalarField': 3 values, expected 8 (two points per pair)"},
+      {MakeArray<double>("diagram/Points", std::vector<double>(21), {7, 3}),
+       "result array 'diagram/Points': 21 values, expected 24 (x, y, z of two points per pair)"},
+      {MakeArray<int32_t>("diagram/PairType", {0, 0, 5, 2, -1}, {5}),
+       "result array 'diagram/PairType': line 2 of 5 has type 5; a pair's is 0, 1 or 2"},
+      {MakeArray<double>("diagram/PairType", {0, 0, 1, 2, -1}, {5}),
+       "array 'diagram/PairType': dtype float64 is not an integer type"},
+      {MakeArray<int32_t>("diagram/Persistence", {9, 1, 3, 3, 18}, {5}),
+       "result array 'diagram/Persistence': dtype int32 is not a floating-point type"},
+      {ragged, "array 'diagram/IsFinite': 4 bytes do not hold 5 int8 values"},
+  };
+  for (const auto& [array, message] : cases) {
+    JobResult result = DiagramResult(kPairs);
+    result.arrays[array.name] = array;
+    const absl::Status status = result.PersistencePairs().status();
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << status;
+    EXPECT_EQ(status.message(), message);
+  }
 }
 
 TEST(RelationCsrTest, RowsAreSpans) {
@@ -197,6 +385,15 @@ TEST(ArgumentsTest, CheckedOnTheClient) {
   auto job = c.RunJob("session-x", "morse-smales");
   EXPECT_EQ(job.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(job.status().message().find("morse-smale"), std::string::npos);
+  // The algorithm names come from the proto the library was built from.
+  EXPECT_NE(job.status().message().find("morse-smale, persistence-diagram, "
+                                        "topological-simplification"),
+            std::string::npos)
+      << job.status();
+  // A known name passes the client's check and reaches for the server, which is not there.
+  for (const char* name : {"persistence-diagram", "persistence_diagram"}) {
+    EXPECT_EQ(c.RunJob("session-x", name).status().code(), absl::StatusCode::kUnavailable) << name;
+  }
   CancelToken cancelled;
   cancelled.Cancel();
   EXPECT_EQ(c.RunJob("session-x", "MORSE_SMALE", {}, {.cancel = cancelled}).status().code(),

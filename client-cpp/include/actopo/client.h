@@ -2,10 +2,11 @@
 //
 // A `Client` talks to an actopo-server over gRPC. It loads or uploads tetrahedral meshes, opens
 // sessions (a topological data structure on a mesh and a scalar field), asks relation queries
-// (one simplex, a batch, or a stream) and runs TTK-compatible algorithm jobs. Every fallible
-// call returns absl::Status or absl::StatusOr<T> carrying the server's gRPC code and message
-// unchanged (NOT_FOUND for an unknown mesh, OUT_OF_RANGE for a simplex id past the end, ...);
-// problems the client finds itself (an unknown relation name, a ragged array) are
+// (one simplex, a batch, or a stream) and runs TTK-compatible algorithm jobs, whose results
+// come as named arrays (a persistence diagram's also as pairs: JobResult::PersistencePairs).
+// Every fallible call returns absl::Status or absl::StatusOr<T> carrying the server's gRPC code
+// and message unchanged (NOT_FOUND for an unknown mesh, OUT_OF_RANGE for a simplex id past the
+// end, ...); problems the client finds itself (an unknown relation name, a ragged array) are
 // INVALID_ARGUMENT before anything is sent.
 //
 // Everything here is in namespace actopo::client; the server's own types (its EngineStats,
@@ -402,7 +403,7 @@ class RelationStream {
 
 // ---------------------------------------------------------------------------------------------
 // Jobs. Algorithm names: "topo-relations", "critical-points", "discrete-gradient",
-// "morse-smale" ("morse_smale" works too).
+// "morse-smale", "persistence-diagram", "topological-simplification" ("morse_smale" works too).
 
 // Cancels a running job from any thread: RunJob then returns CANCELLED. Copies share the same
 // state, so keep one and hand a copy to JobOptions.
@@ -468,6 +469,22 @@ struct JobStats {
   MemoryStats memory;
 };
 
+// A pair of a persistence diagram (TTK's PersistenceDiagram, JobResult::PersistencePairs). A
+// pair of type k is born at a critical k-cell and dies at a critical (k+1)-cell, or never dies
+// (an infinite pair: one per Betti number, its death put at the global maximum). Each critical
+// cell is named by its highest vertex in the vertex order, as TTK's ttkVertexScalarField.
+struct PersistencePair {
+  int type = 0;              // 0: minimum to 1-saddle, 1: 1-saddle to 2-saddle, 2: 2-saddle to max
+  int64_t birth_vertex = 0;  // input vertex ids
+  int64_t death_vertex = 0;
+  double birth = 0;  // the scalar at birth_vertex
+  // The scalar at death_vertex. With {"embedding": "domain"} the wire carries no death value, so
+  // it is birth + persistence, which may differ from the field's value in the last bit.
+  double death = 0;
+  double persistence = 0;  // death - birth, as the server computed it
+  bool finite = true;
+};
+
 // The outcome of Client::RunJob.
 //
 // Arrays are named "<group>/<TTK array name>" (see the proto's ResultChunk):
@@ -475,9 +492,16 @@ struct JobStats {
 //   discrete-gradient: critical_cells/{Points, CellDimension, CellId, ...}
 //   morse-smale:       critical_points/..., separatrices/{Points, Offsets, SeparatrixType, ...},
 //                      segmentation/{DescendingManifold, AscendingManifold, MorseSmaleManifold}
+//   persistence-diagram: diagram/{Points, Offsets, ttkVertexScalarField, CriticalType,
+//                      PairIdentifier, PairType, Persistence, Birth, IsFinite, ...} (TTK's
+//                      diagram grid: two points and a line per pair, then TTK's diagonal),
+//                      persistence_curve/{PairType, Persistence, NumberOfPairs};
+//                      PersistencePairs() reads the pairs back from the diagram/ arrays
+//   topological-simplification: simplified/{<scalar>, <scalar>_Order}
 //
 //   absl::StatusOr<std::vector<int8_t>> types =
 //       result->Get<int8_t>("critical_points/CriticalType");
+//   absl::StatusOr<std::vector<PersistencePair>> pairs = result->PersistencePairs();
 struct JobResult {
   std::string job_id;
   std::string algorithm;  // canonical name, e.g. "morse-smale"
@@ -492,6 +516,11 @@ struct JobResult {
   // The values of array `name` as T: NOT_FOUND without it, INVALID_ARGUMENT for another dtype.
   template <class T>
   absl::StatusOr<std::vector<T>> Get(std::string_view name) const;
+  // The pairs of a persistence-diagram job, in the server's order (by the vertex order of the
+  // birth vertex), without TTK's diagonal; either embedding. NOT_FOUND without the diagram/
+  // arrays (another algorithm, or JobOptions::include_arrays off); INVALID_ARGUMENT naming the
+  // array when they do not hold TTK's layout (two points and one line per pair).
+  absl::StatusOr<std::vector<PersistencePair>> PersistencePairs() const;
 };
 
 template <class T>

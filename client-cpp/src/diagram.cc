@@ -1,0 +1,127 @@
+// JobResult::PersistencePairs: the diagram/ arrays of a persistence-diagram job (TTK's diagram
+// grid) read back into its pairs.
+//
+// The grid holds two points per pair, birth then death, and one line per pair; in the "diagram"
+// embedding one more line comes last, TTK's diagonal, from the first point to a pair's birth
+// point. The wire carries Offsets but no connectivity, so the diagonal's entry cannot name the two
+// points it reuses (it points past the last point). The pairs are therefore read by position,
+// pair i being points 2i and 2i + 1 and line i, after checking that the arrays have that layout.
+#include <string>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "actopo/client.h"
+
+namespace actopo::client {
+namespace {
+
+constexpr char kGroup[] = "diagram/";
+
+absl::Status Malformed(const char* name, const std::string& what) {
+  return absl::InvalidArgumentError(absl::StrCat("result array '", kGroup, name, "': ", what));
+}
+
+// The array `name` of the group, its bytes matching its shape.
+absl::StatusOr<const Array*> Column(const JobResult& result, const char* name) {
+  const Array* array = result.Find(absl::StrCat(kGroup, name));
+  if (array == nullptr) {
+    return absl::NotFoundError(
+        absl::StrCat("result array '", kGroup, name,
+                     "' not found: persistence pairs come from a persistence-diagram job run with "
+                     "JobOptions::include_arrays"));
+  }
+  if (absl::Status s = array->CheckLayout(array->dtype); !s.ok()) return s;
+  return array;
+}
+
+absl::Status CheckCount(const char* name, size_t got, size_t expected, const char* per) {
+  if (got == expected) return absl::OkStatus();
+  return Malformed(name, absl::StrCat(got, " values, expected ", expected, " (", per, ")"));
+}
+
+// The `count` values of an integer array, whatever their width: the wire's ids are int32 today,
+// and reading them by value keeps working if a server widens them for larger meshes.
+absl::StatusOr<std::vector<int64_t>> Integers(const JobResult& result, const char* name,
+                                              size_t count, const char* per) {
+  absl::StatusOr<const Array*> array = Column(result, name);
+  if (!array.ok()) return array.status();
+  absl::StatusOr<std::vector<int64_t>> values = (*array)->ToInt64();
+  if (!values.ok()) return values.status();
+  if (absl::Status s = CheckCount(name, values->size(), count, per); !s.ok()) return s;
+  return values;
+}
+
+absl::StatusOr<std::vector<double>> Reals(const JobResult& result, const char* name, size_t count,
+                                          const char* per) {
+  absl::StatusOr<const Array*> array = Column(result, name);
+  if (!array.ok()) return array.status();
+  const DataType dtype = (*array)->dtype;
+  if (dtype != DataType::kFloat64 && dtype != DataType::kFloat32) {
+    return Malformed(name, absl::StrCat("dtype ", std::string(DataTypeName(dtype)),
+                                        " is not a floating-point type"));
+  }
+  std::vector<double> values = (*array)->ToDouble();
+  if (absl::Status s = CheckCount(name, values.size(), count, per); !s.ok()) return s;
+  return values;
+}
+
+}  // namespace
+
+absl::StatusOr<std::vector<PersistencePair>> JobResult::PersistencePairs() const {
+  // PairIdentifier counts the lines and tells whether the last one is TTK's diagonal (-1).
+  absl::StatusOr<const Array*> identifiers = Column(*this, "PairIdentifier");
+  if (!identifiers.ok()) return identifiers.status();
+  absl::StatusOr<std::vector<int64_t>> ids = (*identifiers)->ToInt64();
+  if (!ids.ok()) return ids.status();
+  const size_t lines = ids->size();
+  // The server leaves Offsets out of an empty diagram; there is nothing to read anyway.
+  if (lines == 0) return std::vector<PersistencePair>();
+  const bool diagonal = ids->back() == -1;
+  const size_t n = lines - (diagonal ? 1 : 0);
+
+  absl::StatusOr<std::vector<int64_t>> offsets =
+      Integers(*this, "Offsets", lines + 1, "one more than the lines");
+  if (!offsets.ok()) return offsets.status();
+  for (size_t i = 0; i <= n; ++i) {
+    if ((*offsets)[i] != int64_t(2 * i)) {
+      return Malformed("Offsets", absl::StrCat("entry ", i, " is ", (*offsets)[i], ", not ", 2 * i,
+                                               ": the pairs' lines are not two points each"));
+    }
+  }
+  absl::StatusOr<std::vector<int64_t>> type = Integers(*this, "PairType", lines, "one per line");
+  if (!type.ok()) return type.status();
+  absl::StatusOr<std::vector<int64_t>> finite = Integers(*this, "IsFinite", lines, "one per line");
+  if (!finite.ok()) return finite.status();
+  absl::StatusOr<std::vector<double>> birth = Reals(*this, "Birth", lines, "one per line");
+  if (!birth.ok()) return birth.status();
+  absl::StatusOr<std::vector<double>> persistence =
+      Reals(*this, "Persistence", lines, "one per line");
+  if (!persistence.ok()) return persistence.status();
+  absl::StatusOr<std::vector<int64_t>> vertex =
+      Integers(*this, "ttkVertexScalarField", 2 * n, "two points per pair");
+  if (!vertex.ok()) return vertex.status();
+  absl::StatusOr<std::vector<double>> points =
+      Reals(*this, "Points", 6 * n, "x, y, z of two points per pair");
+  if (!points.ok()) return points.status();
+
+  std::vector<PersistencePair> pairs(n);
+  for (size_t i = 0; i < n; ++i) {
+    PersistencePair& p = pairs[i];
+    if ((*type)[i] < 0 || (*type)[i] > 2) {
+      return Malformed("PairType", absl::StrCat("line ", i, " of ", lines, " has type ", (*type)[i],
+                                                "; a pair's is 0, 1 or 2"));
+    }
+    p.type = int((*type)[i]);
+    p.birth_vertex = (*vertex)[2 * i];
+    p.death_vertex = (*vertex)[2 * i + 1];
+    p.birth = (*birth)[i];
+    p.persistence = (*persistence)[i];
+    // The diagram embedding draws the death at (birth, death, 0): its value, exactly. Points in
+    // the domain are the vertices' positions, which say nothing of it.
+    p.death = diagonal ? (*points)[6 * i + 4] : p.birth + p.persistence;
+    p.finite = (*finite)[i] != 0;
+  }
+  return pairs;
+}
+
+}  // namespace actopo::client
