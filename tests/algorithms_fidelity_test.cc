@@ -20,6 +20,7 @@
 #include "server/core/partition.h"
 #include "server/io/test_data.h"
 #include "server/io/vtk_reader.h"
+#include "tests/morse_smale_checks.h"
 
 namespace actopo {
 namespace {
@@ -159,26 +160,7 @@ TEST_P(MatchesTtkOn, MorseSmale) {
       [&](const std::string& label, auto& structure, const RunContext& context) {
         SCOPED_TRACE(label);
         const MorseSmaleResult r = *RunMorseSmale(structure, in.order, in.tetrahedra, context);
-        EXPECT_EQ(Json(r.gradient.critical_cells), ms["critical_cells"]);
-        EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kDescending),
-                  ms["separatrices"]["descending"].get<int64_t>());
-        EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kAscending),
-                  ms["separatrices"]["ascending"].get<int64_t>());
-        EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kSaddleConnector),
-                  ms["separatrices"]["saddle_connectors"].get<int64_t>());
-        EXPECT_EQ(r.Segments(), ms["separatrices"]["segments"].get<int64_t>());
-        EXPECT_EQ(MorseSmaleResult::Regions(r.descending),
-                  ms["regions"]["descending"].get<int64_t>());
-        EXPECT_EQ(MorseSmaleResult::Regions(r.ascending),
-                  ms["regions"]["ascending"].get<int64_t>());
-        EXPECT_EQ(MorseSmaleResult::Regions(r.morse_smale),
-                  ms["regions"]["morse_smale"].get<int64_t>());
-        EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.descending),
-                  ms["segmentation_sha256"]["descending"].get<std::string>());
-        EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.ascending),
-                  ms["segmentation_sha256"]["ascending"].get<std::string>());
-        EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.morse_smale),
-                  ms["segmentation_sha256"]["morse_smale"].get<std::string>());
+        testing::ExpectMorseSmaleEquals(r, ms);
       });
 }
 

@@ -17,6 +17,7 @@
 #include "server/core/partition.h"
 #include "server/io/test_data.h"
 #include "server/io/vtk_reader.h"
+#include "tests/morse_smale_checks.h"
 
 namespace actopo {
 namespace {
@@ -77,26 +78,6 @@ TEST(SimplificationReferences, EveryReferenceIsTested) {
   EXPECT_EQ(in_file, tested);
 }
 
-void ExpectMorseSmale(const MorseSmaleResult& r, const Json& ms) {
-  EXPECT_EQ(Json(r.gradient.critical_cells), ms["critical_cells"]);
-  EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kDescending),
-            ms["separatrices"]["descending"].get<int64_t>());
-  EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kAscending),
-            ms["separatrices"]["ascending"].get<int64_t>());
-  EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kSaddleConnector),
-            ms["separatrices"]["saddle_connectors"].get<int64_t>());
-  EXPECT_EQ(r.Segments(), ms["separatrices"]["segments"].get<int64_t>());
-  EXPECT_EQ(MorseSmaleResult::Regions(r.descending), ms["regions"]["descending"].get<int64_t>());
-  EXPECT_EQ(MorseSmaleResult::Regions(r.ascending), ms["regions"]["ascending"].get<int64_t>());
-  EXPECT_EQ(MorseSmaleResult::Regions(r.morse_smale), ms["regions"]["morse_smale"].get<int64_t>());
-  EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.descending),
-            ms["segmentation_sha256"]["descending"].get<std::string>());
-  EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.ascending),
-            ms["segmentation_sha256"]["ascending"].get<std::string>());
-  EXPECT_EQ(MorseSmaleResult::SegmentationDigest(r.morse_smale),
-            ms["segmentation_sha256"]["morse_smale"].get<std::string>());
-}
-
 TEST_P(SimplificationMatchesTtk, ValuesOrderAndMorseSmale) {
   const Case& c = GetParam();
   const Json all = References();
@@ -130,7 +111,7 @@ TEST_P(SimplificationMatchesTtk, ValuesOrderAndMorseSmale) {
     EXPECT_EQ(r->OrderDigest(), expected["order_sha256"].get<std::string>());
     const auto ms = RunMorseSmale(structure, r->internal_order, mesh->tetrahedra, context);
     ASSERT_TRUE(ms.ok()) << ms.status();
-    ExpectMorseSmale(*ms, expected["morse_smale"]);
+    testing::ExpectMorseSmaleEquals(*ms, expected["morse_smale"]);
   };
   auto explicit_structure = *ExplicitStructure::Build(topo, {});
   for (int consumers : {1, 2}) {
