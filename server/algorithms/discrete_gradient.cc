@@ -188,8 +188,9 @@ class LowerStarPairing {
 
   void Pair(StarCell& alpha, StarCell& beta) {
     ++pairs_[alpha.dim];
-    gradient_.up[alpha.dim][alpha.id] = beta.id;
-    gradient_.down[beta.dim][beta.id] = alpha.id;
+    // An empty array is one the caller does not keep (GradientArrays).
+    if (!gradient_.up[alpha.dim].empty()) gradient_.up[alpha.dim][alpha.id] = beta.id;
+    if (!gradient_.down[beta.dim].empty()) gradient_.down[beta.dim][beta.id] = alpha.id;
     alpha.paired = true;
     beta.paired = true;
   }
@@ -331,12 +332,18 @@ RelationSet DiscreteGradientDeclared() { return {Relation::kVE, Relation::kVF, R
 template <class Structure>
 absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,
                                                            std::span<const SimplexId> order,
-                                                           const RunContext& context) {
+                                                           const RunContext& context,
+                                                           GradientArrays arrays) {
   const Topology& topo = structure.topology();
   DiscreteGradientResult result;
   GradientField& g = result.gradient;
-  for (int d = 0; d < 3; ++d) g.up[d].assign(topo.num_simplices(d), -1);
-  for (int d = 1; d < 4; ++d) g.down[d].assign(topo.num_simplices(d), -1);
+  const bool all = arrays == GradientArrays::kAll;
+  for (int d = 0; d < 3; ++d) {
+    if (all || d < 2) g.up[d].assign(topo.num_simplices(d), -1);
+  }
+  for (int d = 1; d < 4; ++d) {
+    if (all || d == 3) g.down[d].assign(topo.num_simplices(d), -1);
+  }
   // Every cell lies in the lower star of exactly one vertex (its highest), so consumers on
   // different blocks write disjoint entries. Each counts what it pairs and lists what it leaves
   // critical, so no pass over every cell follows.
@@ -372,12 +379,15 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,
 
 template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(ExplicitStructure&,
                                                                     std::span<const SimplexId>,
-                                                                    const RunContext&);
+                                                                    const RunContext&,
+                                                                    GradientArrays);
 template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(CompactStructure&,
                                                                     std::span<const SimplexId>,
-                                                                    const RunContext&);
+                                                                    const RunContext&,
+                                                                    GradientArrays);
 template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(ActopoStructure&,
                                                                     std::span<const SimplexId>,
-                                                                    const RunContext&);
+                                                                    const RunContext&,
+                                                                    GradientArrays);
 
 }  // namespace actopo

@@ -460,7 +460,8 @@ absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(Structure& struct
   };
   PersistenceDiagramResult result;
   {
-    auto gradient = RunDiscreteGradient(structure, order, phase(0.0, 0.6, context.consumers));
+    auto gradient = RunDiscreteGradient(structure, order, phase(0.0, 0.6, context.consumers),
+                                        GradientArrays::kPersistence);
     if (!gradient.ok()) return gradient.status();
     result.gradient = std::move(*gradient);
   }
