@@ -1,6 +1,6 @@
 """ParaView plugin: TTK's topological filters computed by a running actopo-server.
 
-Four filters take a tetrahedral vtkUnstructuredGrid and a point scalar field, send them to the
+Five filters take a tetrahedral vtkUnstructuredGrid and a point scalar field, send them to the
 server with the Python client (``actopo``), and return what TTK's filter of the same name returns,
 with TTK's array names:
 
@@ -10,11 +10,16 @@ with TTK's array names:
   CellDimension, CellId, ttkVertexScalarField, IsOnBoundary and the scalar;
 - ACTOPO Morse-Smale Complex (MorseSmaleComplex 3D): port 0 the critical points (+ ManifoldSize),
   port 1 the 1-separatrices as polylines (SourceId, DestinationId, SeparatrixId, SeparatrixType),
-  port 2 the input grid with DescendingManifold, AscendingManifold and MorseSmaleManifold;
+  port 2 the input grid with DescendingManifold, AscendingManifold and MorseSmaleManifold; with a
+  Persistence Threshold, the complex of the simplified field (as TopologicalSimplification
+  followed by MorseSmaleComplex), port 2 then carrying the simplified field and its order;
 - ACTOPO Persistence Diagram (PersistenceDiagram): TTK's diagram, a vtkUnstructuredGrid of
   VTK_LINE cells, a line per pair and the diagonal, with ttkVertexScalarField, CriticalType and
   Coordinates per point and PairIdentifier, PairType, Persistence, Birth and IsFinite per line;
-  Embedding "domain" puts the points at the pairs' vertices (no diagonal).
+  Embedding "domain" puts the points at the pairs' vertices (no diagonal);
+- ACTOPO Topological Simplification (TopologicalSimplification, LTS, constrained by the
+  persistence pairs above a threshold): the input grid with the scalar field replaced by the
+  simplified one and ``<field>_Order``, its vertex order, added.
 
 Every output carries the session's statistics as field data (ActopoEngineWaitSeconds,
 ActopoEngineHits, ActopoEngineMisses, ActopoMemoryStaticBytes, ..., ActopoSummary as JSON).
@@ -90,6 +95,8 @@ PREFETCH = ("auto", "linear", "spatial", "adaptive")
 PRECOMPUTE = ("auto", "requested", "declared")
 BOUNDARY_RULES = ("ttk", "none")
 EMBEDDINGS = ("diagram", "domain")
+DEFAULT_SIMPLIFICATION_THRESHOLD = 0.01
+"""ACTOPO Topological Simplification's default: 1% of the scalar field's range, the server's."""
 
 _HERE = Path(__file__).resolve().parent
 
@@ -178,9 +185,17 @@ class Settings:
         self.block_size = 0
         self.boundary_rule = "ttk"
         self.embedding = "diagram"
+        self.persistence_threshold = 0.0
+        self.threshold_is_relative = True
 
     def target(self) -> str:
         return self.server.strip() or os.environ.get("ACTOPO_SERVER") or DEFAULT_SERVER
+
+    def threshold_parameters(self) -> dict[str, str]:
+        """The simplification's parameter as the server takes it: a fraction of the scalar
+        field's range, or a persistence."""
+        name = "relative_threshold" if self.threshold_is_relative else "persistence_threshold"
+        return {name: repr(float(self.persistence_threshold))}
 
 
 def _default_server() -> str:
@@ -197,6 +212,34 @@ def _doc(text: str) -> Callable[[Any], Any]:
 def _enumeration(values: Sequence[str]) -> Callable[[Any], Any]:
     entries = "".join(f'<Entry value="{i}" text="{v}"/>' for i, v in enumerate(values))
     return smdomain.xml(f'<EnumerationDomain name="enum">{entries}</EnumerationDomain>')
+
+
+def _threshold_properties(default: float, meaning: str) -> Callable[[type], type]:
+    """Adds Persistence Threshold (default `default`; `meaning` says what it does) and Threshold
+    Is Relative to a filter class, as _connection_properties adds its properties."""
+
+    def decorate(cls: type) -> type:
+        @smproperty.doublevector(name="PersistenceThreshold", label="Persistence Threshold",
+                                 default_values=default)
+        @smdomain.doublerange(min=0.0)
+        @_doc(f"{meaning} With Threshold Is Relative, a fraction of the scalar field's range "
+              "(0.01: 1%, at most 1); otherwise a persistence, in the field's units.")
+        def SetPersistenceThreshold(self: ActopoFilter, value: float) -> None:
+            self.set_option("persistence_threshold", float(value))
+
+        @smproperty.intvector(name="ThresholdIsRelative", label="Threshold Is Relative",
+                              default_values=1)
+        @smdomain.xml('<BooleanDomain name="bool"/>')
+        @_doc("Persistence Threshold is a fraction of the scalar field's range (checked), or "
+              "an absolute persistence (unchecked).")
+        def SetThresholdIsRelative(self: ActopoFilter, value: int) -> None:
+            self.set_option("threshold_is_relative", bool(value))
+
+        for setter in (SetPersistenceThreshold, SetThresholdIsRelative):
+            setattr(cls, setter.__name__, setter)
+        return cls
+
+    return decorate
 
 
 def _connection_properties(cls: type) -> type:
@@ -388,18 +431,22 @@ def separatrices_polydata(group: Mapping[str, np.ndarray], output: vtkPolyData) 
             output.GetCellData().AddArray(_vtk_array(name, values))
 
 
-def segmentation_grid(source: vtkUnstructuredGrid, group: Mapping[str, np.ndarray],
-                      output: vtkUnstructuredGrid) -> None:
-    """The input grid with the segmentation's per-vertex arrays added."""
+def vertex_arrays_grid(source: vtkUnstructuredGrid, groups: Mapping[str, Mapping[str, np.ndarray]],
+                       output: vtkUnstructuredGrid) -> None:
+    """The input grid with the per-vertex arrays of `groups` (by group name) added; an array
+    named as one of the input's replaces it, as TTK's TopologicalSimplification replaces the
+    scalar field by the simplified one."""
     count = source.GetNumberOfPoints()
-    for name, values in group.items():
-        if len(values) != count:
-            raise PluginError(f"segmentation array {name} has {len(values)} values but the "
-                              f"input has {count} points: the server's mesh (Server Path) must "
-                              "be the input mesh")
+    for group, arrays in groups.items():
+        for name, values in arrays.items():
+            if len(values) != count:
+                raise PluginError(f"{group} array {name} has {len(values)} values but the "
+                                  f"input has {count} points: the server's mesh (Server Path) "
+                                  "must be the input mesh")
     output.ShallowCopy(source)
-    for name, values in group.items():
-        output.GetPointData().AddArray(_vtk_array(name, values))
+    for arrays in groups.values():
+        for name, values in arrays.items():
+            output.GetPointData().AddArray(_vtk_array(name, values))
 
 
 def diagram_grid(grid: Any, output: vtkUnstructuredGrid) -> None:
@@ -619,15 +666,27 @@ class ActopoDiscreteGradient(ActopoFilter):
 @smdomain.datatype(dataTypes=["vtkUnstructuredGrid"], composite_data_supported=False)
 @smdomain.xml(_INPUT_ARRAYS)
 @_connection_properties
+@_threshold_properties(0.0, "0: no simplification. Above 0, the field is simplified first, "
+                       "keeping the persistence pairs at least this persistent, and the "
+                       "complex is that of the simplified field.")
 class ActopoMorseSmaleComplex(ActopoFilter):
-    """TTK MorseSmaleComplex (3D, default outputs) on the server."""
+    """TTK MorseSmaleComplex (3D, default outputs) on the server; with a Persistence Threshold,
+    of the field TopologicalSimplification leaves (the server chains the two)."""
 
     algorithm = "morse-smale"
     label = "ACTOPO Morse-Smale Complex"
     output_types = ("vtkPolyData", "vtkPolyData", "vtkUnstructuredGrid")
 
+    def parameters(self) -> dict[str, str]:
+        # 0 leaves the field as it is; a negative value goes to the server, which names it.
+        if self.settings.persistence_threshold == 0:
+            return {}
+        return self.settings.threshold_parameters()
+
     def fill(self, grid: vtkUnstructuredGrid, result: Any, outputs: list[Any]) -> None:
-        segmentation_grid(grid, result.group("segmentation"), outputs[2])
+        # Downstream of TTK's simplification the grid holds the simplified field and its order.
+        vertex_arrays_grid(grid, {"simplified": result.group("simplified"),
+                                  "segmentation": result.group("segmentation")}, outputs[2])
         point_group_polydata(result.group("critical_points"), outputs[0])
         separatrices_polydata(result.group("separatrices"), outputs[1])
 
@@ -660,3 +719,34 @@ class ActopoPersistenceDiagram(ActopoFilter):
         if result.diagram is None:
             raise PluginError(f"job {result.job_id}: the server sent no diagram")
         diagram_grid(result.diagram.ttk_grid(), outputs[0])
+
+
+@smproxy.filter(name="ActopoTopologicalSimplification", label="ACTOPO Topological Simplification")
+@smhint.xml(_MENU)
+@smproperty.xml(_SCALAR_PROPERTY)
+@smproperty.input(name="Input", port_index=0)
+@smdomain.datatype(dataTypes=["vtkUnstructuredGrid"], composite_data_supported=False)
+@smdomain.xml(_INPUT_ARRAYS)
+@_connection_properties
+@_threshold_properties(DEFAULT_SIMPLIFICATION_THRESHOLD,
+                       "The persistence pairs at least this persistent are kept (their extrema "
+                       "are the constraints); the other extrema are removed.")
+class ActopoTopologicalSimplification(ActopoFilter):
+    """TTK TopologicalSimplification (LTS) on the server, constrained by the persistence pairs
+    above the threshold: the input grid with the field simplified and its ``_Order`` added."""
+
+    algorithm = "topological-simplification"
+    label = "ACTOPO Topological Simplification"
+    output_types = ("vtkUnstructuredGrid",)
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.settings.persistence_threshold = DEFAULT_SIMPLIFICATION_THRESHOLD
+
+    def parameters(self) -> dict[str, str]:
+        return self.settings.threshold_parameters()
+
+    def fill(self, grid: vtkUnstructuredGrid, result: Any, outputs: list[Any]) -> None:
+        if result.simplified is None:
+            raise PluginError(f"job {result.job_id}: the server sent no simplified field")
+        vertex_arrays_grid(grid, {"simplified": result.simplified.point_data()}, outputs[0])

@@ -3,9 +3,11 @@ paraview/load_actopo.py, reads shared meshes with ParaView's reader, applies eac
 running actopo-server (tests/paraview_driver.py), and writes what the outputs hold. Every array
 must equal what the Python client returns for the same mesh, scalar, structure and options: same
 TTK names, dtypes and values, points, polylines, the segmentation on the input grid, TTK's
-persistence diagram as lines with its diagonal, the summary in the field data beside the
-session's statistics. Failures (an unknown scalar, an unreachable server, a wrong token,
-triangles) must print the server's or client's message and leave pvbatch running.
+persistence diagram as lines with its diagonal, the simplified field in place of the input's with
+its order beside it (whose digests also equal upstream TTK's), the summary in the field data
+beside the session's statistics. Failures (an unknown scalar, an unreachable server, a wrong token,
+triangles, a relative threshold above 1) must print the server's or client's message and leave
+pvbatch running.
 
 The plugin finds the client on its own (the repository's .venv and client-py/, after ParaView's
 numpy); the test checks it runs on ParaView's numpy with the client's protobuf and gRPC, that a
@@ -82,6 +84,29 @@ CASES: list[dict[str, Any]] = [
      "client": {"algorithm": "persistence-diagram", "scalar": "eigenfunction4",
                 "session": {"structure": "explicit"},
                 "parameters": {"embedding": "domain"}}},
+    # The defaults: 1% of the range.
+    {"name": "topological_simplification", "filter": "ACTOPOTopologicalSimplification",
+     "mesh": FINGERS,
+     "properties": {"ScalarField": ["POINTS", "density"], "Structure": "compact"},
+     "client": {"algorithm": "topological-simplification", "scalar": "density",
+                "session": {"structure": "compact"},
+                "parameters": {"relative_threshold": "0.01"}},
+     "ttk": "0.01"},
+    {"name": "topological_simplification_absolute", "filter": "ACTOPOTopologicalSimplification",
+     "mesh": FERTILITY,
+     "properties": {"ScalarField": ["POINTS", "height"], "Structure": "explicit",
+                    "PersistenceThreshold": 3.6677284240722656, "ThresholdIsRelative": 0},
+     "client": {"algorithm": "topological-simplification", "scalar": "height",
+                "session": {"structure": "explicit"},
+                "parameters": {"persistence_threshold": "3.6677284240722656"}},
+     "ttk": "0.05"},  # 5% of the range, given absolutely
+    {"name": "morse_smale_simplified", "filter": "ACTOPOMorseSmaleComplex", "mesh": FERTILITY,
+     "properties": {"ScalarField": ["POINTS", "height"], "Structure": "actopo",
+                    "PersistenceThreshold": 0.05},
+     "client": {"algorithm": "morse-smale", "scalar": "height",
+                "session": {"structure": "actopo"},
+                "parameters": {"relative_threshold": "0.05"}},
+     "ttk": "0.05"},
 ]
 # Failing runs: name, filter, properties, what pvbatch's output must say (mesh: fertility).
 ERRORS: list[dict[str, Any]] = [
@@ -98,10 +123,15 @@ ERRORS: list[dict[str, Any]] = [
     {"name": "error_not_tetrahedral", "filter": "ACTOPOMorseSmaleComplex",
      "mesh": "happi_tas_tri.vtu", "properties": {"ScalarField": ["POINTS", "tas"]},
      "message": "only tetrahedral meshes are supported, found cell types: 36290 vtkTriangle"},
+    {"name": "error_threshold", "filter": "ACTOPOTopologicalSimplification",
+     "properties": {"ScalarField": ["POINTS", "height"], "PersistenceThreshold": 1.5},
+     "message": "parameters.relative_threshold: threshold: 1.5 is not a fraction of the scalar "
+                "range in [0, 1] [INVALID_ARGUMENT]"},
 ]
 GROUP_OF_PORT = {"critical-points": ["critical_points"], "discrete-gradient": ["critical_cells"],
                  "morse-smale": ["critical_points", "separatrices", "segmentation"],
-                 "persistence-diagram": ["diagram"]}
+                 "persistence-diagram": ["diagram"], "topological-simplification": ["simplified"]}
+SIMPLIFICATION_REFERENCE = ROOT / "tests" / "ttk_reference" / "simplification-ttk.json"
 VTK_LINE = 3
 STATISTICS = ["ActopoEngineWaitSeconds", "ActopoEngineRequests", "ActopoEngineHits",
               "ActopoEngineMisses", "ActopoEngineEvictions", "ActopoEngineHitRate",
@@ -258,17 +288,21 @@ def test_outputs_equal_the_python_clients_results(run: Run, expected: dict[str, 
         group = result.group(group_name)
         output = run.port(name, port)
         where = f"{name} port {port} ({group_name})"
-        if group_name == "segmentation":
-            # The input grid, its own arrays kept, the segmentation's added.
+        if group_name in ("segmentation", "simplified"):
+            # The input grid, its own arrays kept, the group's added; downstream of a
+            # simplification (TTK's chain) the simplified field replaces the input's, and its
+            # order is added.
+            added = {**result.group("simplified"), **group}
             assert output["type"] == "vtkUnstructuredGrid"
             assert output["cells"] == grid.n_cells
             assert_same_array(run.array(name, port, "geometry", "Points"),
                               np.asarray(grid.points), f"{where} Points")
-            assert sorted(output["point_arrays"]) == sorted([*grid.point_data.keys(), *group])
+            assert sorted(output["point_arrays"]) == sorted({*grid.point_data.keys(), *added})
             for key in grid.point_data.keys():  # noqa: SIM118 (pyvista)
-                assert_same_array(run.array(name, port, "point", key),
-                                  np.asarray(grid.point_data[key]), f"{where} {key}")
-            for key, values in group.items():
+                if key not in added:
+                    assert_same_array(run.array(name, port, "point", key),
+                                      np.asarray(grid.point_data[key]), f"{where} {key}")
+            for key, values in added.items():
                 assert_same_array(run.array(name, port, "point", key), values, f"{where} {key}")
             continue
         if group_name == "diagram":
@@ -297,6 +331,33 @@ def test_outputs_equal_the_python_clients_results(run: Run, expected: dict[str, 
             assert_same_array(run.array(name, port, kind, key), values, f"{where} {key}")
     assert result.summary  # the run found something to compare
     assert sum(run.port(name, p)["points"] for p in range(len(groups))) > 0
+
+
+SIMPLIFIED = [c for c in CASES if "ttk" in c]
+
+
+@pytest.mark.parametrize("case", SIMPLIFIED, ids=[c["name"] for c in SIMPLIFIED])
+def test_simplified_fields_equal_ttks(run: Run, expected: dict[str, Any],
+                                      case: dict[str, Any]) -> None:
+    """The simplified field and its order that the filter outputs, digested as
+    simplification-ttk.json digests TTK's, equal upstream TTK's at the same threshold; the
+    field replaced the input's under its name, as in TTK's output."""
+    from actopo.types import SimplifiedField
+
+    result, _ = expected[case["name"]]
+    field = case["client"]["scalar"]
+    ttk = json.loads(SIMPLIFICATION_REFERENCE.read_text())["results"][case["mesh"]][field][
+        case["ttk"]]
+    port = len(GROUP_OF_PORT[case["client"]["algorithm"]]) - 1  # the grid
+    values = run.array(case["name"], port, "point", field)
+    order = run.array(case["name"], port, "point", f"{field}_Order")
+    assert values.dtype == np.float64 and order.dtype == np.int32
+    simplified = SimplifiedField(field, values, order)
+    assert simplified.scalars_sha256() == ttk["scalars_sha256"]
+    assert simplified.order_sha256() == ttk["order_sha256"]
+    summary = result.summary.get("simplification", result.summary)
+    assert summary["kept_pairs"] == ttk["kept_pairs"]
+    assert summary["threshold"] == ttk["threshold"]
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c["name"] for c in CASES])

@@ -143,7 +143,8 @@ def _open(client: Client, mesh: MeshInfo, args: argparse.Namespace,
 
 
 def _geometry(args: argparse.Namespace, mesh: _Mesh) -> Any:
-    """The local geometry for the segmentation file, when there is one."""
+    """The local geometry for the segmentation and simplified field files, when there is
+    one."""
     if mesh.local is not None:
         return mesh.local
     if args.geometry:
@@ -355,9 +356,12 @@ def cmd_run(client: Client, args: argparse.Namespace) -> None:
         if args.output:
             geometry = _geometry(args, mesh)
             report["files"] = result.write(args.output, geometry)
-            if result.segmentation and geometry is None:
-                print("actopo: segmentation not written: the mesh geometry is on the server; "
-                      "pass --geometry FILE (the same mesh, local)", file=sys.stderr)
+            per_vertex = (("simplified field", result.group("simplified")),
+                          ("segmentation", result.segmentation))
+            unwritten = [what for what, group in per_vertex if group and geometry is None]
+            if unwritten:
+                print(f"actopo: {' and '.join(unwritten)} not written: the mesh geometry is on "
+                      "the server; pass --geometry FILE (the same mesh, local)", file=sys.stderr)
     if args.json:
         return _print_json(report)
     print(f"{report['algorithm']} on {mesh.info.name} ({mesh.info.tetrahedra} tetrahedra, "
@@ -637,7 +641,8 @@ def parser() -> argparse.ArgumentParser:
     c.add_argument("--boundary-rule", choices=["ttk", "none"], help="critical-points")
     c.add_argument("--param", action="append", metavar="NAME=VALUE",
                    help="an algorithm parameter (repeatable), e.g. embedding=domain "
-                   "(persistence-diagram)")
+                   "(persistence-diagram), relative_threshold=0.05 or persistence_threshold=2.5 "
+                   "(topological-simplification, morse-smale)")
     c.add_argument("--output", metavar="PREFIX",
                    help="write PREFIX_critical_points.vtp, ... for ParaView")
     c.add_argument("--plot", metavar="PATH.png",
@@ -650,8 +655,9 @@ def parser() -> argparse.ArgumentParser:
                    help="write a Chrome trace of the job's threads (block relations computed, "
                    "consumer waits, evictions, phases) for ui.perfetto.dev or chrome://tracing")
     c.add_argument("--geometry", metavar="FILE",
-                   help="the mesh as a local file, for PREFIX_segmentation.vtu with --mesh "
-                   "(default: NAME under the current directory or $ACTOPO_DATA_DIR, if there)")
+                   help="the mesh as a local file, for PREFIX_segmentation.vtu and "
+                   "PREFIX_simplified.vtu with --mesh (default: NAME under the current "
+                   "directory or $ACTOPO_DATA_DIR, if there)")
     _add_progress(c, "the load's and the job's progress bars")
 
     c = command("relation", cmd_relation, "a relation of some simplices")

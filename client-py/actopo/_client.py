@@ -427,7 +427,9 @@ class Session:
         `algorithm`: "critical-points", "discrete-gradient", "morse-smale",
         "persistence-diagram", "topological-simplification" or "topo-relations" ("morse_smale"
         works too). `parameters`: e.g. ``{"boundary_rule": "none"}``, ``{"embedding":
-        "domain"}`` (persistence-diagram: its points at the vertices).
+        "domain"}`` (persistence-diagram: its points at the vertices), ``{"relative_threshold":
+        "0.05"}`` or ``{"persistence_threshold": "2.5"}`` (topological-simplification, and
+        morse-smale on the simplified field).
         `progress`: True for a progress bar on stderr, or a callable(fraction).
         `include_arrays`: False to receive only the summary and statistics.
         `trace`: True to record where the job's threads spent their time, as a Chrome trace

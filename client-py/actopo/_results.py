@@ -10,12 +10,13 @@ from typing import Any
 
 import numpy as np
 
-from actopo import _convert, _diagram, _vtk
+from actopo import _convert, _diagram, _simplified, _vtk
 from actopo._arrays import dtype_of
 from actopo._diagram import PersistenceDiagram
 from actopo._errors import ActopoError
 from actopo._literals import Algorithm
 from actopo._proto import pb
+from actopo._simplified import SimplifiedField
 from actopo._types import JobStats
 
 
@@ -34,12 +35,14 @@ class JobResult:
     Groups (see the proto's ResultChunk): ``critical_points`` (critical-points, morse-smale),
     ``critical_cells`` (discrete-gradient), ``separatrices`` and ``segmentation``
     (morse-smale), ``diagram`` and ``persistence_curve`` (persistence-diagram), ``simplified``
-    (topological-simplification). Each group is a dict of TTK array names::
+    (topological-simplification, and morse-smale run with a threshold). Each group is a dict
+    of TTK array names::
 
         result.critical_points["CriticalType"]        # int8, one per critical vertex
         result.segmentation["MorseSmaleManifold"]     # int32, one per vertex
 
-    A persistence diagram also comes typed, one entry per pair: ``result.diagram``.
+    A persistence diagram also comes typed, one entry per pair: ``result.diagram``; a
+    simplified field, one value per vertex: ``result.simplified``.
     """
 
     algorithm: Algorithm
@@ -88,6 +91,14 @@ class JobResult:
         group = self.group("diagram")
         return _diagram.from_arrays(group, self.group("persistence_curve")) if group else None
 
+    @cached_property
+    def simplified(self) -> SimplifiedField | None:
+        """The simplified field of a topological-simplification job, or of a morse-smale job
+        run with a threshold (the field its complex was computed on), as a SimplifiedField;
+        None for the other jobs and for a job run without its arrays."""
+        group = self.group("simplified")
+        return _simplified.from_arrays(group) if group else None
+
     def save_trace(self, path: str | os.PathLike[str]) -> str:
         """Writes the job's trace (run with ``trace=True``) to `path`, for ui.perfetto.dev or
         chrome://tracing, and returns the path."""
@@ -100,11 +111,13 @@ class JobResult:
         """The result as pyvista datasets, by group (needs the ``pyvista`` extra).
 
         Critical points and cells become PolyData vertices with their arrays as point data,
-        separatrices PolyData polylines with per-line cell data. The segmentation needs the
+        separatrices PolyData polylines with per-line cell data. The per-vertex groups need the
         mesh's geometry, which stays on the server: pass the mesh you uploaded (any form
-        upload_mesh() takes) to get it as an UnstructuredGrid, else it is left out. A
-        persistence diagram becomes TTK's diagram, an UnstructuredGrid of lines
-        (PersistenceDiagram.to_pyvista()).
+        upload_mesh() takes) to get them as UnstructuredGrids, else they are left out: the
+        segmentation (the mesh with its arrays added) and the simplified field (the mesh with
+        the scalar field replaced by the simplified one and ``<field>_Order`` added, as TTK's
+        TopologicalSimplification outputs it). A persistence diagram becomes TTK's diagram, an
+        UnstructuredGrid of lines (PersistenceDiagram.to_pyvista()).
         """
         datasets = _vtk.to_pyvista(self._groups(), mesh)
         if self.diagram is not None:
@@ -114,9 +127,10 @@ class JobResult:
     def write(self, prefix: str, mesh: Any = None) -> list[str]:
         """Writes files for ParaView as actopo-bench does (PREFIX_critical_points.vtp, ...).
 
-        Uses pyvista if installed, else meshio (then every file is a .vtu). The segmentation is
-        written only when `mesh` gives the geometry; a persistence diagram as
-        PREFIX_diagram.vtu and PREFIX_persistence_curve.csv. Returns the paths written.
+        Uses pyvista if installed, else meshio (then every file is a .vtu). The simplified
+        field (PREFIX_simplified.vtu) and the segmentation are written only when `mesh` gives
+        the geometry; a persistence diagram as PREFIX_diagram.vtu and
+        PREFIX_persistence_curve.csv. Returns the paths written.
         """
         written = _vtk.write_files(self._groups(), prefix, mesh)
         if self.diagram is not None:

@@ -19,6 +19,9 @@ Groups: TypeAlias = Mapping[str, Mapping[str, np.ndarray]]
 """A result's arrays: group name -> TTK array name -> values."""
 
 POINT_GROUPS = ("critical_points", "critical_cells")
+VERTEX_GROUPS = ("simplified", "segmentation")
+"""Groups of one value per vertex, put on the mesh's grid (so written only with the mesh):
+the simplified field replaces the scalar field of the same name, as in TTK's output."""
 
 
 def _group(groups: Groups, name: str) -> dict[str, np.ndarray]:
@@ -64,19 +67,25 @@ def to_pyvista(groups: Groups, mesh: Any = None) -> dict[str, Any]:
         for key, values in arrays.items():
             poly.cell_data[key] = values
         out["separatrices"] = poly
-    segmentation = _group(groups, "segmentation")
-    if segmentation and mesh is not None:
-        if isinstance(mesh, pv.UnstructuredGrid):
-            grid = mesh.copy()
-        else:
-            local = mesh_arrays(mesh)
-            grid = pv.UnstructuredGrid({pv.CellType.TETRA: local.tetrahedra}, local.points)
-            for key, values in local.point_data.items():
+    for name in VERTEX_GROUPS:
+        group = _group(groups, name)
+        if group and mesh is not None:
+            grid = _mesh_grid(pv, mesh)
+            for key, values in group.items():
                 grid.point_data[key] = values
-        for key, values in segmentation.items():
-            grid.point_data[key] = values
-        out["segmentation"] = grid
+            out[name] = grid
     return out
+
+
+def _mesh_grid(pv: Any, mesh: Any) -> Any:
+    """A new UnstructuredGrid of the local mesh with its point fields, for one group."""
+    if isinstance(mesh, pv.UnstructuredGrid):
+        return mesh.copy()
+    local = mesh_arrays(mesh)
+    grid = pv.UnstructuredGrid({pv.CellType.TETRA: local.tetrahedra}, local.points)
+    for key, values in local.point_data.items():
+        grid.point_data[key] = values
+    return grid
 
 
 def _write_meshio(groups: Groups, prefix: str, mesh: Any) -> list[str]:
@@ -107,13 +116,15 @@ def _write_meshio(groups: Groups, prefix: str, mesh: Any) -> list[str]:
                     cell_data={k: [np.asarray(v)[line_owner]] for k, v in arrays.items()}
                     ).write(path)
         written.append(path)
-    segmentation = _group(groups, "segmentation")
-    if segmentation and mesh is not None:
-        local = mesh_arrays(mesh)
-        path = f"{prefix}_segmentation.vtu"
-        meshio.Mesh(local.points, [("tetra", local.tetrahedra)],
-                    point_data={**local.point_data, **segmentation}).write(path)
-        written.append(path)
+    local = None
+    for name in VERTEX_GROUPS:
+        group = _group(groups, name)
+        if group and mesh is not None:
+            local = local or mesh_arrays(mesh)
+            path = f"{prefix}_{name}.vtu"
+            meshio.Mesh(local.points, [("tetra", local.tetrahedra)],
+                        point_data={**local.point_data, **group}).write(path)
+            written.append(path)
     return written
 
 
@@ -129,7 +140,7 @@ def write_files(groups: Groups, prefix: str, mesh: Any = None) -> list[str]:
         return _write_meshio(groups, prefix, mesh)
     written = []
     for name, dataset in to_pyvista(groups, mesh).items():
-        path = f"{prefix}_{name}.{'vtu' if name == 'segmentation' else 'vtp'}"
+        path = f"{prefix}_{name}.{'vtu' if name in VERTEX_GROUPS else 'vtp'}"
         dataset.save(path)
         written.append(path)
     return written

@@ -12,6 +12,7 @@ JobResult); the rest are here only:
 
 from actopo._diagram import DiagramGrid, PersistenceCurve, PersistenceDiagram
 from actopo._results import JobResult
+from actopo._simplified import SimplifiedField
 from actopo._types import (
     Counter,
     EngineOptions,
@@ -36,5 +37,5 @@ __all__ = [
     "Counter", "DiagramGrid", "EngineOptions", "EngineStats", "FailedItem", "FieldInfo",
     "JobResult", "JobStats", "LoadProgress", "MemoryStats", "MeshInfo", "PersistenceCurve",
     "PersistenceDiagram", "QueryBreakdown", "RelationBatch", "ServerInfo", "ServerLimits",
-    "SessionInfo", "SessionStats", "SimplexRelation", "StreamItem",
+    "SessionInfo", "SessionStats", "SimplexRelation", "SimplifiedField", "StreamItem",
 ]

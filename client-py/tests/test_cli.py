@@ -34,7 +34,7 @@ def _json(cli, *args):
 
 
 @pytest.mark.parametrize("algorithm", ["critical-points", "discrete-gradient", "morse-smale",
-                                       "persistence-diagram"])
+                                       "persistence-diagram", "topological-simplification"])
 def test_acceptance_run_json_equals_actopo_bench(server, data_dir, bench, algorithm):
     """The issue's acceptance command, run as a user would."""
     out = subprocess.run(

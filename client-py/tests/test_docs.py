@@ -30,7 +30,7 @@ def test_docstring_examples(client):
 
 def test_readme_examples(server, monkeypatch, capsys):
     blocks = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
-    assert len(blocks) == 6
+    assert len(blocks) == 7
     monkeypatch.setenv("ACTOPO_SERVER", server)
     monkeypatch.chdir(README.parents[1])
     for code in blocks:
@@ -42,3 +42,5 @@ def test_readme_examples(server, monkeypatch, capsys):
     assert "['read', 'partition', 'encode'] 355914\nstopped in partition\n" in out
     assert ("655 {'0': 245, '0_infinite': 1, '1': 330, '2': 79}\nTrue\n"
             "141 {'0': 63, '0_infinite': 1, '1': 61, '2': 16}\n0 0 6408 False\n") in out
+    assert ("SimplifiedField('height', 14570 vertices) 3.6677284240722656 7\nTrue\n"
+            "2539 2539\n[3, 8, 2, 0] True\n") in out

@@ -15,7 +15,8 @@ import pytest
 
 import actopo
 
-ALGORITHMS = ["critical-points", "discrete-gradient", "morse-smale", "persistence-diagram"]
+ALGORITHMS = ["critical-points", "discrete-gradient", "morse-smale", "persistence-diagram",
+              "topological-simplification"]
 
 
 @pytest.fixture(scope="module")

@@ -29,6 +29,7 @@ void AppendBarycentre(const ResultContext& c, int dim, SimplexId id, std::vector
 SimplexId HighestVertex(const ResultContext& c, int dim, SimplexId id) {
   const std::vector<SimplexId> vertices = CellInputVertices(c.topology, dim, id);
   return *std::max_element(vertices.begin(), vertices.end(), [&](SimplexId a, SimplexId b) {
+    if (!c.order.empty()) return c.order[a] < c.order[b];
     return c.scalars[a] < c.scalars[b] || (c.scalars[a] == c.scalars[b] && a < b);
   });
 }
@@ -265,7 +266,11 @@ ResultOutputs BuildOutputs(const ResultContext& c, const AlgorithmResult& result
   } else if (const auto* s = std::get_if<SimplificationResult>(&result)) {
     out.simplified = SimplifiedArrays(c, *s);
   } else if (const auto* sm = std::get_if<SimplifiedMorseSmaleResult>(&result)) {
-    AddMorseSmaleOutputs(c, sm->morse_smale, out);
+    // The complex is of the simplified field: its values and its order, as TTK's chain reports.
+    ResultContext simplified = c;
+    simplified.scalars = sm->simplification.scalars;
+    simplified.order = sm->simplification.order;
+    AddMorseSmaleOutputs(simplified, sm->morse_smale, out);
     out.simplified = SimplifiedArrays(c, sm->simplification);
   }
   return out;

@@ -31,6 +31,9 @@ struct ResultContext {
   std::string scalar_name;
   std::span<const double> scalars;          // by input vertex id
   std::vector<uint8_t> vertex_on_boundary;  // by internal vertex id
+  // The vertex order by input id when it is not (scalar, id): a simplified field's, whose
+  // flattened plateaus are ordered by LTS. Empty: (scalar, id).
+  std::span<const SimplexId> order = {};
 };
 
 // A result's outputs: poly data by group ("critical_points", "critical_cells",

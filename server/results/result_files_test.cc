@@ -8,6 +8,7 @@
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "server/algorithms/morse_smale.h"
 #include "server/algorithms/vertex_order.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
@@ -146,6 +147,35 @@ TEST(SimplificationOutputs, FieldAndOrderStreamedAndWritten) {
   ASSERT_TRUE(written.ok()) << written.status();
   EXPECT_THAT(*written, ElementsAre((dir / "run_simplified.vtu").string()));
   EXPECT_GT(std::filesystem::file_size(dir / "run_simplified.vtu"), 0u);
+}
+
+// The complex after a simplification reports the simplified field: its values at the critical
+// cells' highest vertices, ranked by the simplified order.
+TEST(SimplificationOutputs, SimplifiedMorseSmaleReportsTheSimplifiedField) {
+  Mesh mesh = testing::Lattice(7, 6, 5, 9);
+  auto topology = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 20}));
+  auto structure = *ExplicitStructure::Build(topology, {});
+  const std::vector<double>& scalars = mesh.point_fields[0].values;
+  SimplifiedMorseSmaleResult r;
+  r.simplification =
+      *RunTopologicalSimplification(*structure, VertexOrder(*topology, scalars), scalars,
+                                    {.threshold = 0.2, .relative = true}, {});
+  r.morse_smale = *RunMorseSmale(*structure, r.simplification.internal_order, mesh.tetrahedra, {});
+  const ResultContext context{mesh, *topology, "height", scalars,
+                              std::vector<uint8_t>(mesh.num_vertices(), 0)};
+  const ResultOutputs out = BuildOutputs(context, r);
+  const io::PolyData& points = out.poly_data[0].second;
+  ASSERT_EQ(out.poly_data[0].first, "critical_points");
+  const auto& vertex = Get<int32_t>(points.point_arrays, "ttkVertexScalarField");
+  const auto& value = Get<double>(points.point_arrays, "height");
+  ASSERT_FALSE(vertex.empty());
+  int64_t flattened = 0;  // critical cells whose highest vertex the simplification moved
+  for (size_t i = 0; i < vertex.size(); ++i) {
+    EXPECT_EQ(value[i], r.simplification.scalars[vertex[i]]) << "vertex " << vertex[i];
+    flattened += value[i] != scalars[vertex[i]];
+  }
+  EXPECT_GT(flattened, 0);  // else this test would not see the input field reported
+  EXPECT_EQ(out.simplified.size(), 2u);
 }
 
 }  // namespace
