@@ -8,12 +8,18 @@ the server are skipped, saying why, when its binary is missing.
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from harness import BENCH_BIN, DATA_DIR, running_server
+
+# The Ctrl-C tests send SIGINT to this process. A shell that starts a command in the background
+# without job control makes it ignore SIGINT, and Python then installs no KeyboardInterrupt
+# handler: restore Python's own, so the suite means the same however it was started.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope="session")
