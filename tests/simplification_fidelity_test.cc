@@ -26,6 +26,7 @@ using Json = nlohmann::json;
 
 struct Case {
   std::string file, field, fraction;
+  bool legacy = false;  // TTK's legacy backend ("legacy_results") instead of LTS ("results")
 };
 // Listed, not read from the file, so the tests exist however ctest lists them;
 // EveryReferenceIsTested keeps the list equal to the file.
@@ -40,20 +41,28 @@ const Case kCases[] = {
     {"viscousFingers001_s2_tet.vtu", "density", "0.05"},
     {"isabel02_s2_tet.vtu", "velocityMag", "0.01"},
     {"isabel02_s2_tet.vtu", "velocityMag", "0.05"},
+    {"manifoldCheck0_tet.vtu", "height", "0.01", true},
+    {"manifoldCheck0_tet.vtu", "height", "0.05", true},
+    {"fertility_tet.vtu", "eigenfunction4", "0.01", true},
+    {"fertility_tet.vtu", "eigenfunction4", "0.05", true},
+    {"fertility_tet.vtu", "height", "0.01", true},
+    {"fertility_tet.vtu", "height", "0.05", true},
+    {"viscousFingers001_s2_tet.vtu", "density", "0.01", true},
+    {"viscousFingers001_s2_tet.vtu", "density", "0.05", true},
 };
 
 Json References() {
   std::ifstream in(std::string(ACTOPO_TTK_REFERENCE_DIR) + "/simplification-ttk.json");
-  return in ? Json::parse(in)["results"] : Json();
+  return in ? Json::parse(in) : Json();
 }
 
 void PrintTo(const Case& c, std::ostream* out) {
-  *out << c.file << " / " << c.field << " / " << c.fraction;
+  *out << c.file << " / " << c.field << " / " << c.fraction << (c.legacy ? " / legacy" : "");
 }
 
 std::string CaseName(const ::testing::TestParamInfo<Case>& info) {
   std::string name = info.param.file.substr(0, info.param.file.find('.')) + "_" + info.param.field +
-                     "_" + info.param.fraction;
+                     "_" + info.param.fraction + (info.param.legacy ? "_legacy" : "");
   for (char& c : name) {
     if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
   }
@@ -67,20 +76,23 @@ TEST(SimplificationReferences, EveryReferenceIsTested) {
   const Json all = References();
   ASSERT_FALSE(all.is_null()) << "simplification-ttk.json not found in "
                               << ACTOPO_TTK_REFERENCE_DIR;
-  std::set<std::tuple<std::string, std::string, std::string>> in_file, tested;
-  for (const auto& [file, fields] : all.items()) {
-    for (const auto& [field, fractions] : fields.items()) {
-      for (const auto& [fraction, entry] : fractions.items())
-        in_file.emplace(file, field, fraction);
+  std::set<std::tuple<std::string, std::string, std::string, bool>> in_file, tested;
+  for (const bool legacy : {false, true}) {
+    for (const auto& [file, fields] : all[legacy ? "legacy_results" : "results"].items()) {
+      for (const auto& [field, fractions] : fields.items()) {
+        for (const auto& [fraction, entry] : fractions.items()) {
+          in_file.emplace(file, field, fraction, legacy);
+        }
+      }
     }
   }
-  for (const Case& c : kCases) tested.emplace(c.file, c.field, c.fraction);
+  for (const Case& c : kCases) tested.emplace(c.file, c.field, c.fraction, c.legacy);
   EXPECT_EQ(in_file, tested);
 }
 
 TEST_P(SimplificationMatchesTtk, ValuesOrderAndMorseSmale) {
   const Case& c = GetParam();
-  const Json all = References();
+  const Json all = References()[c.legacy ? "legacy_results" : "results"];
   ASSERT_TRUE(all.contains(c.file) && all[c.file].contains(c.field) &&
               all[c.file][c.field].contains(c.fraction));
   const Json& expected = all[c.file][c.field][c.fraction];
@@ -90,7 +102,8 @@ TEST_P(SimplificationMatchesTtk, ValuesOrderAndMorseSmale) {
   const std::vector<double>& scalars = mesh->point_fields[f].values;
   auto topo = *Topology::Build(*mesh, OctreeBlocks(mesh->points, {.bucket_capacity = 1000}));
   const std::vector<SimplexId> order = VertexOrder(*topo, scalars);
-  const SimplificationOptions options{.threshold = std::stod(c.fraction), .relative = true};
+  const SimplificationOptions options{
+      .threshold = std::stod(c.fraction), .relative = true, .legacy = c.legacy};
 
   const auto check = [&](const std::string& label, auto& structure, const RunContext& context) {
     SCOPED_TRACE(label);

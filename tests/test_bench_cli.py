@@ -93,6 +93,17 @@ def test_simplified_morse_smale_on_every_structure(structure, tmp_path):
     assert plain["result"]["critical_cells"][0] > r["result"]["critical_cells"][0]
 
 
+def test_legacy_backend_keeps_the_same_extrema():
+    sample = ["--sample", "jittered:12", "--algorithm", "topological-simplification",
+              "--relative-threshold", "0.1"]
+    lts = run_json(*sample)["result"]
+    legacy = run_json(*sample, "--backend", "legacy")["result"]
+    assert (lts["backend"], legacy["backend"]) == ("lts", "legacy")
+    assert legacy["sweeps"] >= 1
+    for key in ("kept_pairs", "constraints", "minima", "maxima"):
+        assert legacy[key] == lts[key], key
+
+
 def test_bad_thresholds_are_named():
     proc = bench("--sample", "jittered:4", "--algorithm", "topological-simplification",
                  "--relative-threshold", "2", check=False)

@@ -363,6 +363,74 @@ std::vector<SimplexId> Unauthorized(const std::vector<uint8_t>& flags, uint8_t b
   return out;
 }
 
+// TTK's legacy simplification: from the kept minima, sweep the vertices in the order they are
+// reached lowest first, each made no lower than the one before (value, and order = its position),
+// then the same downwards from the kept maxima; again until no other extremum is left. `flags`
+// holds the input's extrema and, at the end, the result's; `scalars` is by internal id.
+template <class Reader>
+absl::Status LegacySweeps(Reader& reader, const std::vector<bool>& authorized,
+                          std::vector<uint8_t>& flags, std::vector<SimplexId>& order,
+                          std::vector<double>& scalars, SimplificationStats& stats,
+                          const RunContext& context) {
+  const SimplexId n = SimplexId(order.size());
+  std::vector<SimplexId> minima, maxima;  // the kept extrema: the seeds
+  for (SimplexId v = 0; v < n; ++v) {
+    if (authorized[v] && (flags[v] & kMinimum)) minima.push_back(v);
+    if (authorized[v] && (flags[v] & kMaximum)) maxima.push_back(v);
+  }
+  std::vector<bool> seeded(n, false), visited(n);
+  std::vector<SimplexId> sequence;
+  sequence.reserve(n);
+  for (SimplexId sweep = 0; sweep < n; ++sweep) {
+    ++stats.sweeps;
+    for (const bool upwards : {true, false}) {
+      const std::vector<SimplexId>& seeds = upwards ? minima : maxima;
+      if (seeds.empty()) continue;
+      // The front, lowest order first upwards, highest first downwards (orders are distinct).
+      std::priority_queue<std::pair<SimplexId, SimplexId>> front;
+      const auto push = [&](SimplexId v) {
+        front.emplace(upwards ? -order[v] : order[v], v);
+        visited[v] = true;
+      };
+      std::fill(visited.begin(), visited.end(), false);
+      for (SimplexId s : seeds) {
+        seeded[s] = true;
+        push(s);
+      }
+      sequence.clear();
+      while (!front.empty()) {
+        const SimplexId v = front.top().second;
+        front.pop();
+        sequence.push_back(v);
+        for (SimplexId u : reader.vertex_neighbors(v)) {
+          if (!visited[u]) push(u);
+        }
+      }
+      for (size_t k = 0; k < sequence.size(); ++k) {
+        const SimplexId v = sequence[k];
+        if (k > 0) {
+          const double previous = scalars[sequence[k - 1]];
+          if (upwards ? scalars[v] <= previous : scalars[v] >= previous) scalars[v] = previous;
+        }
+        order[v] = upwards ? SimplexId(k) + 1 : n - 1 - SimplexId(k);
+      }
+    }
+    // Converged when every extremum left is a seed.
+    bool more = false;
+    int64_t minima_left = 0, maxima_left = 0;
+    for (SimplexId v = 0; v < n; ++v) {
+      flags[v] = ExtremumFlags(reader, v, order);
+      minima_left += (flags[v] & kMinimum) != 0;
+      maxima_left += (flags[v] & kMaximum) != 0;
+      if (flags[v] != 0 && !seeded[v]) more = true;
+    }
+    more |= minima_left > int64_t(minima.size()) || maxima_left > int64_t(maxima.size());
+    if (!more) return absl::OkStatus();
+    if (context.cancel != nullptr && context.cancel->load()) return absl::CancelledError(kName);
+  }
+  return absl::OkStatus();
+}
+
 void Invert(std::vector<SimplexId>& order) {
   const SimplexId last = SimplexId(order.size()) - 1;
   for (SimplexId& o : order) o = last - o;
@@ -425,6 +493,7 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
                    RunPersistenceDiagram(structure, order, scalars, diagram_context));
   const auto [lo, hi] = std::minmax_element(scalars.begin(), scalars.end());
   result.threshold = options.relative ? options.threshold * (*hi - *lo) : options.threshold;
+  result.legacy = options.legacy;
 
   // The kept pairs' vertices, as TTK's constraints.
   const SimplexId n = topo.num_vertices();
@@ -463,44 +532,53 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
                                      }));
     }
     auto reader = structure.NewReader();
-    // TTK decides which passes to run from the first neighbour of each constraint.
-    bool has_maxima = false, has_minima = false;
-    for (SimplexId v = 0; v < n && !(has_maxima && has_minima); ++v) {
-      if (!authorized[v]) continue;
-      const auto neighbors = reader.vertex_neighbors(v);
-      if (neighbors.empty()) continue;
-      (order[v] > order[neighbors[0]] ? has_maxima : has_minima) = true;
-    }
-    std::vector<std::pair<SimplexId, std::vector<SimplexId>>> segments;
-    if (has_maxima) {
-      Trace::Scope pass(context.trace.get(), "remove maxima", "phase");
-      MaximaRemoval removal(reader, new_order, Unauthorized(flags, kMaximum, authorized));
-      RETURN_IF_ERROR(removal.Run());
-      result.stats.removed_maxima = removal.removed();
-      segments = removal.TakeSegments();
-      RefreshFlags(reader, new_order, segments, flags);
-    }
-    if (context.progress) context.progress(0.9);
-    if (has_minima) {
-      Trace::Scope pass(context.trace.get(), "remove minima", "phase");
-      Invert(new_order);
-      MaximaRemoval removal(reader, new_order, Unauthorized(flags, kMinimum, authorized));
-      RETURN_IF_ERROR(removal.Run());
-      Invert(new_order);
-      result.stats.removed_minima = removal.removed();
-      auto minima_segments = removal.TakeSegments();
-      RefreshFlags(reader, new_order, minima_segments, flags);
-      // Values: the maxima's components first, then the minima's, as TTK.
+    if (options.legacy) {
+      Trace::Scope pass(context.trace.get(), "legacy sweeps", "phase");
+      std::vector<double> values(n);
+      for (SimplexId v = 0; v < n; ++v) values[v] = scalars[topo.vertex_input_id(v)];
+      RETURN_IF_ERROR(
+          LegacySweeps(reader, authorized, flags, new_order, values, result.stats, context));
+      for (SimplexId v = 0; v < n; ++v) result.scalars[topo.vertex_input_id(v)] = values[v];
+    } else {
+      // TTK decides which passes to run from the first neighbour of each constraint.
+      bool has_maxima = false, has_minima = false;
+      for (SimplexId v = 0; v < n && !(has_maxima && has_minima); ++v) {
+        if (!authorized[v]) continue;
+        const auto neighbors = reader.vertex_neighbors(v);
+        if (neighbors.empty()) continue;
+        (order[v] > order[neighbors[0]] ? has_maxima : has_minima) = true;
+      }
+      std::vector<std::pair<SimplexId, std::vector<SimplexId>>> segments;
+      if (has_maxima) {
+        Trace::Scope pass(context.trace.get(), "remove maxima", "phase");
+        MaximaRemoval removal(reader, new_order, Unauthorized(flags, kMaximum, authorized));
+        RETURN_IF_ERROR(removal.Run());
+        result.stats.removed_maxima = removal.removed();
+        segments = removal.TakeSegments();
+        RefreshFlags(reader, new_order, segments, flags);
+      }
+      if (context.progress) context.progress(0.9);
+      if (has_minima) {
+        Trace::Scope pass(context.trace.get(), "remove minima", "phase");
+        Invert(new_order);
+        MaximaRemoval removal(reader, new_order, Unauthorized(flags, kMinimum, authorized));
+        RETURN_IF_ERROR(removal.Run());
+        Invert(new_order);
+        result.stats.removed_minima = removal.removed();
+        auto minima_segments = removal.TakeSegments();
+        RefreshFlags(reader, new_order, minima_segments, flags);
+        // Values: the maxima's components first, then the minima's, as TTK.
+        for (const auto& [saddle, segment] : segments) {
+          for (SimplexId v : segment) {
+            result.scalars[topo.vertex_input_id(v)] = result.scalars[topo.vertex_input_id(saddle)];
+          }
+        }
+        segments = std::move(minima_segments);
+      }
       for (const auto& [saddle, segment] : segments) {
         for (SimplexId v : segment) {
           result.scalars[topo.vertex_input_id(v)] = result.scalars[topo.vertex_input_id(saddle)];
         }
-      }
-      segments = std::move(minima_segments);
-    }
-    for (const auto& [saddle, segment] : segments) {
-      for (SimplexId v : segment) {
-        result.scalars[topo.vertex_input_id(v)] = result.scalars[topo.vertex_input_id(saddle)];
       }
     }
     // Statistics of the simplified field: its extrema and what changed.

@@ -35,6 +35,12 @@ struct SimplificationOptions {
   // of the field's range when `relative`). 0 keeps every pair: nothing changes.
   double threshold = 0;
   bool relative = false;
+  // TTK's legacy backend instead of LTS (Tierny, Pascucci, "Generalized Topological
+  // Simplification of Scalar Fields on Surfaces", IEEE TVCG 2012): sweeps from the kept minima
+  // up and from the kept maxima down, each vertex raised (lowered) to its predecessor's value
+  // when below (above) it, repeated until the only extrema left are kept ones. Slower; every
+  // vertex's order changes.
+  bool legacy = false;
 };
 
 struct SimplificationStats {
@@ -43,11 +49,13 @@ struct SimplificationStats {
   int64_t removed_maxima = 0, removed_minima = 0;
   int64_t changed_values = 0;      // vertices whose value changed
   int64_t maxima = 0, minima = 0;  // local extrema of the simplified field
+  int64_t sweeps = 0;              // legacy backend: up-and-down iterations
 };
 
 struct SimplificationResult {
   PersistenceDiagramResult diagram;  // of the input field, before simplification
   double threshold = 0;              // absolute
+  bool legacy = false;               // the backend that ran
   SimplificationStats stats;
   std::vector<double> scalars;   // the simplified field, by input vertex id
   std::vector<SimplexId> order;  // its vertex order (TTK's "<field>_Order"), by input id

@@ -64,10 +64,13 @@ TEST(TopologicalSimplification, KeepsExactlyTheExtremaOfTheKeptPairs) {
     input_order[in.topo->vertex_input_id(v)] = in.order[v];
   }
   const auto [minima_before, maxima_before] = Extrema(in, *structure, input_order);
-  for (double fraction : {0.02, 0.1, 0.3}) {
-    SCOPED_TRACE(fraction);
-    const auto r = RunTopologicalSimplification(*structure, in.order, in.scalars,
-                                                {.threshold = fraction, .relative = true}, {});
+  for (const auto& [fraction, legacy] :
+       {std::pair{0.02, false}, std::pair{0.1, false}, std::pair{0.3, false}, std::pair{0.02, true},
+        std::pair{0.3, true}}) {
+    SCOPED_TRACE(::testing::Message() << fraction << (legacy ? " legacy" : " lts"));
+    const auto r = RunTopologicalSimplification(
+        *structure, in.order, in.scalars,
+        {.threshold = fraction, .relative = true, .legacy = legacy}, {});
     ASSERT_TRUE(r.ok()) << r.status();
     std::set<SimplexId> kept;
     for (const PersistencePair& p : r->diagram.pairs) {

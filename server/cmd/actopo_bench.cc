@@ -58,6 +58,7 @@ struct BenchOptions {
   std::string boundary_rule = "ttk";
   std::string persistence_threshold, relative_threshold;  // as given, parsed by ApplyParameters
   std::string embedding;
+  std::string backend;  // simplification: lts or legacy
   std::string output;
   std::string trace;  // Chrome trace-event JSON file
   int threads = 0;
@@ -230,6 +231,7 @@ absl::StatusOr<Json> Run(BenchOptions o) {
     parameters["persistence_threshold"] = o.persistence_threshold;
   if (!o.relative_threshold.empty()) parameters["relative_threshold"] = o.relative_threshold;
   if (!o.embedding.empty()) parameters["embedding"] = o.embedding;
+  if (!o.backend.empty()) parameters["backend"] = o.backend;
   RETURN_IF_ERROR(ApplyParameters(parameters, input));
   const double order_s = Seconds(start);
   Phase(trace, "vertex order", start);
@@ -401,6 +403,9 @@ int main(int argc, char** argv) {
             "persistent (absolute) and simplify the rest away first");
   flags.Add("relative-threshold", &o.relative_threshold,
             "as --persistence-threshold, as a fraction of the field's range (e.g. 0.01)");
+  flags.Add("backend", &o.backend,
+            "topological-simplification, morse-smale with a threshold: lts (TTK's default) or "
+            "legacy");
   flags.Add("embedding", &o.embedding,
             "persistence-diagram --output: diagram (TTK's birth-death plane) or domain");
   flags.Add("structure", &o.structure, "explicit, compact or actopo");

@@ -85,18 +85,21 @@ Json PersistenceDiagramJson(const PersistenceDiagramResult& r) {
 
 Json SimplificationJson(const SimplificationResult& r) {
   const SimplificationStats& s = r.stats;
-  return {{"threshold", r.threshold},
-          {"pairs", r.diagram.pairs.size()},
-          {"kept_pairs", s.kept_pairs},
-          {"removed_pairs", s.removed_pairs},
-          {"constraints", s.constraints},
-          {"removed_maxima", s.removed_maxima},
-          {"removed_minima", s.removed_minima},
-          {"changed_values", s.changed_values},
-          {"minima", s.minima},
-          {"maxima", s.maxima},
-          {"scalars_sha256", r.ScalarsDigest()},
-          {"order_sha256", r.OrderDigest()}};
+  Json j = {{"backend", r.legacy ? "legacy" : "lts"},
+            {"threshold", r.threshold},
+            {"pairs", r.diagram.pairs.size()},
+            {"kept_pairs", s.kept_pairs},
+            {"removed_pairs", s.removed_pairs},
+            {"constraints", s.constraints},
+            {"removed_maxima", s.removed_maxima},
+            {"removed_minima", s.removed_minima},
+            {"changed_values", s.changed_values},
+            {"minima", s.minima},
+            {"maxima", s.maxima},
+            {"scalars_sha256", r.ScalarsDigest()},
+            {"order_sha256", r.OrderDigest()}};
+  if (r.legacy) j["sweeps"] = s.sweeps;
+  return j;
 }
 
 // A threshold parameter: a finite number.
@@ -161,9 +164,25 @@ absl::Status ApplyParameters(const std::map<std::string, std::string>& parameter
       input.simplification = options;
       continue;
     }
+    if (name == "backend" && simplifies) {
+      if (value != "lts" && value != "legacy") {
+        return absl::InvalidArgumentError(absl::StrCat("parameters.backend: unknown value '", value,
+                                                       "'; available: lts, legacy"));
+      }
+      continue;  // applied below, once the threshold is known
+    }
     return absl::InvalidArgumentError(absl::StrCat("parameters: unknown parameter '", name,
                                                    "' for ",
                                                    std::string(AlgorithmName(input.algorithm))));
+  }
+  if (const auto backend = parameters.find("backend"); backend != parameters.end()) {
+    if (!input.simplification && input.algorithm == Algorithm::kMorseSmale) {
+      return absl::InvalidArgumentError(
+          "parameters.backend: morse-smale simplifies only with persistence_threshold or "
+          "relative_threshold");
+    }
+    if (!input.simplification) input.simplification = kDefaultSimplification;
+    input.simplification->legacy = backend->second == "legacy";
   }
   return absl::OkStatus();
 }

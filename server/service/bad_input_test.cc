@@ -302,6 +302,24 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
          (*r.mutable_parameters())["relative_threshold"] = "1.5";
          return RunToEnd(stub, r);
        }},
+      {"unknown simplification backend", C::INVALID_ARGUMENT,
+       "parameters.backend: unknown value 'fast'; available: lts, legacy",
+       [](auto*, auto& stub, auto&, auto& s) {
+         v1::RunJobRequest r;
+         r.set_session_id(s);
+         r.set_algorithm(v1::ALGORITHM_TOPOLOGICAL_SIMPLIFICATION);
+         (*r.mutable_parameters())["backend"] = "fast";
+         return RunToEnd(stub, r);
+       }},
+      {"backend without a threshold", C::INVALID_ARGUMENT,
+       "parameters.backend: morse-smale simplifies only with",
+       [](auto*, auto& stub, auto&, auto& s) {
+         v1::RunJobRequest r;
+         r.set_session_id(s);
+         r.set_algorithm(v1::ALGORITHM_MORSE_SMALE);
+         (*r.mutable_parameters())["backend"] = "legacy";
+         return RunToEnd(stub, r);
+       }},
       {"two thresholds", C::INVALID_ARGUMENT,
        "give persistence_threshold or relative_threshold, not both",
        [](auto*, auto& stub, auto&, auto& s) {

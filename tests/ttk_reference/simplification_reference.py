@@ -36,6 +36,13 @@ CASES = [
     ("isabel02_s2_tet.vtu", "velocityMag"),
 ]
 FRACTIONS = [0.01, 0.05]
+# TTK's legacy backend (UseLTS off), on the smaller meshes: it sweeps the whole mesh per iteration.
+LEGACY_CASES = [
+    ("manifoldCheck0_tet.vtu", "height"),
+    ("fertility_tet.vtu", "eigenfunction4"),
+    ("fertility_tet.vtu", "height"),
+    ("viscousFingers001_s2_tet.vtu", "density"),
+]
 POINTS = vtk.vtkDataObject.FIELD_ASSOCIATION_POINTS
 
 
@@ -111,7 +118,7 @@ def morse_smale(mesh, field):
     return result
 
 
-def case(path, field):
+def case(path, field, legacy=False):
     mesh = read(path)
     mesh.GetPointData().SetActiveScalars(field)
     values = vtk_to_numpy(mesh.GetPointData().GetArray(field)).astype(float)
@@ -124,6 +131,7 @@ def case(path, field):
         ts.SetInputDataObject(0, mesh)
         ts.SetInputDataObject(1, constraints)
         ts.SetInputArrayToProcess(0, 0, 0, POINTS, field)
+        ts.SetUseLTS(not legacy)
         ts.SetThreadNumber(2)
         ts.Update()
         simplified = ts.GetOutput()
@@ -148,16 +156,18 @@ def case(path, field):
 
 def main():
     data = sys.argv[1] if len(sys.argv) > 1 else "/work/shared/data"
-    results = {}
+    results, legacy = {}, {}
     for name, field in CASES:
         results.setdefault(name, {})[field] = case(os.path.join(data, name), field)
+    for name, field in LEGACY_CASES:
+        legacy.setdefault(name, {})[field] = case(os.path.join(data, name), field, legacy=True)
     target = os.path.join(os.path.dirname(os.path.abspath(__file__)), "simplification-ttk.json")
     with open(target, "w") as f:
         json.dump({"ttk_commit": "0a69faadd10224bf136f4f517a93dcd56c67f867",
                    "pipeline": "PersistenceDiagram -> Persistence >= t * range (no diagonal) -> "
                                "TopologicalSimplification (LTS) -> MorseSmaleComplex",
                    "value_format": "one line '<vertex id> <float64 value as %.17g>' per vertex",
-                   "results": results}, f, indent=1)
+                   "results": results, "legacy_results": legacy}, f, indent=1)
     print(target)
 
 
