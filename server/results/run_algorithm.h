@@ -48,8 +48,8 @@ struct SimplifiedMorseSmaleResult {
 // (critical-points); "embedding" = "diagram" | "domain" (persistence-diagram: pairs at
 // (birth, death) or at their vertices); "persistence_threshold" = an absolute persistence, or
 // "relative_threshold" = a fraction of the field's range (topological-simplification, and
-// morse-smale, which then runs on the simplified field), "backend" = "lts" (default) | "legacy". Unknown names and values are errors
-// naming them.
+// morse-smale, which then runs on the simplified field), "backend" = "lts" (default) |
+// "legacy". Unknown names and values are errors naming them.
 absl::Status ApplyParameters(const std::map<std::string, std::string>& parameters,
                              AlgorithmInput& input);
 
