@@ -37,8 +37,11 @@ CriticalCell MakeCriticalCell(const Topology& topo, std::span<const SimplexId> o
     case 2: std::copy_n(topo.triangle(c).begin(), 3, v.begin()); break;
     default: std::copy_n(topo.tetrahedron(c).begin(), 4, v.begin()); break;
   }
-  std::sort(v.begin(), v.begin() + d + 1,
-            [&](SimplexId a, SimplexId b) { return order[a] > order[b]; });
+  // Highest order first, by insertion: at most four (std::sort here makes GCC 12 warn about
+  // its large-input path, which four elements never take).
+  for (int i = 1; i <= d; ++i) {
+    for (int j = i; j > 0 && order[v[j]] > order[v[j - 1]]; --j) std::swap(v[j], v[j - 1]);
+  }
   CriticalCell cell{{-1, -1, -1, -1}, c, v[0]};
   for (int i = 0; i <= d; ++i) cell.key[i] = order[v[i]];
   return cell;
