@@ -16,6 +16,9 @@ from pathlib import Path
 import pytest
 from harness import BENCH_BIN, DATA_DIR, running_server
 
+import actopo
+from actopo._cli import main
+
 # The Ctrl-C tests send SIGINT to this process. A shell that starts a command in the background
 # without job control makes it ignore SIGINT, and Python then installs no KeyboardInterrupt
 # handler: restore Python's own, so the suite means the same however it was started.
@@ -65,3 +68,31 @@ def bench():
         return _bench_cache[key]
 
     return run
+
+
+# The CLI in this process, and meshes loaded once per module: shared by the CLI and job tests.
+@pytest.fixture
+def cli(server, capsys):
+    """cli(*args) -> (exit status, stdout, stderr) of `actopo --server TARGET args...`."""
+
+    def run(*args: str) -> tuple[int, str, str]:
+        status = main(["--server", server, *args])
+        out, err = capsys.readouterr()
+        return status, out, err
+
+    return run
+
+
+@pytest.fixture(scope="module")
+def meshes(client):
+    """meshes(file) -> the file loaded on the server, once per module."""
+    loaded: dict[str, actopo.MeshInfo] = {}
+
+    def load(name: str) -> actopo.MeshInfo:
+        if name not in loaded:
+            loaded[name] = client.load_mesh(name)
+        return loaded[name]
+
+    yield load
+    for mesh in loaded.values():
+        client.delete_mesh(mesh)

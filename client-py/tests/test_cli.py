@@ -15,18 +15,6 @@ import pytest
 from actopo._cli import main
 
 
-@pytest.fixture
-def cli(server, capsys):
-    """cli(*args) -> (exit status, stdout, stderr) of `actopo --server TARGET args...`."""
-
-    def run(*args: str) -> tuple[int, str, str]:
-        status = main(["--server", server, *args])
-        out, err = capsys.readouterr()
-        return status, out, err
-
-    return run
-
-
 def _json(cli, *args):
     status, out, err = cli(*args, "--json")
     assert status == 0, err

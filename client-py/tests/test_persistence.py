@@ -17,7 +17,6 @@ import pytest
 from harness import BENCH_BIN
 
 import actopo
-from actopo._cli import main
 from actopo._diagram import from_arrays, persistence_curve
 from actopo.types import PersistenceDiagram
 
@@ -119,21 +118,6 @@ def test_every_expected_diagram_is_tested(data_dir):
 @pytest.fixture(scope="module")
 def expected(data_dir):
     return json.loads((data_dir / "expected-ttk.json").read_text())
-
-
-@pytest.fixture(scope="module")
-def meshes(client):
-    """meshes(file) -> the file loaded on the server, once per module."""
-    loaded: dict[str, actopo.MeshInfo] = {}
-
-    def load(name: str) -> actopo.MeshInfo:
-        if name not in loaded:
-            loaded[name] = client.load_mesh(name)
-        return loaded[name]
-
-    yield load
-    for mesh in loaded.values():
-        client.delete_mesh(mesh)
 
 
 def _run(client, mesh, field, structure="compact", **options) -> actopo.JobResult:
@@ -331,18 +315,6 @@ def test_plot_draws_each_type_and_the_lines(fingers, tmp_path):
 
 
 # The command line.
-
-
-@pytest.fixture
-def cli(server, capsys):
-    """cli(*args) -> (exit status, stdout, stderr) of `actopo --server TARGET args...`."""
-
-    def run(*args: str) -> tuple[int, str, str]:
-        status = main(["--server", server, *args])
-        out, err = capsys.readouterr()
-        return status, out, err
-
-    return run
 
 
 def test_cli_plot_writes_a_png(cli, data_dir, bench, tmp_path):

@@ -21,7 +21,6 @@ from harness import BENCH_BIN, REPO
 
 import actopo
 from actopo import _simplified
-from actopo._cli import main
 from actopo._mesh import mesh_arrays
 from actopo._simplified import from_arrays
 from actopo.types import SimplifiedField
@@ -98,21 +97,6 @@ def reference():
     """reference(file, field, threshold) -> TTK's entry of simplification-ttk.json."""
     results = json.loads(REFERENCE.read_text())["results"]
     return lambda file, field, threshold: results[file][field][threshold]
-
-
-@pytest.fixture(scope="module")
-def meshes(client):
-    """meshes(file) -> the file loaded on the server, once per module."""
-    loaded: dict[str, actopo.MeshInfo] = {}
-
-    def load(name: str) -> actopo.MeshInfo:
-        if name not in loaded:
-            loaded[name] = client.load_mesh(name)
-        return loaded[name]
-
-    yield load
-    for mesh in loaded.values():
-        client.delete_mesh(mesh)
 
 
 @pytest.fixture(scope="module")
@@ -360,18 +344,6 @@ def test_files_with_meshio_only(client, meshes, data_dir, tmp_path, monkeypatch)
 
 
 # The command line.
-
-
-@pytest.fixture
-def cli(server, capsys):
-    """cli(*args) -> (exit status, stdout, stderr) of `actopo --server TARGET args...`."""
-
-    def run(*args: str) -> tuple[int, str, str]:
-        status = main(["--server", server, *args])
-        out, err = capsys.readouterr()
-        return status, out, err
-
-    return run
 
 
 def test_cli_runs_a_simplification(cli, data_dir, bench, reference, tmp_path, monkeypatch):
