@@ -8,6 +8,7 @@ from collections import deque
 from collections.abc import (
     AsyncIterator,
     Awaitable,
+    Callable,
     Coroutine,
     Generator,
     Iterable,
@@ -15,13 +16,13 @@ from collections.abc import (
     Mapping,
     Sequence,
 )
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import grpc
 import grpc.aio
 import numpy as np
 
-from actopo import _batches, _convert, _requests
+from actopo import _batches, _messages, _requests
 from actopo._batches import Piece
 from actopo._channel import (
     DEFAULT_TIMEOUT,
@@ -31,9 +32,9 @@ from actopo._channel import (
     client_metadata,
     resolve_target,
 )
-from actopo._errors import ActopoError, error_for_number, translate, translated
+from actopo._errors import ActopoError, translate, translated
 from actopo._literals import Algorithm, Precompute, Prefetch, Relation, Structure
-from actopo._mesh import MeshLike, mesh_arrays
+from actopo._mesh import MeshLike
 from actopo._progress import (
     LoadProgressArg,
     Progress,
@@ -41,9 +42,10 @@ from actopo._progress import (
     make_load_progress,
     make_progress,
 )
-from actopo._proto import pb, pb_grpc
-from actopo._requests import MeshRef, SimplexArg
+from actopo._proto import pb
+from actopo._requests import MeshRef, SimplexArg, SimplexIds
 from actopo._results import Assembler, JobResult
+from actopo._stub import async_stub
 from actopo._types import (
     LoadProgress,
     MeshInfo,
@@ -54,12 +56,12 @@ from actopo._types import (
     SimplexRelation,
     StreamItem,
 )
-from actopo._upload import requests as upload_requests
 
 if TYPE_CHECKING:
     from typing_extensions import Self
 
-_UNSET: Any = object()
+_Request = TypeVar("_Request")
+_Response = TypeVar("_Response")
 
 
 class AsyncClient:
@@ -88,7 +90,7 @@ class AsyncClient:
                  options: Sequence[tuple[str, Any]] = (), retries: bool = True) -> None:
         self.target = resolve_target(target)
         self._channel = async_channel(self.target, tls, options, retries)
-        self._stub = pb_grpc.TopologyServiceStub(self._channel)
+        self._stub = async_stub(self._channel)
         self.affinity_key, self._metadata = client_metadata(token, affinity_key)
         self._timeout = timeout
         self._mesh_timeout = MESH_TIMEOUT if timeout is not None else None
@@ -107,17 +109,18 @@ class AsyncClient:
     def __repr__(self) -> str:
         return f"actopo.AsyncClient({self.target!r})"
 
-    async def _call(self, method: str, request: Any, *, timeout: Any = _UNSET,
-                    mesh: bool = False) -> Any:
+    async def _call(self, rpc: grpc.aio.UnaryUnaryMultiCallable[_Request, _Response],
+                    request: _Request, *, long: bool = False, mesh: bool = False) -> _Response:
+        """See Client._call()."""
         with translated(mesh=mesh):
-            return await getattr(self._stub, method)(
-                request, timeout=self._timeout if timeout is _UNSET else timeout,
-                metadata=self._metadata)
+            return await rpc(request, timeout=self._mesh_timeout if long else self._timeout,
+                             metadata=self._metadata)
 
     async def server_info(self) -> ServerInfo:
         """See Client.server_info()."""
-        info = _convert.server_info(await self._call("GetServerInfo", pb.GetServerInfoRequest()))
-        self._max_batch = info.limits.max_batch_size or _requests.DEFAULT_BATCH
+        response = await self._call(self._stub.GetServerInfo, _messages.build_get_server_info())
+        info = _messages.decode_get_server_info(response)
+        self._max_batch = _messages.max_batch(info)
         return info
 
     async def _batch_size(self) -> int:
@@ -128,23 +131,23 @@ class AsyncClient:
     async def load_mesh(self, path: str, *, block_size: int = 0, block_label_field: str = "",
                         progress: LoadProgressArg = None) -> MeshInfo:
         """See Client.load_mesh(). Cancelling the awaiting task stops the load on the server."""
-        request = _requests.load(path, block_size, block_label_field)
+        request = _messages.build_load_mesh(path, block_size, block_label_field)
         if progress:
             return await self._load_reporting(request,
                                               make_load_progress(progress, f"load {path}"))
-        response = await self._call("LoadMesh", request, timeout=self._mesh_timeout, mesh=True)
-        return _convert.mesh_info(response.mesh)
+        response = await self._call(self._stub.LoadMesh, request, long=True, mesh=True)
+        return _messages.decode_load_mesh(response)
 
     async def _load_reporting(self, request: pb.LoadMeshRequest,
                               bar: Progress[LoadProgress]) -> MeshInfo:
         """See Client._load_reporting()."""
-        stream = _requests.LoadStream(bar.update)
-        call = self._stub.LoadMeshWithProgress(pb.LoadMeshWithProgressRequest(load=request),
+        stream = _messages.LoadStream(bar.update)
+        call = self._stub.LoadMeshWithProgress(_messages.build_load_mesh_with_progress(request),
                                                timeout=self._mesh_timeout,
                                                metadata=self._metadata)
         try:
             with translated(mesh=True):
-                while (response := await call.read()) is not grpc.aio.EOF:
+                async for response in call:
                     stream.feed(response)
         finally:
             call.cancel()  # stops the load after cancellation or a raising callback
@@ -159,40 +162,38 @@ class AsyncClient:
     async def upload_mesh(self, mesh: MeshLike, *, name: str | None = None, block_size: int = 0,
                           block_label_field: str = "") -> MeshInfo:
         """See Client.upload_mesh()."""
-        arrays = mesh_arrays(mesh, name)
-        partition = _requests.partition(block_size, block_label_field)
+        requests = _messages.build_upload_mesh(mesh, name, block_size, block_label_field)
         with translated(mesh=True):
-            response = await self._stub.UploadMesh(upload_requests(arrays, partition),
-                                                   timeout=self._mesh_timeout,
+            response = await self._stub.UploadMesh(requests, timeout=self._mesh_timeout,
                                                    metadata=self._metadata)
-        return _convert.mesh_info(response.mesh)
+        return _messages.decode_upload_mesh(response)
 
     async def list_meshes(self) -> list[MeshInfo]:
         """See Client.list_meshes()."""
-        response = await self._call("ListMeshes", pb.ListMeshesRequest())
-        return [_convert.mesh_info(m) for m in response.meshes]
+        response = await self._call(self._stub.ListMeshes, _messages.build_list_meshes())
+        return _messages.decode_list_meshes(response)
 
     async def get_mesh(self, mesh: MeshRef) -> MeshInfo:
         """See Client.get_mesh()."""
-        request = pb.GetMeshRequest(mesh_id=_requests.mesh_id(mesh))
-        return _convert.mesh_info((await self._call("GetMesh", request)).mesh)
+        response = await self._call(self._stub.GetMesh, _messages.build_get_mesh(mesh))
+        return _messages.decode_get_mesh(response)
 
     async def delete_mesh(self, mesh: MeshRef) -> None:
         """See Client.delete_mesh()."""
-        await self._call("DeleteMesh", pb.DeleteMeshRequest(mesh_id=_requests.mesh_id(mesh)))
+        await self._call(self._stub.DeleteMesh, _messages.build_delete_mesh(mesh))
 
     def open_session(self, mesh: MeshRef, *, scalar: str | None = None,
                      structure: Structure = "actopo", consumers: int = 0, producers: int = 0,
                      buffer_ratio: float = 0.0, prefetch: Prefetch = "auto",
                      precompute: Precompute = "auto", query_readers: int = 0) -> _SessionOpener:
         """See Client.open_session(). Await it, or use ``async with`` to close it at the end."""
-        request = _requests.open_session(mesh, scalar, structure, consumers, producers,
-                                         buffer_ratio, prefetch, precompute, query_readers)
+        request = _messages.build_open_session(mesh, scalar, structure, consumers, producers,
+                                               buffer_ratio, prefetch, precompute, query_readers)
         return _SessionOpener(self._open(request))
 
     async def _open(self, request: pb.OpenSessionRequest) -> AsyncSession:
-        response = await self._call("OpenSession", request, timeout=self._mesh_timeout)
-        return AsyncSession(self, _convert.session_info(response.session))
+        response = await self._call(self._stub.OpenSession, request, long=True)
+        return AsyncSession(self, _messages.decode_open_session(response))
 
     async def session(self, session_id: str) -> AsyncSession:
         """See Client.session()."""
@@ -200,22 +201,22 @@ class AsyncClient:
 
     async def get_session(self, session_id: str) -> SessionInfo:
         """See Client.get_session()."""
-        request = pb.GetSessionRequest(session_id=_requests.session_id(session_id))
-        return _convert.session_info((await self._call("GetSession", request)).session)
+        response = await self._call(self._stub.GetSession,
+                                    _messages.build_get_session(session_id))
+        return _messages.decode_get_session(response)
 
     async def list_sessions(self) -> list[SessionInfo]:
         """See Client.list_sessions()."""
-        response = await self._call("ListSessions", pb.ListSessionsRequest())
-        return [_convert.session_info(s) for s in response.sessions]
+        response = await self._call(self._stub.ListSessions, _messages.build_list_sessions())
+        return _messages.decode_list_sessions(response)
 
     async def close_session(self, session_id: str) -> None:
         """See Client.close_session()."""
-        request = pb.CloseSessionRequest(session_id=_requests.session_id(session_id))
-        await self._call("CloseSession", request)
+        await self._call(self._stub.CloseSession, _messages.build_close_session(session_id))
 
     async def cancel_job(self, job_id: str) -> None:
         """See Client.cancel_job()."""
-        await self._call("CancelJob", pb.CancelJobRequest(job_id=job_id))
+        await self._call(self._stub.CancelJob, _messages.build_cancel_job(job_id))
 
 
 class _SessionOpener(Awaitable["AsyncSession"]):
@@ -271,21 +272,23 @@ class AsyncSession:
         self.info = await self._client.get_session(self._id())
         return self.info
 
-    async def relation(self, name: Relation, ids: Any, *,
+    async def relation(self, name: Relation, ids: SimplexIds, *,
                        raise_errors: bool = True) -> RelationBatch:
         """See Session.relation()."""
         values = _requests.simplex_array(ids)
-        chunk = _batches.chunk_size(None, await self._client._batch_size())
-        if raise_errors and len(values) <= chunk:
-            request = pb.GetRelationBatchRequest(session_id=self._id(),
-                                                 relation=_requests.relation(name),
-                                                 **_requests.simplices(values))
-            return _requests.merge([await self._client._call("GetRelationBatch", request)])
-        batches = [b async for b in self.relation_batches(name, [values],
+        if _batches.in_one_call(values, raise_errors, await self._client._batch_size()):
+            return await self._batch(_requests.relation(name), values)
+        [batch] = [b async for b in self.relation_batches(name, [values],
                                                           raise_errors=raise_errors)]
-        return batches[0]
+        return batch
 
-    async def relation_batches(self, name: Relation, arrays: Iterable[Any], *,
+    async def _batch(self, code: pb.Relation, values: np.ndarray) -> RelationBatch:
+        """See Session._batch()."""
+        request = _messages.build_get_relation_batch(self._id(), code, values)
+        response = await self._client._call(self._client._stub.GetRelationBatch, request)
+        return _messages.decode_get_relation_batch(response)
+
+    async def relation_batches(self, name: Relation, arrays: Iterable[SimplexIds], *,
                                chunk_size: int | None = None,
                                window: int = _batches.STREAM_WINDOW,
                                raise_errors: bool = False) -> AsyncIterator[RelationBatch]:
@@ -300,7 +303,7 @@ class AsyncSession:
         call = self._client._stub.StreamRelations(metadata=self._client._metadata)
         writer = asyncio.ensure_future(_write(call, messages, slots, pieces, failed))
         try:
-            while (response := await call.read()) is not grpc.aio.EOF:
+            async for response in call:
                 if not pieces:
                     raise ActopoError("StreamRelations: an answer to no request")
                 slots.release()
@@ -320,23 +323,19 @@ class AsyncSession:
     async def query(self, name: Relation, simplex: SimplexArg, *,
                     include_vertices: bool = False) -> SimplexRelation:
         """See Session.query()."""
-        request = _requests.single(self._id(), name, simplex, include_vertices)
-        return _requests.single_result(await self._client._call("GetRelation", request))
+        request = _messages.build_get_relation(self._id(), name, simplex, include_vertices)
+        response = await self._client._call(self._client._stub.GetRelation, request)
+        return _messages.decode_get_relation(response)
 
     async def relations_stream(self, name: Relation, simplices: Iterable[SimplexArg], *,
                                raise_errors: bool = False) -> AsyncIterator[StreamItem]:
         """See Session.relations_stream(); an async iterator."""
         call = self._client._stub.StreamRelations(
-            _requests.stream(self._id(), name, simplices), metadata=self._client._metadata)
+            _messages.build_stream_relations(self._id(), name, simplices),
+            metadata=self._client._metadata)
         try:
-            while (response := await call.read()) is not grpc.aio.EOF:
-                error = None
-                if response.HasField("error") and response.error.code:
-                    error = error_for_number(response.error.code, response.error.message)
-                    if raise_errors:
-                        raise error
-                yield StreamItem(int(response.request_id),
-                                 np.array(response.ids, dtype=np.int64), error)
+            async for response in call:
+                yield _messages.decode_stream_relations(response, raise_errors)
         except grpc.RpcError as e:
             raise translate(e) from None
         finally:
@@ -346,7 +345,8 @@ class AsyncSession:
                      include_arrays: bool = True, trace: bool = False,
                      timeout: float | None = None) -> AsyncJob:
         """See Session.submit()."""
-        request, name = _requests.run(self._id(), algorithm, parameters, include_arrays, trace)
+        request, name = _messages.build_run_job(self._id(), algorithm, parameters,
+                                                include_arrays, trace)
         call = self._client._stub.RunJob(request, timeout=timeout,
                                          metadata=self._client._metadata)
         job = AsyncJob(self._client, call, name)
@@ -363,11 +363,14 @@ class AsyncSession:
 
     async def stats(self) -> SessionStats:
         """See Session.stats()."""
-        request = pb.GetSessionStatsRequest(session_id=self._id())
-        return _convert.session_stats(await self._client._call("GetSessionStats", request))
+        request = _messages.build_get_session_stats(self._id())
+        response = await self._client._call(self._client._stub.GetSessionStats, request)
+        return _messages.decode_get_session_stats(response)
 
 
-async def _write(call: Any, messages: Iterator[tuple[pb.StreamRelationsRequest, Piece]],
+async def _write(call: grpc.aio.StreamStreamCall[pb.StreamRelationsRequest,
+                                                 pb.StreamRelationsResponse],
+                 messages: Iterator[tuple[pb.StreamRelationsRequest, Piece]],
                  slots: asyncio.Semaphore, pieces: deque[Piece], failed: list[Exception]) -> None:
     """The sending side of AsyncSession.relation_batches(): writes the messages, each once a
     place in the window is free, noting what each carries; an error of the caller's arrays
@@ -393,9 +396,12 @@ async def _write(call: Any, messages: Iterator[tuple[pb.StreamRelationsRequest, 
 class AsyncJob:
     """The asyncio twin of Job."""
 
-    def __init__(self, client: AsyncClient, call: Any, algorithm: Algorithm) -> None:
+    def __init__(self, client: AsyncClient,
+                 call: grpc.aio.UnaryStreamCall[pb.RunJobRequest, pb.RunJobResponse],
+                 algorithm: Algorithm) -> None:
         self._client = client
         self._call = call
+        self._responses = aiter(call)
         self._assembler = Assembler(algorithm)
         self.algorithm = algorithm
         self.job_id = ""
@@ -403,10 +409,10 @@ class AsyncJob:
     def __repr__(self) -> str:
         return f"actopo.AsyncJob({self.job_id!r}, {self.algorithm!r})"
 
-    async def _read(self, on_progress: Any = None) -> bool:
+    async def _read(self, on_progress: Callable[[float], Any] | None = None) -> bool:
         """Reads one response; False at the end of the stream."""
-        response = await self._call.read()
-        if response is grpc.aio.EOF:
+        response = await anext(self._responses, None)
+        if response is None:
             return False
         fraction = self._assembler.feed(response)
         if fraction is not None and on_progress is not None:

@@ -6,14 +6,13 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from actopo._arrays import to_numpy
 from actopo._errors import ActopoError, InvalidArgumentError, error_for_number, status_code
 from actopo._proto import pb
-from actopo._requests import simplex_array, simplices
+from actopo._requests import SimplexIds, simplex_array, simplices
 from actopo._types import FailedItem, RelationBatch
 
 STREAM_CHUNK = 65_536
@@ -27,6 +26,13 @@ def chunk_size(requested: int | None, max_batch: int) -> int:
     if requested is not None and requested < 1:
         raise InvalidArgumentError(f"chunk_size: {requested} is not positive")
     return max(min(requested or STREAM_CHUNK, max_batch), 1)
+
+
+def in_one_call(values: np.ndarray, raise_errors: bool, max_batch: int) -> bool:
+    """Whether Session.relation() asks `values` (simplex_array()'s) in one GetRelationBatch
+    call: they fit in one message, and a failed simplex may fail the whole call; else they go
+    over StreamRelations, which answers the others and lists the failed ones."""
+    return raise_errors and len(values) <= chunk_size(None, max_batch)
 
 
 def window_size(window: int) -> int:
@@ -48,7 +54,7 @@ class Piece:
     last: bool
 
 
-def messages(session: str, relation: Any, arrays: Iterable[Any],
+def messages(session: str, relation: pb.Relation, arrays: Iterable[SimplexIds],
              chunk: int) -> Iterator[tuple[pb.StreamRelationsRequest, Piece]]:
     """The messages of a stream, `chunk` simplices at most each, with what each carries.
 

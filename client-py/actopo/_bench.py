@@ -140,13 +140,12 @@ def _unary(session: Session, load: Load, ids: _Ids, tally: _Tally, clock: _Clock
 
 
 def _batch(session: Session, load: Load, ids: _Ids, tally: _Tally, clock: _Clock) -> None:
-    client = session._client
+    code = _requests.relation(load.relation)
     while clock.more(tally.requests):
-        values = ids.take(load.batch_size)
-        [request] = _requests.batches(session.session_id, load.relation, values, len(values))
+        values = _requests.simplex_array(ids.take(load.batch_size))
         start = time.perf_counter()
         try:
-            _requests.merge([client._call("GetRelationBatch", request)])
+            session._batch(code, values)  # one GetRelationBatch call, whatever its size
         except ActopoError as e:
             tally.fail(e)
             continue

@@ -5,12 +5,12 @@ from __future__ import annotations
 import threading
 from collections import deque
 from collections.abc import Iterable, Iterator, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import grpc
 import numpy as np
 
-from actopo import _batches, _convert, _requests
+from actopo import _batches, _messages, _requests
 from actopo._batches import Piece
 from actopo._channel import (
     DEFAULT_TIMEOUT,
@@ -20,9 +20,9 @@ from actopo._channel import (
     resolve_target,
     sync_channel,
 )
-from actopo._errors import ActopoError, error_for_number, translate, translated
+from actopo._errors import ActopoError, translate, translated
 from actopo._literals import Algorithm, Precompute, Prefetch, Relation, Structure
-from actopo._mesh import MeshLike, mesh_arrays
+from actopo._mesh import MeshLike
 from actopo._progress import (
     LoadProgressArg,
     Progress,
@@ -30,9 +30,10 @@ from actopo._progress import (
     make_load_progress,
     make_progress,
 )
-from actopo._proto import pb, pb_grpc
-from actopo._requests import MeshRef, SimplexArg
+from actopo._proto import pb
+from actopo._requests import MeshRef, SimplexArg, SimplexIds
 from actopo._results import Assembler, JobResult
+from actopo._stub import ResponseStream, sync_stub
 from actopo._types import (
     LoadProgress,
     MeshInfo,
@@ -43,12 +44,12 @@ from actopo._types import (
     SimplexRelation,
     StreamItem,
 )
-from actopo._upload import requests as upload_requests
 
 if TYPE_CHECKING:
     from typing_extensions import Self
 
-_UNSET: Any = object()
+_Request = TypeVar("_Request")
+_Response = TypeVar("_Response")
 
 
 class Client:
@@ -90,7 +91,7 @@ class Client:
                  options: Sequence[tuple[str, Any]] = (), retries: bool = True) -> None:
         self.target = resolve_target(target)
         self._channel = sync_channel(self.target, tls, options, retries)
-        self._stub = pb_grpc.TopologyServiceStub(self._channel)
+        self._stub = sync_stub(self._channel)
         self.affinity_key, self._metadata = client_metadata(token, affinity_key)
         self._timeout = timeout
         self._mesh_timeout = MESH_TIMEOUT if timeout is not None else None
@@ -109,12 +110,14 @@ class Client:
     def __repr__(self) -> str:
         return f"actopo.Client({self.target!r})"
 
-    def _call(self, method: str, request: Any, *, timeout: Any = _UNSET,
-              mesh: bool = False) -> Any:
+    def _call(self, rpc: grpc.UnaryUnaryMultiCallable[_Request, _Response], request: _Request,
+              *, long: bool = False, mesh: bool = False) -> _Response:
+        """A unary call with this client's metadata and deadline (`long`: that of loading,
+        uploading and opening sessions); `mesh` marks calls whose argument is a mesh, so that
+        INVALID_ARGUMENT raises InvalidMeshError."""
         with translated(mesh=mesh):
-            return getattr(self._stub, method)(
-                request, timeout=self._timeout if timeout is _UNSET else timeout,
-                metadata=self._metadata)
+            return rpc(request, timeout=self._mesh_timeout if long else self._timeout,
+                       metadata=self._metadata)
 
     # Server.
 
@@ -125,8 +128,9 @@ class Client:
         ['topo-relations', 'critical-points', 'discrete-gradient', 'morse-smale',
          'persistence-diagram', 'topological-simplification']
         """
-        info = _convert.server_info(self._call("GetServerInfo", pb.GetServerInfoRequest()))
-        self._max_batch = info.limits.max_batch_size or _requests.DEFAULT_BATCH
+        response = self._call(self._stub.GetServerInfo, _messages.build_get_server_info())
+        info = _messages.decode_get_server_info(response)
+        self._max_batch = _messages.max_batch(info)
         return info
 
     def _batch_size(self) -> int:
@@ -153,17 +157,17 @@ class Client:
         ['read', 'partition', 'encode']
         >>> client.delete_mesh(info)
         """
-        request = _requests.load(path, block_size, block_label_field)
+        request = _messages.build_load_mesh(path, block_size, block_label_field)
         if progress:
             return self._load_reporting(request, make_load_progress(progress, f"load {path}"))
-        response = self._call("LoadMesh", request, timeout=self._mesh_timeout, mesh=True)
-        return _convert.mesh_info(response.mesh)
+        response = self._call(self._stub.LoadMesh, request, long=True, mesh=True)
+        return _messages.decode_load_mesh(response)
 
     def _load_reporting(self, request: pb.LoadMeshRequest,
                         bar: Progress[LoadProgress]) -> MeshInfo:
         """LoadMeshWithProgress: reports each progress message to `bar`."""
-        stream = _requests.LoadStream(bar.update)
-        call = self._stub.LoadMeshWithProgress(pb.LoadMeshWithProgressRequest(load=request),
+        stream = _messages.LoadStream(bar.update)
+        call = self._stub.LoadMeshWithProgress(_messages.build_load_mesh_with_progress(request),
                                                timeout=self._mesh_timeout,
                                                metadata=self._metadata)
         try:
@@ -197,27 +201,25 @@ class Client:
         (4, 6, 4, 1)
         >>> client.delete_mesh(info)
         """
-        arrays = mesh_arrays(mesh, name)
-        partition = _requests.partition(block_size, block_label_field)
+        requests = _messages.build_upload_mesh(mesh, name, block_size, block_label_field)
         with translated(mesh=True):
-            response = self._stub.UploadMesh(upload_requests(arrays, partition),
-                                             timeout=self._mesh_timeout,
+            response = self._stub.UploadMesh(requests, timeout=self._mesh_timeout,
                                              metadata=self._metadata)
-        return _convert.mesh_info(response.mesh)
+        return _messages.decode_upload_mesh(response)
 
     def list_meshes(self) -> list[MeshInfo]:
         """The meshes loaded on the server."""
-        response = self._call("ListMeshes", pb.ListMeshesRequest())
-        return [_convert.mesh_info(m) for m in response.meshes]
+        response = self._call(self._stub.ListMeshes, _messages.build_list_meshes())
+        return _messages.decode_list_meshes(response)
 
     def get_mesh(self, mesh: MeshRef) -> MeshInfo:
         """Describes one mesh (by MeshInfo or id)."""
-        request = pb.GetMeshRequest(mesh_id=_requests.mesh_id(mesh))
-        return _convert.mesh_info(self._call("GetMesh", request).mesh)
+        response = self._call(self._stub.GetMesh, _messages.build_get_mesh(mesh))
+        return _messages.decode_get_mesh(response)
 
     def delete_mesh(self, mesh: MeshRef) -> None:
         """Deletes a mesh; the server frees it once no session uses it."""
-        self._call("DeleteMesh", pb.DeleteMeshRequest(mesh_id=_requests.mesh_id(mesh)))
+        self._call(self._stub.DeleteMesh, _messages.build_delete_mesh(mesh))
 
     # Sessions.
 
@@ -233,10 +235,10 @@ class Client:
         `query_readers`: relation calls answered at once on the session, each with a reader of
         its own (0: the server's default, one per server core, at most 4; the server allows
         1 to 64). Use it as a context manager to close it."""
-        request = _requests.open_session(mesh, scalar, structure, consumers, producers,
-                                         buffer_ratio, prefetch, precompute, query_readers)
-        response = self._call("OpenSession", request, timeout=self._mesh_timeout)
-        return Session(self, _convert.session_info(response.session))
+        request = _messages.build_open_session(mesh, scalar, structure, consumers, producers,
+                                               buffer_ratio, prefetch, precompute, query_readers)
+        response = self._call(self._stub.OpenSession, request, long=True)
+        return Session(self, _messages.decode_open_session(response))
 
     def session(self, session_id: str) -> Session:
         """A handle on an open session by id (e.g. one opened by the CLI)."""
@@ -244,22 +246,21 @@ class Client:
 
     def get_session(self, session_id: str) -> SessionInfo:
         """Describes one session."""
-        request = pb.GetSessionRequest(session_id=_requests.session_id(session_id))
-        return _convert.session_info(self._call("GetSession", request).session)
+        response = self._call(self._stub.GetSession, _messages.build_get_session(session_id))
+        return _messages.decode_get_session(response)
 
     def list_sessions(self) -> list[SessionInfo]:
         """The open sessions."""
-        response = self._call("ListSessions", pb.ListSessionsRequest())
-        return [_convert.session_info(s) for s in response.sessions]
+        response = self._call(self._stub.ListSessions, _messages.build_list_sessions())
+        return _messages.decode_list_sessions(response)
 
     def close_session(self, session_id: str) -> None:
         """Closes a session by id, cancelling its running job."""
-        request = pb.CloseSessionRequest(session_id=_requests.session_id(session_id))
-        self._call("CloseSession", request)
+        self._call(self._stub.CloseSession, _messages.build_close_session(session_id))
 
     def cancel_job(self, job_id: str) -> None:
         """Cancels a running job by id."""
-        self._call("CancelJob", pb.CancelJobRequest(job_id=job_id))
+        self._call(self._stub.CancelJob, _messages.build_cancel_job(job_id))
 
 
 class Session:
@@ -303,7 +304,8 @@ class Session:
             raise ValueError("the session is closed")
         return self.session_id
 
-    def relation(self, name: Relation, ids: Any, *, raise_errors: bool = True) -> RelationBatch:
+    def relation(self, name: Relation, ids: SimplexIds, *,
+                 raise_errors: bool = True) -> RelationBatch:
         """A relation of many simplices, as CSR numpy arrays ``(offsets, values)``.
 
         `name`: e.g. "vertex_edges", "edge_triangles", "tetrahedron_neighbors", "vertex_link";
@@ -328,15 +330,18 @@ class Session:
         (array([0, 1, 1, 2]), 1, 'ids[1]: vertex id 7 is outside [0, 5)')
         """
         values = _requests.simplex_array(ids)
-        if raise_errors and len(values) <= _batches.chunk_size(None, self._client._batch_size()):
-            request = pb.GetRelationBatchRequest(session_id=self._id(),
-                                                 relation=_requests.relation(name),
-                                                 **_requests.simplices(values))
-            return _requests.merge([self._client._call("GetRelationBatch", request)])
+        if _batches.in_one_call(values, raise_errors, self._client._batch_size()):
+            return self._batch(_requests.relation(name), values)
         [batch] = self.relation_batches(name, [values], raise_errors=raise_errors)
         return batch
 
-    def relation_batches(self, name: Relation, arrays: Iterable[Any], *,
+    def _batch(self, code: pb.Relation, values: np.ndarray) -> RelationBatch:
+        """One GetRelationBatch call; `values` as simplex_array() gives them."""
+        request = _messages.build_get_relation_batch(self._id(), code, values)
+        response = self._client._call(self._client._stub.GetRelationBatch, request)
+        return _messages.decode_get_relation_batch(response)
+
+    def relation_batches(self, name: Relation, arrays: Iterable[SimplexIds], *,
                          chunk_size: int | None = None, window: int = _batches.STREAM_WINDOW,
                          raise_errors: bool = False) -> Iterator[RelationBatch]:
         """Streams one relation over many arrays of simplices on one StreamRelations call,
@@ -386,8 +391,9 @@ class Session:
                [1, 2, 3],
                [1, 2, 4]])
         """
-        request = _requests.single(self._id(), name, simplex, include_vertices)
-        return _requests.single_result(self._client._call("GetRelation", request))
+        request = _messages.build_get_relation(self._id(), name, simplex, include_vertices)
+        response = self._client._call(self._client._stub.GetRelation, request)
+        return _messages.decode_get_relation(response)
 
     def relations_stream(self, name: Relation, simplices: Iterable[SimplexArg], *,
                          raise_errors: bool = False) -> Iterator[StreamItem]:
@@ -395,16 +401,11 @@ class Session:
         per simplex as answers arrive. A bad simplex gets its own error and the stream goes
         on, unless raise_errors. `simplices` may be a lazy iterable."""
         call = self._client._stub.StreamRelations(
-            _requests.stream(self._id(), name, simplices), metadata=self._client._metadata)
+            _messages.build_stream_relations(self._id(), name, simplices),
+            metadata=self._client._metadata)
         try:
             for response in call:
-                error = None
-                if response.HasField("error") and response.error.code:
-                    error = error_for_number(response.error.code, response.error.message)
-                    if raise_errors:
-                        raise error
-                yield StreamItem(int(response.request_id),
-                                 np.array(response.ids, dtype=np.int64), error)
+                yield _messages.decode_stream_relations(response, raise_errors)
         except grpc.RpcError as e:
             raise translate(e) from None
         finally:
@@ -414,7 +415,8 @@ class Session:
                include_arrays: bool = True, trace: bool = False,
                timeout: float | None = None) -> Job:
         """Starts a job and returns once the server accepted it; see run()."""
-        request, name = _requests.run(self._id(), algorithm, parameters, include_arrays, trace)
+        request, name = _messages.build_run_job(self._id(), algorithm, parameters,
+                                                include_arrays, trace)
         call = self._client._stub.RunJob(request, timeout=timeout,
                                          metadata=self._client._metadata)
         return Job(self._client, call, name)
@@ -447,8 +449,9 @@ class Session:
 
     def stats(self) -> SessionStats:
         """Cumulative statistics of the session (diff two snapshots for an interval)."""
-        request = pb.GetSessionStatsRequest(session_id=self._id())
-        return _convert.session_stats(self._client._call("GetSessionStats", request))
+        request = _messages.build_get_session_stats(self._id())
+        response = self._client._call(self._client._stub.GetSessionStats, request)
+        return _messages.decode_get_session_stats(response)
 
 
 class _Feeder:
@@ -509,7 +512,8 @@ class Job:
     """A running job (Session.submit()). ``job_id`` is known as soon as it is created;
     result() waits for the end; cancel() may be called from any thread."""
 
-    def __init__(self, client: Client, call: Any, algorithm: Algorithm) -> None:
+    def __init__(self, client: Client, call: ResponseStream[pb.RunJobResponse],
+                 algorithm: Algorithm) -> None:
         self._client = client
         self._call = call
         self._lock = threading.Lock()

@@ -2,27 +2,33 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
+from typing import Any, TypeVar
 
 from actopo._errors import InvalidArgumentError
 from actopo._proto import pb
 
+_E = TypeVar("_E", bound=int)
+
 
 def _names(enum: Any, prefix: str, sep: str = "_") -> dict[str, Any]:
-    values: Mapping[str, int] = dict(enum.items())
+    """The values of a proto enum by lower-case name without `prefix` (UNSPECIFIED left out).
+    The enum's values are of the enum's type; protoc's .pyi types them as int, so each table
+    below says which enum it holds."""
+    values: list[tuple[str, int]] = enum.items()
     return {name[len(prefix):].lower().replace("_", sep): value
-            for name, value in values.items() if not name.endswith("_UNSPECIFIED")}
+            for name, value in values if not name.endswith("_UNSPECIFIED")}
 
 
-RELATIONS = _names(pb.Relation, "RELATION_")
-ALGORITHMS = _names(pb.Algorithm, "ALGORITHM_", "-")
-STRUCTURES = _names(pb.Structure, "STRUCTURE_")
-PREFETCH = {"auto": pb.PREFETCH_UNSPECIFIED, **_names(pb.Prefetch, "PREFETCH_")}
-PRECOMPUTE = {"auto": pb.PRECOMPUTE_UNSPECIFIED, **_names(pb.Precompute, "PRECOMPUTE_")}
+RELATIONS: dict[str, pb.Relation] = _names(pb.Relation, "RELATION_")
+ALGORITHMS: dict[str, pb.Algorithm] = _names(pb.Algorithm, "ALGORITHM_", "-")
+STRUCTURES: dict[str, pb.Structure] = _names(pb.Structure, "STRUCTURE_")
+PREFETCH: dict[str, pb.Prefetch] = {
+    "auto": pb.PREFETCH_UNSPECIFIED, **_names(pb.Prefetch, "PREFETCH_")}
+PRECOMPUTE: dict[str, pb.Precompute] = {
+    "auto": pb.PRECOMPUTE_UNSPECIFIED, **_names(pb.Precompute, "PRECOMPUTE_")}
 
 
-def lookup(table: dict[str, Any], name: str, what: str) -> Any:
+def lookup(table: dict[str, _E], name: str, what: str) -> _E:
     """The enum value of `name`; '-' and '_' are interchangeable, case is ignored."""
     key = str(name).strip().lower()
     for candidate in (key, key.replace("-", "_"), key.replace("_", "-")):
@@ -32,8 +38,9 @@ def lookup(table: dict[str, Any], name: str, what: str) -> Any:
                                f"{', '.join(table)}")
 
 
-def name_of(table: dict[str, Any], value: int, unspecified: str = "") -> str:
+def name_of(table: dict[str, _E], value: int, unspecified: str = "") -> str:
     for name, v in table.items():
         if v == value:
             return name
     return unspecified
+

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import actopo
-from actopo import _mesh, _names, _requests, _upload
+from actopo import _batches, _mesh, _messages, _names, _requests, _upload
 from actopo._errors import error_for, error_for_number, translate
 from actopo._progress import make_load_progress
 from actopo._proto import pb
@@ -131,23 +131,47 @@ def test_names():
         _names.lookup(_names.RELATIONS, "vv", "relation")
 
 
-def test_batches_split_and_merge():
-    requests = _requests.batches("s", "vertex_star", np.arange(5), max_batch=2)
-    assert [len(r.ids.data) // 8 for r in requests] == [2, 2, 1]
-    responses = []
-    for r in requests:
-        n = len(r.ids.data) // 8
-        offsets = np.arange(n + 1, dtype=np.int64) * 2
-        values = np.repeat(np.frombuffer(r.ids.data, dtype="<i8"), 2)
-        responses.append(pb.GetRelationBatchResponse(
-            offsets=pb.Array(dtype=pb.DATA_TYPE_INT64, shape=[n + 1], data=offsets.tobytes()),
-            values=pb.Array(dtype=pb.DATA_TYPE_INT64, shape=[2 * n], data=values.tobytes())))
-    batch = _requests.merge(responses)
+def _int64(values) -> pb.Array:
+    values = np.asarray(values, dtype="<i8")
+    return pb.Array(dtype=pb.DATA_TYPE_INT64, shape=list(values.shape), data=values.tobytes())
+
+
+def test_a_relation_batch_request_and_its_answer():
+    code = _requests.relation("vertex_star")
+    request = _messages.build_get_relation_batch("s", code, _requests.simplex_array(range(5)))
+    assert (request.session_id, request.relation) == ("s", pb.RELATION_VERTEX_STAR)
+    assert np.frombuffer(request.ids.data, "<i8").tolist() == [0, 1, 2, 3, 4]
+    tuples = _messages.build_get_relation_batch(
+        "s", code, _requests.simplex_array(np.array([[0, 1], [1, 2]], dtype=np.int32)))
+    assert list(tuples.vertex_tuples.shape) == [2, 2] and not tuples.HasField("ids")
+    assert tuples.vertex_tuples.dtype == pb.DATA_TYPE_INT32
+    batch = _messages.decode_get_relation_batch(pb.GetRelationBatchResponse(
+        offsets=_int64(np.arange(6) * 2), values=_int64(np.repeat(np.arange(5), 2))))
     np.testing.assert_array_equal(batch.offsets, np.arange(6) * 2)
     np.testing.assert_array_equal(batch.of(3), [3, 3])
-    assert batch.num_simplices == 5 and len(batch.split()) == 5
-    tuples = _requests.batches("s", "edge_star", [[0, 1], [1, 2]], max_batch=10)
-    assert list(tuples[0].vertex_tuples.shape) == [2, 2] and not tuples[0].HasField("ids")
+    assert batch.num_simplices == 5 and len(batch.split()) == 5 and batch.errors == ()
+
+
+def test_one_call_or_a_stream():
+    """relation() asks in one GetRelationBatch call what fits in a message and may fail as a
+    whole; the rest goes over StreamRelations."""
+    values = _requests.simplex_array(range(10))
+    assert _batches.in_one_call(values, raise_errors=True, max_batch=10)
+    assert not _batches.in_one_call(values, raise_errors=True, max_batch=9)
+    assert not _batches.in_one_call(values, raise_errors=False, max_batch=10)
+
+
+def test_stream_items_keep_or_raise_their_error():
+    ok = _messages.decode_stream_relations(pb.StreamRelationsResponse(request_id=3, ids=[7, 8]),
+                                           raise_errors=True)
+    assert ok.index == 3 and ok.ids.tolist() == [7, 8] and ok.error is None
+    failed = pb.StreamRelationsResponse(
+        request_id=4, error=pb.ItemError(code=grpc.StatusCode.OUT_OF_RANGE.value[0],
+                                         message="simplex.id: 9 is outside [0, 5)"))
+    item = _messages.decode_stream_relations(failed, raise_errors=False)
+    assert isinstance(item.error, actopo.OutOfRangeError) and item.ids.tolist() == []
+    with pytest.raises(actopo.OutOfRangeError, match="outside"):
+        _messages.decode_stream_relations(failed, raise_errors=True)
 
 
 def test_assembler_joins_pieces_in_any_order():
@@ -178,7 +202,7 @@ def test_assembler_joins_pieces_in_any_order():
 
 def test_load_stream_reports_progress_and_keeps_the_mesh():
     reports = []
-    stream = _requests.LoadStream(reports.append)
+    stream = _messages.LoadStream(reports.append)
     stream.feed(pb.LoadMeshWithProgressResponse(
         progress=pb.LoadProgress(phase="read", fraction=0.5, elapsed_seconds=0.25)))
     with pytest.raises(actopo.ActopoError, match="ended without the mesh"):

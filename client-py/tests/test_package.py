@@ -14,12 +14,13 @@ from dataclasses import MISSING, fields
 from pathlib import Path
 from typing import Any, get_args
 
+import grpc
 import pytest
 
 import actopo
 import actopo.types
-from actopo import _literals, _names, _requests
-from actopo._proto import pb
+from actopo import _literals, _messages, _names, _requests, _stub
+from actopo._proto import pb, pb_grpc
 
 PACKAGE = Path(actopo.__file__).resolve().parent
 README = PACKAGE.parent / "README.md"
@@ -124,7 +125,8 @@ BAD_NAMES: list[tuple[str, str, Callable[[_Offline], Any]]] = [
     ("relation", "vv", lambda o: o.session.query("vv", 0)),
     ("relation", "vertex_stars", lambda o: list(o.session.relations_stream("vertex_stars", [0]))),
     ("algorithm", "contour-tree", lambda o: o.session.submit("contour-tree")),
-    ("structure", "3", lambda o: _requests.open_session("m", None, 3, 0, 0, 0.0, "auto", "auto")),
+    ("structure", "3",
+     lambda o: _messages.build_open_session("m", None, 3, 0, 0, 0.0, "auto", "auto")),
 ]
 
 
@@ -170,12 +172,35 @@ def test_unknown_names_raise_on_the_async_client():
 
 
 def test_names_are_taken_with_either_separator_and_any_case():
-    request = _requests.open_session("m", None, "Compact", 0, 0, 0.0, "ADAPTIVE", "declared")
+    request = _messages.build_open_session("m", None, "Compact", 0, 0, 0.0, "ADAPTIVE",
+                                           "declared")
     assert request.structure == pb.STRUCTURE_COMPACT
     assert request.engine.prefetch == pb.PREFETCH_ADAPTIVE
-    request, name = _requests.run("s", "morse_smale", None, False)
+    request, name = _messages.build_run_job("s", "morse_smale", None, False)
     assert request.algorithm == pb.ALGORITHM_MORSE_SMALE and name == "morse-smale"
     assert _requests.relation("Vertex-Edges") == pb.RELATION_VERTEX_EDGES
+
+
+_KINDS = {(False, False): "UnaryUnary", (False, True): "UnaryStream",
+          (True, False): "StreamUnary", (True, True): "StreamStream"}
+
+
+@pytest.mark.parametrize("protocol,module", [(_stub.Stub, "grpc"),
+                                             (_stub.AsyncStub, "grpc.aio")])
+def test_the_typed_stubs_are_the_service(protocol, module):
+    """actopo._stub types each RPC by hand: the same methods as the proto's service, each with
+    its streaming kind, request and response type; the generated stub has each of them."""
+    service = pb.DESCRIPTOR.services_by_name["TopologyService"]
+    expected = {m.name: f"{module}.{_KINDS[m.client_streaming, m.server_streaming]}"
+                        f"MultiCallable[pb.{m.input_type.name}, pb.{m.output_type.name}]"
+                for m in service.methods}
+    assert dict(protocol.__annotations__) == expected
+    for m in service.methods:
+        assert getattr(pb, m.input_type.name).DESCRIPTOR is m.input_type
+        assert getattr(pb, m.output_type.name).DESCRIPTOR is m.output_type
+    with grpc.insecure_channel("127.0.0.1:9") as channel:  # never connected
+        generated = pb_grpc.TopologyServiceStub(channel)
+        assert all(callable(getattr(generated, name)) for name in expected)
 
 
 def _modules() -> dict[str, Path]:
