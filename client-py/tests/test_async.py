@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import inspect
+from typing import Any
 
 import numpy as np
 import pytest
@@ -107,3 +109,135 @@ def test_async_errors_and_cancellation(server):
                 await aclient.cancel_job("job-nope")
 
     asyncio.run(scenario())
+
+
+# Both clients on one session of one server: the same requests, the same decoded answers.
+
+FERTILITY = "fertility_tet.vtu"
+SIMPLIFY = {"relative_threshold": "0.05"}
+
+
+def _sync_answers(client: actopo.Client, session: actopo.Session,
+                  tuples: np.ndarray) -> dict[str, Any]:
+    ids = np.arange(client.get_mesh(session.info.mesh_id).vertices, dtype=np.int32)
+    fractions: list[float] = []
+    answers = {
+        "server_info": client.server_info(),
+        "mesh": client.get_mesh(session.info.mesh_id),
+        "session": _stable(client.get_session(session.session_id)),
+        "relation": session.relation("vertex_edges", ids[:1000]),
+        "tuples": session.relation("edge_triangles", tuples),
+        "failed": session.relation("vertex_star", [0, 10**9, 2], raise_errors=False),
+        "batches": list(session.relation_batches("vertex_link", np.array_split(ids, 3),
+                                                 chunk_size=2000, window=2)),
+        "batch_errors": list(session.relation_batches("vertex_star", [[1, -1], [10**9]])),
+        "query": session.query("edge_triangles", tuple(tuples[0]), include_vertices=True),
+        "stream": list(session.relations_stream("vertex_star", [0, 10**9, 5, (0, 1)])),
+        "morse-smale": session.run("morse-smale", progress=fractions.append),
+        "persistence-diagram": session.run("persistence-diagram"),
+        "topological-simplification": session.run("topological-simplification",
+                                                  parameters=SIMPLIFY),
+        "summary_only": session.run("critical-points", include_arrays=False),
+    }
+    answers["fractions"] = fractions
+    return answers
+
+
+async def _async_answers(aclient: actopo.AsyncClient, session: actopo.AsyncSession,
+                         tuples: np.ndarray) -> dict[str, Any]:
+    ids = np.arange((await aclient.get_mesh(session.info.mesh_id)).vertices, dtype=np.int32)
+    fractions: list[float] = []
+    answers = {
+        "server_info": await aclient.server_info(),
+        "mesh": await aclient.get_mesh(session.info.mesh_id),
+        "session": _stable(await aclient.get_session(session.session_id)),
+        "relation": await session.relation("vertex_edges", ids[:1000]),
+        "tuples": await session.relation("edge_triangles", tuples),
+        "failed": await session.relation("vertex_star", [0, 10**9, 2], raise_errors=False),
+        "batches": [b async for b in session.relation_batches(
+            "vertex_link", np.array_split(ids, 3), chunk_size=2000, window=2)],
+        "batch_errors": [b async for b in session.relation_batches("vertex_star",
+                                                                   [[1, -1], [10**9]])],
+        "query": await session.query("edge_triangles", tuple(tuples[0]), include_vertices=True),
+        "stream": [i async for i in session.relations_stream("vertex_star",
+                                                             [0, 10**9, 5, (0, 1)])],
+        "morse-smale": await session.run("morse-smale", progress=fractions.append),
+        "persistence-diagram": await session.run("persistence-diagram"),
+        "topological-simplification": await session.run("topological-simplification",
+                                                         parameters=SIMPLIFY),
+        "summary_only": await session.run("critical-points", include_arrays=False),
+    }
+    answers["fractions"] = fractions
+    return answers
+
+
+def _stable(info: actopo.types.SessionInfo) -> actopo.types.SessionInfo:
+    """The session without its last use, which each call moves."""
+    return dataclasses.replace(info, last_used=None)
+
+
+def _assert_same(sync: Any, asynchronous: Any, where: str) -> None:
+    """Equal values, arrays equal in dtype and values, errors of one class and message; job
+    results equal but for their job id and timings."""
+    assert type(sync) is type(asynchronous), where
+    if isinstance(sync, actopo.JobResult):
+        assert (sync.algorithm, sync.summary, sync.trace) == \
+            (asynchronous.algorithm, asynchronous.summary, asynchronous.trace), where
+        assert list(sync.arrays) == list(asynchronous.arrays), where
+        for name, values in sync.arrays.items():
+            _assert_same(values, asynchronous.arrays[name], f"{where} {name}")
+        assert sync.stats is not None and asynchronous.stats is not None, where
+        assert sync.job_id != asynchronous.job_id, where
+    elif isinstance(sync, actopo.RelationBatch):
+        _assert_same(sync.offsets, asynchronous.offsets, f"{where} offsets")
+        _assert_same(sync.values, asynchronous.values, f"{where} values")
+        assert sync.errors == asynchronous.errors, where
+    elif isinstance(sync, tuple | list):
+        assert len(sync) == len(asynchronous), where
+        for i, (a, b) in enumerate(zip(sync, asynchronous, strict=True)):
+            _assert_same(a, b, f"{where}[{i}]")
+    elif isinstance(sync, actopo.types.StreamItem):
+        assert sync.index == asynchronous.index, where
+        _assert_same(sync.ids, asynchronous.ids, f"{where} ids")
+        assert type(sync.error) is type(asynchronous.error), where
+        assert str(sync.error) == str(asynchronous.error), where
+    elif isinstance(sync, np.ndarray):
+        assert sync.dtype == asynchronous.dtype, where
+        np.testing.assert_array_equal(sync, asynchronous, err_msg=where)
+    else:
+        assert sync == asynchronous, where
+
+
+def test_both_clients_give_the_same_answers(server, client, meshes):
+    """Everything a session answers, asked once through each client on the same session: the
+    relations (one call, vertex tuples, failed items, streamed arrays, single simplices) and
+    the jobs' summaries and arrays."""
+    mesh = meshes(FERTILITY)
+    with client.open_session(mesh, scalar="eigenfunction4", structure="actopo") as session:
+        neighbors = session.query("vertex_neighbors", 0).ids
+        tuples = np.stack([np.zeros_like(neighbors), neighbors], axis=1)
+        synchronous = _sync_answers(client, session, tuples)
+
+        async def scenario() -> dict[str, Any]:
+            async with actopo.AsyncClient(server) as aclient:
+                return await _async_answers(aclient, await aclient.session(session.session_id),
+                                            tuples)
+
+        asynchronous = asyncio.run(scenario())
+    assert list(synchronous) == list(asynchronous)
+    for fractions in (synchronous.pop("fractions"), asynchronous.pop("fractions")):
+        assert fractions and fractions == sorted(fractions) and fractions[-1] == pytest.approx(1)
+    for key, value in synchronous.items():
+        _assert_same(value, asynchronous[key], key)
+    # What is compared is what it should be: answers, errors where the inputs were bad, arrays.
+    assert len(synchronous["tuples"].offsets) == len(tuples) + 1
+    assert [e.index for e in synchronous["failed"].errors] == [1]
+    assert [len(b.errors) for b in synchronous["batch_errors"]] == [1, 1]
+    assert [type(i.error).__name__ for i in synchronous["stream"]] == [
+        "NoneType", "OutOfRangeError", "NoneType", "InvalidArgumentError"]  # (0, 1): an edge
+    assert sum(len(b.offsets) - 1 for b in synchronous["batches"]) == mesh.vertices
+    assert synchronous["morse-smale"].groups == ["critical_points", "separatrices",
+                                                 "segmentation"]
+    assert synchronous["persistence-diagram"].diagram is not None
+    assert synchronous["topological-simplification"].simplified is not None
+    assert synchronous["summary_only"].arrays == {}
