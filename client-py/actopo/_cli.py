@@ -19,9 +19,9 @@ import os
 import statistics
 import sys
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any, cast
+from typing import Any, TypeAlias, cast
 
 from actopo import _names
 from actopo._bench import MODES, ORDERS, Bench, Load
@@ -585,9 +585,27 @@ def cmd_bench(client: Client, args: argparse.Namespace) -> None:
               file=sys.stderr)
 
 
+# The parser: the options every command takes, then one function per command, in the order
+# of `actopo --help`.
+
+Command: TypeAlias = Callable[[Client, argparse.Namespace], None]
+Commands: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="actopo", description="Client of the ACTOPO topology "
                                 "service: meshes, sessions, relations and algorithm jobs.")
+    _add_connection(p)
+    commands = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for add in (_add_info, _add_meshes, _add_load, _add_upload, _add_delete, _add_sessions,
+                _add_open, _add_close, _add_run, _add_relation, _add_stats, _add_compare,
+                _add_bench):
+        add(commands)
+    return p
+
+
+def _add_connection(p: argparse.ArgumentParser) -> None:
+    """Where the server is and how to reach it: the options before the command."""
     p.add_argument("--server", "--target", default=os.environ.get("ACTOPO_SERVER"),
                    metavar="HOST:PORT", help="actopo-server's address (default: $ACTOPO_SERVER)")
     p.add_argument("--token", default=os.environ.get("ACTOPO_TOKEN"),
@@ -598,51 +616,90 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--tls", action="store_true", help="use TLS with the system's roots")
     p.add_argument("--timeout", type=float, default=30.0,
                    help="deadline of quick calls in seconds (default 30)")
-    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    def command(name: str, func: Any, help: str, json_flag: bool = True) -> Any:
-        c = sub.add_parser(name, help=help, description=help)
-        c.set_defaults(func=func)
-        c.add_argument("--server", "--target", default=argparse.SUPPRESS, metavar="HOST:PORT",
-                       help="actopo-server's address (also accepted before the command)")
-        if json_flag:
-            c.add_argument("--json", action="store_true", help="print JSON")
-        return c
 
-    command("info", cmd_info, "versions, algorithms, relations, samples and limits")
-    command("meshes", cmd_meshes, "list the loaded meshes")
-    c = command("load", cmd_load, "load a file under the server's data directory, or a sample")
+def _command(commands: Commands, name: str, func: Command, help: str,
+             json_flag: bool = True) -> argparse.ArgumentParser:
+    """A command running `func`; it also takes --server after its name, and --json."""
+    c = commands.add_parser(name, help=help, description=help)
+    c.set_defaults(func=func)
+    c.add_argument("--server", "--target", default=argparse.SUPPRESS, metavar="HOST:PORT",
+                   help="actopo-server's address (also accepted before the command)")
+    if json_flag:
+        c.add_argument("--json", action="store_true", help="print JSON")
+    return c
+
+
+def _add_info(commands: Commands) -> None:
+    _command(commands, "info", cmd_info, "versions, algorithms, relations, samples and limits")
+
+
+def _add_meshes(commands: Commands) -> None:
+    _command(commands, "meshes", cmd_meshes, "list the loaded meshes")
+
+
+def _add_load(commands: Commands) -> None:
+    c = _command(commands, "load", cmd_load,
+                 "load a file under the server's data directory, or a sample")
     c.add_argument("source", help="path under the data directory, or sample:NAME "
                    "(e.g. sample:jittered:32)")
     c.add_argument("--block-size", type=int, default=0)
     c.add_argument("--block-labels", metavar="FIELD")
     _add_progress(c, "a progress bar per phase (read, partition, encode)")
-    c = command("upload", cmd_upload, "upload a local mesh file (read with pyvista or meshio)")
+
+
+def _add_upload(commands: Commands) -> None:
+    c = _command(commands, "upload", cmd_upload,
+                 "upload a local mesh file (read with pyvista or meshio)")
     c.add_argument("file")
     c.add_argument("--name")
     c.add_argument("--block-size", type=int, default=0)
     c.add_argument("--block-labels", metavar="FIELD")
-    c = command("delete", cmd_delete, "delete meshes", json_flag=False)
+
+
+def _add_delete(commands: Commands) -> None:
+    c = _command(commands, "delete", cmd_delete, "delete meshes", json_flag=False)
     c.add_argument("mesh_ids", nargs="+", metavar="MESH_ID")
-    command("sessions", cmd_sessions, "list the open sessions")
-    c = command("open", cmd_open, "open a session that outlives the command")
+
+
+def _add_sessions(commands: Commands) -> None:
+    _command(commands, "sessions", cmd_sessions, "list the open sessions")
+
+
+def _add_open(commands: Commands) -> None:
+    c = _command(commands, "open", cmd_open, "open a session that outlives the command")
     c.add_argument("mesh_id", metavar="MESH_ID")
     _add_engine(c)
-    c = command("close", cmd_close, "close sessions", json_flag=False)
+
+
+def _add_close(commands: Commands) -> None:
+    c = _command(commands, "close", cmd_close, "close sessions", json_flag=False)
     c.add_argument("session_ids", nargs="+", metavar="SESSION_ID")
 
-    c = command("run", cmd_run, "run an algorithm on a mesh and print its result")
+
+def _add_run(commands: Commands) -> None:
+    c = _command(commands, "run", cmd_run, "run an algorithm on a mesh and print its result")
     which = c.add_mutually_exclusive_group(required=True)
     which.add_argument("algorithm_word", nargs="?", choices=ALGORITHMS, metavar="ALGORITHM",
                        help="the algorithm, as the first word or as --algorithm")
     which.add_argument("--algorithm", choices=ALGORITHMS)
     _add_mesh_source(c)
     _add_engine(c)
+    _add_parameters(c, "an algorithm parameter (repeatable), e.g. embedding=domain "
+                    "(persistence-diagram), relative_threshold=0.05 or persistence_threshold=2.5 "
+                    "(topological-simplification, morse-smale)")
+    _add_run_outputs(c)
+    _add_progress(c, "the load's and the job's progress bars")
+
+
+def _add_parameters(c: argparse.ArgumentParser, param_help: str | None = None) -> None:
+    """The algorithm's parameters: --boundary-rule, and --param NAME=VALUE (repeatable)."""
     c.add_argument("--boundary-rule", choices=["ttk", "none"], help="critical-points")
-    c.add_argument("--param", action="append", metavar="NAME=VALUE",
-                   help="an algorithm parameter (repeatable), e.g. embedding=domain "
-                   "(persistence-diagram), relative_threshold=0.05 or persistence_threshold=2.5 "
-                   "(topological-simplification, morse-smale)")
+    c.add_argument("--param", action="append", metavar="NAME=VALUE", help=param_help)
+
+
+def _add_run_outputs(c: argparse.ArgumentParser) -> None:
+    """What `run` writes besides its report: ParaView files, a plot, a trace."""
     c.add_argument("--output", metavar="PREFIX",
                    help="write PREFIX_critical_points.vtp, ... for ParaView")
     c.add_argument("--plot", metavar="PATH.png",
@@ -658,9 +715,10 @@ def parser() -> argparse.ArgumentParser:
                    help="the mesh as a local file, for PREFIX_segmentation.vtu and "
                    "PREFIX_simplified.vtu with --mesh (default: NAME under the current "
                    "directory or $ACTOPO_DATA_DIR, if there)")
-    _add_progress(c, "the load's and the job's progress bars")
 
-    c = command("relation", cmd_relation, "a relation of some simplices")
+
+def _add_relation(commands: Commands) -> None:
+    c = _command(commands, "relation", cmd_relation, "a relation of some simplices")
     c.add_argument("relation", help=", ".join(_names.RELATIONS))
     c.add_argument("simplices", nargs="+", metavar="SIMPLEX",
                    help="an id, or a vertex tuple such as 3,17")
@@ -670,26 +728,44 @@ def parser() -> argparse.ArgumentParser:
     _add_engine(c)
     _add_progress(c, "the load's progress bars")
 
-    c = command("stats", cmd_stats, "statistics of one session, or of all")
+
+def _add_stats(commands: Commands) -> None:
+    c = _command(commands, "stats", cmd_stats, "statistics of one session, or of all")
     c.add_argument("--session", metavar="ID")
 
-    c = command("compare", cmd_compare,
-                "run an algorithm on several structures and compare time, wait and memory")
+
+def _add_compare(commands: Commands) -> None:
+    c = _command(commands, "compare", cmd_compare,
+                 "run an algorithm on several structures and compare time, wait and memory")
     _add_mesh_source(c)
     c.add_argument("--algorithm", required=True, choices=ALGORITHMS)
     c.add_argument("--structures", default=",".join(STRUCTURES),
                    help="comma-separated (default: all)")
     c.add_argument("--repeat", type=int, default=1, help="runs per structure (median)")
     _add_engine(c, structure=False)
-    c.add_argument("--boundary-rule", choices=["ttk", "none"], help="critical-points")
-    c.add_argument("--param", action="append", metavar="NAME=VALUE")
+    _add_parameters(c)
     _add_progress(c, "the load's and the jobs' progress bars")
 
-    c = command("bench", cmd_bench,
-                "load a server from concurrent clients: unary, batched and streamed relation "
-                "queries and jobs; throughput, latency percentiles and the server's own time "
-                "breakdown")
+
+def _add_bench(commands: Commands) -> None:
+    c = _command(commands, "bench", cmd_bench,
+                 "load a server from concurrent clients: unary, batched and streamed relation "
+                 "queries and jobs; throughput, latency percentiles and the server's own time "
+                 "breakdown")
     _add_mesh_source(c, required=False)
+    _add_bench_sweep(c)
+    _add_bench_requests(c)
+    c.add_argument("--algorithm", default="critical-points", choices=ALGORITHMS,
+                   help="the job of the job mode (default critical-points)")
+    _add_parameters(c)
+    _add_engine(c, structure=False)
+    _add_progress(c, "the load's progress bars and a line per run")
+    c.add_argument("--structures", help=argparse.SUPPRESS)  # now `compare`
+    c.add_argument("--repeat", type=int, help=argparse.SUPPRESS)
+
+
+def _add_bench_sweep(c: argparse.ArgumentParser) -> None:
+    """What `bench` runs, and for how long: structures, modes, client counts, duration."""
     c.add_argument("--structure", type=_list(str, STRUCTURES), default=["actopo"],
                    help="comma-separated structures, one session each (default actopo)")
     c.add_argument("--modes", type=_list(str, MODES), default=list(MODES),
@@ -701,6 +777,10 @@ def parser() -> argparse.ArgumentParser:
                    metavar="SECONDS", help="per mode (default 5)")
     c.add_argument("--requests", type=_positive(int), metavar="N",
                    help="requests per client and mode, instead of a duration")
+
+
+def _add_bench_requests(c: argparse.ArgumentParser) -> None:
+    """What one request of `bench` asks: the relation, the ids, and the sizes per mode."""
     c.add_argument("--relation", default="vertex_star", choices=list(_names.RELATIONS),
                    metavar="NAME", help="the relation asked (default vertex_star), one of "
                    f"{', '.join(_names.RELATIONS)}")
@@ -714,15 +794,6 @@ def parser() -> argparse.ArgumentParser:
                    help="simplices per StreamRelations message (default 65536)")
     c.add_argument("--window", type=_positive(int), default=4,
                    help="StreamRelations messages in flight per client (default 4)")
-    c.add_argument("--algorithm", default="critical-points", choices=ALGORITHMS,
-                   help="the job of the job mode (default critical-points)")
-    c.add_argument("--boundary-rule", choices=["ttk", "none"], help="critical-points")
-    c.add_argument("--param", action="append", metavar="NAME=VALUE")
-    _add_engine(c, structure=False)
-    _add_progress(c, "the load's progress bars and a line per run")
-    c.add_argument("--structures", help=argparse.SUPPRESS)  # now `compare`
-    c.add_argument("--repeat", type=int, help=argparse.SUPPRESS)
-    return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
