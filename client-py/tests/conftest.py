@@ -2,19 +2,25 @@
 
 Environment: ACTOPO_SERVER_BIN and ACTOPO_BENCH_BIN (default: the repository's build/, or
 $ACTOPO_BUILD), ACTOPO_DATA_DIR (default: ../shared/data beside the repository). Tests that need
-the server are skipped, saying why, when its binary is missing.
+the server are skipped, saying why (pyproject.toml's -rs prints the reasons), when its binary is
+missing. With $ACTOPO_NO_SKIPS set (.ci/run sets it), a skip fails instead, as in the
+repository's tests/: in CI the server, actopo-bench, the meshes and the test dependencies
+(pyvista, meshio, matplotlib, openssl) are all there, so a skip would be a test that silently
+stopped testing.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
-from harness import BENCH_BIN, DATA_DIR, running_server
+from harness import BENCH_BIN, DATA_DIR, ServerProcess, free_port, server_process
 
 import actopo
 from actopo._cli import main
@@ -25,11 +31,38 @@ from actopo._cli import main
 signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+def _no_skips(report: pytest.TestReport | pytest.CollectReport) -> None:
+    """Under $ACTOPO_NO_SKIPS, a skipped test (or module) is reported failed, with the reason."""
+    if os.environ.get("ACTOPO_NO_SKIPS") and report.skipped and not hasattr(report, "wasxfail"):
+        reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else report.longrepr
+        report.outcome = "failed"
+        report.longrepr = f"skipped while $ACTOPO_NO_SKIPS is set: {reason}"
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[Any]) -> Iterator[None]:
+    outcome = yield
+    _no_skips(outcome.get_result())
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_make_collect_report(collector: pytest.Collector) -> Iterator[None]:
+    outcome = yield
+    _no_skips(outcome.get_result())
+
+
 @pytest.fixture(scope="session")
-def server() -> Iterator[str]:
-    """The target of a server with default limits, serving DATA_DIR."""
-    with running_server() as target:
-        yield target
+def shared_server() -> Iterator[ServerProcess]:
+    """The server most tests share: default limits, serving DATA_DIR, and its Prometheus
+    endpoint, where tests read what the server did (e.g. that it stopped a load)."""
+    with server_process("--metrics-port", str(free_port())) as process:
+        yield process
+
+
+@pytest.fixture(scope="session")
+def server(shared_server: ServerProcess) -> str:
+    """The target of the shared server."""
+    return shared_server.target
 
 
 @pytest.fixture(scope="session")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import os
 import queue
+import re
 import signal
 import socket
 import subprocess
@@ -67,16 +68,30 @@ class ServerProcess:
 
     def metric(self, name: str) -> float:
         """The value of an unlabelled metric on the Prometheus endpoint (--metrics-port)."""
-        if not self.metrics_port:
-            raise RuntimeError("the server was started without --metrics-port")
         url = f"http://127.0.0.1:{self.metrics_port}/metrics"
-        with urllib.request.urlopen(url, timeout=10) as response:
-            text = response.read().decode()
-        for line in text.splitlines():
+        for line in self._metrics_text().splitlines():
             parts = line.split()
             if len(parts) == 2 and parts[0] == name:
                 return float(parts[1])
         raise KeyError(f"{name} not in {url}")
+
+    def requests(self, rpc: str) -> dict[int, int]:
+        """The calls of `rpc` the server has answered, by gRPC status code number (its
+        actopo_requests_total counter; the server counts a call once its work is over)."""
+        text = self._metrics_text()
+        counts = {}
+        for labels, value in re.findall(r'^actopo_requests_total\{([^}]*)\} (\S+)$', text, re.M):
+            pairs = dict(re.findall(r'(\w+)="([^"]*)"', labels))
+            if pairs.get("rpc") == rpc:
+                counts[int(pairs["code"])] = int(float(value))
+        return counts
+
+    def _metrics_text(self) -> str:
+        if not self.metrics_port:
+            raise RuntimeError("the server was started without --metrics-port")
+        url = f"http://127.0.0.1:{self.metrics_port}/metrics"
+        with urllib.request.urlopen(url, timeout=10) as response:
+            return str(response.read().decode())
 
     def signal(self, number: signal.Signals) -> None:
         self.process.send_signal(number)

@@ -75,6 +75,17 @@ def test_async_parity(server, client):
     assert stats.jobs.count == 1 and stats.relation_queries.count >= 3
 
 
+async def _stopped(session: actopo.AsyncSession, seconds: float = 30) -> bool:
+    """Whether the session's job was stopped on the server: it runs no job any more (`seconds`
+    only bound a hang) and finished none (the session counts finished jobs only)."""
+    for _ in range(int(seconds / 0.02)):
+        if (await session.describe()).running_job_id is None:
+            break
+        await asyncio.sleep(0.02)
+    return ((await session.describe()).running_job_id is None
+            and (await session.stats()).jobs.count == 0)
+
+
 def test_async_errors_and_cancellation(server):
     async def scenario():
         async with actopo.AsyncClient(server) as aclient:
@@ -92,17 +103,15 @@ def test_async_errors_and_cancellation(server):
                     task.cancel()  # what Ctrl-C does under asyncio.run
                     with pytest.raises(asyncio.CancelledError):
                         await task
-                    for _ in range(250):
-                        if (await session.describe()).running_job_id is None:
-                            break
-                        await asyncio.sleep(0.02)
-                    assert (await session.describe()).running_job_id is None
+                    assert await _stopped(session), "the job ran on after its task was cancelled"
                     job = await session.submit("morse-smale")
                     await job.cancel()
                     with pytest.raises(actopo.CancelledError):
                         await job.result()
+                    assert await _stopped(session), "the job ran on after CancelJob"
                     with pytest.raises(actopo.DeadlineExceededError):
                         await session.run("morse-smale", timeout=0.01)
+                    assert await _stopped(session), "the job ran on past its deadline"
             finally:
                 await aclient.delete_mesh(mesh)
             with pytest.raises(actopo.NotFoundError):

@@ -280,11 +280,10 @@ def kill_server(server: ServerProcess) -> None:
     server.process.wait(timeout=LIVENESS_SECONDS)
 
 
-def start_later(port: int, delay: float, servers: list[ServerProcess]) -> threading.Thread:
-    """A thread that starts a server on `port` after `delay` seconds and adds it to
-    `servers`."""
+def start_when(go: threading.Event, port: int, servers: list[ServerProcess]) -> threading.Thread:
+    """A thread that starts a server on `port` once `go` is set, and adds it to `servers`."""
     def run() -> None:
-        time.sleep(delay)
+        go.wait(LIVENESS_SECONDS)
         servers.append(start_server(port=port))
 
     thread = threading.Thread(target=run)
@@ -325,16 +324,20 @@ def test_sigkill_and_restart_on_the_same_port():
                 client.get_mesh(mesh)
             assert carry_on(client) == edges
 
-            # Restarted 0.5 s after the kill, while calls are being made.
+            # Restarted while a read is under way: the read is retried until the server is back
+            # (within its ~3 s of attempts; the server listens again well within that).
             kill_server(servers[-1])
             killed = time.monotonic()
-            restarter = start_later(first.port, 0.5, servers)
+            read_begins = threading.Event()
+            restarter = start_when(read_begins, first.port, servers)
             with pytest.raises(actopo.UnavailableError):
                 client.delete_mesh("mesh-0")  # not idempotent: never retried
             try:
-                assert client.server_info().algorithms  # retried until the server is back
+                read_begins.set()  # the server starts as the read begins: no server at first
+                assert client.server_info().algorithms
                 retried_read_s = time.monotonic() - killed
             finally:
+                read_begins.set()
                 restarter.join()
             assert client.list_meshes() == []
             assert carry_on(client) == edges

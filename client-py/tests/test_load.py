@@ -9,17 +9,20 @@ import signal
 import subprocess
 import sys
 import threading
-import time
+from collections import Counter
 
+import grpc
 import pytest
+from harness import ServerProcess, wait_for
 
 import actopo
 from actopo._types import LOAD_PHASES
 
 SHAPE = ("vertices", "edges", "triangles", "tetrahedra", "blocks", "block_size")
 BIG = "jittered:80"  # about 3M tetrahedra: its encoding runs long enough to be stopped mid-way
-# Longer than a whole load of BIG (about 1 s): a load that goes on shows its mesh by then.
-SETTLE_SECONDS = 2.0
+LIVENESS_SECONDS = 30.0
+"""Only bounds a hang: the server ends a stopped load within a fraction of a second."""
+CANCELLED = grpc.StatusCode.CANCELLED.value[0]
 
 
 class Stop(Exception):
@@ -43,23 +46,29 @@ def _ids(meshes: list[actopo.MeshInfo]) -> set[str]:
     return {m.mesh_id for m in meshes}
 
 
-def _no_new_mesh(client: actopo.Client, before: set[str]) -> bool:
-    """Watches the server for SETTLE_SECONDS: False (deleting them) once meshes not in
-    `before` appear, True if none does.
+def _loads(server: ServerProcess) -> Counter[int]:
+    """The server's LoadMeshWithProgress calls so far, by status code."""
+    return Counter(server.requests("LoadMeshWithProgress"))
+
+
+def _assert_stopped(server: ServerProcess, client: actopo.Client, meshes_before: set[str],
+                    loads_before: Counter[int], loads: int = 1) -> None:
+    """The `loads` loads started since `loads_before` were stopped on the server: waits until
+    the server has ended them (it counts a load once its work is over, finished or not), then
+    checks that they all ended CANCELLED and left no mesh (deleting any they left).
 
     The callers keep the exception that stopped the load (and so the frames of its traceback,
     which hold the gRPC call) until this returns: the garbage collector, which cancels calls
     nobody holds, must not do the client's work.
     """
-    deadline = time.monotonic() + SETTLE_SECONDS
-    while time.monotonic() < deadline:
-        new = _ids(client.list_meshes()) - before
-        if new:
-            for mesh_id in new:
-                client.delete_mesh(mesh_id)
-            return False
-        time.sleep(0.05)
-    return True
+    ended = wait_for(lambda: (_loads(server) - loads_before).total() >= loads, LIVENESS_SECONDS)
+    outcomes = _loads(server) - loads_before
+    new = _ids(client.list_meshes()) - meshes_before
+    for mesh_id in new:
+        client.delete_mesh(mesh_id)
+    assert ended, f"the server still loads {LIVENESS_SECONDS:g} s after the client stopped"
+    assert outcomes == {CANCELLED: loads}, f"loads ended with codes {dict(outcomes)}"
+    assert not new, "the load went on: its mesh is there"
 
 
 @pytest.mark.parametrize("source,block_size", [("sample:jittered:20", 0),
@@ -109,8 +118,8 @@ def test_unreachable_server_is_unavailable():
         client.sample("jittered:4", progress=True)
 
 
-def test_a_raising_callback_stops_the_load(client):
-    before = _ids(client.list_meshes())
+def test_a_raising_callback_stops_the_load(shared_server, client):
+    before, loads = _ids(client.list_meshes()), _loads(shared_server)
     reports: list[actopo.LoadProgress] = []
 
     def stop_at_encode(report: actopo.LoadProgress) -> None:
@@ -121,13 +130,13 @@ def test_a_raising_callback_stops_the_load(client):
     with pytest.raises(Stop) as stopped:
         client.sample(BIG, progress=stop_at_encode)
     assert reports[-1].phase == "encode" and [r.phase for r in reports].count("encode") == 1
-    assert _no_new_mesh(client, before), "the load went on after the callback raised"
+    _assert_stopped(shared_server, client, before, loads)
     assert stopped.value.args == (reports[-1].fraction,)
 
 
-def test_ctrl_c_stops_the_load(client):
+def test_ctrl_c_stops_the_load(shared_server, client):
     """SIGINT while the client waits for the next report (not inside the callback)."""
-    before = _ids(client.list_meshes())
+    before, loads = _ids(client.list_meshes()), _loads(shared_server)
     encoding = threading.Event()
 
     def interrupt_soon(report: actopo.LoadProgress) -> None:
@@ -138,15 +147,16 @@ def test_ctrl_c_stops_the_load(client):
     with pytest.raises(KeyboardInterrupt) as interrupted:
         client.sample(BIG, progress=interrupt_soon)
     assert encoding.is_set()
-    assert _no_new_mesh(client, before), "the load went on after Ctrl-C"
+    _assert_stopped(shared_server, client, before, loads)
     del interrupted
     mesh = client.sample("jittered:4", progress=lambda p: None)  # the client still works
     client.delete_mesh(mesh)
 
 
-def test_ctrl_c_stops_the_cli_load(server, client):
+def test_ctrl_c_stops_the_cli_load(shared_server, client):
     """SIGINT while `actopo load --progress` shows the encoding: exit 130, no mesh."""
-    before = _ids(client.list_meshes())
+    server = shared_server.target
+    before, loads = _ids(client.list_meshes()), _loads(shared_server)
     process = subprocess.Popen(
         [sys.executable, "-m", "actopo", "--server", server, "load", f"sample:{BIG}",
          "--progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -158,13 +168,13 @@ def test_ctrl_c_stops_the_cli_load(server, client):
             assert chunk, f"actopo load ended before encoding: {err}"
             err += chunk
         process.send_signal(signal.SIGINT)
-        out, rest = process.communicate(timeout=30)
+        out, rest = process.communicate(timeout=LIVENESS_SECONDS)
     finally:
         if process.poll() is None:
             process.kill()
     assert process.returncode == 130 and "actopo: cancelled" in rest
     assert out == ""
-    assert _no_new_mesh(client, before), "the load went on after Ctrl-C"
+    _assert_stopped(shared_server, client, before, loads)
 
 
 def test_async_load_with_progress(server, client):
@@ -184,15 +194,16 @@ def test_async_load_with_progress(server, client):
     assert [getattr(mesh, k) for k in SHAPE] == [getattr(plain, k) for k in SHAPE]
 
 
-def test_async_raising_callback_and_cancelled_task_stop_the_load(server, client):
-    before = _ids(client.list_meshes())
+def test_async_raising_callback_and_cancelled_task_stop_the_load(shared_server, client):
+    before, loads = _ids(client.list_meshes()), _loads(shared_server)
 
     def stop_at_encode(report: actopo.LoadProgress) -> None:
         if report.phase == "encode":
             raise Stop
 
-    async def scenario() -> bool:
-        async with actopo.AsyncClient(server) as aclient:  # closing it would cancel its calls
+    async def scenario() -> None:
+        # Not closed before the check: closing the client would cancel its calls.
+        async with actopo.AsyncClient(shared_server.target) as aclient:
             with pytest.raises(Stop) as stopped:
                 await aclient.sample(BIG, progress=stop_at_encode)
             encoding = asyncio.Event()
@@ -202,8 +213,7 @@ def test_async_raising_callback_and_cancelled_task_stop_the_load(server, client)
             task.cancel()  # what Ctrl-C does under asyncio.run
             with pytest.raises(asyncio.CancelledError) as cancelled:
                 await task
-            settled = await asyncio.to_thread(_no_new_mesh, client, before)
+            await asyncio.to_thread(_assert_stopped, shared_server, client, before, loads, 2)
             del stopped, cancelled
-            return settled
 
-    assert asyncio.run(scenario()), "a load went on after its caller stopped it"
+    asyncio.run(scenario())

@@ -6,8 +6,10 @@ import hashlib
 import sys
 
 import grpc
+import meshio
 import numpy as np
 import pytest
+import pyvista as pv
 
 import actopo
 from actopo import _batches, _mesh, _messages, _names, _requests, _upload
@@ -52,9 +54,6 @@ def test_unknown_objects_are_rejected():
 
 
 def test_triangle_files_are_rejected_with_cell_types_and_hint(data_dir):
-    pytest.importorskip("meshio")
-    import meshio
-
     mesh = meshio.read(data_dir / "happi_tas_tri.vtu")
     with pytest.raises(actopo.InvalidMeshError) as e:
         _mesh.mesh_arrays(mesh, "happi")
@@ -63,7 +62,6 @@ def test_triangle_files_are_rejected_with_cell_types_and_hint(data_dir):
 
 
 def test_pyvista_non_tetrahedral_grids_are_rejected():
-    pv = pytest.importorskip("pyvista")
     with pytest.raises(actopo.InvalidMeshError, match="8 voxel; hint: split the cells"):
         _mesh.mesh_arrays(pv.ImageData(dimensions=(3, 3, 3)))
     grid = pv.ImageData(dimensions=(3, 3, 3)).triangulate()

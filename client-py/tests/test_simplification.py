@@ -15,9 +15,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import meshio
 import numpy as np
 import pytest
-from harness import BENCH_BIN, REPO
+import pyvista as pv
+from harness import BENCH_BIN
+from references import SIMPLIFICATION_TTK, check_summary, segmentation_sha256
 
 import actopo
 from actopo import _simplified
@@ -27,7 +30,7 @@ from actopo.types import SimplifiedField
 
 SIMPLIFICATION = "topological-simplification"
 STRUCTURES = ["explicit", "compact", "actopo"]
-REFERENCE = REPO / "tests" / "ttk_reference" / "simplification-ttk.json"
+REFERENCE = SIMPLIFICATION_TTK
 # The (file, field) and thresholds of simplification-ttk.json, listed here so that the tests
 # exist without reading it first; test_every_reference_case_is_tested keeps the two equal.
 CASES = [
@@ -152,10 +155,6 @@ def test_simplified_field_equals_ttks(client, meshes, reference, original, file,
     assert (np.diff(simplified.values[np.argsort(simplified.order)]) >= 0).all()
 
 
-def _segmentation_sha256(labels: np.ndarray) -> str:
-    return _sha256([f"{v} {label}\n" for v, label in enumerate(labels.tolist())])
-
-
 @pytest.mark.parametrize("threshold", THRESHOLDS)
 @pytest.mark.parametrize("file,field", CASES, ids=CASE_IDS)
 def test_morse_smale_of_the_simplified_field_equals_ttks(client, meshes, reference, file, field,
@@ -172,7 +171,7 @@ def test_morse_smale_of_the_simplified_field_equals_ttks(client, meshes, referen
     for key, name in (("descending", "DescendingManifold"), ("ascending", "AscendingManifold"),
                       ("morse_smale", "MorseSmaleManifold")):
         labels = result.segmentation[name]
-        assert _segmentation_sha256(labels) == complex_["segmentation_sha256"][key], name
+        assert segmentation_sha256(labels) == complex_["segmentation_sha256"][key], name
         assert len(np.unique(labels)) == complex_["regions"][key], name
     assert np.bincount(result.critical_points["CellDimension"], minlength=4).tolist() == \
         complex_["critical_cells"]
@@ -285,7 +284,6 @@ def test_files_and_pyvista_equal_actopo_benchs(client, meshes, data_dir, tmp_pat
     """PREFIX_simplified.vtu: the mesh with the field (float32 in the file) replaced by the
     simplified one (float64) and <field>_Order added, as actopo-bench writes it; only with
     the mesh, whose geometry stays on the server."""
-    pv = pytest.importorskip("pyvista")
     result = _run(client, meshes(FINGERS), "density", "compact", **_relative("0.05"))
     assert result.write(str(tmp_path / "nomesh")) == [] and result.to_pyvista() == {}
     files = result.write(str(tmp_path / "client"), data_dir / FINGERS)
@@ -309,7 +307,6 @@ def test_files_and_pyvista_equal_actopo_benchs(client, meshes, data_dir, tmp_pat
 def test_morse_smale_files_equal_actopo_benchs(client, meshes, data_dir, tmp_path):
     """A simplified complex writes what actopo-bench writes, in its order: the segmentation on
     the mesh as read, the simplified field beside it."""
-    pv = pytest.importorskip("pyvista")
     result = _run(client, meshes("fertility_tet.vtu"), "height", "explicit", "morse-smale",
                   **_relative("0.05"))
     files = result.write(str(tmp_path / "client"), data_dir / "fertility_tet.vtu")
@@ -332,7 +329,6 @@ def test_morse_smale_files_equal_actopo_benchs(client, meshes, data_dir, tmp_pat
 
 
 def test_files_with_meshio_only(client, meshes, data_dir, tmp_path, monkeypatch):
-    meshio = pytest.importorskip("meshio")
     result = _run(client, meshes("manifoldCheck0_tet.vtu"), "height", **_relative("0.05"))
     monkeypatch.setitem(sys.modules, "pyvista", None)  # as if pyvista were not installed
     files = result.write(str(tmp_path / "mc0"), data_dir / "manifoldCheck0_tet.vtu")
@@ -346,8 +342,7 @@ def test_files_with_meshio_only(client, meshes, data_dir, tmp_path, monkeypatch)
 # The command line.
 
 
-def test_cli_runs_a_simplification(cli, data_dir, bench, reference, tmp_path, monkeypatch):
-    pytest.importorskip("pyvista")
+def test_cli_runs_a_simplification(cli, data_dir, reference, tmp_path, monkeypatch):
     prefix = str(tmp_path / "fertility")
     status, out, err = cli("run", SIMPLIFICATION, "--mesh", "fertility_tet.vtu", "--scalar",
                            "height", "--param", "relative_threshold=0.05", "--output", prefix,
@@ -355,10 +350,8 @@ def test_cli_runs_a_simplification(cli, data_dir, bench, reference, tmp_path, mo
     assert status == 0, err
     report = json.loads(out)
     assert report["config"]["parameters"] == {"relative_threshold": "0.05"}
-    assert report["result"] == bench(data_dir / "fertility_tet.vtu", SIMPLIFICATION, "--scalar",
-                                     "height", "--relative-threshold", "0.05")
-    assert report["result"]["scalars_sha256"] == \
-        reference("fertility_tet.vtu", "height", "0.05")["scalars_sha256"]
+    check_summary(SIMPLIFICATION, report["result"],
+                  reference("fertility_tet.vtu", "height", "0.05"))
     assert report["files"] == [f"{prefix}_simplified.vtu"]
     monkeypatch.delenv("ACTOPO_DATA_DIR", raising=False)  # else the CLI finds the file there
     monkeypatch.chdir(tmp_path)
