@@ -1,4 +1,4 @@
-"""The `actopo` command line: a thin layer over Client.
+"""The `actopo` command line: a thin layer over Client (its options: _cli_parser).
 
     actopo --server HOST:PORT info | meshes | load | upload | delete | sessions | open | close
                               | run | relation | stats | compare | bench
@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import math
 import os
 import statistics
 import sys
@@ -24,17 +23,14 @@ from pathlib import Path
 from typing import Any, TypeAlias, cast
 
 from actopo import _names
-from actopo._bench import MODES, ORDERS, Bench, Load
+from actopo._bench import Bench, Load
+from actopo._cli_parser import DIAGRAM, STRUCTURES, parser
 from actopo._client import Client, Session
 from actopo._errors import ActopoError, InvalidArgumentError
 from actopo._literals import Algorithm, Structure
 from actopo._mesh import MeshArrays, mesh_arrays
 from actopo._results import JobResult
 from actopo._types import MeshInfo, SessionInfo, SessionStats, plain
-
-STRUCTURES = list(_names.STRUCTURES)
-ALGORITHMS = list(_names.ALGORITHMS)
-DIAGRAM = "persistence-diagram"
 
 
 class UsageError(Exception):
@@ -63,40 +59,7 @@ def _mib(n: int) -> str:
     return f"{n / 2**20:.1f} MiB"
 
 
-# Mesh and session sources shared by run, relation, compare and bench.
-
-
-def _add_mesh_source(p: argparse.ArgumentParser, session: bool = False,
-                     required: bool = True) -> None:
-    g = p.add_mutually_exclusive_group(required=required)
-    g.add_argument("--mesh", metavar="NAME",
-                   help="a file under the server's data directory, or sample:NAME")
-    g.add_argument("--sample", metavar="NAME",
-                   help="a built-in sample, e.g. wavelet:40 (the same as --mesh sample:NAME)")
-    g.add_argument("--upload", metavar="FILE", help="a local mesh file to upload")
-    g.add_argument("--mesh-id", metavar="ID", help="a mesh already loaded on the server")
-    if session:
-        g.add_argument("--session", metavar="ID", help="an open session (see `actopo open`)")
-    p.add_argument("--block-size", type=int, default=0,
-                   help="octree bucket capacity when loading (default: the server's, 1000)")
-    p.add_argument("--keep", action="store_true",
-                   help="keep the mesh this command loaded (default: delete it at the end)")
-
-
-def _add_engine(p: argparse.ArgumentParser, structure: bool = True) -> None:
-    if structure:
-        p.add_argument("--structure", default="actopo", choices=STRUCTURES)
-    p.add_argument("--scalar", help="scalar point field (default: first floating-point field)")
-    p.add_argument("--consumers", type=int, default=0, help="algorithm threads (default 1)")
-    p.add_argument("--producers", type=int, default=0,
-                   help="actopo: producers per consumer (default 2)")
-    p.add_argument("--buffer-ratio", type=float, default=0.0,
-                   help="cache/buffer capacity as a fraction of the blocks (default 0.2)")
-    p.add_argument("--prefetch", default="auto", choices=list(_names.PREFETCH))
-    p.add_argument("--precompute", default="auto", choices=list(_names.PRECOMPUTE))
-    p.add_argument("--query-readers", type=int, default=0,
-                   help="relation calls the session answers at once (default: one per server "
-                        "core, at most 4)")
+# The mesh and session a command works on.
 
 
 class _Mesh:
@@ -231,11 +194,6 @@ def cmd_close(client: Client, args: argparse.Namespace) -> None:
         client.close_session(session_id)
 
 
-def _add_progress(p: argparse.ArgumentParser, what: str) -> None:
-    p.add_argument("--progress", action=argparse.BooleanOptionalAction,
-                   help=f"show {what} on stderr (default: when stderr is a terminal)")
-
-
 def _progress(args: argparse.Namespace) -> bool:
     """--progress, --no-progress, else whether stderr is a terminal."""
     return sys.stderr.isatty() if args.progress is None else args.progress
@@ -283,19 +241,6 @@ def _parameters(args: argparse.Namespace) -> dict[str, str]:
     if args.boundary_rule:
         parameters["boundary_rule"] = args.boundary_rule
     return parameters
-
-
-def _threshold(text: str) -> tuple[float, bool]:
-    """An argparse type: a persistence, absolute ("0.68") or a percentage of the scalar field's
-    range ("1%"); (value, whether it is a percentage)."""
-    number = text.strip().removesuffix("%")
-    try:
-        value = float(number)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number or a percentage: '{text}'") from None
-    if not math.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"must be a number >= 0, got {text}")
-    return value, number != text.strip()
 
 
 def _run_algorithm(args: argparse.Namespace) -> Algorithm:
@@ -464,33 +409,6 @@ def cmd_compare(client: Client, args: argparse.Namespace) -> None:
 DEFAULT_BENCH_SAMPLE = "wavelet:30"
 
 
-def _list(convert: Any, choices: Sequence[str] | None = None) -> Any:
-    """An argparse type: comma-separated values, each converted and checked."""
-    def parse(text: str) -> list[Any]:
-        values = [convert(v.strip()) for v in text.split(",") if v.strip()]
-        if not values:
-            raise argparse.ArgumentTypeError("empty list")
-        for v in values:
-            if choices is not None and v not in choices:
-                raise argparse.ArgumentTypeError(f"unknown '{v}'; choose from "
-                                                 f"{', '.join(choices)}")
-        return values
-    return parse
-
-
-def _positive(convert: Any) -> Any:
-    """An argparse type: a positive number."""
-    def parse(text: str) -> Any:
-        try:
-            value = convert(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: '{text}'") from None
-        if value <= 0:
-            raise argparse.ArgumentTypeError(f"must be positive, got {text}")
-        return value
-    return parse
-
-
 def _bench_connect(client: Client, args: argparse.Namespace) -> Any:
     """A factory of clients with channels (and connections) of their own, reaching the same
     server replica as `client` (the same affinity key)."""
@@ -585,215 +503,14 @@ def cmd_bench(client: Client, args: argparse.Namespace) -> None:
               file=sys.stderr)
 
 
-# The parser: the options every command takes, then one function per command, in the order
-# of `actopo --help`.
-
 Command: TypeAlias = Callable[[Client, argparse.Namespace], None]
-Commands: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
-
-
-def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="actopo", description="Client of the ACTOPO topology "
-                                "service: meshes, sessions, relations and algorithm jobs.")
-    _add_connection(p)
-    commands = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (_add_info, _add_meshes, _add_load, _add_upload, _add_delete, _add_sessions,
-                _add_open, _add_close, _add_run, _add_relation, _add_stats, _add_compare,
-                _add_bench):
-        add(commands)
-    return p
-
-
-def _add_connection(p: argparse.ArgumentParser) -> None:
-    """Where the server is and how to reach it: the options before the command."""
-    p.add_argument("--server", "--target", default=os.environ.get("ACTOPO_SERVER"),
-                   metavar="HOST:PORT", help="actopo-server's address (default: $ACTOPO_SERVER)")
-    p.add_argument("--token", default=os.environ.get("ACTOPO_TOKEN"),
-                   help="bearer token (default: $ACTOPO_TOKEN)")
-    p.add_argument("--affinity-key", default=os.environ.get("ACTOPO_AFFINITY_KEY"),
-                   help="sent as x-actopo-session so a load balancer keeps this client on one "
-                        "server replica (default: $ACTOPO_AFFINITY_KEY)")
-    p.add_argument("--tls", action="store_true", help="use TLS with the system's roots")
-    p.add_argument("--timeout", type=float, default=30.0,
-                   help="deadline of quick calls in seconds (default 30)")
-
-
-def _command(commands: Commands, name: str, func: Command, help: str,
-             json_flag: bool = True) -> argparse.ArgumentParser:
-    """A command running `func`; it also takes --server after its name, and --json."""
-    c = commands.add_parser(name, help=help, description=help)
-    c.set_defaults(func=func)
-    c.add_argument("--server", "--target", default=argparse.SUPPRESS, metavar="HOST:PORT",
-                   help="actopo-server's address (also accepted before the command)")
-    if json_flag:
-        c.add_argument("--json", action="store_true", help="print JSON")
-    return c
-
-
-def _add_info(commands: Commands) -> None:
-    _command(commands, "info", cmd_info, "versions, algorithms, relations, samples and limits")
-
-
-def _add_meshes(commands: Commands) -> None:
-    _command(commands, "meshes", cmd_meshes, "list the loaded meshes")
-
-
-def _add_load(commands: Commands) -> None:
-    c = _command(commands, "load", cmd_load,
-                 "load a file under the server's data directory, or a sample")
-    c.add_argument("source", help="path under the data directory, or sample:NAME "
-                   "(e.g. sample:jittered:32)")
-    c.add_argument("--block-size", type=int, default=0)
-    c.add_argument("--block-labels", metavar="FIELD")
-    _add_progress(c, "a progress bar per phase (read, partition, encode)")
-
-
-def _add_upload(commands: Commands) -> None:
-    c = _command(commands, "upload", cmd_upload,
-                 "upload a local mesh file (read with pyvista or meshio)")
-    c.add_argument("file")
-    c.add_argument("--name")
-    c.add_argument("--block-size", type=int, default=0)
-    c.add_argument("--block-labels", metavar="FIELD")
-
-
-def _add_delete(commands: Commands) -> None:
-    c = _command(commands, "delete", cmd_delete, "delete meshes", json_flag=False)
-    c.add_argument("mesh_ids", nargs="+", metavar="MESH_ID")
-
-
-def _add_sessions(commands: Commands) -> None:
-    _command(commands, "sessions", cmd_sessions, "list the open sessions")
-
-
-def _add_open(commands: Commands) -> None:
-    c = _command(commands, "open", cmd_open, "open a session that outlives the command")
-    c.add_argument("mesh_id", metavar="MESH_ID")
-    _add_engine(c)
-
-
-def _add_close(commands: Commands) -> None:
-    c = _command(commands, "close", cmd_close, "close sessions", json_flag=False)
-    c.add_argument("session_ids", nargs="+", metavar="SESSION_ID")
-
-
-def _add_run(commands: Commands) -> None:
-    c = _command(commands, "run", cmd_run, "run an algorithm on a mesh and print its result")
-    which = c.add_mutually_exclusive_group(required=True)
-    which.add_argument("algorithm_word", nargs="?", choices=ALGORITHMS, metavar="ALGORITHM",
-                       help="the algorithm, as the first word or as --algorithm")
-    which.add_argument("--algorithm", choices=ALGORITHMS)
-    _add_mesh_source(c)
-    _add_engine(c)
-    _add_parameters(c, "an algorithm parameter (repeatable), e.g. embedding=domain "
-                    "(persistence-diagram), relative_threshold=0.05 or persistence_threshold=2.5 "
-                    "(topological-simplification, morse-smale)")
-    _add_run_outputs(c)
-    _add_progress(c, "the load's and the job's progress bars")
-
-
-def _add_parameters(c: argparse.ArgumentParser, param_help: str | None = None) -> None:
-    """The algorithm's parameters: --boundary-rule, and --param NAME=VALUE (repeatable)."""
-    c.add_argument("--boundary-rule", choices=["ttk", "none"], help="critical-points")
-    c.add_argument("--param", action="append", metavar="NAME=VALUE", help=param_help)
-
-
-def _add_run_outputs(c: argparse.ArgumentParser) -> None:
-    """What `run` writes besides its report: ParaView files, a plot, a trace."""
-    c.add_argument("--output", metavar="PREFIX",
-                   help="write PREFIX_critical_points.vtp, ... for ParaView")
-    c.add_argument("--plot", metavar="PATH.png",
-                   help=f"{DIAGRAM}: draw the diagram (birth, death) into this image with "
-                   "matplotlib (pip install 'actopo[plot]')")
-    c.add_argument("--threshold", type=_threshold, metavar="T",
-                   help="with --plot: draw the line death = birth + T; T is a persistence, or "
-                   "a percentage of the scalar field's range such as 1%%")
-    c.add_argument("--trace", metavar="FILE",
-                   help="write a Chrome trace of the job's threads (block relations computed, "
-                   "consumer waits, evictions, phases) for ui.perfetto.dev or chrome://tracing")
-    c.add_argument("--geometry", metavar="FILE",
-                   help="the mesh as a local file, for PREFIX_segmentation.vtu and "
-                   "PREFIX_simplified.vtu with --mesh (default: NAME under the current "
-                   "directory or $ACTOPO_DATA_DIR, if there)")
-
-
-def _add_relation(commands: Commands) -> None:
-    c = _command(commands, "relation", cmd_relation, "a relation of some simplices")
-    c.add_argument("relation", help=", ".join(_names.RELATIONS))
-    c.add_argument("simplices", nargs="+", metavar="SIMPLEX",
-                   help="an id, or a vertex tuple such as 3,17")
-    c.add_argument("--vertices", action="store_true",
-                   help="also print the vertices of result edges and triangles")
-    _add_mesh_source(c, session=True)
-    _add_engine(c)
-    _add_progress(c, "the load's progress bars")
-
-
-def _add_stats(commands: Commands) -> None:
-    c = _command(commands, "stats", cmd_stats, "statistics of one session, or of all")
-    c.add_argument("--session", metavar="ID")
-
-
-def _add_compare(commands: Commands) -> None:
-    c = _command(commands, "compare", cmd_compare,
-                 "run an algorithm on several structures and compare time, wait and memory")
-    _add_mesh_source(c)
-    c.add_argument("--algorithm", required=True, choices=ALGORITHMS)
-    c.add_argument("--structures", default=",".join(STRUCTURES),
-                   help="comma-separated (default: all)")
-    c.add_argument("--repeat", type=int, default=1, help="runs per structure (median)")
-    _add_engine(c, structure=False)
-    _add_parameters(c)
-    _add_progress(c, "the load's and the jobs' progress bars")
-
-
-def _add_bench(commands: Commands) -> None:
-    c = _command(commands, "bench", cmd_bench,
-                 "load a server from concurrent clients: unary, batched and streamed relation "
-                 "queries and jobs; throughput, latency percentiles and the server's own time "
-                 "breakdown")
-    _add_mesh_source(c, required=False)
-    _add_bench_sweep(c)
-    _add_bench_requests(c)
-    c.add_argument("--algorithm", default="critical-points", choices=ALGORITHMS,
-                   help="the job of the job mode (default critical-points)")
-    _add_parameters(c)
-    _add_engine(c, structure=False)
-    _add_progress(c, "the load's progress bars and a line per run")
-    c.add_argument("--structures", help=argparse.SUPPRESS)  # now `compare`
-    c.add_argument("--repeat", type=int, help=argparse.SUPPRESS)
-
-
-def _add_bench_sweep(c: argparse.ArgumentParser) -> None:
-    """What `bench` runs, and for how long: structures, modes, client counts, duration."""
-    c.add_argument("--structure", type=_list(str, STRUCTURES), default=["actopo"],
-                   help="comma-separated structures, one session each (default actopo)")
-    c.add_argument("--modes", type=_list(str, MODES), default=list(MODES),
-                   help=f"comma-separated, of {', '.join(MODES)} (default: all)")
-    c.add_argument("--clients", type=_list(_positive(int)), default=[1],
-                   help="concurrent clients, threads with a channel each; comma-separated for "
-                        "a sweep, e.g. 1,4 (default 1)")
-    c.add_argument("--duration", "--seconds", type=_positive(float), default=5.0,
-                   metavar="SECONDS", help="per mode (default 5)")
-    c.add_argument("--requests", type=_positive(int), metavar="N",
-                   help="requests per client and mode, instead of a duration")
-
-
-def _add_bench_requests(c: argparse.ArgumentParser) -> None:
-    """What one request of `bench` asks: the relation, the ids, and the sizes per mode."""
-    c.add_argument("--relation", default="vertex_star", choices=list(_names.RELATIONS),
-                   metavar="NAME", help="the relation asked (default vertex_star), one of "
-                   f"{', '.join(_names.RELATIONS)}")
-    c.add_argument("--order", default="sequential", choices=ORDERS,
-                   help="ids in order from a different start per client, or at random")
-    c.add_argument("--batch-size", type=_positive(int), default=4096,
-                   help="simplices per GetRelationBatch (default 4096)")
-    c.add_argument("--stream-size", type=_positive(int), default=65536,
-                   help="simplices per streamed array (default 65536)")
-    c.add_argument("--chunk-size", type=_positive(int),
-                   help="simplices per StreamRelations message (default 65536)")
-    c.add_argument("--window", type=_positive(int), default=4,
-                   help="StreamRelations messages in flight per client (default 4)")
+COMMANDS: dict[str, Command] = {
+    "info": cmd_info, "meshes": cmd_meshes, "load": cmd_load, "upload": cmd_upload,
+    "delete": cmd_delete, "sessions": cmd_sessions, "open": cmd_open, "close": cmd_close,
+    "run": cmd_run, "relation": cmd_relation, "stats": cmd_stats, "compare": cmd_compare,
+    "bench": cmd_bench,
+}
+"""What each command of _cli_parser.parser() runs."""
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -805,7 +522,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with Client(args.server, token=args.token, tls=args.tls, timeout=args.timeout,
                     affinity_key=args.affinity_key) as client:
-            args.func(client, args)
+            COMMANDS[args.command](client, args)
     except UsageError as e:
         print(f"actopo: error: {e}", file=sys.stderr)
         return 2

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import signal
@@ -15,7 +16,8 @@ import pyvista  # noqa: F401 (the CLI writes its .vtp files with it: a dependenc
 from harness import wait_for
 from references import ENTRY, check_summary, ttk, ttk_simplification
 
-from actopo._cli import main
+from actopo._cli import COMMANDS, main
+from actopo._cli_parser import parser
 
 
 def _json(cli, *args):
@@ -45,6 +47,11 @@ def test_acceptance_run_json(server, data_dir, bench, algorithm):
     assert report["mesh"]["tetrahedra"] == 60948
     assert set(report) >= {"mesh", "structure", "algorithm", "config", "times_s", "engine",
                            "memory", "result"}
+
+
+def test_every_command_of_the_parser_runs_something():
+    [commands] = [a for a in parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    assert list(commands.choices) == list(COMMANDS)
 
 
 def test_console_script_is_installed(server):
