@@ -12,7 +12,7 @@ SOAK_CLIENTS ?= 16
 FUZZ_SECONDS ?= 600
 FUZZERS = upload_fuzzer mesh_file_fuzzer partition_fuzzer request_fuzzer
 
-.PHONY: all deps build test format check-format lint-python test-unit test-client-cpp test-thread-safety test-asan test-tsan test-asan-server test-soak soak test-fuzz fuzz lint-proto demo bench deploy-check clean
+.PHONY: all deps build test check lint-tests format check-format lint-python test-unit test-client-cpp test-thread-safety test-asan test-tsan test-asan-server test-soak soak test-fuzz fuzz lint-proto demo bench deploy-check clean
 
 all: build
 
@@ -29,9 +29,16 @@ build: deps $(BUILD)/build.ninja
 # fidelity tests; the core and algorithm
 # tests again under ASan+UBSan, and with the service's logic under TSan; the server under
 # ASan+UBSan for the service and client suites; the fuzzers.
-test: lint-proto check-format lint-python test-thread-safety test-unit test-client-cpp test-soak test-asan test-tsan \
+test: lint-proto check-format lint-python lint-tests test-thread-safety check test-soak test-asan test-tsan \
   test-asan-server test-fuzz
 	@echo "make test: all suites passed"
+
+# The fast tier, for the edit-build-test loop: the build, then every ctest test (unit, fidelity,
+# service), tests/, and both clients' suites against the real server; no lint, sanitizers, fuzzing
+# or soak. CTEST_ARGS picks a subset by label: make check CTEST_ARGS="-L unit" (or -L fidelity,
+# -L service, -LE slow).
+check: test-unit test-client-cpp
+	@echo "make check: the fast tier passed (make test runs everything CI runs)"
 
 # The C++ client as a user gets it: built, installed, tested against the real server, and its
 # examples built from a separate CMake project against the installed package.
@@ -53,11 +60,24 @@ format:
 
 # The Python client: ruff (rules in client-py/pyproject.toml) and mypy --strict on the package;
 # ruff with the same rules on tests/, bench/ and the ParaView plugin.
+# Tests skip only through ACTOPO_SKIP (tests/testing/skip.h), which fails under $$ACTOPO_NO_SKIPS.
+lint-tests:
+	@if git grep -n 'GTEST_SKIP' -- '*.cc' '*.h' ':!tests/testing/skip.h'; then \
+	  echo "lint-tests: use ACTOPO_SKIP (tests/testing/skip.h), not GTEST_SKIP"; exit 1; fi
+	@echo "lint-tests: no GTEST_SKIP outside tests/testing/skip.h"
+
 lint-python: deps
 	cd client-py && ../.venv/bin/ruff check . ../tests ../bench ../paraview && ../.venv/bin/mypy actopo
 
+# $(call ctest_run,DIR,ARGS): ctest on the tree DIR, then the reason of every skipped test. ctest
+# shows a skipped test as "Skipped"; with $$ACTOPO_NO_SKIPS set (CI) it fails instead
+# (tests/testing/gtest_main.cc).
+ctest_run = ctest --test-dir $(1) --output-on-failure -j $(JOBS) $(2); status=$$?; \
+  grep -h '^actopo-test-skip:' $(1)/Testing/Temporary/LastTest.log 2>/dev/null | sort -u; \
+  exit $$status
+CTEST_ARGS ?=
 test-unit: build
-	ACTOPO_DATA_DIR=$(DATA_DIR) ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)
+	ACTOPO_DATA_DIR=$(DATA_DIR) $(call ctest_run,$(BUILD),$(CTEST_ARGS))
 	ACTOPO_BUILD=$(abspath $(BUILD)) ACTOPO_DATA_DIR=$(DATA_DIR) .venv/bin/python -m pytest -q -rs tests
 	ACTOPO_BUILD=$(abspath $(BUILD)) ACTOPO_DATA_DIR=$(DATA_DIR) .venv/bin/python -m pytest -q client-py/tests
 
@@ -85,15 +105,17 @@ fuzz: deps build-fuzz/build.ninja
 test-fuzz:
 	$(MAKE) fuzz FUZZ_SECONDS=60
 
-# clang's thread-safety analysis (-Wthread-safety) of server/core, warnings as errors: every
-# member annotated ABSL_GUARDED_BY is only touched with its mutex held (server/core/sync.h).
+# clang's thread-safety analysis (-Wthread-safety) of server/core and server/service, warnings
+# as errors: every member annotated ABSL_GUARDED_BY is only touched with its mutex held
+# (server/core/sync.h).
+TSA_TARGETS = actopo_core actopo_service_logic actopo_service
 build-tsa/build.ninja: | deps
-	cmake -S . -B build-tsa $(CMAKE_FLAGS) -DCMAKE_CXX_COMPILER=clang++-14 -DACTOPO_CORE_ONLY=ON \
+	cmake -S . -B build-tsa $(CMAKE_FLAGS) -DCMAKE_CXX_COMPILER=clang++-14 \
 	  "-DCMAKE_CXX_FLAGS=-Wthread-safety -Werror"
 
 test-thread-safety: deps build-tsa/build.ninja
-	cmake --build build-tsa -j $(JOBS) --target actopo_core
-	@echo "test-thread-safety: server/core passes clang -Wthread-safety -Werror"
+	cmake --build build-tsa -j $(JOBS) --target $(TSA_TARGETS)
+	@echo "test-thread-safety: server/core and server/service pass clang -Wthread-safety -Werror"
 
 # Sanitizer trees build less to stay fast: ASan+UBSan the core and algorithms (no VTK, no gRPC);
 # TSan those and the service's logic without gRPC (sessions, job leases, limits, background work);
@@ -108,13 +130,13 @@ build-asan-server/build.ninja: | deps
 test-asan: deps build-asan/build.ninja
 	cmake --build build-asan -j $(JOBS)
 	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
-	  ctest --test-dir build-asan --output-on-failure -j $(JOBS)
+	  $(call ctest_run,build-asan)
 
 # TSan needs a low-entropy address space on recent kernels; setarch -R runs without ASLR.
 test-tsan: deps build-tsan/build.ninja
 	cmake --build build-tsan -j $(JOBS)
 	TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1" \
-	  setarch $$(uname -m) -R ctest --test-dir build-tsan --output-on-failure -j $(JOBS)
+	  setarch $$(uname -m) -R $(call ctest_run,build-tsan)
 
 # The server under ASan+UBSan: its own service tests, then the Python and C++ client suites
 # against it (gRPC and VTK themselves are not instrumented). The servers the client suites start
@@ -130,7 +152,7 @@ test-asan-server: build build-asan-server/build.ninja
 	cmake --build build-asan-server -j $(JOBS) --target $(ASAN_SERVER_TESTS)
 	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
 	  ACTOPO_DATA_DIR=$(DATA_DIR) \
-	  ctest --test-dir build-asan-server --output-on-failure -j $(JOBS) -E '_NOT_BUILT$$'
+	  $(call ctest_run,build-asan-server,-E '_NOT_BUILT$$')
 	rm -rf $(ASAN_REPORTS) && mkdir -p $(ASAN_REPORTS)
 	$(ASAN_SERVER_ENV) ACTOPO_BUILD=$(abspath $(BUILD)) .venv/bin/python -m pytest -q client-py/tests
 	test -d $(BUILD)/client || $(MAKE) test-client-cpp

@@ -2,9 +2,10 @@
 # Runs every fuzz target for SECONDS each, starting from its seed corpus (fuzz/corpus/<target>)
 # plus what earlier runs found (BUILD/corpus/<target>), and prints executions and coverage.
 # A crash, a sanitizer report, a timeout or an out-of-memory leaves the input in
-# BUILD/artifacts/ and fails the run, except for mesh_file_fuzzer: its findings are inside VTK's
-# readers (memory a corrupt file claims, see fuzz/README.md), reported here but not failing
-# until the server reads files out of process.
+# BUILD/artifacts/ and fails the run, except for mesh_file_fuzzer: it runs VTK's readers in its
+# own process, and its findings are inside them (memory a corrupt file claims, see
+# fuzz/README.md). The server reads files in a child process (actopo-read-mesh), where such a
+# finding costs that one read an INVALID_ARGUMENT, so they are reported here but do not fail.
 #   bash fuzz/run.sh build-fuzz 60
 set -uo pipefail
 build=${1:?build directory}

@@ -22,8 +22,10 @@ debian_packages=(
 # Fuzzing (make fuzz, and make test's short runs) and the thread-safety analysis: clang with
 # libFuzzer; clang-format for the C++ house style (make check-format); Prometheus and promtool
 # for tests/test_prometheus.py (the scrape job and alert rules of deploy/); HAProxy for the
-# session-affinity tests (deploy/haproxy.cfg). Not in the images.
-((want_venv)) && debian_packages+=(clang-14 clang-format-14 libfuzzer-14-dev libclang-rt-14-dev prometheus haproxy)
+# session-affinity tests (deploy/haproxy.cfg); the openssl command for the TLS tests' certificates.
+# Not in the images.
+((want_venv)) && debian_packages+=(clang-14 clang-format-14 libfuzzer-14-dev libclang-rt-14-dev prometheus haproxy
+                                   openssl)
 # ParaView for the plugin (paraview/) and its headless test with pvbatch, numpy for ParaView's
 # Python (the plugin converts arrays with it); python3-paraview is unpacked below.
 ((want_venv)) && debian_packages+=(paraview python3-numpy)

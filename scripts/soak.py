@@ -214,6 +214,22 @@ class Client:
         self.client.close()
 
 
+def wait_idle(server: Server, warm: dict[str, int], seconds: float = 60) -> dict[str, int]:
+    """The server's figures once it is idle: it lists no mesh or session and its threads and
+    descriptors are back to the warm-up's counts. Stops waiting after `seconds` (a hang bound,
+    not a measure): the checks then report what was left."""
+    client = actopo.Client(server.target)
+    give_up = time.monotonic() + seconds
+    while True:
+        sample = server.sample()
+        idle = not client.list_meshes() and not client.list_sessions()
+        settled = sample["threads"] <= warm["threads"] and sample["fds"] <= warm["fds"] + 1
+        if (idle and settled) or time.monotonic() > give_up:
+            client.close()
+            return server.sample()  # without this client's channel
+        time.sleep(0.1)
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--build", type=Path, default=HERE / "build")
@@ -248,12 +264,11 @@ def main() -> int:
         t.join(timeout=120)
     alive = server.process.poll() is None
     answering = alive and actopo.Client(server.target).server_info() is not None
-    time.sleep(2)  # idle: sessions closed, meshes deleted
-    final = server.sample()
+    quarter = max(len(samples) // 4, 1)
+    warm = samples[quarter] if len(samples) > quarter else server.sample()
+    final = wait_idle(server, warm) if answering else server.sample()
     exit_code = server.stop()
 
-    quarter = max(len(samples) // 4, 1)
-    warm = samples[quarter] if len(samples) > quarter else final
     after = samples[quarter:] or [final]
     median = lambda xs: sorted(xs)[len(xs) // 2] if xs else final["rss_kib"]  # noqa: E731
     rss_second = median([s["rss_kib"] for s in samples[quarter:2 * quarter]])

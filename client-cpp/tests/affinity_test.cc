@@ -67,7 +67,7 @@ std::unique_ptr<Client> Connect(const std::string& target, const std::string& ke
 TEST(AffinityTest, EveryCallOfAKeyReachesOneServerThroughHAProxy) {
   const std::string haproxy = HAProxyBinary();
   if (haproxy.empty()) {
-    GTEST_SKIP() << "haproxy not installed (Debian package haproxy; scripts/install-deps.sh)";
+    ACTOPO_SKIP() << "haproxy not installed (Debian package haproxy; scripts/install-deps.sh)";
   }
   absl::StatusOr<std::unique_ptr<ServerProcess>> a =
       ServerProcess::Start(ServerBinary(), DataDir());

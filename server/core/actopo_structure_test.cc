@@ -6,8 +6,11 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
+#include <iterator>
 #include <thread>
 #include <tuple>
+#include <vector>
 
 #include "gtest/gtest.h"
 #include "server/core/partition.h"
@@ -180,25 +183,34 @@ TEST(ActopoStructure, OneBlockBufferManyProducers) {
 }
 
 TEST(ActopoStructure, PrefetchTurnsMissesIntoHits) {
-  // A sequential sweep with linear prefetch and workers: most block moves find the relation
-  // ready. (Counts, not times: the workers only need to keep ahead of a consumer that spends
-  // time on each block, which the per-element work below guarantees.)
+  // A sequential sweep with linear prefetch and one producer (the leader, which computes the
+  // blocks ahead in order). The schedule is forced rather than timed: at the end of each block
+  // the consumer waits until the leader has computed the next one, so every block after the
+  // first is a hit whatever the machine's speed.
   auto topo = Build(testing::Lattice(16, 16, 16, 2), 64);
   auto structure =
-      Create(topo, {.producers = 3, .buffer_ratio = 0.5, .prefetch = Prefetch::kLinear});
+      Create(topo, {.producers = 1, .buffer_ratio = 0.5, .prefetch = Prefetch::kLinear});
   auto reader = structure->NewReader();
   uint64_t sum = 0;
+  int32_t block = topo->block_of(0, 0);
   for (SimplexId v = 0; v < topo->num_vertices(); ++v) {
+    if (const int32_t next = topo->block_of(0, v); next != block) {
+      // Blocks hold consecutive vertices: `next` is block + 1, the leader's next computation.
+      for (int waited_ms = 0; structure->stats().leader_relations < next; ++waited_ms) {
+        ASSERT_LT(waited_ms, 60'000) << "the leader never computed block " << next;
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+      block = next;
+    }
     for (SimplexId t : reader.vertex_star(v)) {
       for (SimplexId w : reader.tetrahedron_vertices(t)) sum += w * 31 + 7;
     }
-    if (v % 16 == 0) std::this_thread::sleep_for(std::chrono::microseconds(50));
   }
   EXPECT_GT(sum, 0u);
   const EngineStats s = structure->stats();
   EXPECT_EQ(s.access.requests, topo->num_blocks());
-  EXPECT_GT(s.access.hits, s.access.misses)
-      << "hits " << s.access.hits << " misses " << s.access.misses;
+  EXPECT_EQ(s.access.misses, 1) << "only the first block, before any prefetch";
+  EXPECT_EQ(s.access.hits, topo->num_blocks() - 1);
   EXPECT_GT(s.blocks_inserted, 0);
   EXPECT_GT(s.buffer_peak_bytes, 0);
 }
@@ -224,20 +236,33 @@ TEST(ActopoStructure, ShutdownWhileConsumersReadKeepsResultsExact) {
   EXPECT_GT(structure->stats().consumer_relations, 0);
 }
 
+// The threads of this process now (Linux: one entry per thread in /proc/self/task).
+int ThreadCount() {
+  return int(std::distance(std::filesystem::directory_iterator("/proc/self/task"),
+                           std::filesystem::directory_iterator()));
+}
+
 TEST(ActopoStructure, DestroyIdleAndBusyStructures) {
   auto topo = Build(testing::Lattice(8, 8, 8, 1), 8);
+  testing::RelationOracle oracle(*topo);
+  const int threads_before = ThreadCount();
   for (int round = 0; round < 20; ++round) {
     auto structure = Create(topo, {.consumers = 2,
                                    .producers = 4,
                                    .buffer_ratio = 0.3,
                                    .prefetch = Prefetch::kLinear,
                                    .precompute = Precompute::kDeclared});
+    EXPECT_EQ(ThreadCount(), threads_before + 2 * 4) << "C * P producers while alive";
     if (round % 2 == 1) {
       auto reader = structure->NewReader();
-      reader.vertex_star(round);  // producers are now busy prefetching the declared set
+      // Producers are now busy prefetching the declared set; the answer is still exact.
+      const std::span<const SimplexId> star = reader.vertex_star(round);
+      EXPECT_EQ(std::vector<SimplexId>(star.begin(), star.end()),
+                oracle.rows(Relation::kVT)[round]);
     }
     // Destruction joins every thread, whatever they were doing.
   }
+  EXPECT_EQ(ThreadCount(), threads_before);
 }
 
 TEST(ActopoStructure, RejectsBadOptions) {

@@ -108,10 +108,14 @@ TEST_F(DataTest, AdmitSeesTheCountsBeforeAnythingIsAllocated) {
 }
 
 TEST_F(DataTest, AReaderOverItsMemoryLimitIsResourceExhausted) {
-  if (!IsolatedReadLimitsMemory()) GTEST_SKIP() << "sanitizer build: the reader runs unlimited";
   // isabel02 needs about 10 MiB; 1 MiB beyond the reader's start-up use cannot hold it.
   absl::StatusOr<Mesh> mesh =
       ReadMeshIsolated(DataFile("isabel02_s2_tet.vtu"), Isolated(int64_t(1) << 20));
+  if (!IsolatedReadLimitsMemory()) {
+    // Sanitizer builds run the reader without a limit (the shadow memory would exceed any).
+    EXPECT_TRUE(mesh.ok()) << mesh.status();
+    return;
+  }
   EXPECT_EQ(mesh.status().code(), absl::StatusCode::kResourceExhausted) << mesh.status();
   EXPECT_THAT(std::string(mesh.status().message()), HasSubstr("isabel02_s2_tet.vtu"));
 }

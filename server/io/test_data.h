@@ -17,6 +17,7 @@
 
 #include "gtest/gtest.h"
 #include "server/core/mesh.h"
+#include "tests/testing/skip.h"
 
 namespace actopo::io::testing {
 
@@ -30,8 +31,8 @@ class DataTest : public ::testing::Test {
  protected:
   void SetUp() override {
     if (!std::filesystem::is_directory(DataDir())) {
-      GTEST_SKIP() << "test data directory '" << DataDir()
-                   << "' not found; set ACTOPO_DATA_DIR to the folder of shared/data";
+      ACTOPO_SKIP() << "test data directory '" << DataDir()
+                    << "' not found; set ACTOPO_DATA_DIR to the folder of shared/data";
     }
   }
 

@@ -15,6 +15,7 @@
 
 #include "actopo/client.h"
 #include "tests/testing/server_process.h"
+#include "tests/testing/skip.h"  // the repository's tests/testing, for ACTOPO_SKIP
 
 namespace actopo::client::testing {
 
