@@ -55,6 +55,11 @@ class CondVar {
   // Releases `mu` while waiting and holds it again on return. Wakes spuriously too: wait in a
   // loop on the condition.
   void Wait(Mutex& mu) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu) { cv_.wait(mu); }
+  // Wait, for at most `timeout`.
+  template <class Duration>
+  void WaitFor(Mutex& mu, Duration timeout) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu) {
+    cv_.wait_for(mu, timeout);
+  }
   void Signal() { cv_.notify_one(); }
   void SignalAll() { cv_.notify_all(); }
 

@@ -1,42 +1,46 @@
-// Slow requests (loading and partitioning a mesh, completing an upload, opening a session) run
-// here, on a few threads of their own, so gRPC's threads keep answering cheap calls meanwhile.
+// The service's threads: every piece of work a call hands over runs on an Executor the service
+// owns, so gRPC's threads only start and finish calls. The service has three (service.h):
+// loads and session openings, relation answers, and jobs, each bounded by its thread count.
 //
-//   BackgroundWork work(4);
+//   Executor relations("relations", 4);
 //   auto cancel = std::make_shared<std::atomic<bool>>(false);   // set by the call's OnCancel
-//   work.Run(cancel, [=] { reactor->Finish(ToGrpcStatus(LoadWatching(*cancel))); });
-//   work.CancelAll();   // draining: every queued and running task sees its flag set
+//   relations.Run(cancel, [=] { reactor->Answer(); });
+//   relations.CancelAll();   // draining: every queued and running task sees its flag set
 //
-// Tasks start in the order they were given. A queued task whose flag is set still runs (it must
-// finish its call) and is expected to return at once. The destructor cancels every task and
-// waits for them all.
-#ifndef ACTOPO_SERVER_SERVICE_BACKGROUND_H_
-#define ACTOPO_SERVER_SERVICE_BACKGROUND_H_
+// Tasks start in the order they were given, on at most `threads` threads (all started at
+// construction). A queued task whose flag is set still runs (it must finish its call) and is
+// expected to return at once. The destructor cancels every task and waits for them all.
+#ifndef ACTOPO_SERVER_SERVICE_EXECUTOR_H_
+#define ACTOPO_SERVER_SERVICE_EXECUTOR_H_
 
 #include <atomic>
-#include <condition_variable>
 #include <deque>
 #include <functional>
 #include <memory>
-#include <mutex>
+#include <string>
 #include <thread>
 #include <vector>
 
+#include "server/core/sync.h"
+
 namespace actopo::service {
 
-class BackgroundWork {
+class Executor {
  public:
   using CancelFlag = std::shared_ptr<std::atomic<bool>>;
 
-  explicit BackgroundWork(int threads);
-  ~BackgroundWork();
-  BackgroundWork(const BackgroundWork&) = delete;
-  BackgroundWork& operator=(const BackgroundWork&) = delete;
+  // `name` names the threads (seen in traces, `top -H` and debuggers; at most 15 characters).
+  Executor(std::string name, int threads);
+  ~Executor();
+  Executor(const Executor&) = delete;
+  Executor& operator=(const Executor&) = delete;
 
   void Run(CancelFlag cancel, std::function<void()> task);
   // Sets the flag of every queued and running task, and of every task given from now on.
   void CancelAll();
   // Tasks queued or running.
   int pending() const;
+  int threads() const { return int(threads_.size()); }
 
  private:
   struct Task {
@@ -45,15 +49,16 @@ class BackgroundWork {
   };
   void Loop();
 
-  mutable std::mutex mu_;
-  std::condition_variable wake_;
-  std::deque<Task> queue_;
-  std::vector<CancelFlag> running_;
-  bool cancel_all_ = false;
-  bool stop_ = false;
-  std::vector<std::thread> threads_;
+  const std::string name_;
+  mutable Mutex mu_;
+  CondVar wake_;
+  std::deque<Task> queue_ ABSL_GUARDED_BY(mu_);
+  std::vector<CancelFlag> running_ ABSL_GUARDED_BY(mu_);
+  bool cancel_all_ ABSL_GUARDED_BY(mu_) = false;
+  bool stop_ ABSL_GUARDED_BY(mu_) = false;
+  std::vector<std::thread> threads_;  // set in the constructor, joined in the destructor
 };
 
 }  // namespace actopo::service
 
-#endif  // ACTOPO_SERVER_SERVICE_BACKGROUND_H_
+#endif  // ACTOPO_SERVER_SERVICE_EXECUTOR_H_

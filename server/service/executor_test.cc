@@ -1,6 +1,6 @@
-// BackgroundWork without gRPC (so this also runs under ThreadSanitizer): tasks run off the
-// caller's thread, in order, a few at once; cancelling reaches queued, running and later tasks.
-#include "server/service/background.h"
+// Executor without gRPC (so this also runs under ThreadSanitizer): tasks run off the caller's
+// thread, in order, a few at once; cancelling reaches queued, running and later tasks.
+#include "server/service/executor.h"
 
 #include <gtest/gtest.h>
 
@@ -13,7 +13,7 @@
 namespace actopo::service {
 namespace {
 
-BackgroundWork::CancelFlag Flag() { return std::make_shared<std::atomic<bool>>(false); }
+Executor::CancelFlag Flag() { return std::make_shared<std::atomic<bool>>(false); }
 
 void WaitFor(const std::function<bool()>& done) {
   const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
@@ -22,10 +22,10 @@ void WaitFor(const std::function<bool()>& done) {
   }
 }
 
-TEST(BackgroundWork, RunsEveryTaskWithAtMostItsThreads) {
+TEST(Executor, RunsEveryTaskWithAtMostItsThreads) {
   std::atomic<int> running{0}, most{0}, done{0};
   {
-    BackgroundWork work(2);
+    Executor work("test", 2);
     for (int i = 0; i < 20; ++i) {
       work.Run(Flag(), [&] {
         const int now = ++running;
@@ -45,11 +45,11 @@ TEST(BackgroundWork, RunsEveryTaskWithAtMostItsThreads) {
 
 // Tasks leave one queue in the order given. With two threads, two tasks taken one after the
 // other may still record themselves in either order, so the order is checked on one thread.
-TEST(BackgroundWork, StartsTasksInTheOrderGiven) {
+TEST(Executor, StartsTasksInTheOrderGiven) {
   std::mutex mu;
   std::vector<int> started;
   {
-    BackgroundWork work(1);
+    Executor work("test", 1);
     for (int i = 0; i < 20; ++i) {
       work.Run(Flag(), [&, i] {
         std::lock_guard<std::mutex> lock(mu);
@@ -65,8 +65,8 @@ TEST(BackgroundWork, StartsTasksInTheOrderGiven) {
   for (int i = 0; i < 20; ++i) EXPECT_EQ(started[i], i);
 }
 
-TEST(BackgroundWork, CancelAllReachesRunningQueuedAndLaterTasks) {
-  BackgroundWork work(1);
+TEST(Executor, CancelAllReachesRunningQueuedAndLaterTasks) {
+  Executor work("test", 1);
   std::atomic<bool> release{false}, first_started{false};
   const auto running = Flag(), queued = Flag(), later = Flag();
   std::atomic<int> finished{0};
@@ -88,11 +88,11 @@ TEST(BackgroundWork, CancelAllReachesRunningQueuedAndLaterTasks) {
   EXPECT_EQ(finished, 3);
 }
 
-TEST(BackgroundWork, DestructorCancelsAndWaits) {
+TEST(Executor, DestructorCancelsAndWaits) {
   std::atomic<int> finished{0};
   const auto flag = Flag();
   {
-    BackgroundWork work(1);
+    Executor work("test", 1);
     work.Run(flag, [&] {
       while (!flag->load()) std::this_thread::yield();
       ++finished;

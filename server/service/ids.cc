@@ -1,17 +1,18 @@
 #include "server/service/ids.h"
 
 #include <cstdio>
-#include <mutex>
 #include <random>
+
+#include "server/core/sync.h"
 
 namespace actopo::service {
 
 std::string NewId(const std::string& prefix) {
-  static std::mutex mu;
-  static std::random_device device;  // /dev/urandom on Linux
+  static Mutex mu;
+  static std::random_device device ABSL_GUARDED_BY(mu);  // /dev/urandom on Linux
   uint32_t words[4];
   {
-    std::lock_guard<std::mutex> lock(mu);
+    MutexLock lock(mu);
     for (uint32_t& w : words) w = device();
   }
   char hex[33];

@@ -1,6 +1,11 @@
 // Loads and session openings run in the background: progress, cancellation by the client, by the
 // deadline and by draining, each leaving nothing behind (no mesh, no budget held).
 #include <chrono>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <string_view>
 #include <thread>
 
 #include "server/service/testing/service_fixture.h"
@@ -10,11 +15,53 @@ namespace {
 
 using testing::ServiceTest;
 
-// Big enough that a load takes a good fraction of a second on any machine (about 3M tetrahedra).
+// Big enough that a load takes a good fraction of a second on any machine (about 3M tetrahedra):
+// long enough to cancel it midway after its first progress reports.
 constexpr char kSlowSample[] = "jittered:80";
+
+// Holds the work of one RPC at its start (ServerOptions::before_work) until opened, so a test
+// can make a call's deadline pass, or other calls run, while that work has surely not ended.
+class Gate {
+ public:
+  explicit Gate(std::string rpc) : rpc_(std::move(rpc)) {}
+  void Hold(std::string_view rpc) {
+    if (rpc != rpc_) return;
+    std::unique_lock<std::mutex> lock(mu_);
+    entered_ = true;
+    changed_.notify_all();
+    changed_.wait(lock, [&] { return open_; });
+  }
+  void WaitEntered() {
+    std::unique_lock<std::mutex> lock(mu_);
+    changed_.wait(lock, [&] { return entered_; });
+  }
+  void Open() {
+    std::lock_guard<std::mutex> lock(mu_);
+    open_ = true;
+    changed_.notify_all();
+  }
+
+ private:
+  const std::string rpc_;
+  std::mutex mu_;
+  std::condition_variable changed_;
+  bool entered_ = false, open_ = false;
+};
 
 class LoadTest : public ServiceTest {
  protected:
+  void TearDown() override {
+    if (gate_) gate_->Open();  // a failed test must not leave the server's work held
+    ServiceTest::TearDown();
+  }
+
+  // Restarts the server with the work of `rpc` held at its start until gate_->Open().
+  void HoldWorkOf(const std::string& rpc) {
+    gate_ = std::make_unique<Gate>(rpc);
+    options_.before_work = [gate = gate_.get()](std::string_view name) { gate->Hold(name); };
+    StartServer();
+  }
+
   // What a stopped load leaves: the server frees it after the client already has its status.
   void ExpectNothingLeftBehind() {
     const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
@@ -26,6 +73,8 @@ class LoadTest : public ServiceTest {
     ASSERT_TRUE(stub_->ListMeshes(Context().get(), {}, &meshes).ok());
     EXPECT_EQ(meshes.meshes_size(), 0);
   }
+
+  std::unique_ptr<Gate> gate_;
 
   std::unique_ptr<grpc::ClientReader<v1::LoadMeshWithProgressResponse>> StartLoad(
       grpc::ClientContext* context, const std::string& sample) {
@@ -89,6 +138,8 @@ TEST_F(LoadTest, CancellingMidLoadStopsItAndFreesEverything) {
 }
 
 TEST_F(LoadTest, DeadlineStopsAPlainLoad) {
+  // The load is held at its start until its deadline has passed, whatever the machine's speed.
+  HoldWorkOf("LoadMesh");
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(100));
   v1::LoadMeshRequest request;
@@ -96,23 +147,25 @@ TEST_F(LoadTest, DeadlineStopsAPlainLoad) {
   v1::LoadMeshResponse response;
   EXPECT_EQ(stub_->LoadMesh(&context, request, &response).error_code(),
             grpc::StatusCode::DEADLINE_EXCEEDED);
+  gate_->Open();
   ExpectNothingLeftBehind();
 }
 
 TEST_F(LoadTest, OtherCallsAreAnsweredWhileALoadRuns) {
+  HoldWorkOf("LoadMeshWithProgress");
   auto context = Context();
   auto reader = StartLoad(context.get(), kSlowSample);
-  v1::LoadMeshWithProgressResponse message;
-  ASSERT_TRUE(reader->Read(&message));
-  ASSERT_TRUE(message.has_progress());
-  // Cheap calls, and a small load and session, go through while the big load is still running.
+  gate_->WaitEntered();  // the big load holds a background thread and has not ended
+  // Cheap calls, and a small load and session, go through meanwhile.
   v1::GetServerInfoResponse info;
   EXPECT_TRUE(stub_->GetServerInfo(Context().get(), {}, &info).ok());
   const std::string small = LoadSample("jittered:4");
   EXPECT_FALSE(Open(small, v1::STRUCTURE_COMPACT).empty());
   v1::ListMeshesResponse meshes;
   ASSERT_TRUE(stub_->ListMeshes(Context().get(), {}, &meshes).ok());
-  EXPECT_EQ(meshes.meshes_size(), 1) << "the big load should still be running";
+  EXPECT_EQ(meshes.meshes_size(), 1) << "only the small mesh: the big load is held";
+  gate_->Open();
+  v1::LoadMeshWithProgressResponse message;
   bool got_mesh = false;
   while (reader->Read(&message)) got_mesh = message.has_mesh();
   ASSERT_TRUE(reader->Finish().ok());
@@ -137,6 +190,8 @@ TEST_F(LoadTest, DrainingCancelsLoadsInProgress) {
 }
 
 TEST_F(LoadTest, ADeadlineStopsOpeningAnExplicitSession) {
+  // The opening is held at its start until its deadline has passed, whatever the machine's speed.
+  HoldWorkOf("OpenSession");
   const std::string mesh = LoadSample("jittered:60", 1000);
   const int64_t mesh_only = server_->memory_budget_used_bytes();
   grpc::ClientContext context;
@@ -147,6 +202,7 @@ TEST_F(LoadTest, ADeadlineStopsOpeningAnExplicitSession) {
   v1::OpenSessionResponse response;
   EXPECT_EQ(stub_->OpenSession(&context, request, &response).error_code(),
             grpc::StatusCode::DEADLINE_EXCEEDED);
+  gate_->Open();
   // Once its precomputation has stopped, only the mesh is left in the budget.
   const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
   while (server_->memory_budget_used_bytes() != mesh_only &&

@@ -5,7 +5,7 @@
 namespace actopo::service {
 
 absl::Status MemoryBudget::Reserve(int64_t bytes, const std::string& what) {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   if (used_ + bytes > limit_) {
     return absl::ResourceExhaustedError(
         absl::StrCat(what, " needs about ", bytes >> 20, " MiB but the server's memory budget has ",
@@ -17,12 +17,12 @@ absl::Status MemoryBudget::Reserve(int64_t bytes, const std::string& what) {
 }
 
 void MemoryBudget::Release(int64_t bytes) {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   used_ -= bytes;
 }
 
 int64_t MemoryBudget::used() const {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   return used_;
 }
 

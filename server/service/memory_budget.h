@@ -4,10 +4,10 @@
 #define ACTOPO_SERVER_SERVICE_MEMORY_BUDGET_H_
 
 #include <cstdint>
-#include <mutex>
 #include <string>
 
 #include "absl/status/status.h"
+#include "server/core/sync.h"
 
 namespace actopo::service {
 
@@ -23,8 +23,8 @@ class MemoryBudget {
 
  private:
   const int64_t limit_;
-  mutable std::mutex mu_;
-  int64_t used_ = 0;
+  mutable Mutex mu_;
+  int64_t used_ ABSL_GUARDED_BY(mu_) = 0;
 };
 
 // A reservation released on destruction.

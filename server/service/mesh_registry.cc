@@ -45,7 +45,7 @@ int64_t MeshRegistry::EstimateBytes(int64_t vertices, int64_t tetrahedra, int po
 }
 
 absl::Status MeshRegistry::CheckCapacity() const {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   if (int(meshes_.size()) >= options_.max_meshes) {
     return absl::ResourceExhaustedError(
         absl::StrCat("meshes: the server holds its maximum of ", options_.max_meshes,
@@ -161,7 +161,7 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Add(
 
 absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Insert(
     std::unique_ptr<LoadedMesh> mesh) {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   if (int(meshes_.size()) >= options_.max_meshes) {
     return absl::ResourceExhaustedError(
         absl::StrCat("meshes: the server holds its maximum of ", options_.max_meshes, " meshes"));
@@ -176,7 +176,7 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Insert(
 }
 
 absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Get(const std::string& id) const {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   auto it = meshes_.find(id);
   if (it == meshes_.end()) {
     return absl::NotFoundError(absl::StrCat("mesh_id: no mesh '", id, "' on this server"));
@@ -185,14 +185,14 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Get(const std::s
 }
 
 std::vector<std::shared_ptr<const LoadedMesh>> MeshRegistry::List() const {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   std::vector<std::shared_ptr<const LoadedMesh>> out;
   for (const auto& [id, mesh] : meshes_) out.push_back(mesh);
   return out;
 }
 
 absl::Status MeshRegistry::Delete(const std::string& id) {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   if (meshes_.erase(id) == 0) {
     return absl::NotFoundError(absl::StrCat("mesh_id: no mesh '", id, "' on this server"));
   }
@@ -200,7 +200,7 @@ absl::Status MeshRegistry::Delete(const std::string& id) {
 }
 
 size_t MeshRegistry::size() const {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   return meshes_.size();
 }
 

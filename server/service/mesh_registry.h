@@ -9,7 +9,6 @@
 
 #include <map>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <vector>
 
@@ -18,6 +17,7 @@
 #include "server/core/mesh.h"
 #include "server/core/partition.h"
 #include "server/core/progress.h"
+#include "server/core/sync.h"
 #include "server/core/topology.h"
 #include "server/service/memory_budget.h"
 
@@ -85,8 +85,8 @@ class MeshRegistry {
 
   const MeshRegistryOptions options_;
   MemoryBudget* budget_;
-  mutable std::mutex mu_;
-  std::map<std::string, std::shared_ptr<const LoadedMesh>> meshes_;
+  mutable Mutex mu_;
+  std::map<std::string, std::shared_ptr<const LoadedMesh>> meshes_ ABSL_GUARDED_BY(mu_);
 };
 
 }  // namespace actopo::service

@@ -6,9 +6,8 @@
 #include <prometheus/histogram.h>
 #include <prometheus/registry.h>
 
-#include <mutex>
-
 #include "absl/strings/str_cat.h"
+#include "server/core/sync.h"
 
 namespace actopo::service {
 
@@ -33,13 +32,13 @@ class Metrics::ScrapeTimeGauges : public prometheus::Collectable {
       : registry_(std::move(registry)), f_(families) {}
 
   void SetSource(std::function<GaugeValues()> source) {
-    std::lock_guard<std::mutex> lock(mu_);
+    MutexLock lock(mu_);
     source_ = std::move(source);
   }
 
   std::vector<prometheus::MetricFamily> Collect() const override {
     {
-      std::lock_guard<std::mutex> lock(mu_);
+      MutexLock lock(mu_);
       if (source_) {
         const GaugeValues v = source_();
         f_->meshes->Set(v.meshes);
@@ -56,8 +55,8 @@ class Metrics::ScrapeTimeGauges : public prometheus::Collectable {
  private:
   const std::shared_ptr<prometheus::Registry> registry_;
   const Families* f_;
-  mutable std::mutex mu_;
-  std::function<GaugeValues()> source_;
+  mutable Mutex mu_;
+  std::function<GaugeValues()> source_ ABSL_GUARDED_BY(mu_);
 };
 
 absl::StatusOr<std::unique_ptr<Metrics>> Metrics::Create(const std::string& host, int port) {

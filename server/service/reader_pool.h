@@ -8,12 +8,12 @@
 #ifndef ACTOPO_SERVER_SERVICE_READER_POOL_H_
 #define ACTOPO_SERVER_SERVICE_READER_POOL_H_
 
-#include <condition_variable>
 #include <functional>
 #include <memory>
-#include <mutex>
 #include <utility>
 #include <vector>
+
+#include "server/core/sync.h"
 
 namespace actopo::service {
 
@@ -46,8 +46,8 @@ class ReaderPool {
   };
 
   Lease Acquire() {
-    std::unique_lock<std::mutex> lock(mu_);
-    available_.wait(lock, [&] { return !free_.empty() || created_ < capacity_; });
+    MutexLock lock(mu_);
+    while (free_.empty() && created_ >= capacity_) available_.Wait(mu_);
     if (free_.empty()) {
       ++created_;
       return Lease(this, std::make_unique<Reader>(make_()));
@@ -61,7 +61,7 @@ class ReaderPool {
 
   // Destroys the idle readers; every lease must have been returned.
   void Clear() {
-    std::lock_guard<std::mutex> lock(mu_);
+    MutexLock lock(mu_);
     free_.clear();
     created_ = 0;
   }
@@ -69,18 +69,18 @@ class ReaderPool {
  private:
   void Return(std::unique_ptr<Reader> reader) {
     {
-      std::lock_guard<std::mutex> lock(mu_);
+      MutexLock lock(mu_);
       free_.push_back(std::move(reader));
     }
-    available_.notify_one();
+    available_.Signal();
   }
 
   const int capacity_;
   const std::function<Reader()> make_;
-  std::mutex mu_;
-  std::condition_variable available_;
-  std::vector<std::unique_ptr<Reader>> free_;  // guarded by mu_
-  int created_ = 0;                            // guarded by mu_
+  Mutex mu_;
+  CondVar available_;
+  std::vector<std::unique_ptr<Reader>> free_ ABSL_GUARDED_BY(mu_);
+  int created_ ABSL_GUARDED_BY(mu_) = 0;
 };
 
 }  // namespace actopo::service

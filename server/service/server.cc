@@ -4,8 +4,10 @@
 #include <grpcpp/health_check_service_interface.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 #include "absl/strings/str_cat.h"
 #include "server/core/status_macros.h"
@@ -29,6 +31,17 @@ absl::StatusOr<std::string> ReadFile(const std::string& path, const std::string&
 int64_t DefaultBudget() {
   const int64_t pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
   return pages > 0 && page > 0 ? pages * page / 4 * 3 : int64_t(8) << 30;
+}
+
+// The executors' threads. Loads and openings use every core inside (partitioning, encoding,
+// precomputing): a few at once, the rest wait in order. Relation answers are short and
+// single-threaded: one per core. A running job holds at least one of the sessions' engine
+// threads, so --max-engine-threads (and the session limit) bound how many can run at once.
+ServiceThreads Threads(const ServerOptions& o) {
+  const int cores = int(std::max(1u, std::thread::hardware_concurrency()));
+  return {.background = 4,
+          .relations = std::max(cores, 2),
+          .jobs = std::max(1, std::min(o.max_engine_threads, o.max_sessions))};
 }
 
 }  // namespace
@@ -70,7 +83,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& o) {
                     .max_sessions = o.max_sessions,
                     .max_engine_threads = o.max_engine_threads,
                     .session_idle_timeout_seconds = absl::ToInt64Seconds(o.session_idle_timeout)},
-      o.token);
+      Threads(o), o.token, o.before_work);
 
   std::shared_ptr<grpc::ServerCredentials> credentials = grpc::InsecureServerCredentials();
   if (!o.tls_cert_file.empty() || !o.tls_key_file.empty()) {

@@ -11,8 +11,10 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include <functional>
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "absl/status/statusor.h"
 #include "absl/time/time.h"
@@ -34,6 +36,10 @@ struct ServerOptions {
   absl::Duration session_idle_timeout = absl::Minutes(30);
   std::string tls_cert_file, tls_key_file;  // both set: TLS
   std::string token;                        // non-empty: require "authorization: Bearer TOKEN"
+  // Tests only: runs on an executor's thread before the work of each load, upload, opening or
+  // relation call begins, with the RPC's name. A test blocks in it to hold that work at a known
+  // point (for instance until the call's deadline has passed).
+  std::function<void(std::string_view rpc)> before_work;
 };
 
 class Server {

@@ -1,23 +1,25 @@
-// The actopo.v1.TopologyService implementation (gRPC callback API): one reactor per streaming
-// RPC; cheap unary RPCs answered inline (service_unary.cc); loading, uploading and opening
-// sessions in the background work, cancellable (service_meshes.cc); relation and job streams in
-// service_streams.cc.
+// The actopo.v1.TopologyService implementation (gRPC callback API). Every call's work runs on an
+// executor the service owns (executor.h), never on gRPC's threads: loading, uploading and
+// opening sessions on `background`, cancellable (service_meshes.cc); relation answers, single,
+// batched and streamed, on `relations`; jobs on `jobs` (service_streams.cc). Only bookkeeping
+// calls that take microseconds and wait for nothing are answered inline (service_unary.cc).
 #ifndef ACTOPO_SERVER_SERVICE_SERVICE_H_
 #define ACTOPO_SERVER_SERVICE_SERVICE_H_
 
 #include <atomic>
-#include <map>
+#include <functional>
 #include <memory>
-#include <mutex>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "actopo/v1/topology_service.grpc.pb.h"
 #include "server/core/progress.h"
-#include "server/service/background.h"
+#include "server/service/executor.h"
 #include "server/service/memory_budget.h"
 #include "server/service/mesh_registry.h"
 #include "server/service/metrics.h"
+#include "server/service/reactor_host.h"
 #include "server/service/session_manager.h"
 
 namespace actopo::service {
@@ -32,16 +34,24 @@ struct ServiceLimits {
   int64_t session_idle_timeout_seconds = 0;
 };
 
-namespace v1 = ::actopo::v1;
+// The threads of the service's executors (Server::Start sizes them from the cores and
+// --max-engine-threads).
+struct ServiceThreads {
+  int background = 4;  // loads, uploads, openings: each uses every core inside
+  int relations = 2;   // relation answers: one per core
+  int jobs = 64;       // algorithm runs: each holds at least one engine thread while it runs
+};
 
-class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
+class TopologyServiceImpl final : public v1::TopologyService::CallbackService, private ReactorHost {
  public:
+  // `before_work`: tests only (ServerOptions::before_work); may be empty.
   TopologyServiceImpl(MeshRegistry* meshes, SessionManager* sessions, MemoryBudget* budget,
-                      Metrics* metrics, ServiceLimits limits, std::string token);
+                      Metrics* metrics, ServiceLimits limits, ServiceThreads threads,
+                      std::string token, std::function<void(std::string_view)> before_work);
 
   // Stop accepting work (UNAVAILABLE) and cancel running jobs; health is set by the server.
   void Drain();
-  bool draining() const { return draining_.load(); }
+  bool draining() const override { return draining_.load(); }
 
   grpc::ServerUnaryReactor* GetServerInfo(grpc::CallbackServerContext*,
                                           const v1::GetServerInfoRequest*,
@@ -83,45 +93,42 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
   grpc::ServerUnaryReactor* CancelJob(grpc::CallbackServerContext*, const v1::CancelJobRequest*,
                                       v1::CancelJobResponse*) override;
 
-  // Used by the reactors (service_streams.cc).
-  absl::Status Admit(grpc::CallbackServerContext* context) const;
-  void Count(std::string_view rpc, const absl::Status& status);
-  absl::Status AnswerRelation(const std::string& session_id, v1::Relation relation,
-                              const v1::Simplex& simplex, bool include_vertices,
-                              std::vector<int64_t>& ids, std::vector<int64_t>* vertices);
-  // A batch by ids or vertex_tuples (exactly one non-null) answered as CSR arrays. With
-  // `failures`, an item that fails gets an empty row and an entry there; without, the first
-  // failure fails the call.
-  struct ItemFailure {
-    int64_t index;
-    absl::Status status;
-  };
-  absl::Status AnswerBatch(const std::string& session_id, v1::Relation relation,
-                           const v1::Array* ids, const v1::Array* vertex_tuples, v1::Array* offsets,
-                           v1::Array* values, std::vector<ItemFailure>* failures);
-  // The mesh a LoadMesh request names, loaded, partitioned and registered.
-  absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadRequested(
-      const v1::LoadMeshRequest& request, const Progress& progress);
-  BackgroundWork& background() { return background_; }
-  MeshRegistry& meshes() { return *meshes_; }
-  MemoryBudget& budget() { return *budget_; }
-  SessionManager& sessions() { return *sessions_; }
-  Metrics& metrics() { return *metrics_; }
-  const ServiceLimits& limits() const { return limits_; }
   // The metrics' gauges now (Metrics reads them at each scrape).
   GaugeValues Gauges() const;
 
  private:
-  // Answers inline, on the gRPC thread: for calls that take microseconds.
+  // ReactorHost: what the reactors use (reactor_host.h).
+  absl::Status Admit(grpc::CallbackServerContext* context) const override;
+  void Count(std::string_view rpc, const absl::Status& status) override;
+  Executor& background() override { return background_; }
+  Executor& relations() override { return relations_; }
+  Executor& jobs() override { return jobs_; }
+  void BeforeWork(std::string_view rpc) override;
+  absl::Status AnswerRelation(const std::string& session_id, v1::Relation relation,
+                              const v1::Simplex& simplex, bool include_vertices,
+                              std::vector<int64_t>& ids, std::vector<int64_t>* vertices) override;
+  absl::Status AnswerBatch(const std::string& session_id, v1::Relation relation,
+                           const v1::Array* ids, const v1::Array* vertex_tuples, v1::Array* offsets,
+                           v1::Array* values, std::vector<ItemFailure>* failures) override;
+  absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadRequested(
+      const v1::LoadMeshRequest& request, const Progress& progress) override;
+  MeshRegistry& meshes() override { return *meshes_; }
+  MemoryBudget& budget() override { return *budget_; }
+  absl::StatusOr<std::shared_ptr<Session>> FindSession(const std::string& id) override;
+  absl::StatusOr<JobLease> StartJob(const std::string& session_id, Algorithm algorithm) override;
+  void RecordJob(std::string_view algorithm, std::string_view structure, double seconds,
+                 const EngineStats& engine) override;
+
+  // Answers inline, on the gRPC thread: for calls that take microseconds and wait for nothing.
   template <class Fn>
   grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* context, std::string_view rpc,
                                   Fn&& fn);
-  // Answers from the background work: fn(const Progress&) -> absl::Status, where the progress
-  // stops when the call is cancelled, its deadline passes or the server drains. fn must capture
-  // the request and response pointers by value.
+  // Answers from `executor`: fn(const Progress&) -> absl::Status, where the progress stops when
+  // the call is cancelled, its deadline passes or the server drains. fn must capture the request
+  // and response pointers by value.
   template <class Fn>
-  grpc::ServerUnaryReactor* Background(grpc::CallbackServerContext* context, std::string_view rpc,
-                                       Fn fn);
+  grpc::ServerUnaryReactor* Offload(Executor& executor, grpc::CallbackServerContext* context,
+                                    std::string_view rpc, Fn fn);
 
   MeshRegistry* meshes_;
   SessionManager* sessions_;
@@ -129,14 +136,14 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService {
   Metrics* metrics_;
   const ServiceLimits limits_;
   const std::string token_;
+  const std::function<void(std::string_view)> before_work_;
   std::atomic<bool> draining_{false};
-  // Loads, uploads and session openings; a few run at once (each is itself multi-threaded),
-  // the rest wait in order. Declared last: destroyed first, waiting for its tasks.
-  BackgroundWork background_;
+  // Declared last: destroyed first, each cancelling its tasks and waiting for them. Loads and
+  // openings run a few at once (each is itself multi-threaded), the rest wait in order.
+  Executor background_;
+  Executor relations_;
+  Executor jobs_;
 };
-
-// A call's deadline on the steady clock (time_point::max() when it has none).
-Progress::Clock::time_point SteadyDeadline(const grpc::CallbackServerContext& context);
 
 }  // namespace actopo::service
 

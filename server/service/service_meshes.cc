@@ -1,34 +1,23 @@
 // The mesh and session RPCs of TopologyServiceImpl that take seconds on big meshes: LoadMesh,
-// LoadMeshWithProgress, UploadMesh and OpenSession. Their work runs in the service's
-// BackgroundWork, never on a gRPC thread, and stops when the call is cancelled, its deadline
+// LoadMeshWithProgress, UploadMesh and OpenSession. Their work runs on the service's background
+// executor, never on a gRPC thread, and stops when the call is cancelled, its deadline
 // passes or the server drains; what it had built is freed and its budget released.
 #include <grpcpp/grpcpp.h>
 
 #include <chrono>
 #include <deque>
-#include <mutex>
 
 #include "absl/strings/str_cat.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
+#include "server/core/sync.h"
+#include "server/service/offload.h"
 #include "server/service/service.h"
 #include "server/service/upload_decoder.h"
 #include "server/service/wire.h"
 
 namespace actopo::service {
 namespace {
-
-// The cancel flag of a unary call handled in the background: set when the client cancels, the
-// deadline passes or the server shuts down.
-class BackgroundUnaryReactor final : public grpc::ServerUnaryReactor {
- public:
-  void OnCancel() override { cancel_->store(true); }
-  void OnDone() override { delete this; }
-  const BackgroundWork::CancelFlag& cancel() const { return cancel_; }
-
- private:
-  const BackgroundWork::CancelFlag cancel_ = std::make_shared<std::atomic<bool>>(false);
-};
 
 // ---------------------------------------------------------------------------------------------
 // UploadMesh: header, then raw chunks; assembled, checked against the header's counts and
@@ -37,13 +26,13 @@ class BackgroundUnaryReactor final : public grpc::ServerUnaryReactor {
 // passes.
 class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest> {
  public:
-  UploadReactor(TopologyServiceImpl* service, grpc::CallbackServerContext* context,
+  UploadReactor(ReactorHost* host, grpc::CallbackServerContext* context,
                 v1::UploadMeshResponse* response)
-      : service_(service),
+      : host_(host),
         response_(response),
         deadline_(SteadyDeadline(*context)),
         cancel_(std::make_shared<std::atomic<bool>>(false)) {
-    const absl::Status admitted = service_->Admit(context);
+    const absl::Status admitted = host_->Admit(context);
     if (!admitted.ok()) {
       Done(admitted);
       return;
@@ -54,7 +43,8 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
 
   void OnReadDone(bool ok) override {
     if (!ok) {  // the client finished sending, or went away (then cancel_ is set)
-      service_->background().Run(cancel_, [this] {
+      host_->background().Run(cancel_, [this] {
+        host_->BeforeWork("UploadMesh");
         const absl::Status status =
             Complete(Progress({.cancel = cancel_.get(), .deadline = deadline_}));
         if (!status.ok()) {
@@ -101,15 +91,15 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
   absl::Status CheckHeader() {
     ASSIGN_OR_RETURN(expected_, CheckUploadHeader(header_));
     const int64_t nv = header_.num_vertices(), nt = header_.num_tetrahedra();
-    RETURN_IF_ERROR(service_->meshes().CheckCapacity());
+    RETURN_IF_ERROR(host_->meshes().CheckCapacity());
     // Everything is reserved before a byte arrives: the raw bytes, held until the mesh is
     // decoded, and the mesh with its encodings, handed to the registry.
     const int64_t mesh_bytes = MeshRegistry::EstimateBytes(nv, nt, header_.fields_size());
-    RETURN_IF_ERROR(service_->budget().Reserve(
+    RETURN_IF_ERROR(host_->budget().Reserve(
         int64_t(expected_) + mesh_bytes,
         absl::StrCat("uploading ", nv, " vertices and ", nt, " tetrahedra (raw data and mesh)")));
-    reservation_ = Reservation(&service_->budget(), int64_t(expected_));
-    mesh_reservation_ = Reservation(&service_->budget(), mesh_bytes);
+    reservation_ = Reservation(&host_->budget(), int64_t(expected_));
+    mesh_reservation_ = Reservation(&host_->budget(), mesh_bytes);
     data_.reserve(expected_);
     return absl::OkStatus();
   }
@@ -123,7 +113,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
     RETURN_IF_ERROR(progress.Update("read", 1));
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-    ASSIGN_OR_RETURN(auto loaded, service_->meshes().Add(
+    ASSIGN_OR_RETURN(auto loaded, host_->meshes().Add(
                                       header_.name().empty() ? "upload" : header_.name(), "upload",
                                       std::move(mesh), seconds, FromProto(header_.partition()),
                                       progress, std::move(mesh_reservation_)));
@@ -132,14 +122,14 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
   }
 
   void Done(const absl::Status& status) {
-    service_->Count("UploadMesh", status);
+    host_->Count("UploadMesh", status);
     Finish(ToGrpcStatus(status));
   }
 
-  TopologyServiceImpl* service_;
+  ReactorHost* host_;
   v1::UploadMeshResponse* response_;
   const Progress::Clock::time_point deadline_;
-  const BackgroundWork::CancelFlag cancel_;
+  const Executor::CancelFlag cancel_;
   v1::UploadMeshRequest message_;
   v1::UploadMeshHeader header_;
   bool have_header_ = false;
@@ -158,40 +148,47 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
 class LoadProgressReactor final
     : public grpc::ServerWriteReactor<v1::LoadMeshWithProgressResponse> {
  public:
-  LoadProgressReactor(TopologyServiceImpl* service, grpc::CallbackServerContext* context,
+  LoadProgressReactor(ReactorHost* host, grpc::CallbackServerContext* context,
                       const v1::LoadMeshWithProgressRequest* request)
-      : service_(service), start_(Progress::Clock::now()) {
-    if (absl::Status admitted = service_->Admit(context); !admitted.ok()) {
-      service_->Count("LoadMeshWithProgress", admitted);
+      : host_(host), start_(Progress::Clock::now()) {
+    if (absl::Status admitted = host_->Admit(context); !admitted.ok()) {
+      host_->Count("LoadMeshWithProgress", admitted);
       Finish(ToGrpcStatus(admitted));
       return;
     }
     const Progress::Clock::time_point deadline = SteadyDeadline(*context);
-    service_->background().Run(cancel_, [this, request, deadline] {
+    host_->background().Run(cancel_, [this, request, deadline] {
+      host_->BeforeWork("LoadMeshWithProgress");
       const Progress progress(
           {.cancel = cancel_.get(),
            .deadline = deadline,
            .report = [this](std::string_view phase, double fraction) { Report(phase, fraction); }});
       absl::StatusOr<std::shared_ptr<const LoadedMesh>> mesh =
-          service_->LoadRequested(request->load(), progress);
+          host_->LoadRequested(request->load(), progress);
       absl::Status status = mesh.status();
       if (!status.ok()) ReleaseFreeMemory();
-      service_->Count("LoadMeshWithProgress", status);
-      std::unique_lock<std::mutex> lock(mu_);
+      host_->Count("LoadMeshWithProgress", status);
+      mu_.Lock();
       if (mesh.ok()) Fill(**mesh, 0, final_message_.mutable_mesh());
       final_ = std::move(status);
       have_final_ = true;
-      if (!writing_) FinishLocked(lock);  // else OnWriteDone finishes
+      if (writing_) {
+        mu_.Unlock();  // OnWriteDone finishes
+      } else {
+        FinishLocked();
+      }
     });
   }
 
   void OnWriteDone(bool) override {
-    std::unique_lock<std::mutex> lock(mu_);
+    mu_.Lock();
     writing_ = false;
     if (have_final_) {
-      FinishLocked(lock);
+      FinishLocked();
     } else if (!waiting_.empty()) {
-      WriteWaitingLocked(lock);
+      WriteWaitingLocked();
+    } else {
+      mu_.Unlock();
     }
   }
   void OnCancel() override { cancel_->store(true); }
@@ -201,9 +198,10 @@ class LoadProgressReactor final
   // A report is sent when the phase changes, or after 1% of it or 0.2 s.
   void Report(std::string_view phase, double fraction) {
     const auto now = Progress::Clock::now();
-    std::unique_lock<std::mutex> lock(mu_);
+    mu_.Lock();
     if (phase == phase_ && fraction < 1 && fraction - sent_fraction_ < 0.01 &&
         now - sent_at_ < std::chrono::milliseconds(200)) {
+      mu_.Unlock();
       return;
     }
     phase_ = std::string(phase);
@@ -214,22 +212,27 @@ class LoadProgressReactor final
     p->set_phase(phase_);
     p->set_fraction(fraction);
     p->set_elapsed_seconds(std::chrono::duration<double>(now - start_).count());
-    if (!writing_) WriteWaitingLocked(lock);
+    if (writing_) {
+      mu_.Unlock();
+    } else {
+      WriteWaitingLocked();
+    }
   }
 
-  void WriteWaitingLocked(std::unique_lock<std::mutex>& lock) {
+  // Starts writing the oldest waiting report; releases mu_.
+  void WriteWaitingLocked() ABSL_UNLOCK_FUNCTION(mu_) {
     last_.Swap(&waiting_.front());
     waiting_.pop_front();
     writing_ = true;
-    lock.unlock();  // last_ is ours until OnWriteDone: no one else writes while writing_
+    mu_.Unlock();  // last_ is ours until OnWriteDone: no one else writes while writing_
     StartWrite(&last_);
   }
 
-  // Called once, after the last write completed. Nothing touches `this` after Finish, which may
-  // run OnDone (delete this) on another thread at once.
-  void FinishLocked(std::unique_lock<std::mutex>& lock) {
+  // Called once, after the last write completed; releases mu_. Nothing touches `this` after
+  // Finish, which may run OnDone (delete this) on another thread at once.
+  void FinishLocked() ABSL_UNLOCK_FUNCTION(mu_) {
     const absl::Status status = final_;
-    lock.unlock();
+    mu_.Unlock();
     if (status.ok()) {
       StartWriteAndFinish(&final_message_, grpc::WriteOptions(), grpc::Status::OK);
     } else {
@@ -237,19 +240,20 @@ class LoadProgressReactor final
     }
   }
 
-  TopologyServiceImpl* service_;
+  ReactorHost* host_;
   const Progress::Clock::time_point start_;
-  const BackgroundWork::CancelFlag cancel_ = std::make_shared<std::atomic<bool>>(false);
-  std::mutex mu_;
-  v1::LoadMeshWithProgressResponse last_;                 // the report being written
-  std::deque<v1::LoadMeshWithProgressResponse> waiting_;  // the newest report of each phase
-  v1::LoadMeshWithProgressResponse final_message_;        // the mesh
-  bool writing_ = false;
-  bool have_final_ = false;
-  absl::Status final_;
-  std::string phase_;
-  double sent_fraction_ = 0;
-  Progress::Clock::time_point sent_at_;
+  const Executor::CancelFlag cancel_ = std::make_shared<std::atomic<bool>>(false);
+  Mutex mu_;
+  // The report being written: touched only by whoever set writing_, outside the lock.
+  v1::LoadMeshWithProgressResponse last_;
+  std::deque<v1::LoadMeshWithProgressResponse> waiting_ ABSL_GUARDED_BY(mu_);  // newest per phase
+  v1::LoadMeshWithProgressResponse final_message_;  // the mesh: written once, before have_final_
+  bool writing_ ABSL_GUARDED_BY(mu_) = false;
+  bool have_final_ ABSL_GUARDED_BY(mu_) = false;
+  absl::Status final_ ABSL_GUARDED_BY(mu_);
+  std::string phase_ ABSL_GUARDED_BY(mu_);
+  double sent_fraction_ ABSL_GUARDED_BY(mu_) = 0;
+  Progress::Clock::time_point sent_at_ ABSL_GUARDED_BY(mu_);
 };
 
 }  // namespace
@@ -260,26 +264,6 @@ Progress::Clock::time_point SteadyDeadline(const grpc::CallbackServerContext& co
   if (left > std::chrono::hours(24 * 365)) return Progress::Clock::time_point::max();
   return Progress::Clock::now() +
          std::chrono::duration_cast<Progress::Clock::duration>(std::max(left, left.zero()));
-}
-
-template <class Fn>
-grpc::ServerUnaryReactor* TopologyServiceImpl::Background(grpc::CallbackServerContext* context,
-                                                          std::string_view rpc, Fn fn) {
-  auto* reactor = new BackgroundUnaryReactor();
-  if (absl::Status admitted = Admit(context); !admitted.ok()) {
-    Count(rpc, admitted);
-    reactor->Finish(ToGrpcStatus(admitted));
-    return reactor;
-  }
-  const Progress::Clock::time_point deadline = SteadyDeadline(*context);
-  background_.Run(reactor->cancel(), [this, reactor, rpc, deadline, fn = std::move(fn)] {
-    const absl::Status status =
-        fn(Progress({.cancel = reactor->cancel().get(), .deadline = deadline}));
-    if (!status.ok()) ReleaseFreeMemory();  // what a failed or stopped load had built
-    Count(rpc, status);
-    reactor->Finish(ToGrpcStatus(status));
-  });
-  return reactor;
 }
 
 absl::StatusOr<std::shared_ptr<const LoadedMesh>> TopologyServiceImpl::LoadRequested(
@@ -296,11 +280,12 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> TopologyServiceImpl::LoadReque
 grpc::ServerUnaryReactor* TopologyServiceImpl::LoadMesh(grpc::CallbackServerContext* c,
                                                         const v1::LoadMeshRequest* in,
                                                         v1::LoadMeshResponse* out) {
-  return Background(c, "LoadMesh", [this, in, out](const Progress& progress) -> absl::Status {
-    ASSIGN_OR_RETURN(auto mesh, LoadRequested(*in, progress));
-    Fill(*mesh, 0, out->mutable_mesh());
-    return absl::OkStatus();
-  });
+  return Offload(background_, c, "LoadMesh",
+                 [this, in, out](const Progress& progress) -> absl::Status {
+                   ASSIGN_OR_RETURN(auto mesh, LoadRequested(*in, progress));
+                   Fill(*mesh, 0, out->mutable_mesh());
+                   return absl::OkStatus();
+                 });
 }
 
 grpc::ServerWriteReactor<v1::LoadMeshWithProgressResponse>*
@@ -317,13 +302,14 @@ grpc::ServerReadReactor<v1::UploadMeshRequest>* TopologyServiceImpl::UploadMesh(
 grpc::ServerUnaryReactor* TopologyServiceImpl::OpenSession(grpc::CallbackServerContext* c,
                                                            const v1::OpenSessionRequest* in,
                                                            v1::OpenSessionResponse* out) {
-  return Background(c, "OpenSession", [this, in, out](const Progress& progress) -> absl::Status {
-    ASSIGN_OR_RETURN(auto mesh, meshes_->Get(in->mesh_id()));
-    ASSIGN_OR_RETURN(SessionOptions options, FromProto(*in));
-    ASSIGN_OR_RETURN(auto session, sessions_->Open(mesh, options, progress));
-    Fill(*session, /*running_job=*/"", out->mutable_session());
-    return absl::OkStatus();
-  });
+  return Offload(background_, c, "OpenSession",
+                 [this, in, out](const Progress& progress) -> absl::Status {
+                   ASSIGN_OR_RETURN(auto mesh, meshes_->Get(in->mesh_id()));
+                   ASSIGN_OR_RETURN(SessionOptions options, FromProto(*in));
+                   ASSIGN_OR_RETURN(auto session, sessions_->Open(mesh, options, progress));
+                   Fill(*session, /*running_job=*/"", out->mutable_session());
+                   return absl::OkStatus();
+                 });
 }
 
 }  // namespace actopo::service

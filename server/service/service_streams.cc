@@ -1,18 +1,19 @@
-// The relation and job streams of TopologyServiceImpl: one reactor class each.
+// The relation and job streams of TopologyServiceImpl: one reactor class each, whose work runs
+// on the service's relations and jobs executors.
 #include <grpcpp/grpcpp.h>
 
 #include <chrono>
-#include <condition_variable>
 #include <cstring>
 #include <deque>
 #include <sstream>
-#include <thread>
 
 #include "absl/strings/str_cat.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
+#include "server/core/sync.h"
 #include "server/core/trace.h"
 #include "server/service/ids.h"
+#include "server/service/reactor_host.h"
 #include "server/service/service.h"
 #include "server/service/wire.h"
 
@@ -25,74 +26,65 @@ constexpr int64_t kMaxJobTraceEvents = 250'000;
 
 // ---------------------------------------------------------------------------------------------
 // StreamRelations: errors in band. A request carries one simplex or a batch (CSR answer, with
-// per-item errors). Reading and writing overlap: the next request is read and answered while
-// earlier answers are written. Flow control: reading pauses while the answers waiting to be
-// written hold kMaxQueuedBytes or kMaxQueued messages, so a client that does not read its
-// answers holds at most that much server memory.
+// per-item errors). Reactions only hand over: each request read is answered on the relations
+// executor, one at a time per stream (answers keep the requests' order), and the task then
+// queues the answer for writing and reads the next request, so reading, answering and writing
+// earlier answers overlap. Flow control: reading pauses while the answers waiting to be written
+// hold kMaxQueuedBytes or kMaxQueued messages, so a client that does not read its answers holds
+// at most that much server memory.
+//
+// Lifetime: gRPC calls OnDone once its operations are over, but an answer may still be computing
+// then; the reactor goes when both are done (holds_). Once Finish is called (finished_), nothing
+// starts another operation: a read that completes after a failed write is dropped.
 class StreamRelationsReactor final
     : public grpc::ServerBidiReactor<v1::StreamRelationsRequest, v1::StreamRelationsResponse> {
  public:
-  StreamRelationsReactor(TopologyServiceImpl* service, grpc::CallbackServerContext* context)
-      : service_(service) {
-    const absl::Status admitted = service_->Admit(context);
+  StreamRelationsReactor(ReactorHost* host, grpc::CallbackServerContext* context) : host_(host) {
+    const absl::Status admitted = host_->Admit(context);
     if (!admitted.ok()) {
-      service_->Count("StreamRelations", admitted);
-      finished_ = true;
-      Finish(ToGrpcStatus(admitted));
+      host_->Count("StreamRelations", admitted);
+      MutexLock lock(mu_);
+      FinishLocked(ToGrpcStatus(admitted));
       return;
     }
     StartRead(&request_);
   }
 
   void OnReadDone(bool ok) override {
+    MutexLock lock(mu_);
     if (!ok) {
-      std::lock_guard<std::mutex> lock(mu_);
       reads_done_ = true;
       MaybeFinishLocked();
       return;
     }
-    // Only one read is outstanding, so request_ is ours until the next StartRead; the answer is
-    // computed without the lock, while OnWriteDone keeps writing earlier ones.
-    v1::StreamRelationsResponse response = Answer(request_);
-    const size_t bytes = response.ByteSizeLong();
-    std::lock_guard<std::mutex> lock(mu_);
-    queue_.push_back({std::move(response), bytes});
-    queued_bytes_ += bytes;
-    if (!writing_) {
-      writing_ = true;
-      StartWrite(&queue_.front().message);
-    }
-    if (HasRoomLocked()) {
-      StartRead(&request_);
-    } else {
-      read_paused_ = true;
-    }
+    if (finished_) return;  // the call already ended (a write failed): drop the request
+    // Only one read is outstanding, so request_ is ours until the next StartRead.
+    ++holds_;
+    host_->relations().Run(cancel_,
+                           [this, request = std::move(request_)] { AnswerAndGo(request); });
   }
 
   void OnWriteDone(bool ok) override {
-    std::lock_guard<std::mutex> lock(mu_);
+    MutexLock lock(mu_);
     queued_bytes_ -= queue_.front().bytes;
     queue_.pop_front();
     writing_ = false;
     if (!ok) {
-      if (!finished_) {
-        finished_ = true;
-        Finish(grpc::Status(grpc::StatusCode::CANCELLED, "the client went away"));
-      }
+      cancel_->store(true);
+      FinishLocked(grpc::Status(grpc::StatusCode::CANCELLED, "the client went away"));
       return;
     }
-    if (!queue_.empty()) {
-      writing_ = true;
-      StartWrite(&queue_.front().message);
-    }
-    if (read_paused_ && HasRoomLocked()) {
+    WriteNextLocked();
+    if (read_paused_ && HasRoomLocked() && !finished_) {
       read_paused_ = false;
       StartRead(&request_);
     }
     MaybeFinishLocked();
   }
 
-  void OnDone() override { delete this; }
+  void OnCancel() override { cancel_->store(true); }
+
+  void OnDone() override { Release(); }
 
  private:
   static constexpr size_t kMaxQueued = 256;
@@ -111,7 +103,7 @@ class StreamRelationsReactor final
   v1::StreamRelationsResponse Answer(const v1::StreamRelationsRequest& request) {
     v1::StreamRelationsResponse response;
     response.set_request_id(request.request_id());
-    if (service_->draining()) {
+    if (host_->draining()) {
       SetError(absl::UnavailableError("the server is shutting down"), response.mutable_error());
       return response;
     }
@@ -124,8 +116,8 @@ class StreamRelationsReactor final
     }
     if (request.has_simplex()) {
       std::vector<int64_t> ids;
-      const absl::Status s = service_->AnswerRelation(request.session_id(), request.relation(),
-                                                      request.simplex(), false, ids, nullptr);
+      const absl::Status s = host_->AnswerRelation(request.session_id(), request.relation(),
+                                                   request.simplex(), false, ids, nullptr);
       if (s.ok()) {
         response.mutable_ids()->Add(ids.begin(), ids.end());
       } else {
@@ -133,8 +125,8 @@ class StreamRelationsReactor final
       }
       return response;
     }
-    std::vector<TopologyServiceImpl::ItemFailure> failures;
-    const absl::Status s = service_->AnswerBatch(
+    std::vector<ReactorHost::ItemFailure> failures;
+    const absl::Status s = host_->AnswerBatch(
         request.session_id(), request.relation(), request.has_ids() ? &request.ids() : nullptr,
         request.has_vertex_tuples() ? &request.vertex_tuples() : nullptr,
         response.mutable_offsets(), response.mutable_values(), &failures);
@@ -152,50 +144,107 @@ class StreamRelationsReactor final
     return response;
   }
 
-  bool HasRoomLocked() const {
+  // On the relations executor: answers `request`, queues the answer, reads the next request.
+  void AnswerAndGo(const v1::StreamRelationsRequest& request) {
+    v1::StreamRelationsResponse response = Answer(request);
+    const size_t bytes = response.ByteSizeLong();
+    {
+      MutexLock lock(mu_);
+      if (!finished_) {
+        queue_.push_back({std::move(response), bytes});
+        queued_bytes_ += bytes;
+        WriteNextLocked();
+        if (HasRoomLocked()) {
+          StartRead(&request_);
+        } else {
+          read_paused_ = true;
+        }
+      }
+    }
+    Release();
+  }
+
+  bool HasRoomLocked() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
     return queue_.size() < kMaxQueued && queued_bytes_ < kMaxQueuedBytes;
   }
 
-  void MaybeFinishLocked() {
-    if (reads_done_ && queue_.empty() && !writing_ && !finished_) {
-      finished_ = true;
-      service_->Count("StreamRelations", absl::OkStatus());
-      Finish(grpc::Status::OK);
+  void WriteNextLocked() ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
+    if (writing_ || finished_ || queue_.empty()) return;
+    writing_ = true;
+    StartWrite(&queue_.front().message);
+  }
+
+  void MaybeFinishLocked() ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
+    if (reads_done_ && holds_ == 1 && queue_.empty() && !writing_ && !finished_) {
+      host_->Count("StreamRelations", absl::OkStatus());
+      FinishLocked(grpc::Status::OK);
     }
   }
 
-  TopologyServiceImpl* service_;
-  v1::StreamRelationsRequest request_;
-  std::mutex mu_;
-  std::deque<Queued> queue_;  // front: being written
-  size_t queued_bytes_ = 0;
-  bool writing_ = false, reads_done_ = false, read_paused_ = false, finished_ = false;
+  void FinishLocked(const grpc::Status& status) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
+    if (finished_) return;
+    finished_ = true;
+    Finish(status);
+  }
+
+  // Drops one hold (gRPC's, released by OnDone, or an answer task's); the last one deletes.
+  void Release() {
+    bool last;
+    {
+      MutexLock lock(mu_);
+      last = --holds_ == 0;
+      // The stream's end waits for the last answer: reads may have ended while it computed.
+      if (!last) MaybeFinishLocked();
+    }
+    if (last) delete this;
+  }
+
+  ReactorHost* host_;
+  const Executor::CancelFlag cancel_ = std::make_shared<std::atomic<bool>>(false);
+  v1::StreamRelationsRequest request_;  // the read's target; moved into the answer task
+  Mutex mu_;
+  std::deque<Queued> queue_ ABSL_GUARDED_BY(mu_);  // front: being written
+  size_t queued_bytes_ ABSL_GUARDED_BY(mu_) = 0;
+  bool writing_ ABSL_GUARDED_BY(mu_) = false;
+  bool reads_done_ ABSL_GUARDED_BY(mu_) = false;
+  bool read_paused_ ABSL_GUARDED_BY(mu_) = false;
+  bool finished_ ABSL_GUARDED_BY(mu_) = false;
+  int holds_ ABSL_GUARDED_BY(mu_) = 1;  // gRPC's, until OnDone, and one per answer computing
 };
 
 // ---------------------------------------------------------------------------------------------
-// RunJob: the algorithm runs on a thread of its own; its events (progress, result arrays,
+// RunJob: the algorithm runs on the jobs executor; its events (progress, result arrays,
 // summary, statistics) are queued and written one at a time. Cancelling the call, CancelJob,
-// closing the session or draining the server set the job's cancel flag.
+// closing the session or draining the server set the job's cancel flag. The reactor goes once
+// both gRPC (OnDone) and the job's task are done with it (holds_).
 class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> {
  public:
-  RunJobReactor(TopologyServiceImpl* service, grpc::CallbackServerContext* context,
+  RunJobReactor(ReactorHost* host, grpc::CallbackServerContext* context,
                 const v1::RunJobRequest* request)
-      : service_(service) {
-    absl::Status s = service_->Admit(context);
+      : host_(host) {
+    absl::Status s = host_->Admit(context);
     if (s.ok()) s = Prepare(*request);
     if (!s.ok()) {
-      service_->Count("RunJob", s);
+      host_->Count("RunJob", s);
       Finish(ToGrpcStatus(s));
       return;
     }
     v1::RunJobResponse accepted;
     accepted.mutable_accepted()->set_job_id(job_id_);
     Push(std::move(accepted));
-    worker_ = std::thread([this] { Run(); });
+    {
+      MutexLock lock(mu_);
+      ++holds_;
+    }
+    // The executor's cancel flag is the job's own (an aliasing pointer that keeps the job alive).
+    host_->jobs().Run(Executor::CancelFlag(job_, &job_->cancel), [this] {
+      Run();
+      Release();
+    });
   }
 
   void OnWriteDone(bool ok) override {
-    std::lock_guard<std::mutex> lock(mu_);
+    MutexLock lock(mu_);
     writing_ = false;
     if (!ok) {
       job_->cancel = true;
@@ -208,14 +257,21 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     if (job_) job_->cancel = true;
   }
 
-  void OnDone() override {
-    if (worker_.joinable()) worker_.join();
-    delete this;
-  }
+  void OnDone() override { Release(); }
 
  private:
+  // Drops one hold (gRPC's, released by OnDone, or the job task's); the last one deletes.
+  void Release() {
+    bool last;
+    {
+      MutexLock lock(mu_);
+      last = --holds_ == 0;
+    }
+    if (last) delete this;
+  }
+
   absl::Status Prepare(const v1::RunJobRequest& request) {
-    ASSIGN_OR_RETURN(session_, service_->sessions().Get(request.session_id()));
+    ASSIGN_OR_RETURN(session_, host_->FindSession(request.session_id()));
     ASSIGN_OR_RETURN(input_.algorithm, FromProto(request.algorithm()));
     const AlgorithmInput& base = session_->base_input();
     input_.order = base.order;
@@ -227,7 +283,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     include_arrays_ = request.include_arrays();
     trace_ = request.trace();
     // Atomic: of N concurrent calls on a session exactly one gets the lease.
-    ASSIGN_OR_RETURN(lease_, service_->sessions().StartJob(session_->id(), input_.algorithm));
+    ASSIGN_OR_RETURN(lease_, host_->StartJob(session_->id(), input_.algorithm));
     job_ = lease_.shared_job();
     job_id_ = job_->id;
     return absl::OkStatus();
@@ -249,13 +305,13 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     lease_.Release();  // before the client can see the end of the stream
     absl::Status status = outcome.status();
     if (status.ok()) status = SendResult(*outcome, context.trace.get());
-    service_->Count("RunJob", status);
+    host_->Count("RunJob", status);
     if (status.ok()) {
-      service_->metrics().Job(AlgorithmName(input_.algorithm),
-                              StructureName(session_->options().structure.kind),
-                              outcome->outcome.run_s, outcome->engine);
+      host_->RecordJob(AlgorithmName(input_.algorithm),
+                       StructureName(session_->options().structure.kind), outcome->outcome.run_s,
+                       outcome->engine);
     }
-    std::lock_guard<std::mutex> lock(mu_);
+    MutexLock lock(mu_);
     final_ = ToGrpcStatus(status);
     WriteNextLocked();
   }
@@ -361,14 +417,14 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   }
 
   void Push(v1::RunJobResponse message) {
-    std::lock_guard<std::mutex> lock(mu_);
+    MutexLock lock(mu_);
     if (client_gone_) return;
     queue_.push_back(std::move(message));
     WriteNextLocked();
   }
 
-  // mu_ held: start the next write, or finish once everything is written.
-  void WriteNextLocked() {
+  // Starts the next write, or finishes once everything is written.
+  void WriteNextLocked() ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
     if (writing_ || finished_) return;
     if (!queue_.empty() && !client_gone_) {
       current_ = std::move(queue_.front());
@@ -383,7 +439,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     }
   }
 
-  TopologyServiceImpl* service_;
+  ReactorHost* host_;
   std::shared_ptr<Session> session_;
   JobLease lease_;            // released by the job's thread when the algorithm returns
   std::shared_ptr<Job> job_;  // its cancel flag, for OnCancel and OnWriteDone
@@ -391,13 +447,15 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   AlgorithmInput input_;
   bool include_arrays_ = false;
   bool trace_ = false;
-  std::thread worker_;
 
-  std::mutex mu_;
-  std::deque<v1::RunJobResponse> queue_;
-  v1::RunJobResponse current_;
-  bool writing_ = false, finished_ = false, client_gone_ = false;
-  std::optional<grpc::Status> final_;
+  Mutex mu_;
+  std::deque<v1::RunJobResponse> queue_ ABSL_GUARDED_BY(mu_);
+  v1::RunJobResponse current_;  // the message being written: set before StartWrite, under mu_
+  bool writing_ ABSL_GUARDED_BY(mu_) = false;
+  bool finished_ ABSL_GUARDED_BY(mu_) = false;
+  bool client_gone_ ABSL_GUARDED_BY(mu_) = false;
+  std::optional<grpc::Status> final_ ABSL_GUARDED_BY(mu_);
+  int holds_ ABSL_GUARDED_BY(mu_) = 1;  // gRPC's, until OnDone, and the job task's
 };
 
 }  // namespace

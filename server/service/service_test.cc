@@ -414,6 +414,53 @@ TEST_F(ServiceTest, StreamKeepsGoingAfterBadItems) {
   EXPECT_TRUE(stream->Finish().ok());
 }
 
+// A client that cancels while the server is still answering, writing and reading: a write
+// fails and the server finishes the call; a request read or an answer computed just then is
+// dropped, never answered on the finished call. Rounds cancel after 0 to 4 answers read, to meet
+// those events in every order; each stream ends CANCELLED and the session keeps serving.
+TEST_F(ServiceTest, CancellingWhileAnswersAreWrittenEndsOnlyThatStream) {
+  const std::string session = Open(LoadSample("jittered:12", 100), v1::STRUCTURE_COMPACT);
+  std::vector<int64_t> vertices(13 * 13 * 13);
+  std::iota(vertices.begin(), vertices.end(), 0);
+  v1::StreamRelationsRequest request;
+  request.set_session_id(session);
+  request.set_relation(v1::RELATION_VERTEX_STAR);
+  *request.mutable_ids() = Int64Array(vertices);
+  for (int round = 0; round < 30; ++round) {
+    auto context = Context();
+    auto stream = stub_->StreamRelations(context.get());
+    std::thread writer([&] {
+      v1::StreamRelationsRequest q = request;
+      for (int m = 0; m < 200; ++m) {
+        q.set_request_id(m);
+        if (!stream->Write(q)) return;  // the call ended
+      }
+      stream->WritesDone();
+    });
+    v1::StreamRelationsResponse r;
+    for (int i = 0; i < round % 5; ++i) {
+      ASSERT_TRUE(stream->Read(&r));
+      EXPECT_EQ(r.request_id(), i);
+    }
+    context->TryCancel();
+    writer.join();
+    while (stream->Read(&r)) {
+    }
+    EXPECT_EQ(stream->Finish().error_code(), grpc::StatusCode::CANCELLED) << "round " << round;
+  }
+  // The session still answers, on a stream and alone.
+  auto context = Context();
+  auto stream = stub_->StreamRelations(context.get());
+  request.set_request_id(7);
+  ASSERT_TRUE(stream->Write(request));
+  stream->WritesDone();
+  v1::StreamRelationsResponse r;
+  ASSERT_TRUE(stream->Read(&r));
+  EXPECT_EQ(r.request_id(), 7);
+  EXPECT_EQ(Rows(r.offsets(), r.values()).size(), vertices.size());
+  EXPECT_TRUE(stream->Finish().ok());
+}
+
 struct JobRun {
   grpc::Status status;
   std::vector<v1::RunJobResponse> messages;
@@ -507,14 +554,17 @@ TEST_F(ServiceTest, CancelJobStopsTheRun) {
   v1::CancelJobRequest cancel;
   cancel.set_job_id(accepted.accepted().job_id());
   v1::CancelJobResponse cancelled;
-  const auto start = std::chrono::steady_clock::now();
   ASSERT_TRUE(stub_->CancelJob(Context().get(), cancel, &cancelled).ok());
+  // The job stops rather than running to the end and then saying CANCELLED: its progress never
+  // reaches the end and no summary comes.
   v1::RunJobResponse message;
+  double last_fraction = 0;
   while (reader->Read(&message)) {
+    EXPECT_FALSE(message.has_summary());
+    if (message.has_progress()) last_fraction = message.progress().fraction();
   }
   EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
-  // Generous: this checks the job stops rather than running to the end (about 2 s here).
-  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
+  EXPECT_LT(last_fraction, 1.0);
   EXPECT_EQ(stub_->CancelJob(Context().get(), cancel, &cancelled).error_code(),
             grpc::StatusCode::NOT_FOUND);
   // The session is usable again.

@@ -1,4 +1,5 @@
-// The unary RPCs of TopologyServiceImpl that answer at once (the slow ones: service_meshes.cc).
+// The unary RPCs of TopologyServiceImpl: bookkeeping answered at once on gRPC's thread, and the
+// relation calls, handed to the relations executor (the slow mesh calls: service_meshes.cc).
 #include <google/protobuf/stubs/common.h>
 #include <grpcpp/grpcpp.h>
 
@@ -9,33 +10,50 @@
 #include "server/core/status_macros.h"
 #include "server/io/samples.h"
 #include "server/io/vtk_reader.h"
+#include "server/service/offload.h"
 #include "server/service/service.h"
 #include "server/service/wire.h"
 
 namespace actopo::service {
-namespace {
-
-// Loads and session openings run at once; each uses every core inside (partitioning, encoding,
-// precomputing), so more would only share them. Further ones wait their turn.
-constexpr int kBackgroundThreads = 4;
-
-}  // namespace
 
 TopologyServiceImpl::TopologyServiceImpl(MeshRegistry* meshes, SessionManager* sessions,
                                          MemoryBudget* budget, Metrics* metrics,
-                                         ServiceLimits limits, std::string token)
+                                         ServiceLimits limits, ServiceThreads threads,
+                                         std::string token,
+                                         std::function<void(std::string_view)> before_work)
     : meshes_(meshes),
       sessions_(sessions),
       budget_(budget),
       metrics_(metrics),
       limits_(limits),
       token_(std::move(token)),
-      background_(kBackgroundThreads) {}
+      before_work_(std::move(before_work)),
+      background_("actopo-load", threads.background),
+      relations_("actopo-relation", threads.relations),
+      jobs_("actopo-job", threads.jobs) {}
 
 void TopologyServiceImpl::Drain() {
   draining_ = true;
   sessions_->Drain();
-  background_.CancelAll();
+  for (Executor* executor : {&background_, &relations_, &jobs_}) executor->CancelAll();
+}
+
+void TopologyServiceImpl::BeforeWork(std::string_view rpc) {
+  if (before_work_) before_work_(rpc);
+}
+
+absl::StatusOr<std::shared_ptr<Session>> TopologyServiceImpl::FindSession(const std::string& id) {
+  return sessions_->Get(id);
+}
+
+absl::StatusOr<JobLease> TopologyServiceImpl::StartJob(const std::string& session_id,
+                                                       Algorithm algorithm) {
+  return sessions_->StartJob(session_id, algorithm);
+}
+
+void TopologyServiceImpl::RecordJob(std::string_view algorithm, std::string_view structure,
+                                    double seconds, const EngineStats& engine) {
+  metrics_->Job(algorithm, structure, seconds, engine);
 }
 
 absl::Status TopologyServiceImpl::Admit(grpc::CallbackServerContext* context) const {
@@ -209,7 +227,7 @@ absl::Status TopologyServiceImpl::AnswerRelation(const std::string& session_id,
 grpc::ServerUnaryReactor* TopologyServiceImpl::GetRelation(grpc::CallbackServerContext* c,
                                                            const v1::GetRelationRequest* in,
                                                            v1::GetRelationResponse* out) {
-  return Unary(c, "GetRelation", [&]() -> absl::Status {
+  return Offload(relations_, c, "GetRelation", [this, in, out](const Progress&) -> absl::Status {
     std::vector<int64_t> ids, vertices;
     RETURN_IF_ERROR(AnswerRelation(in->session_id(), in->relation(), in->simplex(),
                                    in->include_vertices(), ids, &vertices));
@@ -284,7 +302,7 @@ absl::Status TopologyServiceImpl::AnswerBatch(const std::string& session_id, v1:
 grpc::ServerUnaryReactor* TopologyServiceImpl::GetRelationBatch(
     grpc::CallbackServerContext* c, const v1::GetRelationBatchRequest* in,
     v1::GetRelationBatchResponse* out) {
-  return Unary(c, "GetRelationBatch", [&] {
+  return Offload(relations_, c, "GetRelationBatch", [this, in, out](const Progress&) {
     return AnswerBatch(in->session_id(), in->relation(), in->has_ids() ? &in->ids() : nullptr,
                        in->has_vertex_tuples() ? &in->vertex_tuples() : nullptr,
                        out->mutable_offsets(), out->mutable_values(), nullptr);

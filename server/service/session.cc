@@ -292,7 +292,7 @@ void Session::Query(Relation r, std::span<const SimplexId> simplices, std::vecto
     const AccessStats before = reader->stats();
     AppendRowsInBlockOrder(*reader, r, simplices, offsets, values, vertices);
     // Pooled readers live as long as the session: count their accesses per call.
-    std::lock_guard<std::mutex> lock(stats_mu_);
+    MutexLock lock(stats_mu_);
     compact_queries_ += reader->stats().Since(before);
   } else {
     auto reader = actopo_readers_->Acquire();
@@ -317,7 +317,7 @@ void Session::Query(Relation r, SimplexId s, std::vector<int64_t>& ids,
 }
 
 const ResultContext& Session::result_context() {
-  std::lock_guard<std::mutex> lock(result_mu_);
+  MutexLock lock(result_mu_);
   if (!result_context_) {
     const Mesh& m = mesh_->mesh;
     const PointField* field = m.FindField(scalar_name_);
@@ -363,7 +363,7 @@ absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input, const Ru
     out.outcome = std::move(*outcome);
   }
   {
-    std::lock_guard<std::mutex> lock(stats_mu_);
+    MutexLock lock(stats_mu_);
     finished_jobs_ += out.engine;
     relation_peak_bytes_ = std::max(relation_peak_bytes_, out.memory.relation_peak_bytes);
   }
@@ -376,7 +376,7 @@ absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input, const Ru
 SessionStats Session::stats() const {
   SessionStats s;
   {
-    std::lock_guard<std::mutex> lock(stats_mu_);
+    MutexLock lock(stats_mu_);
     s.engine = finished_jobs_;
     s.engine.access += compact_queries_;
     s.memory.relation_peak_bytes = relation_peak_bytes_;

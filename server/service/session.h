@@ -15,7 +15,6 @@
 #include <atomic>
 #include <map>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <span>
 #include <string>
@@ -27,6 +26,7 @@
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
+#include "server/core/sync.h"
 #include "server/results/result_files.h"
 #include "server/results/run_algorithm.h"
 #include "server/service/memory_budget.h"
@@ -155,13 +155,13 @@ class Session {
   std::unique_ptr<ReaderPool<ActopoStructure::Reader>> actopo_readers_;
 
   AlgorithmInput base_;  // vertex order and input tetrahedra, computed once
-  std::mutex result_mu_;
-  std::optional<ResultContext> result_context_;
+  Mutex result_mu_;
+  std::optional<ResultContext> result_context_ ABSL_GUARDED_BY(result_mu_);
 
-  mutable std::mutex stats_mu_;
-  EngineStats finished_jobs_;
-  AccessStats compact_queries_;  // accesses of the compact query readers
-  int64_t relation_peak_bytes_ = 0;
+  mutable Mutex stats_mu_;
+  EngineStats finished_jobs_ ABSL_GUARDED_BY(stats_mu_);
+  AccessStats compact_queries_ ABSL_GUARDED_BY(stats_mu_);  // the compact query readers'
+  int64_t relation_peak_bytes_ ABSL_GUARDED_BY(stats_mu_) = 0;
   std::atomic<int64_t> last_used_ns_{0};
   std::atomic<int64_t> queries_{0}, query_ns_{0}, jobs_{0}, job_ns_{0};
   std::atomic<int64_t> query_simplices_{0}, query_queue_ns_{0}, query_compute_ns_{0},

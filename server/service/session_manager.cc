@@ -14,14 +14,14 @@ SessionManager::SessionManager(SessionLimits limits, MemoryBudget* budget)
 
 SessionManager::~SessionManager() {
   {
-    std::lock_guard<std::mutex> lock(mu_);
+    MutexLock lock(mu_);
     stop_ = true;
   }
-  reaper_cv_.notify_all();
+  reaper_cv_.SignalAll();
   reaper_.join();
   std::map<std::string, std::shared_ptr<Session>> closing;
   {
-    std::lock_guard<std::mutex> lock(mu_);
+    MutexLock lock(mu_);
     closing.swap(sessions_);
   }
 }
@@ -31,7 +31,7 @@ absl::StatusOr<std::shared_ptr<Session>> SessionManager::Open(
     const Progress& progress) {
   RETURN_IF_ERROR(Session::Validate(options));
   {
-    std::lock_guard<std::mutex> lock(mu_);
+    MutexLock lock(mu_);
     if (int(sessions_.size()) + opening_ >= limits_.max_sessions) {
       return absl::ResourceExhaustedError(
           absl::StrCat("sessions: the server holds its maximum of ", limits_.max_sessions,
@@ -54,7 +54,7 @@ absl::StatusOr<std::shared_ptr<Session>> SessionManager::Open(
   }
   absl::StatusOr<std::unique_ptr<Session>> session =
       Session::Open(mesh, options, budget_, progress);
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   --opening_;
   if (!session.ok()) {
     threads_ -= Session::QueryThreads(options);
@@ -70,7 +70,7 @@ absl::StatusOr<std::shared_ptr<Session>> SessionManager::Open(
 }
 
 absl::StatusOr<std::shared_ptr<Session>> SessionManager::Get(const std::string& id) const {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   auto it = sessions_.find(id);
   if (it == sessions_.end()) {
     return absl::NotFoundError(absl::StrCat("session_id: no session '", id,
@@ -80,7 +80,7 @@ absl::StatusOr<std::shared_ptr<Session>> SessionManager::Get(const std::string& 
 }
 
 std::vector<std::shared_ptr<Session>> SessionManager::List() const {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   std::vector<std::shared_ptr<Session>> out;
   for (const auto& [id, s] : sessions_) out.push_back(s);
   return out;
@@ -89,7 +89,7 @@ std::vector<std::shared_ptr<Session>> SessionManager::List() const {
 absl::Status SessionManager::Close(const std::string& id) {
   std::shared_ptr<Session> closing;
   {
-    std::lock_guard<std::mutex> lock(mu_);
+    MutexLock lock(mu_);
     auto it = sessions_.find(id);
     if (it == sessions_.end()) {
       return absl::NotFoundError(absl::StrCat("session_id: no session '", id, "'"));
@@ -106,14 +106,14 @@ absl::Status SessionManager::Close(const std::string& id) {
 }
 
 int SessionManager::SessionsOnMesh(const std::string& mesh_id) const {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   int n = 0;
   for (const auto& [id, s] : sessions_) n += s->mesh().id == mesh_id;
   return n;
 }
 
 size_t SessionManager::size() const {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   return sessions_.size();
 }
 
@@ -134,7 +134,7 @@ void JobLease::Release() {
 
 absl::StatusOr<JobLease> SessionManager::StartJob(const std::string& session_id,
                                                   Algorithm algorithm) {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   if (draining_) return absl::UnavailableError("the server is shutting down");
   auto session = sessions_.find(session_id);
   if (session == sessions_.end()) {
@@ -165,14 +165,14 @@ absl::StatusOr<JobLease> SessionManager::StartJob(const std::string& session_id,
 }
 
 void SessionManager::EndJob(const Job& job, int threads) {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   jobs_.erase(job.id);
   job_of_session_.erase(job.session_id);
   threads_ -= threads;
 }
 
 absl::Status SessionManager::CancelJob(const std::string& job_id) {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   auto it = jobs_.find(job_id);
   if (it == jobs_.end()) {
     return absl::NotFoundError(
@@ -183,31 +183,31 @@ absl::Status SessionManager::CancelJob(const std::string& job_id) {
 }
 
 std::string SessionManager::RunningJob(const std::string& session_id) const {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   auto it = job_of_session_.find(session_id);
   return it == job_of_session_.end() ? std::string() : it->second;
 }
 
 int SessionManager::running_jobs() const {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   return int(jobs_.size());
 }
 
 void SessionManager::Drain() {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   draining_ = true;
   for (auto& [id, job] : jobs_) job->cancel = true;
 }
 
 int SessionManager::threads_in_use() const {
-  std::lock_guard<std::mutex> lock(mu_);
+  MutexLock lock(mu_);
   return threads_;
 }
 
 void SessionManager::ReapIdle() {
-  std::unique_lock<std::mutex> lock(mu_);
+  mu_.Lock();
   while (!stop_) {
-    reaper_cv_.wait_for(lock, std::chrono::seconds(1));
+    reaper_cv_.WaitFor(mu_, std::chrono::seconds(1));
     const absl::Time now = absl::Now();
     std::vector<std::shared_ptr<Session>> expired;
     for (auto it = sessions_.begin(); it != sessions_.end();) {
@@ -220,10 +220,11 @@ void SessionManager::ReapIdle() {
         ++it;
       }
     }
-    lock.unlock();
+    mu_.Unlock();
     expired.clear();  // destroy outside the lock
-    lock.lock();
+    mu_.Lock();
   }
+  mu_.Unlock();
 }
 
 }  // namespace actopo::service

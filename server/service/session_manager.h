@@ -17,16 +17,15 @@
 #define ACTOPO_SERVER_SERVICE_SESSION_MANAGER_H_
 
 #include <atomic>
-#include <condition_variable>
 #include <map>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "absl/status/statusor.h"
 #include "absl/time/time.h"
+#include "server/core/sync.h"
 #include "server/service/memory_budget.h"
 #include "server/service/mesh_registry.h"
 #include "server/service/session.h"
@@ -111,15 +110,16 @@ class SessionManager {
 
   const SessionLimits limits_;
   MemoryBudget* budget_;
-  mutable std::mutex mu_;
-  std::map<std::string, std::shared_ptr<Session>> sessions_;
-  std::map<std::string, std::shared_ptr<Job>> jobs_;   // by job id
-  std::map<std::string, std::string> job_of_session_;  // session id -> job id
-  int threads_ = 0;
-  int opening_ = 0;  // sessions being opened: each holds a slot of max_sessions
-  bool draining_ = false;
-  bool stop_ = false;
-  std::condition_variable reaper_cv_;
+  mutable Mutex mu_;
+  std::map<std::string, std::shared_ptr<Session>> sessions_ ABSL_GUARDED_BY(mu_);
+  std::map<std::string, std::shared_ptr<Job>> jobs_ ABSL_GUARDED_BY(mu_);  // by job id
+  // session id -> job id
+  std::map<std::string, std::string> job_of_session_ ABSL_GUARDED_BY(mu_);
+  int threads_ ABSL_GUARDED_BY(mu_) = 0;
+  int opening_ ABSL_GUARDED_BY(mu_) = 0;  // sessions being opened: each holds a max_sessions slot
+  bool draining_ ABSL_GUARDED_BY(mu_) = false;
+  bool stop_ ABSL_GUARDED_BY(mu_) = false;
+  CondVar reaper_cv_;
   std::thread reaper_;
 };
 
