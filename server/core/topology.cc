@@ -191,13 +191,15 @@ TopologyBytes Topology::bytes() const {
   return b;
 }
 
-absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
-    const Mesh& mesh, std::span<const int32_t> vertex_block, const TopologyOptions& options,
-    const Progress& progress) {
-  constexpr std::string_view kPhase = "encode";
-  const SimplexId nv = mesh.num_vertices();
-  const SimplexId nt = mesh.num_tetrahedra();
-  const int threads = options.threads > 0 ? options.threads : DefaultThreads();
+namespace {
+
+constexpr std::string_view kPhase = "encode";  // the progress phase of Topology::Build
+
+// Blocks per window of the face computation (see Topology::Encoder::ReserveFaces).
+constexpr int32_t kWindow = 256;
+
+// Checks one block id per vertex, each in [0, nv); returns the block count for SortVertices.
+absl::StatusOr<int32_t> CountBlocks(std::span<const int32_t> vertex_block, SimplexId nv) {
   if (vertex_block.size() != static_cast<size_t>(nv)) {
     return absl::InvalidArgumentError(
         absl::StrCat("blocks: ", vertex_block.size(), " block ids for ", nv, " vertices"));
@@ -210,13 +212,60 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     }
     num_blocks = std::max(num_blocks, vertex_block[v] + 1);
   }
+  return num_blocks;
+}
 
-  RETURN_IF_ERROR(progress.Update(kPhase, 0));
-  auto topo = std::shared_ptr<Topology>(new Topology());
-  Topology& t = *topo;
-  t.num_vertices_ = nv;
-  t.num_blocks_ = num_blocks;
+}  // namespace
 
+// The steps of Build (progress phase "encode"), declared in the order Build runs them, and the
+// state they hand on. Each step fills some of the topology's arrays; Build reports progress
+// between steps and stops there when told to.
+struct Topology::Encoder {
+  // Per thread, reused from block to block while computing faces.
+  struct Scratch {
+    std::vector<SimplexId> star_begin, star;
+    std::vector<SimplexId> upper;
+    std::vector<uint64_t> pairs;
+    std::vector<uint32_t> pair_count;  // tetrahedra around each pair's triangle
+  };
+  // Per thread, reused from block to block while sorting tetrahedra.
+  struct BlockTets {
+    std::vector<SimplexId> at, tuples, inputs;
+  };
+
+  const Mesh& mesh;
+  std::span<const int32_t> vertex_block;  // by input vertex
+  SimplexId nv, nt;
+  int32_t num_blocks;
+  int threads;
+  Topology& t;
+  // Allocated by ReserveFaces for the window loop.
+  std::vector<BlockFaces> faces;                // per block of the current window
+  std::vector<std::vector<int32_t>> neighbors;  // per block, until ListBlockNeighbors
+  std::vector<Scratch> scratch;                 // per thread
+
+  SimplexId InternalVertex(int64_t tet, int k) const {
+    return t.vertex_internal_id_[mesh.tetrahedra[4 * size_t(tet) + k]];
+  }
+
+  absl::Status SortVertices();
+  void BucketTetrahedra();
+  void SortBlockTetrahedra();
+  void FindExternalTetrahedra();
+  void ReserveFaces();
+  void ComputeWindowFaces(int32_t window, int32_t window_size);
+  void ComputeBlockFaces(int32_t b, Scratch& sc, BlockFaces& out);
+  void CollectStars(int32_t b, Scratch& sc, std::vector<int32_t>& adjacent) const;
+  void CollectUpperFaces(SimplexId v, SimplexId star_from, SimplexId star_to, Scratch& sc) const;
+  static void EmitVertexFaces(SimplexId v, const Scratch& sc, BlockFaces& out);
+  void AppendWindowFaces(int32_t window_size);
+  absl::Status SumRunStarts();
+  void BuildRunLookups();
+  void ListBlockNeighbors();
+};
+
+// Renumbers the vertices block by block; leaves the permutations and vertex_block_ for the tets.
+absl::Status Topology::Encoder::SortVertices() {
   // Vertices: stable counting sort by block.
   std::vector<SimplexId> block_count(num_blocks, 0);
   for (SimplexId v = 0; v < nv; ++v) ++block_count[vertex_block[v]];
@@ -229,229 +278,240 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   t.vertex_input_id_.resize(nv);
   t.vertex_internal_id_.resize(nv);
   t.vertex_block_.resize(nv);
-  {
-    std::vector<SimplexId> cursor(t.block_vertex_begin_.begin(), t.block_vertex_begin_.end() - 1);
-    for (SimplexId v = 0; v < nv; ++v) {
-      const SimplexId id = cursor[vertex_block[v]]++;
-      t.vertex_internal_id_[v] = id;
-      t.vertex_input_id_[id] = v;
-      t.vertex_block_[id] = vertex_block[v];
+  std::vector<SimplexId> cursor(t.block_vertex_begin_.begin(), t.block_vertex_begin_.end() - 1);
+  for (SimplexId v = 0; v < nv; ++v) {
+    const SimplexId id = cursor[vertex_block[v]]++;
+    t.vertex_internal_id_[v] = id;
+    t.vertex_input_id_[id] = v;
+    t.vertex_block_[id] = vertex_block[v];
+  }
+  return absl::OkStatus();
+}
+
+// Buckets the tetrahedra by their lowest vertex's block; leaves block_tet_begin_, tet_input_id_.
+void Topology::Encoder::BucketTetrahedra() {
+  BucketItems(
+      nt, num_blocks, threads,
+      [&](int64_t i, auto&& emit) {
+        emit(t.vertex_block_[std::min(std::min(InternalVertex(i, 0), InternalVertex(i, 1)),
+                                      std::min(InternalVertex(i, 2), InternalVertex(i, 3)))]);
+      },
+      t.block_tet_begin_, t.tet_input_id_);
+}
+
+// Orders each block's tetrahedra by lowest vertex; leaves tet_vertices_ sorted, for the stars.
+void Topology::Encoder::SortBlockTetrahedra() {
+  // Per block, in parallel: each tetrahedron's sorted internal tuple, then the block's
+  // tetrahedra ordered by lowest vertex (a stable counting sort), written to their places. A
+  // vertex's star is then a few nearby runs, however the file ordered its cells.
+  t.tet_vertices_.resize(4 * size_t(nt));
+  std::vector<BlockTets> block_tets(std::max(threads, 1));
+  ParallelFor(num_blocks, threads, [&](int64_t b, int thread) {
+    const SimplexId begin = t.block_tet_begin_[b], end = t.block_tet_begin_[b + 1];
+    const SimplexId vbegin = t.block_vertex_begin_[b];
+    BlockTets& sc = block_tets[thread];
+    sc.at.assign(size_t(t.block_vertex_begin_[b + 1] - vbegin) + 1, 0);
+    sc.tuples.resize(4 * size_t(end - begin));
+    sc.inputs.assign(t.tet_input_id_.begin() + begin, t.tet_input_id_.begin() + end);
+    for (SimplexId i = 0; i < end - begin; ++i) {
+      SimplexId* s = &sc.tuples[4 * size_t(i)];
+      for (int k = 0; k < 4; ++k) s[k] = InternalVertex(sc.inputs[i], k);
+      SortVertexIds(s, 4);
+      ++sc.at[s[0] - vbegin + 1];
     }
-  }
+    for (size_t i = 1; i < sc.at.size(); ++i) sc.at[i] += sc.at[i - 1];
+    for (SimplexId i = 0; i < end - begin; ++i) {
+      const SimplexId* s = &sc.tuples[4 * size_t(i)];
+      const SimplexId to = begin + sc.at[s[0] - vbegin]++;
+      std::copy_n(s, 4, &t.tet_vertices_[4 * size_t(to)]);
+      t.tet_input_id_[to] = sc.inputs[i];
+    }
+  });
+}
 
-  // Tetrahedra: stable bucket sort by the block of the lowest vertex, then within each block by
-  // the lowest vertex, each sorted internal tuple written straight to its place (no second copy
-  // of the tetrahedra at any time, only one block's per thread).
-  {
-    const auto internal = [&](int64_t i, int k) {
-      return t.vertex_internal_id_[mesh.tetrahedra[4 * size_t(i) + k]];
-    };
-    BucketItems(
-        nt, num_blocks, threads,
-        [&](int64_t i, auto&& emit) {
-          emit(t.vertex_block_[std::min(std::min(internal(i, 0), internal(i, 1)),
-                                        std::min(internal(i, 2), internal(i, 3)))]);
-        },
-        t.block_tet_begin_, t.tet_input_id_);
-    // Per block, in parallel: each tetrahedron's sorted internal tuple, then the block's
-    // tetrahedra ordered by lowest vertex (a stable counting sort), written to their places. A
-    // vertex's star is then a few nearby runs, however the file ordered its cells.
-    t.tet_vertices_.resize(4 * size_t(nt));
-    struct BlockTets {
-      std::vector<SimplexId> at, tuples, inputs;
-    };
-    std::vector<BlockTets> block_tets(std::max(threads, 1));
-    ParallelFor(num_blocks, threads, [&](int64_t b, int thread) {
-      const SimplexId begin = t.block_tet_begin_[b], end = t.block_tet_begin_[b + 1];
-      const SimplexId vbegin = t.block_vertex_begin_[b];
-      BlockTets& sc = block_tets[thread];
-      sc.at.assign(size_t(t.block_vertex_begin_[b + 1] - vbegin) + 1, 0);
-      sc.tuples.resize(4 * size_t(end - begin));
-      sc.inputs.assign(t.tet_input_id_.begin() + begin, t.tet_input_id_.begin() + end);
-      for (SimplexId i = 0; i < end - begin; ++i) {
-        SimplexId* s = &sc.tuples[4 * size_t(i)];
-        for (int k = 0; k < 4; ++k) s[k] = internal(sc.inputs[i], k);
-        SortVertexIds(s, 4);
-        ++sc.at[s[0] - vbegin + 1];
-      }
-      for (size_t i = 1; i < sc.at.size(); ++i) sc.at[i] += sc.at[i - 1];
-      for (SimplexId i = 0; i < end - begin; ++i) {
-        const SimplexId* s = &sc.tuples[4 * size_t(i)];
-        const SimplexId to = begin + sc.at[s[0] - vbegin]++;
-        std::copy_n(s, 4, &t.tet_vertices_[4 * size_t(to)]);
-        t.tet_input_id_[to] = sc.inputs[i];
-      }
-    });
-  }
-
-  RETURN_IF_ERROR(progress.Update(kPhase, 0.15));
-
+// Lists each block's external tetrahedra; with its internal ones they make its vertices' stars.
+void Topology::Encoder::FindExternalTetrahedra() {
   // External tetrahedra: a tetrahedron is external to every later block holding one of its
   // vertices. Its sorted vertices have non-decreasing blocks, so distinct blocks are adjacent.
-  {
-    auto for_each_external_block = [&](SimplexId tet, auto&& fn) {
-      const SimplexId* s = &t.tet_vertices_[4 * size_t(tet)];
-      int32_t last = t.vertex_block_[s[0]];
-      for (int k = 1; k < 4; ++k) {
-        const int32_t b = t.vertex_block_[s[k]];
-        if (b != last) {
-          fn(b);
-          last = b;
-        }
+  auto for_each_external_block = [&](SimplexId tet, auto&& fn) {
+    const SimplexId* s = &t.tet_vertices_[4 * size_t(tet)];
+    int32_t last = t.vertex_block_[s[0]];
+    for (int k = 1; k < 4; ++k) {
+      const int32_t b = t.vertex_block_[s[k]];
+      if (b != last) {
+        fn(b);
+        last = b;
       }
-    };
-    BucketItems(nt, num_blocks, threads, for_each_external_block, t.external_offsets_,
-                t.external_tets_);
-  }
-
-  // Edges, triangles and boundary flags, block-parallel, then concatenated in block order. Per
-  // internal vertex v (ascending), from its star: the vertices above v give its edges, the pairs
-  // above v in each tetrahedron its triangles, each seen once per incident tetrahedron (so a run
-  // of one is a boundary triangle). Only small per-vertex lists are sorted.
-  struct Scratch {
-    std::vector<SimplexId> star_begin, star;
-    std::vector<SimplexId> upper;
-    std::vector<uint64_t> pairs;
-    std::vector<uint32_t> pair_count;  // tetrahedra around each pair's triangle
+    }
   };
+  BucketItems(nt, num_blocks, threads, for_each_external_block, t.external_offsets_,
+              t.external_tets_);
+}
+
+// Allocates the window buffers and reserves the face arrays; leaves them empty for the windows.
+void Topology::Encoder::ReserveFaces() {
   // Blocks go in windows: each window is computed in parallel, then appended in block order to
   // the final arrays, whose upper bounds (6 edges and 4 triangles per tetrahedron) are reserved
   // but untouched, so memory grows by what is written and no second copy of the faces exists.
-  constexpr int32_t kWindow = 256;
-  std::vector<BlockFaces> faces(std::min(num_blocks, kWindow));
-  std::vector<std::vector<int32_t>> neighbors(num_blocks);
-  std::vector<Scratch> scratch(std::max(threads, 1));
+  faces.resize(std::min(num_blocks, kWindow));
+  neighbors.resize(num_blocks);
+  scratch.resize(std::max(threads, 1));
   t.edge_upper_.reserve(6 * size_t(nt));
   t.edge_triangle_begin_.reserve(6 * size_t(nt) + 1);
   t.edge_triangle_begin_.push_back(0);
   t.triangle_third_.reserve(4 * size_t(nt));
   t.triangle_boundary_.reserve((4 * size_t(nt) + 63) / 64);
   t.vertex_edge_begin_.assign(nv + 1, 0);
-  for (int32_t window = 0; window < num_blocks; window += kWindow) {
-    // Edges and triangles are about three quarters of the time.
-    RETURN_IF_ERROR(progress.Update(kPhase, 0.2 + 0.75 * window / num_blocks));
-    const int32_t window_size = std::min(kWindow, num_blocks - window);
-    ParallelFor(window_size, threads, [&](int64_t index, int thread) {
-      const int32_t b = window + static_cast<int32_t>(index);
-      const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
-      Scratch& sc = scratch[thread];
-      BlockFaces& out = faces[index];
-      out.edges.clear();
-      out.edge_triangles.clear();
-      out.triangle_third.clear();
-      out.triangle_boundary.clear();
-      std::vector<int32_t>& adjacent = neighbors[b];
-      const auto external = t.external_tetrahedra(b);
-      const SimplexId tet_begin = t.block_tet_begin_[b], tet_end = t.block_tet_begin_[b + 1];
-      const auto for_each_tet = [&](auto&& fn) {
-        for (SimplexId tet : external) fn(tet, &t.tet_vertices_[4 * size_t(tet)]);
-        for (SimplexId tet = tet_begin; tet < tet_end; ++tet) {
-          fn(tet, &t.tet_vertices_[4 * size_t(tet)]);
-        }
-      };
-      // Stars of the internal vertices (CSR, counting sort).
-      sc.star_begin.assign(size_t(vend - vbegin) + 1, 0);
-      for_each_tet([&](SimplexId, const SimplexId* s) {
-        for (int k = 0; k < 4; ++k) {
-          if (s[k] >= vbegin && s[k] < vend) {
-            ++sc.star_begin[s[k] - vbegin + 1];
-          } else {
-            // Neighbours are few (tens) and met thousands of times: keep them unique.
-            const int32_t nb = t.vertex_block_[s[k]];
-            if (std::find(adjacent.begin(), adjacent.end(), nb) == adjacent.end()) {
-              adjacent.push_back(nb);
-            }
-          }
-        }
-      });
-      for (size_t i = 1; i < sc.star_begin.size(); ++i) sc.star_begin[i] += sc.star_begin[i - 1];
-      sc.star.resize(sc.star_begin.back());
-      for_each_tet([&](SimplexId tet, const SimplexId* s) {
-        for (int k = 0; k < 4; ++k) {
-          if (s[k] >= vbegin && s[k] < vend) sc.star[sc.star_begin[s[k] - vbegin]++] = tet;
-        }
-      });
-      // star_begin[i] now ends vertex i's star. Each upper vertex and pair comes once per
-      // tetrahedron around it: inserted into short sorted lists (tens of entries), not sorted
-      // with their repeats.
-      SimplexId star_from = 0;
-      for (SimplexId v = vbegin; v < vend; ++v) {
-        const SimplexId star_to = sc.star_begin[v - vbegin];
-        sc.upper.clear();
-        sc.pairs.clear();
-        sc.pair_count.clear();
-        for (SimplexId i = star_from; i < star_to; ++i) {
-          const SimplexId* s = &t.tet_vertices_[4 * size_t(sc.star[i])];
-          int p = 0;
-          while (s[p] != v) ++p;
-          for (int j = p + 1; j < 4; ++j) {
-            const auto at = std::lower_bound(sc.upper.begin(), sc.upper.end(), s[j]);
-            if (at == sc.upper.end() || *at != s[j]) sc.upper.insert(at, s[j]);
-            for (int k = j + 1; k < 4; ++k) {
-              const uint64_t pair = uint64_t(uint32_t(s[j])) << 32 | uint32_t(s[k]);
-              const auto where = std::lower_bound(sc.pairs.begin(), sc.pairs.end(), pair);
-              const size_t index = size_t(where - sc.pairs.begin());
-              if (where == sc.pairs.end() || *where != pair) {
-                sc.pairs.insert(where, pair);
-                sc.pair_count.insert(sc.pair_count.begin() + index, 0);
-              }
-              ++sc.pair_count[index];
-            }
-          }
-        }
-        star_from = star_to;
-        const size_t first_edge = out.edges.size();
-        for (SimplexId w : sc.upper) out.edges.push_back(uint64_t(uint32_t(v)) << 32 | uint32_t(w));
-        out.edge_triangles.resize(out.edges.size(), 0);
-        // Pairs (b, c) sorted by b; upper is sorted and holds every b: walk both.
-        size_t edge = first_edge;
-        for (size_t i = 0; i < sc.pairs.size(); ++i) {
-          const uint32_t b = uint32_t(sc.pairs[i] >> 32);
-          while (uint32_t(out.edges[edge]) != b) ++edge;
-          ++out.edge_triangles[edge];
-          out.triangle_third.push_back(SimplexId(sc.pairs[i] & 0xffffffffu));
-          out.triangle_boundary.push_back(sc.pair_count[i] == 1);
-        }
-      }
-      std::sort(adjacent.begin(), adjacent.end());
-      adjacent.shrink_to_fit();
-    });
-    // Append the window: offsets in block order, then every block copied in parallel. A block's
-    // edges start at its own vertices, so the per-vertex counts do not collide; the boundary
-    // bits share words across blocks and are set in one pass.
-    std::vector<size_t> edge_at(window_size + 1), triangle_at(window_size + 1);
-    edge_at[0] = t.edge_upper_.size();
-    triangle_at[0] = t.triangle_third_.size();
-    for (int32_t index = 0; index < window_size; ++index) {
-      edge_at[index + 1] = edge_at[index] + faces[index].edges.size();
-      triangle_at[index + 1] = triangle_at[index] + faces[index].triangle_third.size();
+}
+
+// Computes the faces of the window's blocks in parallel; leaves them in `faces` to be appended.
+void Topology::Encoder::ComputeWindowFaces(int32_t window, int32_t window_size) {
+  ParallelFor(window_size, threads, [&](int64_t index, int thread) {
+    ComputeBlockFaces(window + static_cast<int32_t>(index), scratch[thread], faces[index]);
+  });
+}
+
+// Block b's edges, triangles and boundary flags into `out`; its sorted neighbours in neighbors[b].
+void Topology::Encoder::ComputeBlockFaces(int32_t b, Scratch& sc, BlockFaces& out) {
+  // Per internal vertex v (ascending), from its star: the vertices above v give its edges, the
+  // pairs above v in each tetrahedron its triangles, each seen once per incident tetrahedron (so a
+  // run of one is a boundary triangle). Only small per-vertex lists are sorted.
+  const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
+  out.edges.clear();
+  out.edge_triangles.clear();
+  out.triangle_third.clear();
+  out.triangle_boundary.clear();
+  std::vector<int32_t>& adjacent = neighbors[b];
+  CollectStars(b, sc, adjacent);
+  SimplexId star_from = 0;
+  for (SimplexId v = vbegin; v < vend; ++v) {
+    const SimplexId star_to = sc.star_begin[v - vbegin];
+    CollectUpperFaces(v, star_from, star_to, sc);
+    star_from = star_to;
+    EmitVertexFaces(v, sc, out);
+  }
+  std::sort(adjacent.begin(), adjacent.end());
+  adjacent.shrink_to_fit();
+}
+
+// Block b's vertex stars (CSR) and other blocks met; leaves star_begin[i] at the end of star i.
+void Topology::Encoder::CollectStars(int32_t b, Scratch& sc, std::vector<int32_t>& adjacent) const {
+  const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
+  const auto external = t.external_tetrahedra(b);
+  const SimplexId tet_begin = t.block_tet_begin_[b], tet_end = t.block_tet_begin_[b + 1];
+  const auto for_each_tet = [&](auto&& fn) {
+    for (SimplexId tet : external) fn(tet, &t.tet_vertices_[4 * size_t(tet)]);
+    for (SimplexId tet = tet_begin; tet < tet_end; ++tet) {
+      fn(tet, &t.tet_vertices_[4 * size_t(tet)]);
     }
-    // Within the reservations above: no reallocation.
-    t.edge_upper_.resize(edge_at[window_size]);
-    t.edge_triangle_begin_.resize(edge_at[window_size] + 1);
-    t.triangle_third_.resize(triangle_at[window_size]);
-    t.triangle_boundary_.resize((triangle_at[window_size] + 63) / 64, 0);
-    ParallelFor(window_size, threads, [&](int64_t index, int) {
-      const BlockFaces& bf = faces[index];
-      for (size_t i = 0; i < bf.edges.size(); ++i) {
-        ++t.vertex_edge_begin_[(bf.edges[i] >> 32) + 1];
-        t.edge_upper_[edge_at[index] + i] = SimplexId(bf.edges[i] & 0xffffffffu);
-        t.edge_triangle_begin_[edge_at[index] + i + 1] = bf.edge_triangles[i];
+  };
+  // Stars of the internal vertices (CSR, counting sort).
+  sc.star_begin.assign(size_t(vend - vbegin) + 1, 0);
+  for_each_tet([&](SimplexId, const SimplexId* s) {
+    for (int k = 0; k < 4; ++k) {
+      if (s[k] >= vbegin && s[k] < vend) {
+        ++sc.star_begin[s[k] - vbegin + 1];
+      } else {
+        // Neighbours are few (tens) and met thousands of times: keep them unique.
+        const int32_t nb = t.vertex_block_[s[k]];
+        if (std::find(adjacent.begin(), adjacent.end(), nb) == adjacent.end()) {
+          adjacent.push_back(nb);
+        }
       }
-      std::copy(bf.triangle_third.begin(), bf.triangle_third.end(),
-                t.triangle_third_.begin() + triangle_at[index]);
-    });
-    for (int32_t index = 0; index < window_size; ++index) {
-      const std::vector<uint8_t>& boundary = faces[index].triangle_boundary;
-      for (size_t i = 0; i < boundary.size(); ++i) {
-        const size_t f = triangle_at[index] + i;
-        t.triangle_boundary_[f / 64] |= uint64_t(boundary[i]) << (f % 64);
+    }
+  });
+  for (size_t i = 1; i < sc.star_begin.size(); ++i) sc.star_begin[i] += sc.star_begin[i - 1];
+  sc.star.resize(sc.star_begin.back());
+  for_each_tet([&](SimplexId tet, const SimplexId* s) {
+    for (int k = 0; k < 4; ++k) {
+      if (s[k] >= vbegin && s[k] < vend) sc.star[sc.star_begin[s[k] - vbegin]++] = tet;
+    }
+  });
+}
+
+// The vertices and pairs above v in its star, sorted, with pair counts, for EmitVertexFaces.
+void Topology::Encoder::CollectUpperFaces(SimplexId v, SimplexId star_from, SimplexId star_to,
+                                          Scratch& sc) const {
+  // Each upper vertex and pair comes once per tetrahedron around it: inserted into short sorted
+  // lists (tens of entries), not sorted with their repeats.
+  sc.upper.clear();
+  sc.pairs.clear();
+  sc.pair_count.clear();
+  for (SimplexId i = star_from; i < star_to; ++i) {
+    const SimplexId* s = &t.tet_vertices_[4 * size_t(sc.star[i])];
+    int p = 0;
+    while (s[p] != v) ++p;
+    for (int j = p + 1; j < 4; ++j) {
+      const auto at = std::lower_bound(sc.upper.begin(), sc.upper.end(), s[j]);
+      if (at == sc.upper.end() || *at != s[j]) sc.upper.insert(at, s[j]);
+      for (int k = j + 1; k < 4; ++k) {
+        const uint64_t pair = uint64_t(uint32_t(s[j])) << 32 | uint32_t(s[k]);
+        const auto where = std::lower_bound(sc.pairs.begin(), sc.pairs.end(), pair);
+        const size_t index = size_t(where - sc.pairs.begin());
+        if (where == sc.pairs.end() || *where != pair) {
+          sc.pairs.insert(where, pair);
+          sc.pair_count.insert(sc.pair_count.begin() + index, 0);
+        }
+        ++sc.pair_count[index];
       }
     }
   }
-  faces.clear();
-  RETURN_IF_ERROR(progress.Update(kPhase, 0.95));
+}
 
+// Appends v's edges and triangles to the block's runs in `out`; the next vertex's follow them.
+void Topology::Encoder::EmitVertexFaces(SimplexId v, const Scratch& sc, BlockFaces& out) {
+  const size_t first_edge = out.edges.size();
+  for (SimplexId w : sc.upper) out.edges.push_back(uint64_t(uint32_t(v)) << 32 | uint32_t(w));
+  out.edge_triangles.resize(out.edges.size(), 0);
+  // Pairs (b, c) sorted by b; upper is sorted and holds every b: walk both.
+  size_t edge = first_edge;
+  for (size_t i = 0; i < sc.pairs.size(); ++i) {
+    const uint32_t b = uint32_t(sc.pairs[i] >> 32);
+    while (uint32_t(out.edges[edge]) != b) ++edge;
+    ++out.edge_triangles[edge];
+    out.triangle_third.push_back(SimplexId(sc.pairs[i] & 0xffffffffu));
+    out.triangle_boundary.push_back(sc.pair_count[i] == 1);
+  }
+}
+
+// Appends the window's faces to the final arrays; leaves run starts as counts for SumRunStarts.
+void Topology::Encoder::AppendWindowFaces(int32_t window_size) {
+  // Offsets in block order, then every block copied in parallel. A block's edges start at its own
+  // vertices, so the per-vertex counts do not collide; the boundary bits share words across blocks
+  // and are set in one pass.
+  std::vector<size_t> edge_at(window_size + 1), triangle_at(window_size + 1);
+  edge_at[0] = t.edge_upper_.size();
+  triangle_at[0] = t.triangle_third_.size();
+  for (int32_t index = 0; index < window_size; ++index) {
+    edge_at[index + 1] = edge_at[index] + faces[index].edges.size();
+    triangle_at[index + 1] = triangle_at[index] + faces[index].triangle_third.size();
+  }
+  // Within the reservations of ReserveFaces: no reallocation.
+  t.edge_upper_.resize(edge_at[window_size]);
+  t.edge_triangle_begin_.resize(edge_at[window_size] + 1);
+  t.triangle_third_.resize(triangle_at[window_size]);
+  t.triangle_boundary_.resize((triangle_at[window_size] + 63) / 64, 0);
+  ParallelFor(window_size, threads, [&](int64_t index, int) {
+    const BlockFaces& bf = faces[index];
+    for (size_t i = 0; i < bf.edges.size(); ++i) {
+      ++t.vertex_edge_begin_[(bf.edges[i] >> 32) + 1];
+      t.edge_upper_[edge_at[index] + i] = SimplexId(bf.edges[i] & 0xffffffffu);
+      t.edge_triangle_begin_[edge_at[index] + i + 1] = bf.edge_triangles[i];
+    }
+    std::copy(bf.triangle_third.begin(), bf.triangle_third.end(),
+              t.triangle_third_.begin() + triangle_at[index]);
+  });
+  for (int32_t index = 0; index < window_size; ++index) {
+    const std::vector<uint8_t>& boundary = faces[index].triangle_boundary;
+    for (size_t i = 0; i < boundary.size(); ++i) {
+      const size_t f = triangle_at[index] + i;
+      t.triangle_boundary_[f / 64] |= uint64_t(boundary[i]) << (f % 64);
+    }
+  }
+}
+
+// Sums the per-vertex edge and per-edge triangle counts into run starts, for BuildRunLookups.
+absl::Status Topology::Encoder::SumRunStarts() {
   // Ids are 32-bit (SimplexId); the sums below would overflow first.
   if (t.triangle_third_.size() > size_t(INT32_MAX)) {
     return absl::ResourceExhaustedError(
@@ -461,6 +521,11 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   for (size_t e = 1; e < t.edge_triangle_begin_.size(); ++e) {
     t.edge_triangle_begin_[e] += t.edge_triangle_begin_[e - 1];
   }
+  return absl::OkStatus();
+}
+
+// Builds the edge -> vertex and triangle -> edge lookups; only the block adjacency is left.
+void Topology::Encoder::BuildRunLookups() {
   ParallelFor(2, threads, [&](int64_t which, int) {
     if (which == 0) {
       t.edge_lowest_.Build(t.vertex_edge_begin_, t.num_edges());
@@ -468,7 +533,10 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
       t.triangle_edge_.Build(t.edge_triangle_begin_, t.num_triangles());
     }
   });
+}
 
+// Concatenates the per-block neighbour lists into the block adjacency, the topology's last part.
+void Topology::Encoder::ListBlockNeighbors() {
   t.block_neighbor_offsets_.assign(num_blocks + 1, 0);
   for (int32_t b = 0; b < num_blocks; ++b) {
     t.block_neighbor_offsets_[b + 1] =
@@ -478,6 +546,46 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   for (const auto& n : neighbors) {
     t.block_neighbors_.insert(t.block_neighbors_.end(), n.begin(), n.end());
   }
+}
+
+// The "encode" phase as the Encoder's steps, with its progress reports and stops between them.
+absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
+    const Mesh& mesh, std::span<const int32_t> vertex_block, const TopologyOptions& options,
+    const Progress& progress) {
+  const SimplexId nv = mesh.num_vertices();
+  const SimplexId nt = mesh.num_tetrahedra();
+  const int threads = options.threads > 0 ? options.threads : DefaultThreads();
+  ASSIGN_OR_RETURN(const int32_t num_blocks, CountBlocks(vertex_block, nv));
+
+  RETURN_IF_ERROR(progress.Update(kPhase, 0));
+  auto topo = std::shared_ptr<Topology>(new Topology());
+  Topology& t = *topo;
+  t.num_vertices_ = nv;
+  t.num_blocks_ = num_blocks;
+  Encoder encoder{mesh, vertex_block, nv, nt, num_blocks, threads, t};
+  RETURN_IF_ERROR(encoder.SortVertices());
+  // Tetrahedra: stable bucket sort by the block of the lowest vertex, then within each block by
+  // the lowest vertex, each sorted internal tuple written straight to its place (no second copy
+  // of the tetrahedra at any time, only one block's per thread).
+  encoder.BucketTetrahedra();
+  encoder.SortBlockTetrahedra();
+  RETURN_IF_ERROR(progress.Update(kPhase, 0.15));
+
+  encoder.FindExternalTetrahedra();
+  encoder.ReserveFaces();
+  for (int32_t window = 0; window < num_blocks; window += kWindow) {
+    // Edges and triangles are about three quarters of the time.
+    RETURN_IF_ERROR(progress.Update(kPhase, 0.2 + 0.75 * window / num_blocks));
+    const int32_t window_size = std::min(kWindow, num_blocks - window);
+    encoder.ComputeWindowFaces(window, window_size);
+    encoder.AppendWindowFaces(window_size);
+  }
+  encoder.faces.clear();  // the last window's, now appended
+  RETURN_IF_ERROR(progress.Update(kPhase, 0.95));
+
+  RETURN_IF_ERROR(encoder.SumRunStarts());
+  encoder.BuildRunLookups();
+  encoder.ListBlockNeighbors();
   RETURN_IF_ERROR(progress.Update(kPhase, 1));
   return topo;
 }

@@ -180,6 +180,9 @@ class Topology {
   TopologyBytes bytes() const;
 
  private:
+  // Build's steps (phase "encode") and the state they hand on to each other; see topology.cc.
+  struct Encoder;
+
   Topology() = default;
 
   SimplexId num_vertices_ = 0;
