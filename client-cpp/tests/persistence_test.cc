@@ -17,25 +17,6 @@ using Line = std::array<int64_t, 4>;  // type, birth vertex, death vertex, finit
 constexpr char kDiagram[] = "persistence-diagram";
 constexpr char kFingers[] = "viscousFingers001_s2_tet.vtu";
 
-// Upstream TTK's diagram of `field` on `file` (pairs, counts_by_type, max_persistence,
-// pairs_sha256 and, for small ones, lines); a null JSON and a test failure if it is missing.
-nlohmann::json Ttk(const std::string& file, const std::string& field) {
-  const std::string path = DataDir() + "/expected-ttk.json";
-  std::ifstream in(path);
-  nlohmann::json expected = nlohmann::json::parse(in, nullptr, false);
-  if (expected.is_discarded()) {
-    ADD_FAILURE() << "cannot read " << path;
-    return nullptr;
-  }
-  const nlohmann::json::json_pointer entry("/" + file + "/" + field +
-                                           "/upstream/persistence_diagram");
-  if (!expected.contains(entry)) {
-    ADD_FAILURE() << path << " has no " << entry.to_string();
-    return nullptr;
-  }
-  return expected[entry];
-}
-
 // The pairs as the lines of pairs_sha256, sorted as integer tuples (expected-ttk.json's "lines").
 std::vector<Line> SortedLines(const std::vector<PersistencePair>& pairs) {
   std::vector<Line> lines;
@@ -84,7 +65,7 @@ void ExpectConsistent(const std::vector<PersistencePair>& pairs, const nlohmann:
 
 // fertility height is small enough for expected-ttk.json to list its pairs: all equal TTK's.
 TEST_F(ServerTest, FertilityHeightPairsEqualTtks) {
-  const nlohmann::json ttk = Ttk("fertility_tet.vtu", "height");
+  const nlohmann::json ttk = TtkReference("fertility_tet.vtu", "height", "persistence_diagram");
   ASSERT_TRUE(ttk.contains("lines"));
   const std::string session =
       Open(Fertility(), {.scalar = "height", .structure = Structure::kCompact});
@@ -106,7 +87,7 @@ TEST_F(ServerTest, FertilityHeightPairsEqualTtks) {
 
 // viscousFingers density has pairs of every type; expected-ttk.json gives their counts.
 TEST_F(ServerTest, ViscousFingersPairsEqualTtksInBothEmbeddings) {
-  const nlohmann::json ttk = Ttk(kFingers, "density");
+  const nlohmann::json ttk = TtkReference(kFingers, "density", "persistence_diagram");
   absl::StatusOr<MeshInfo> mesh = client().LoadMesh(kFingers);
   ASSERT_OK(mesh);
   meshes_.push_back(mesh->mesh_id);

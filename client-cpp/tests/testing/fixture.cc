@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <map>
 #include <mutex>
 
@@ -95,6 +96,25 @@ nlohmann::json BenchResult(const std::string& file, const std::string& scalar,
     return nullptr;
   }
   return cache[command] = result["result"];
+}
+
+nlohmann::json TtkReference(const std::string& file, const std::string& field,
+                            const std::string& section) {
+  const std::string path = DataDir() + "/expected-ttk.json";
+  static const nlohmann::json all = [&] {
+    std::ifstream in(path);
+    return nlohmann::json::parse(in, nullptr, false);
+  }();
+  if (all.is_discarded()) {
+    ADD_FAILURE() << "cannot read " << path;
+    return nullptr;
+  }
+  const nlohmann::json::json_pointer entry("/" + file + "/" + field + "/upstream/" + section);
+  if (!all.contains(entry)) {
+    ADD_FAILURE() << path << " has no " << entry.to_string();
+    return nullptr;
+  }
+  return all[entry];
 }
 
 ::testing::AssertionResult HasError(const absl::Status& status, absl::StatusCode code,

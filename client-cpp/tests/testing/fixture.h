@@ -31,6 +31,12 @@ inline constexpr int kSharedMaxBatchSize = 64;
 nlohmann::json BenchResult(const std::string& file, const std::string& scalar,
                            const std::string& algorithm);
 
+// Upstream TTK's result of `section` (critical_points, discrete_gradient, morse_smale,
+// persistence_diagram) for `field` on `file`, from expected-ttk.json under the data directory; a
+// null JSON and a test failure if it is missing.
+nlohmann::json TtkReference(const std::string& file, const std::string& field,
+                            const std::string& section);
+
 // ASSERT_OK(expr) / EXPECT_OK(expr) for Status and StatusOr: `expr` is evaluated once, and
 // more context can be streamed in (EXPECT_OK(call) << "while ...").
 inline const absl::Status& StatusOf(const absl::Status& s) { return s; }
