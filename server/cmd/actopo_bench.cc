@@ -164,65 +164,60 @@ absl::StatusOr<StructureOptions> StructureFromFlags(const BenchOptions& o) {
   return s;
 }
 
-absl::StatusOr<Json> Run(BenchOptions o) {
-  RETURN_IF_ERROR(Validate(o));
-  ASSIGN_OR_RETURN(const StructureOptions options, StructureFromFlags(o));
-  o.consumers = options.consumers;
-  o.producers = options.producers;
-  ASSIGN_OR_RETURN(const Algorithm algorithm, ParseAlgorithm(o.algorithm));
-  // The trace file is opened first: a path that cannot be written fails before the work.
-  std::shared_ptr<Trace> trace;
-  std::ofstream trace_file;
-  if (!o.trace.empty()) {
-    trace_file.open(o.trace);
-    if (!trace_file) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("--trace: cannot write '", o.trace, "': ", std::strerror(errno)));
-    }
-    trace = std::make_shared<Trace>();
-    SetThreadRole("main");
-  }
+// The run's phases, in the order Run takes them; each is a span of the same name in --trace.
 
-  auto start = Clock::now();
-  ASSIGN_OR_RETURN(Mesh mesh, o.mesh.empty() ? io::MakeSample(o.sample) : io::ReadMesh(o.mesh));
-  RETURN_IF_ERROR(ValidateMesh(mesh));
+// load: the mesh and the scalar field the algorithm reads.
+struct Loaded {
+  Mesh mesh;
   std::string scalar_name;
   std::vector<double> scalars;
-  if (!o.scalar.empty() || NeedsScalar(algorithm)) {
-    ASSIGN_OR_RETURN(int field, SelectScalarField(mesh, o.scalar, o.block_labels));
-    scalar_name = mesh.point_fields[field].name;
-    scalars = mesh.point_fields[field].values;
-  }
-  const double load_s = Seconds(start);
-  Phase(trace, "load", start);
+  double seconds = 0;
+};
 
-  start = Clock::now();
+absl::StatusOr<Loaded> Load(const BenchOptions& o, Algorithm algorithm,
+                            const std::shared_ptr<Trace>& trace) {
+  const auto start = Clock::now();
+  Loaded out;
+  ASSIGN_OR_RETURN(out.mesh, o.mesh.empty() ? io::MakeSample(o.sample) : io::ReadMesh(o.mesh));
+  RETURN_IF_ERROR(ValidateMesh(out.mesh));
+  if (!o.scalar.empty() || NeedsScalar(algorithm)) {
+    ASSIGN_OR_RETURN(int field, SelectScalarField(out.mesh, o.scalar, o.block_labels));
+    out.scalar_name = out.mesh.point_fields[field].name;
+    out.scalars = out.mesh.point_fields[field].values;
+  }
+  out.seconds = Seconds(start);
+  Phase(trace, "load", start);
+  return out;
+}
+
+// partition: the blocks and the static encoding.
+absl::StatusOr<std::shared_ptr<const Topology>> Partition(const BenchOptions& o, const Mesh& mesh,
+                                                          const std::shared_ptr<Trace>& trace,
+                                                          double& seconds) {
+  const auto start = Clock::now();
   ASSIGN_OR_RETURN(
       std::vector<int32_t> blocks,
       ComputeBlocks(mesh, {.bucket_capacity = o.block_size, .block_label_field = o.block_labels}));
   ASSIGN_OR_RETURN(std::shared_ptr<const Topology> topology,
                    Topology::Build(mesh, blocks, {.threads = o.threads}));
-  const double partition_s = Seconds(start);
+  seconds = Seconds(start);
   Phase(trace, "partition", start);
-  std::vector<SimplexId> input_tetrahedra;
-  if (algorithm == Algorithm::kMorseSmale) input_tetrahedra = mesh.tetrahedra;
-  // Without --output the points and other fields are not needed: free them so peak RSS
-  // reflects the structures.
-  std::optional<ResultContext> files;
-  if (o.output.empty()) {
-    mesh = Mesh();
-  } else {
-    files.emplace(ResultContext{mesh, *topology, scalar_name, scalars, VertexBoundary(topology)});
-  }
-  blocks = {};
+  return topology;
+}
 
-  // The vertex order is the algorithms' preconditioning, like TTK's offsets: in `preprocess`.
-  start = Clock::now();
+// vertex order: the algorithm's input, with the vertex order as its preconditioning (like TTK's
+// offsets; counted in `preprocess`) and the parameters given as flags.
+absl::StatusOr<AlgorithmInput> PrepareInput(const BenchOptions& o, Algorithm algorithm,
+                                            const Topology& topology,
+                                            const std::vector<double>& scalars,
+                                            std::vector<SimplexId> input_tetrahedra,
+                                            const std::shared_ptr<Trace>& trace, double& seconds) {
+  const auto start = Clock::now();
   AlgorithmInput input{
       .algorithm = algorithm,
       .critical_points = {.boundary_rule = o.boundary_rule == "none" ? BoundaryRule::kNone
                                                                      : BoundaryRule::kTtk}};
-  if (!scalars.empty()) input.order = VertexOrder(*topology, scalars);
+  if (!scalars.empty()) input.order = VertexOrder(topology, scalars);
   input.input_tetrahedra = std::move(input_tetrahedra);
   if (NeedsScalarValues(algorithm)) input.scalars = scalars;
   // Thresholds go through the service's parameter parser: one spelling, one set of errors.
@@ -233,69 +228,98 @@ absl::StatusOr<Json> Run(BenchOptions o) {
   if (!o.embedding.empty()) parameters["embedding"] = o.embedding;
   if (!o.backend.empty()) parameters["backend"] = o.backend;
   RETURN_IF_ERROR(ApplyParameters(parameters, input));
-  const double order_s = Seconds(start);
+  seconds = Seconds(start);
   Phase(trace, "vertex order", start);
-  const RelationSet declared = DeclaredRelations(input);
-  RunContext context{.consumers = o.consumers, .trace = trace};
-  RunOutput out;
-  if (options.kind == StructureKind::kExplicit) {
-    start = Clock::now();
-    ASSIGN_OR_RETURN(auto structure, ExplicitStructure::Build(
-                                         topology, {.relations = declared, .threads = o.threads}));
-    const double preprocess_s = Seconds(start);
-    Phase(trace, "preprocess", start);
-    ASSIGN_OR_RETURN(out,
-                     RunAndSummarize(*structure, input, context, o, files ? &*files : nullptr));
-    out.preprocess_s = preprocess_s;
-    out.memory = structure->memory();
-  } else if (options.kind == StructureKind::kActopo) {
-    ActopoStructure::Options engine = EngineOptions(options, algorithm);
-    engine.declared = declared;
-    start = Clock::now();
-    ASSIGN_OR_RETURN(auto structure, ActopoStructure::Create(topology, engine));
-    const double preprocess_s = Seconds(start);
-    Phase(trace, "preprocess", start);
-    ASSIGN_OR_RETURN(out,
-                     RunAndSummarize(*structure, input, context, o, files ? &*files : nullptr));
-    out.preprocess_s = preprocess_s;
-    const EngineStats stats = structure->stats();
-    out.access = stats.access;
-    out.memory = structure->memory();
-    out.engine_detail = {{"producers", engine.producers},
-                         {"prefetch", std::string(PrefetchName(engine.prefetch))},
-                         {"precompute", std::string(PrecomputeName(engine.precompute))},
-                         {"miss_policy", std::string(MissPolicyName(engine.miss_policy))},
-                         {"buffer_capacity_blocks", structure->buffer_capacity_blocks()},
-                         {"leader_relations", stats.leader_relations},
-                         {"worker_relations", stats.worker_relations},
-                         {"consumer_relations", stats.consumer_relations},
-                         {"duplicates_avoided", stats.duplicates_avoided},
-                         {"blocks_inserted", stats.blocks_inserted},
-                         {"producer_busy_s", stats.producer_busy_ns * 1e-9}};
-    Json per_consumer = Json::array();
-    for (const EngineStats& c : structure->consumer_stats()) {
-      per_consumer.push_back({{"wait_s", c.access.wait_ns * 1e-9},
-                              {"requests", c.access.requests},
-                              {"hits", c.access.hits},
-                              {"misses", c.access.misses},
-                              {"buffer_peak_bytes", c.buffer_peak_bytes}});
-    }
-    out.engine_detail["consumers"] = per_consumer;
-  } else {
-    CompactStructure structure(topology, CacheOptions(options, options.consumers));
-    ASSIGN_OR_RETURN(out, RunAndSummarize(structure, input, context, o, files ? &*files : nullptr));
-    out.access = structure.stats();
-    out.memory = structure.memory();
-  }
+  return input;
+}
 
-  const TopologyBytes static_bytes = topology->bytes();
+// preprocess and run, on each kind of structure; `files` (--output) also writes result files.
+absl::StatusOr<RunOutput> RunOnExplicit(std::shared_ptr<const Topology> topology,
+                                        const AlgorithmInput& input, const RunContext& context,
+                                        const BenchOptions& o, const ResultContext* files) {
+  const auto start = Clock::now();
+  ASSIGN_OR_RETURN(auto structure, ExplicitStructure::Build(std::move(topology),
+                                                            {.relations = DeclaredRelations(input),
+                                                             .threads = o.threads}));
+  const double preprocess_s = Seconds(start);
+  Phase(context.trace, "preprocess", start);
+  ASSIGN_OR_RETURN(RunOutput out, RunAndSummarize(*structure, input, context, o, files));
+  out.preprocess_s = preprocess_s;
+  out.memory = structure->memory();
+  return out;
+}
+
+// The engine's own figures: its configuration, who computed what, and each consumer's wait.
+Json EngineDetail(const ActopoStructure& structure, const ActopoStructure::Options& engine) {
+  const EngineStats stats = structure.stats();
+  Json detail = {{"producers", engine.producers},
+                 {"prefetch", std::string(PrefetchName(engine.prefetch))},
+                 {"precompute", std::string(PrecomputeName(engine.precompute))},
+                 {"miss_policy", std::string(MissPolicyName(engine.miss_policy))},
+                 {"buffer_capacity_blocks", structure.buffer_capacity_blocks()},
+                 {"leader_relations", stats.leader_relations},
+                 {"worker_relations", stats.worker_relations},
+                 {"consumer_relations", stats.consumer_relations},
+                 {"duplicates_avoided", stats.duplicates_avoided},
+                 {"blocks_inserted", stats.blocks_inserted},
+                 {"producer_busy_s", stats.producer_busy_ns * 1e-9}};
+  Json per_consumer = Json::array();
+  for (const EngineStats& c : structure.consumer_stats()) {
+    per_consumer.push_back({{"wait_s", c.access.wait_ns * 1e-9},
+                            {"requests", c.access.requests},
+                            {"hits", c.access.hits},
+                            {"misses", c.access.misses},
+                            {"buffer_peak_bytes", c.buffer_peak_bytes}});
+  }
+  detail["consumers"] = per_consumer;
+  return detail;
+}
+
+absl::StatusOr<RunOutput> RunOnActopo(std::shared_ptr<const Topology> topology,
+                                      const StructureOptions& options, const AlgorithmInput& input,
+                                      const RunContext& context, const BenchOptions& o,
+                                      const ResultContext* files) {
+  ActopoStructure::Options engine = EngineOptions(options, input.algorithm);
+  engine.declared = DeclaredRelations(input);
+  const auto start = Clock::now();
+  ASSIGN_OR_RETURN(auto structure, ActopoStructure::Create(std::move(topology), engine));
+  const double preprocess_s = Seconds(start);
+  Phase(context.trace, "preprocess", start);
+  ASSIGN_OR_RETURN(RunOutput out, RunAndSummarize(*structure, input, context, o, files));
+  out.preprocess_s = preprocess_s;
+  out.access = structure->stats().access;
+  out.memory = structure->memory();
+  out.engine_detail = EngineDetail(*structure, engine);
+  return out;
+}
+
+absl::StatusOr<RunOutput> RunOnCompact(std::shared_ptr<const Topology> topology,
+                                       const StructureOptions& options, const AlgorithmInput& input,
+                                       const RunContext& context, const BenchOptions& o,
+                                       const ResultContext* files) {
+  CompactStructure structure(std::move(topology), CacheOptions(options, options.consumers));
+  ASSIGN_OR_RETURN(RunOutput out, RunAndSummarize(structure, input, context, o, files));
+  out.access = structure.stats();
+  out.memory = structure.memory();
+  return out;
+}
+
+// The phases' times (seconds); run, preprocess and results come with the RunOutput.
+struct PhaseTimes {
+  double load = 0, partition = 0, order = 0;
+};
+
+// The JSON report (README "actopo-bench").
+Json Report(const BenchOptions& o, Algorithm algorithm, const Topology& topology,
+            const std::string& scalar_name, const PhaseTimes& times, const RunOutput& out) {
+  const TopologyBytes static_bytes = topology.bytes();
   Json j;
   j["mesh"] = {{"source", o.mesh.empty() ? "sample:" + o.sample : o.mesh},
-               {"vertices", topology->num_vertices()},
-               {"edges", topology->num_edges()},
-               {"triangles", topology->num_triangles()},
-               {"tetrahedra", topology->num_tetrahedra()},
-               {"blocks", topology->num_blocks()}};
+               {"vertices", topology.num_vertices()},
+               {"edges", topology.num_edges()},
+               {"triangles", topology.num_triangles()},
+               {"tetrahedra", topology.num_tetrahedra()},
+               {"blocks", topology.num_blocks()}};
   j["structure"] = o.structure;
   j["algorithm"] = std::string(AlgorithmName(algorithm));
   j["config"] = {{"consumers", o.consumers},
@@ -309,9 +333,12 @@ absl::StatusOr<Json> Run(BenchOptions o) {
                  {"boundary_rule",
                   algorithm == Algorithm::kCriticalPoints ? Json(o.boundary_rule) : Json(nullptr)},
                  {"preprocess_threads", o.threads > 0 ? o.threads : DefaultThreads()}};
-  j["times_s"] = {
-      {"load", load_s},   {"partition", partition_s}, {"preprocess", order_s + out.preprocess_s},
-      {"run", out.run_s}, {"results", out.results_s}, {"total", Seconds(kProcessStart)}};
+  j["times_s"] = {{"load", times.load},
+                  {"partition", times.partition},
+                  {"preprocess", times.order + out.preprocess_s},
+                  {"run", out.run_s},
+                  {"results", out.results_s},
+                  {"total", Seconds(kProcessStart)}};
   j["engine"] = {{"wait_s", out.access.wait_ns * 1e-9},
                  {"requests", out.access.requests},
                  {"hits", out.access.hits},
@@ -334,6 +361,61 @@ absl::StatusOr<Json> Run(BenchOptions o) {
       {"buffer_peak_bytes", o.structure == "explicit" ? 0 : out.memory.relation_peak_bytes}};
   j["result"] = out.result;
   if (!out.files.empty()) j["files"] = out.files;
+  return j;
+}
+
+// The whole run: flags checked, then load, partition, vertex order, preprocess, run and results,
+// then the report (and the trace, with --trace).
+absl::StatusOr<Json> Run(BenchOptions o) {
+  RETURN_IF_ERROR(Validate(o));
+  ASSIGN_OR_RETURN(const StructureOptions options, StructureFromFlags(o));
+  o.consumers = options.consumers;
+  o.producers = options.producers;
+  ASSIGN_OR_RETURN(const Algorithm algorithm, ParseAlgorithm(o.algorithm));
+  // The trace file is opened first: a path that cannot be written fails before the work.
+  std::shared_ptr<Trace> trace;
+  std::ofstream trace_file;
+  if (!o.trace.empty()) {
+    trace_file.open(o.trace);
+    if (!trace_file) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--trace: cannot write '", o.trace, "': ", std::strerror(errno)));
+    }
+    trace = std::make_shared<Trace>();
+    SetThreadRole("main");
+  }
+
+  PhaseTimes times;
+  ASSIGN_OR_RETURN(Loaded loaded, Load(o, algorithm, trace));
+  times.load = loaded.seconds;
+  ASSIGN_OR_RETURN(std::shared_ptr<const Topology> topology,
+                   Partition(o, loaded.mesh, trace, times.partition));
+  std::vector<SimplexId> input_tetrahedra;
+  if (algorithm == Algorithm::kMorseSmale) input_tetrahedra = loaded.mesh.tetrahedra;
+  // Without --output the points and other fields are not needed: free them so peak RSS
+  // reflects the structures.
+  std::optional<ResultContext> files;
+  if (o.output.empty()) {
+    loaded.mesh = Mesh();
+  } else {
+    files.emplace(ResultContext{loaded.mesh, *topology, loaded.scalar_name, loaded.scalars,
+                                VertexBoundary(topology)});
+  }
+  ASSIGN_OR_RETURN(const AlgorithmInput input,
+                   PrepareInput(o, algorithm, *topology, loaded.scalars,
+                                std::move(input_tetrahedra), trace, times.order));
+  const ResultContext* files_or_null = files ? &*files : nullptr;
+  const RunContext context{.consumers = o.consumers, .trace = trace};
+  absl::StatusOr<RunOutput> run =
+      options.kind == StructureKind::kExplicit
+          ? RunOnExplicit(topology, input, context, o, files_or_null)
+      : options.kind == StructureKind::kActopo
+          ? RunOnActopo(topology, options, input, context, o, files_or_null)
+          : RunOnCompact(topology, options, input, context, o, files_or_null);
+  RETURN_IF_ERROR(run.status());
+  const RunOutput& out = *run;
+
+  Json j = Report(o, algorithm, *topology, loaded.scalar_name, times, out);
   if (trace) {
     trace->WriteJson(trace_file);
     trace_file.close();

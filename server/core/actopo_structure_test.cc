@@ -173,9 +173,11 @@ TEST(ActopoStructure, OneBlockBufferManyProducers) {
       });
     }
     for (auto& t : threads) t.join();
+    // What holds under any schedule (whether workers got a task before the consumers needed it
+    // does not): a one-block buffer evicts, and every miss was computed by someone.
     const EngineStats s = structure->stats();
     EXPECT_GT(s.access.evictions, 0);
-    EXPECT_GT(s.worker_relations, 0);
+    EXPECT_GE(s.leader_relations + s.worker_relations + s.consumer_relations, s.access.misses);
     for (const EngineStats& c : structure->consumer_stats()) {
       EXPECT_LE(c.buffer_peak_blocks, 2 + kNumRelations);
     }
