@@ -22,8 +22,8 @@ namespace {
 // ---------------------------------------------------------------------------------------------
 // UploadMesh: header, then raw chunks; assembled, checked against the header's counts and
 // SHA-256, converted and handed to the registry. Completing (hashing, decoding, validating,
-// partitioning) runs in the background work, stopping when the call is cancelled or its deadline
-// passes.
+// partitioning) runs on the background executor, stopping when the call is cancelled or its
+// deadline passes.
 class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest> {
  public:
   UploadReactor(ReactorHost* host, grpc::CallbackServerContext* context,

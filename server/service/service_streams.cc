@@ -2,9 +2,11 @@
 // on the service's relations and jobs executors.
 #include <grpcpp/grpcpp.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <deque>
+#include <map>
 #include <sstream>
 
 #include "absl/strings/str_cat.h"
@@ -27,19 +29,22 @@ constexpr int64_t kMaxJobTraceEvents = 250'000;
 // ---------------------------------------------------------------------------------------------
 // StreamRelations: errors in band. A request carries one simplex or a batch (CSR answer, with
 // per-item errors). Reactions only hand over: each request read is answered on the relations
-// executor, one at a time per stream (answers keep the requests' order), and the task then
-// queues the answer for writing and reads the next request, so reading, answering and writing
-// earlier answers overlap. Flow control: reading pauses while the answers waiting to be written
-// hold kMaxQueuedBytes or kMaxQueued messages, so a client that does not read its answers holds
-// at most that much server memory.
+// executor, and the next one is read meanwhile, so up to kMaxAnswering answers of one stream
+// compute at once (one per core of the executor) while earlier answers are written. Answers are
+// written in the order of their requests: one that finishes early waits in done_ for those
+// before it. Flow control: reading pauses while the answers waiting to be written hold
+// kMaxQueuedBytes or kMaxQueued messages, so a client that does not read its answers holds at
+// most that much server memory.
 //
-// Lifetime: gRPC calls OnDone once its operations are over, but an answer may still be computing
-// then; the reactor goes when both are done (holds_). Once Finish is called (finished_), nothing
-// starts another operation: a read that completes after a failed write is dropped.
+// Lifetime: gRPC calls OnDone once its operations are over, but answers may still be computing
+// then; the reactor goes when all are done (holds_). Once Finish is called (finished_), nothing
+// starts another operation: a read that completes after a failed write is dropped, and answers
+// still computing are thrown away.
 class StreamRelationsReactor final
     : public grpc::ServerBidiReactor<v1::StreamRelationsRequest, v1::StreamRelationsResponse> {
  public:
-  StreamRelationsReactor(ReactorHost* host, grpc::CallbackServerContext* context) : host_(host) {
+  StreamRelationsReactor(ReactorHost* host, grpc::CallbackServerContext* context)
+      : host_(host), max_answering_(std::max(1, host->relations().threads())) {
     const absl::Status admitted = host_->Admit(context);
     if (!admitted.ok()) {
       host_->Count("StreamRelations", admitted);
@@ -60,8 +65,12 @@ class StreamRelationsReactor final
     if (finished_) return;  // the call already ended (a write failed): drop the request
     // Only one read is outstanding, so request_ is ours until the next StartRead.
     ++holds_;
+    ++answering_;
     host_->relations().Run(cancel_,
-                           [this, request = std::move(request_)] { AnswerAndGo(request); });
+                           [this, sequence = next_sequence_++, request = std::move(request_)] {
+                             AnswerAndGo(sequence, request);
+                           });
+    ReadNextLocked();
   }
 
   void OnWriteDone(bool ok) override {
@@ -75,10 +84,7 @@ class StreamRelationsReactor final
       return;
     }
     WriteNextLocked();
-    if (read_paused_ && HasRoomLocked() && !finished_) {
-      read_paused_ = false;
-      StartRead(&request_);
-    }
+    if (read_paused_) ReadNextLocked();
     MaybeFinishLocked();
   }
 
@@ -144,28 +150,37 @@ class StreamRelationsReactor final
     return response;
   }
 
-  // On the relations executor: answers `request`, queues the answer, reads the next request.
-  void AnswerAndGo(const v1::StreamRelationsRequest& request) {
+  // On the relations executor: answers `request`, then queues it and any answers after it that
+  // were waiting for it, in request order.
+  void AnswerAndGo(int64_t sequence, const v1::StreamRelationsRequest& request) {
     v1::StreamRelationsResponse response = Answer(request);
     const size_t bytes = response.ByteSizeLong();
     {
       MutexLock lock(mu_);
+      --answering_;
       if (!finished_) {
-        queue_.push_back({std::move(response), bytes});
-        queued_bytes_ += bytes;
-        WriteNextLocked();
-        if (HasRoomLocked()) {
-          StartRead(&request_);
-        } else {
-          read_paused_ = true;
+        done_.emplace(sequence, Queued{std::move(response), bytes});
+        for (auto next = done_.find(next_to_queue_); next != done_.end();
+             next = done_.find(++next_to_queue_)) {
+          queued_bytes_ += next->second.bytes;
+          queue_.push_back(std::move(next->second));
+          done_.erase(next);
         }
+        WriteNextLocked();
+        if (read_paused_) ReadNextLocked();
       }
     }
     Release();
   }
 
-  bool HasRoomLocked() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
-    return queue_.size() < kMaxQueued && queued_bytes_ < kMaxQueuedBytes;
+  // Reads the next request, or pauses reading while the stream's answers fill their share of
+  // the executor or the queue to be written is full.
+  void ReadNextLocked() ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
+    if (finished_) return;
+    const bool room = answering_ < max_answering_ && queue_.size() + done_.size() < kMaxQueued &&
+                      queued_bytes_ < kMaxQueuedBytes;
+    read_paused_ = !room;
+    if (room) StartRead(&request_);
   }
 
   void WriteNextLocked() ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
@@ -175,7 +190,7 @@ class StreamRelationsReactor final
   }
 
   void MaybeFinishLocked() ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
-    if (reads_done_ && holds_ == 1 && queue_.empty() && !writing_ && !finished_) {
+    if (reads_done_ && answering_ == 0 && queue_.empty() && !writing_ && !finished_) {
       host_->Count("StreamRelations", absl::OkStatus());
       FinishLocked(grpc::Status::OK);
     }
@@ -200,11 +215,16 @@ class StreamRelationsReactor final
   }
 
   ReactorHost* host_;
+  const int max_answering_;  // answers of this stream computing at once
   const Executor::CancelFlag cancel_ = std::make_shared<std::atomic<bool>>(false);
   v1::StreamRelationsRequest request_;  // the read's target; moved into the answer task
   Mutex mu_;
-  std::deque<Queued> queue_ ABSL_GUARDED_BY(mu_);  // front: being written
+  int64_t next_sequence_ ABSL_GUARDED_BY(mu_) = 0;       // of the next request read
+  int64_t next_to_queue_ ABSL_GUARDED_BY(mu_) = 0;       // the answer the queue waits for
+  std::map<int64_t, Queued> done_ ABSL_GUARDED_BY(mu_);  // answers ahead of their turn
+  std::deque<Queued> queue_ ABSL_GUARDED_BY(mu_);        // in order; front: being written
   size_t queued_bytes_ ABSL_GUARDED_BY(mu_) = 0;
+  int answering_ ABSL_GUARDED_BY(mu_) = 0;
   bool writing_ ABSL_GUARDED_BY(mu_) = false;
   bool reads_done_ ABSL_GUARDED_BY(mu_) = false;
   bool read_paused_ ABSL_GUARDED_BY(mu_) = false;
