@@ -13,12 +13,6 @@ namespace {
 
 using absl::StatusCode;
 
-int64_t Sum(const nlohmann::json& values) {
-  int64_t total = 0;
-  for (const auto& v : values) total += v.get<int64_t>();
-  return total;
-}
-
 // A job's result, checked against upstream TTK's (expected-ttk.json) where TTK has one: the
 // summary's fields, and what the streamed arrays hold (the critical points themselves, the
 // critical cells per dimension, the diagram's pairs). topo-relations has no TTK counterpart: its
