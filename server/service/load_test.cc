@@ -15,8 +15,7 @@ namespace {
 
 using testing::ServiceTest;
 
-// Big enough that a load takes a good fraction of a second on any machine (about 3M tetrahedra):
-// long enough to cancel it midway after its first progress reports.
+// A load of some weight (about 3M tetrahedra); tests that stop one midway hold it at a phase.
 constexpr char kSlowSample[] = "jittered:80";
 
 // Holds the work of one RPC at its start (ServerOptions::before_work) until opened, so a test
@@ -31,9 +30,10 @@ class Gate {
     changed_.notify_all();
     changed_.wait(lock, [&] { return open_; });
   }
-  void WaitEntered() {
+  // Whether the held work arrived (60 s only bound a hang).
+  bool WaitEntered() {
     std::unique_lock<std::mutex> lock(mu_);
-    changed_.wait(lock, [&] { return entered_; });
+    return changed_.wait_for(lock, std::chrono::seconds(60), [&] { return entered_; });
   }
   void Open() {
     std::lock_guard<std::mutex> lock(mu_);
@@ -122,18 +122,19 @@ TEST_F(LoadTest, ProgressGoesThroughThePhasesThenGivesTheMesh) {
 }
 
 TEST_F(LoadTest, CancellingMidLoadStopsItAndFreesEverything) {
+  // Cancelled as the partition begins, when the mesh is read and the most memory is held; the
+  // load is held there until the cancel is in, so it cannot end first.
+  HoldWorkOf("LoadMeshWithProgress/partition");
   auto context = Context();
   auto reader = StartLoad(context.get(), kSlowSample);
-  v1::LoadMeshWithProgressResponse message;
-  // Cancel once the mesh is read and being partitioned or encoded: the most memory is held then.
-  while (reader->Read(&message)) {
-    ASSERT_FALSE(message.has_mesh()) << "the load ended before it could be cancelled";
-    if (message.progress().phase() != "read") break;
-  }
+  ASSERT_TRUE(gate_->WaitEntered());
   context->TryCancel();
-  while (reader->Read(&message)) {
-  }
+  gate_->Open();
+  v1::LoadMeshWithProgressResponse message;
+  bool got_mesh = false;
+  while (reader->Read(&message)) got_mesh = got_mesh || message.has_mesh();
   EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
+  EXPECT_FALSE(got_mesh);
   ExpectNothingLeftBehind();
 }
 
@@ -155,7 +156,7 @@ TEST_F(LoadTest, OtherCallsAreAnsweredWhileALoadRuns) {
   HoldWorkOf("LoadMeshWithProgress");
   auto context = Context();
   auto reader = StartLoad(context.get(), kSlowSample);
-  gate_->WaitEntered();  // the big load holds a background thread and has not ended
+  ASSERT_TRUE(gate_->WaitEntered());  // the big load holds a background thread and has not ended
   // Cheap calls, and a small load and session, go through meanwhile.
   v1::GetServerInfoResponse info;
   EXPECT_TRUE(stub_->GetServerInfo(Context().get(), {}, &info).ok());
@@ -173,13 +174,15 @@ TEST_F(LoadTest, OtherCallsAreAnsweredWhileALoadRuns) {
 }
 
 TEST_F(LoadTest, DrainingCancelsLoadsInProgress) {
+  HoldWorkOf("LoadMeshWithProgress/partition");  // the load cannot end before the drain
   auto context = Context();
   auto reader = StartLoad(context.get(), kSlowSample);
-  v1::LoadMeshWithProgressResponse message;
-  ASSERT_TRUE(reader->Read(&message));
+  ASSERT_TRUE(gate_->WaitEntered());
   server_->Drain();
+  gate_->Open();
+  v1::LoadMeshWithProgressResponse message;
   bool got_mesh = false;
-  while (reader->Read(&message)) got_mesh = message.has_mesh();
+  while (reader->Read(&message)) got_mesh = got_mesh || message.has_mesh();
   EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
   EXPECT_FALSE(got_mesh);
   const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);

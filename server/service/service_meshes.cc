@@ -197,6 +197,14 @@ class LoadProgressReactor final
  private:
   // A report is sent when the phase changes, or after 1% of it or 0.2 s.
   void Report(std::string_view phase, double fraction) {
+    bool phase_begins;
+    {
+      MutexLock lock(mu_);
+      phase_begins = phase != held_phase_;
+      if (phase_begins) held_phase_ = std::string(phase);
+    }
+    // Tests may hold the load as a phase begins (ServerOptions::before_work).
+    if (phase_begins) host_->BeforeWork("LoadMeshWithProgress/" + std::string(phase));
     const auto now = Progress::Clock::now();
     mu_.Lock();
     if (phase == phase_ && fraction < 1 && fraction - sent_fraction_ < 0.01 &&
@@ -251,7 +259,8 @@ class LoadProgressReactor final
   bool writing_ ABSL_GUARDED_BY(mu_) = false;
   bool have_final_ ABSL_GUARDED_BY(mu_) = false;
   absl::Status final_ ABSL_GUARDED_BY(mu_);
-  std::string phase_ ABSL_GUARDED_BY(mu_);
+  std::string phase_ ABSL_GUARDED_BY(mu_);       // of the last report sent
+  std::string held_phase_ ABSL_GUARDED_BY(mu_);  // of the last report made
   double sent_fraction_ ABSL_GUARDED_BY(mu_) = 0;
   Progress::Clock::time_point sent_at_ ABSL_GUARDED_BY(mu_);
 };
