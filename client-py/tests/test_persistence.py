@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import pyvista as pv
 from harness import BENCH_BIN
-from references import check_summary, ttk
+from references import CASE_IDS, CASES, check_summary, ttk
 
 import actopo
 from actopo._diagram import from_arrays, persistence_curve
@@ -26,16 +26,6 @@ from actopo.types import PersistenceDiagram
 
 DIAGRAM = "persistence-diagram"
 STRUCTURES = ["explicit", "compact", "actopo"]
-# The (file, field) of expected-ttk.json with a persistence_diagram, listed here so that the
-# tests exist without the file; test_every_expected_diagram_is_tested keeps the two equal.
-CASES = [
-    ("manifoldCheck0_tet.vtu", "height"),
-    ("manifoldCheck1_tet.vtu", "height"),
-    ("manifoldCheck2_tet.vtu", "height"),
-    ("fertility_tet.vtu", "eigenfunction4"),
-    ("fertility_tet.vtu", "height"),
-    ("viscousFingers001_s2_tet.vtu", "density"),
-]
 FINGERS = "viscousFingers001_s2_tet.vtu"
 VTK_LINE = 3
 
@@ -113,6 +103,7 @@ def test_a_layout_the_client_cannot_read_is_named():
 
 
 def test_every_expected_diagram_is_tested(data_dir):
+    """Every case of expected-ttk.json (references.CASES) has a diagram, and no other does."""
     expected = json.loads((data_dir / "expected-ttk.json").read_text())
     listed = [(f, field) for f, fields in expected.items() for field, entry in fields.items()
               if "persistence_diagram" in entry["upstream"]]
@@ -130,7 +121,7 @@ def _run(client, mesh, field, structure="compact", **options) -> actopo.JobResul
 
 
 @pytest.mark.parametrize("structure", STRUCTURES)
-@pytest.mark.parametrize("file,field", CASES, ids=[f"{f[:-8]}-{v}" for f, v in CASES])
+@pytest.mark.parametrize("file,field", CASES, ids=CASE_IDS)
 def test_pairs_from_the_arrays_equal_ttks(client, meshes, expected, file, field, structure):
     """The digest computed here from the streamed arrays, the counts per type and the largest
     persistence equal upstream TTK's; so does the summary, which the server computed."""
