@@ -38,11 +38,13 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::Offload(Executor& executor,
     return reactor;
   }
   const Progress::Clock::time_point deadline = SteadyDeadline(*context);
-  executor.Run(reactor->cancel(), [this, reactor, rpc, deadline, fn = std::move(fn)] {
+  executor.Run(reactor->cancel(), [this, &executor, reactor, rpc, deadline, fn = std::move(fn)] {
     BeforeWork(rpc);
     const absl::Status status =
         fn(Progress({.cancel = reactor->cancel().get(), .deadline = deadline}));
-    if (!status.ok()) ReleaseFreeMemory();  // what a failed or stopped load had built
+    // What a failed or stopped load or opening had built goes back to the system. Not for a
+    // relation call: a bad id is an answer like any other, and malloc_trim is not cheap.
+    if (!status.ok() && &executor == &background_) ReleaseFreeMemory();
     Count(rpc, status);
     reactor->Finish(ToGrpcStatus(status));  // nothing touches the reactor after this
   });
