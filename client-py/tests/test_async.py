@@ -86,6 +86,11 @@ async def _stopped(session: actopo.AsyncSession, seconds: float = 30) -> bool:
             and (await session.stats()).jobs.count == 0)
 
 
+async def _ran_on(session: actopo.AsyncSession, when: str) -> str:
+    """The message of a failed _stopped(), with what the server says of the session."""
+    return f"the job ran on {when}: {await session.describe()} {(await session.stats()).jobs}"
+
+
 def test_async_errors_and_cancellation(server):
     async def scenario():
         async with actopo.AsyncClient(server) as aclient:
@@ -103,15 +108,15 @@ def test_async_errors_and_cancellation(server):
                     task.cancel()  # what Ctrl-C does under asyncio.run
                     with pytest.raises(asyncio.CancelledError):
                         await task
-                    assert await _stopped(session), "the job ran on after its task was cancelled"
+                    assert await _stopped(session), await _ran_on(session, "after task.cancel()")
                     job = await session.submit("morse-smale")
                     await job.cancel()
                     with pytest.raises(actopo.CancelledError):
                         await job.result()
-                    assert await _stopped(session), "the job ran on after CancelJob"
+                    assert await _stopped(session), await _ran_on(session, "after CancelJob")
                     with pytest.raises(actopo.DeadlineExceededError):
                         await session.run("morse-smale", timeout=0.01)
-                    assert await _stopped(session), "the job ran on past its deadline"
+                    assert await _stopped(session), await _ran_on(session, "past its deadline")
             finally:
                 await aclient.delete_mesh(mesh)
             with pytest.raises(actopo.NotFoundError):

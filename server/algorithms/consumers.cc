@@ -32,7 +32,7 @@ std::vector<BlockRange> SplitBlocks(const Topology& topology, int parts) {
 }
 
 WorkTracker::WorkTracker(const RunContext& context, int64_t total_units)
-    : context_(context), total_(std::max<int64_t>(total_units, 1)) {}
+    : context_(context), stop_(context.stop()), total_(std::max<int64_t>(total_units, 1)) {}
 
 bool WorkTracker::Done(int64_t units) {
   const int64_t done = done_.fetch_add(units, std::memory_order_relaxed) + units;
@@ -43,7 +43,7 @@ bool WorkTracker::Done(int64_t units) {
       context_.progress(std::min(1.0, double(done) / double(total_)));
     }
   }
-  return !cancelled();
+  return !stopped();
 }
 
 namespace {
@@ -67,7 +67,7 @@ absl::Status RunThreads(int n, const WorkTracker& tracker, const RunContext& con
     }
     for (std::thread& t : threads) t.join();
   }
-  if (tracker.cancelled()) return absl::CancelledError("the run was cancelled");
+  if (tracker.stopped()) return context.stop().status("run");
   if (context.progress) context.progress(1.0);
   return absl::OkStatus();
 }

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "server/core/progress.h"
 #include "server/core/topology.h"
 #include "server/core/trace.h"
 
@@ -34,9 +35,15 @@ struct RunContext {
   std::function<void(double)> progress;
   // Set to stop the run; the algorithm returns CancelledError soon after (checked per block).
   const std::atomic<bool>* cancel = nullptr;
+  // The run also stops once this passes, with DeadlineExceededError: a job's call deadline, so
+  // the job stops by itself even when the server learns late that its client gave up.
+  Progress::Clock::time_point deadline = Progress::Clock::time_point::max();
   // Where to record the run (trace.h): a span per consumer per parallel step ("work"), the
   // run itself ("run", category phase) and the structure's own events. Null: not recorded.
   std::shared_ptr<Trace> trace;
+
+  // What stops the run (cancel flag and deadline), to test with stopped() or status(phase).
+  Progress stop() const { return Progress({.cancel = cancel, .deadline = deadline}); }
 };
 
 struct BlockRange {
@@ -51,14 +58,14 @@ std::vector<BlockRange> SplitBlocks(const Topology& topology, int parts);
 class WorkTracker {
  public:
   WorkTracker(const RunContext& context, int64_t total_units);
-  // Records `units` more done; returns false when the run is cancelled.
+  // Records `units` more done; returns false when the run should stop (cancelled, or past
+  // its deadline).
   bool Done(int64_t units = 1);
-  bool cancelled() const {
-    return context_.cancel != nullptr && context_.cancel->load(std::memory_order_relaxed);
-  }
+  bool stopped() const { return stop_.stopped(); }
 
  private:
   const RunContext& context_;
+  const Progress stop_;
   const int64_t total_;
   std::atomic<int64_t> done_{0};
   std::atomic<int64_t> next_report_{0};
@@ -66,7 +73,7 @@ class WorkTracker {
 };
 
 // Runs body(consumer, range, tracker) on context.consumers threads (inline when 1) and returns
-// CancelledError if the run was cancelled.
+// CancelledError if the run was cancelled, DeadlineExceededError if its deadline passed.
 absl::Status RunOnConsumers(const RunContext& context, const Topology& topology,
                             int64_t total_units,
                             const std::function<void(int, BlockRange, WorkTracker&)>& body);
@@ -90,7 +97,7 @@ class ItemQueue {
 };
 
 // Runs body(consumer, queue, tracker) on context.consumers threads (inline when 1), all taking
-// items from one queue of `items`; CancelledError if the run was cancelled. Progress counts
+// items from one queue of `items`; stops as RunOnConsumers does. Progress counts
 // the units the bodies report to the tracker, out of `items`.
 absl::Status RunOnConsumersShared(const RunContext& context, int64_t items, int64_t chunk,
                                   const std::function<void(int, ItemQueue&, WorkTracker&)>& body);

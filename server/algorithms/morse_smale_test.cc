@@ -142,5 +142,16 @@ TEST(MorseSmale, StopsWhenCancelled) {
             absl::StatusCode::kCancelled);
 }
 
+TEST(MorseSmale, StopsOnceItsDeadlinePassed) {
+  Input in = Make(testing::Lattice(9, 9, 9, 2), 20);
+  auto s = *ExplicitStructure::Build(in.topo, {});
+  const RunContext context{.deadline = Progress::Clock::now() - std::chrono::milliseconds(1)};
+  EXPECT_EQ(RunMorseSmale(*s, in.order, in.mesh.tetrahedra, context).status().code(),
+            absl::StatusCode::kDeadlineExceeded);
+  // A deadline still ahead changes nothing.
+  const RunContext ahead{.deadline = Progress::Clock::now() + std::chrono::hours(1)};
+  EXPECT_TRUE(RunMorseSmale(*s, in.order, in.mesh.tetrahedra, ahead).ok());
+}
+
 }  // namespace
 }  // namespace actopo

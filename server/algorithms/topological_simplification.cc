@@ -426,7 +426,7 @@ absl::Status LegacySweeps(Reader& reader, const std::vector<bool>& authorized,
     }
     more |= minima_left > int64_t(minima.size()) || maxima_left > int64_t(maxima.size());
     if (!more) return absl::OkStatus();
-    if (context.cancel != nullptr && context.cancel->load()) return absl::CancelledError(kName);
+    RETURN_IF_ERROR(context.stop().status(kName));
   }
   return absl::OkStatus();
 }
@@ -592,7 +592,7 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
   result.order.resize(n);
   for (SimplexId v = 0; v < n; ++v) result.order[topo.vertex_input_id(v)] = new_order[v];
   result.internal_order = std::move(new_order);
-  if (context.cancel != nullptr && context.cancel->load()) return absl::CancelledError(kName);
+  RETURN_IF_ERROR(context.stop().status(kName));
   if (context.progress) context.progress(1.0);
   return result;
 }

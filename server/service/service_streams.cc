@@ -235,7 +235,8 @@ class StreamRelationsReactor final
 // ---------------------------------------------------------------------------------------------
 // RunJob: the algorithm runs on the jobs executor; its events (progress, result arrays,
 // summary, statistics) are queued and written one at a time. Cancelling the call, CancelJob,
-// closing the session or draining the server set the job's cancel flag. The reactor goes once
+// closing the session or draining the server set the job's cancel flag; the job also stops by
+// itself once the call's deadline passes (DEADLINE_EXCEEDED). The reactor goes once
 // both gRPC (OnDone) and the job's task are done with it (holds_).
 class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> {
  public:
@@ -249,6 +250,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
       Finish(ToGrpcStatus(s));
       return;
     }
+    deadline_ = SteadyDeadline(*context);
     v1::RunJobResponse accepted;
     accepted.mutable_accepted()->set_job_id(job_id_);
     Push(std::move(accepted));
@@ -312,6 +314,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   void Run() {
     RunContext context;
     context.cancel = &job_->cancel;
+    context.deadline = deadline_;
     if (trace_) {
       SetThreadRole("job");
       context.trace = std::make_shared<Trace>(kMaxJobTraceEvents);
@@ -467,6 +470,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   AlgorithmInput input_;
   bool include_arrays_ = false;
   bool trace_ = false;
+  Progress::Clock::time_point deadline_;  // the call's; the job stops by itself once it passes
 
   Mutex mu_;
   std::deque<v1::RunJobResponse> queue_ ABSL_GUARDED_BY(mu_);
