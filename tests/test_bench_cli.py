@@ -53,10 +53,11 @@ def test_same_result_on_every_structure(algorithm):
 
 
 def test_result_keys_per_algorithm():
-    r = run_json("--sample", "wavelet:8", "--algorithm", "morse-smale", "--structure", "explicit")
+    r = run_json("--sample", "wavelet:8", "--algorithm", "morse-smale", "--structure", "explicit",
+                 "--digests")
     assert set(r["result"]) >= {"critical_cells", "separatrices", "regions", "segmentation_sha256"}
     assert set(r["result"]["separatrices"]) >= {"descending", "ascending", "saddle_connectors"}
-    r = run_json("--sample", "wavelet:8", "--algorithm", "critical-points")
+    r = run_json("--sample", "wavelet:8", "--algorithm", "critical-points", "--digests")
     assert set(r["result"]["counts"]) == {"minimum", "saddle1", "saddle2", "degenerate", "maximum"}
     assert len(r["result"]["vertices_sha256"]) == 64
     r = run_json("--sample", "wavelet:8", "--algorithm", "discrete-gradient")
@@ -70,7 +71,7 @@ def test_persistence_diagram_equals_ttk_and_writes_the_diagram(tmp_path):
     prefix = tmp_path / "pd"
     r = run_json("--mesh", str(DATA / "fertility_tet.vtu"), "--scalar", "height",
                  "--algorithm", "persistence-diagram", "--structure", "actopo",
-                 "--output", str(prefix))
+                 "--output", str(prefix), "--digests")
     assert r["result"]["pairs_sha256"] == want["pairs_sha256"]
     assert r["result"]["counts_by_type"] == want["counts_by_type"]
     assert [Path(f).name for f in r["files"]] == ["pd_diagram.vtu", "pd_persistence_curve.csv"]
@@ -216,3 +217,31 @@ def test_trace_shows_phases_threads_computations_and_waits(tmp_path, structure):
             engine["evictions"]
     else:
         assert not waits and not computed  # every relation was built before the run
+
+
+
+def _without_digests(result):
+    """`result` without its "*_sha256" keys, and the digests it had (64 hex digits each)."""
+    kept, digests = {}, []
+    for key, value in result.items():
+        if key.endswith("_sha256"):
+            digests.extend(value.values() if isinstance(value, dict) else [value])
+        elif isinstance(value, dict):
+            kept[key], inner = _without_digests(value)
+            digests.extend(inner)
+        else:
+            kept[key] = value
+    return kept, digests
+
+
+@pytest.mark.parametrize("algorithm", ["critical-points", "discrete-gradient", "morse-smale",
+                                       "persistence-diagram", "topological-simplification"])
+def test_digests_only_when_asked(algorithm):
+    """Without --digests the result has no "*_sha256" key; with it, the same result and the
+    digests besides."""
+    source = ("--sample", "jittered:6", "--algorithm", algorithm)
+    plain, digested = run_json(*source)["result"], run_json(*source, "--digests")["result"]
+    assert _without_digests(plain) == (plain, [])
+    kept, digests = _without_digests(digested)
+    assert kept == plain and digests
+    assert all(len(d) == 64 and int(d, 16) >= 0 for d in digests)

@@ -114,6 +114,7 @@ absl::StatusOr<JobResult> Client::RunJob(std::string_view session_id, std::strin
   request.mutable_parameters()->insert(parameters.begin(), parameters.end());
   request.set_include_arrays(options.include_arrays);
   request.set_trace(options.trace);
+  request.set_digests(options.digests);
 
   JobResult result;
   result.algorithm = internal::AlgorithmName(a);

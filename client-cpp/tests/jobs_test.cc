@@ -36,7 +36,8 @@ TEST_P(JobResultTest, EqualsTtkAndArraysAreComplete) {
   std::string accepted;
   absl::StatusOr<JobResult> result =
       client().RunJob(session, algorithm, {},
-                      {.progress = [&](double f) { progress.push_back(f); },
+                      {.digests = true,
+                       .progress = [&](double f) { progress.push_back(f); },
                        .on_accepted = [&](const std::string& id) { accepted = id; }});
   ASSERT_OK(result);
   EXPECT_EQ(result->algorithm, algorithm);

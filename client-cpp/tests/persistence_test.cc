@@ -69,7 +69,7 @@ TEST_F(ServerTest, FertilityHeightPairsEqualTtks) {
   ASSERT_TRUE(ttk.contains("lines"));
   const std::string session =
       Open(Fertility(), {.scalar = "height", .structure = Structure::kCompact});
-  absl::StatusOr<JobResult> result = client().RunJob(session, kDiagram);
+  absl::StatusOr<JobResult> result = client().RunJob(session, kDiagram, {}, {.digests = true});
   ASSERT_OK(result);
   EXPECT_EQ(result->algorithm, kDiagram);
   absl::StatusOr<std::vector<PersistencePair>> pairs = result->PersistencePairs();
@@ -92,7 +92,7 @@ TEST_F(ServerTest, ViscousFingersPairsEqualTtksInBothEmbeddings) {
   ASSERT_OK(mesh);
   meshes_.push_back(mesh->mesh_id);
   const std::string session = Open(mesh->mesh_id, {.scalar = "density", .consumers = 2});
-  absl::StatusOr<JobResult> plane = client().RunJob(session, kDiagram);
+  absl::StatusOr<JobResult> plane = client().RunJob(session, kDiagram, {}, {.digests = true});
   ASSERT_OK(plane);
   absl::StatusOr<std::vector<PersistencePair>> pairs = plane->PersistencePairs();
   ASSERT_OK(pairs);

@@ -342,11 +342,11 @@ class AsyncSession:
             call.cancel()
 
     async def submit(self, algorithm: Algorithm, *, parameters: Mapping[str, Any] | None = None,
-                     include_arrays: bool = True, trace: bool = False,
+                     include_arrays: bool = True, trace: bool = False, digests: bool = False,
                      timeout: float | None = None) -> AsyncJob:
         """See Session.submit()."""
         request, name = _messages.build_run_job(self._id(), algorithm, parameters,
-                                                include_arrays, trace)
+                                                include_arrays, trace, digests)
         call = self._client._stub.RunJob(request, timeout=timeout,
                                          metadata=self._client._metadata)
         job = AsyncJob(self._client, call, name)
@@ -355,10 +355,11 @@ class AsyncSession:
 
     async def run(self, algorithm: Algorithm, *, parameters: Mapping[str, Any] | None = None,
                   progress: ProgressArg = False, include_arrays: bool = True,
-                  trace: bool = False, timeout: float | None = None) -> JobResult:
+                  trace: bool = False, digests: bool = False,
+                  timeout: float | None = None) -> JobResult:
         """See Session.run(). Cancelling the awaiting task cancels the job."""
         job = await self.submit(algorithm, parameters=parameters, include_arrays=include_arrays,
-                                trace=trace, timeout=timeout)
+                                trace=trace, digests=digests, timeout=timeout)
         return await job.result(progress=progress)
 
     async def stats(self) -> SessionStats:

@@ -289,7 +289,8 @@ def cmd_run(client: Client, args: argparse.Namespace) -> None:
     with _mesh(client, args) as mesh, _open(client, mesh.info, args) as session:
         result = session.run(algorithm, parameters=parameters,
                              include_arrays=bool(args.output or args.plot),
-                             trace=bool(args.trace), progress=_progress(args))
+                             trace=bool(args.trace), digests=args.digests,
+                             progress=_progress(args))
         stats = session.stats()
         report = _report(mesh.info, session, result, stats, parameters,
                          time.perf_counter() - start)

@@ -114,7 +114,8 @@ def _add_run(commands: Commands) -> None:
     _add_engine(c)
     _add_parameters(c, "an algorithm parameter (repeatable), e.g. embedding=domain "
                     "(persistence-diagram), relative_threshold=0.05 or persistence_threshold=2.5 "
-                    "(topological-simplification, morse-smale)")
+                    "(topological-simplification, morse-smale), relations=all (topo-relations: "
+                    "22 relations instead of TTK's 20)")
     _add_run_outputs(c)
     _add_progress(c, "the load's and the job's progress bars")
 
@@ -138,6 +139,9 @@ def _add_run_outputs(c: argparse.ArgumentParser) -> None:
     c.add_argument("--trace", metavar="FILE",
                    help="write a Chrome trace of the job's threads (block relations computed, "
                    "consumer waits, evictions, phases) for ui.perfetto.dev or chrome://tracing")
+    c.add_argument("--digests", action="store_true",
+                   help="add the result's SHA-256 digests (*_sha256, comparable with TTK's) to "
+                   "the summary; they cost time on large meshes")
     c.add_argument("--geometry", metavar="FILE",
                    help="the mesh as a local file, for PREFIX_segmentation.vtu and "
                    "PREFIX_simplified.vtu with --mesh (default: NAME under the current "

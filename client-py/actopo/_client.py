@@ -412,18 +412,18 @@ class Session:
             call.cancel()
 
     def submit(self, algorithm: Algorithm, *, parameters: Mapping[str, Any] | None = None,
-               include_arrays: bool = True, trace: bool = False,
+               include_arrays: bool = True, trace: bool = False, digests: bool = False,
                timeout: float | None = None) -> Job:
         """Starts a job and returns once the server accepted it; see run()."""
         request, name = _messages.build_run_job(self._id(), algorithm, parameters,
-                                                include_arrays, trace)
+                                                include_arrays, trace, digests)
         call = self._client._stub.RunJob(request, timeout=timeout,
                                          metadata=self._client._metadata)
         return Job(self._client, call, name)
 
     def run(self, algorithm: Algorithm, *, parameters: Mapping[str, Any] | None = None,
             progress: ProgressArg = False, include_arrays: bool = True, trace: bool = False,
-            timeout: float | None = None) -> JobResult:
+            digests: bool = False, timeout: float | None = None) -> JobResult:
         """Runs an algorithm and returns its result.
 
         `algorithm`: "critical-points", "discrete-gradient", "morse-smale",
@@ -431,11 +431,14 @@ class Session:
         works too). `parameters`: e.g. ``{"boundary_rule": "none"}``, ``{"embedding":
         "domain"}`` (persistence-diagram: its points at the vertices), ``{"relative_threshold":
         "0.05"}`` or ``{"persistence_threshold": "2.5"}`` (topological-simplification, and
-        morse-smale on the simplified field).
+        morse-smale on the simplified field), ``{"relations": "all"}`` (topo-relations: 22
+        relations instead of TTK's 20).
         `progress`: True for a progress bar on stderr, or a callable(fraction).
         `include_arrays`: False to receive only the summary and statistics.
         `trace`: True to record where the job's threads spent their time, as a Chrome trace
         (``result.trace``; ``result.save_trace("job.json")`` and open it in ui.perfetto.dev).
+        `digests`: True to add the result's SHA-256 digests to the summary (its ``*_sha256``
+        keys, comparable with TTK's); off by default, as they cost time on large meshes.
         Ctrl-C cancels the job on the server and raises KeyboardInterrupt.
 
         >>> result = session.run("critical-points")
@@ -445,7 +448,8 @@ class Session:
         (array([0, 3], dtype=int8), array([0, 4], dtype=int32))
         """
         return self.submit(algorithm, parameters=parameters, include_arrays=include_arrays,
-                           trace=trace, timeout=timeout).result(progress=progress)
+                           trace=trace, digests=digests,
+                           timeout=timeout).result(progress=progress)
 
     def stats(self) -> SessionStats:
         """Cumulative statistics of the session (diff two snapshots for an interval)."""

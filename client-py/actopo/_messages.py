@@ -247,13 +247,14 @@ def decode_stream_relations(response: pb.StreamRelationsResponse,
 
 def build_run_job(session: SessionRef, algorithm: Algorithm,
                   parameters: Mapping[str, Any] | None, include_arrays: bool,
-                  trace: bool = False) -> tuple[pb.RunJobRequest, Algorithm]:
+                  trace: bool = False,
+                  digests: bool = False) -> tuple[pb.RunJobRequest, Algorithm]:
     """The request, and the algorithm's name as the package spells it ("morse_smale" is
     "morse-smale")."""
     code = _names.lookup(_names.ALGORITHMS, algorithm, "algorithm")
     request = pb.RunJobRequest(session_id=session_id(session), algorithm=code,
                                parameters={str(k): str(v) for k, v in (parameters or {}).items()},
-                               include_arrays=include_arrays, trace=trace)
+                               include_arrays=include_arrays, trace=trace, digests=digests)
     return request, cast(Algorithm, _names.name_of(_names.ALGORITHMS, code))
 
 

@@ -30,19 +30,20 @@ def _json(cli, *args):
                                        "persistence-diagram", "topological-simplification"])
 def test_acceptance_run_json(server, data_dir, bench, algorithm):
     """The issue's acceptance command, run as a user would: its result is upstream TTK's, and,
-    as the README promises of `run --json`, actopo-bench's."""
+    as the README promises of `run --json`, actopo-bench's; digests included when asked."""
     out = subprocess.run(
         [sys.executable, "-m", "actopo", "--server", server, "run", "--mesh",
-         "fertility_tet.vtu", "--algorithm", algorithm, "--structure", "actopo", "--json"],
+         "fertility_tet.vtu", "--algorithm", algorithm, "--structure", "actopo", "--json",
+         "--digests"],
         capture_output=True, text=True, timeout=120, check=True)
     report = json.loads(out.stdout)
     if algorithm == "topological-simplification":  # by default, 1% of the field's range
         expected = ttk_simplification("fertility_tet.vtu", "eigenfunction4", "0.01")
     else:
         expected = ttk("fertility_tet.vtu", "eigenfunction4")[ENTRY[algorithm]]
-    check_summary(algorithm, report["result"], expected)
+    check_summary(algorithm, report["result"], expected, digests=True)
     assert report["result"] == bench(data_dir / "fertility_tet.vtu", algorithm, "--scalar",
-                                     "eigenfunction4")
+                                     "eigenfunction4", "--digests")
     assert report["algorithm"] == algorithm and report["structure"] == "actopo"
     assert report["mesh"]["tetrahedra"] == 60948
     assert set(report) >= {"mesh", "structure", "algorithm", "config", "times_s", "engine",
@@ -142,9 +143,10 @@ def test_upload_and_run_uploaded_file(cli, data_dir):
     assert mesh["name"] == "mc1" and mesh["source"] == "upload"
     report = _json(cli, "run", "--mesh-id", mesh["mesh_id"], "--algorithm", "morse-smale",
                    "--structure", "explicit")
-    check_summary("morse-smale", report["result"], expected["morse_smale"])
-    report = _json(cli, "run", "--upload", path, "--algorithm", "discrete-gradient")
-    check_summary("discrete-gradient", report["result"], expected["discrete_gradient"])
+    check_summary("morse-smale", report["result"], expected["morse_smale"], digests=False)
+    report = _json(cli, "run", "--upload", path, "--algorithm", "discrete-gradient", "--digests")
+    check_summary("discrete-gradient", report["result"], expected["discrete_gradient"],
+                  digests=True)
     assert cli("delete", mesh["mesh_id"])[0] == 0
 
 

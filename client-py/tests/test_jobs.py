@@ -78,12 +78,13 @@ def test_every_expected_case_is_tested():
 @pytest.mark.parametrize("file,field", CASES, ids=CASE_IDS)
 def test_results_equal_ttks(client, meshes, file, field, structure):
     """Critical points, the gradient's critical cells and the Morse-Smale complex, digested
-    here from the streamed arrays, and the summaries, equal upstream TTK's."""
+    here from the streamed arrays, and the summaries, equal upstream TTK's; the summaries'
+    digests too, where the job asked for them."""
     ttk = references.ttk(file, field)
     with client.open_session(meshes(file), scalar=field, structure=structure) as session:
-        cp = session.run("critical-points")
-        references.check_critical_points(cp, ttk["critical_points"])
-        dg = session.run("discrete-gradient")
+        cp = session.run("critical-points", digests=True)
+        references.check_critical_points(cp, ttk["critical_points"], digests=True)
+        dg = session.run("discrete-gradient", digests=True)
         references.check_discrete_gradient(dg, session, ttk["discrete_gradient"])
         ms = session.run("morse-smale")
         references.check_morse_smale(ms, session, ttk["morse_smale"], ttk["discrete_gradient"])
@@ -96,10 +97,15 @@ def test_results_equal_ttks(client, meshes, file, field, structure):
 @pytest.mark.parametrize("structure", STRUCTURES)
 @pytest.mark.parametrize("file", ["manifoldCheck1_tet.vtu", "fertility_tet.vtu"])
 def test_topo_relations_count_what_the_mesh_holds(client, meshes, mesh_file, file, structure):
-    """Every relation's total over all its simplices, as counted from the file's tetrahedra."""
+    """Every relation's total over all its simplices, as counted from the file's tetrahedra:
+    TTK's 20 relations by default, with the edge and triangle neighbours when asked."""
     with client.open_session(meshes(file), structure=structure) as session:
-        summary = session.run("topo_relations").summary
-    assert summary["relation_totals"] == references.relation_totals(mesh_file(file).tetrahedra)
+        ttk = session.run("topo_relations").summary
+        every = session.run("topo_relations", parameters={"relations": "all"}).summary
+    expected = references.relation_totals(mesh_file(file).tetrahedra)
+    assert (every["relations"], every["relation_totals"]) == ("all", expected)
+    del expected["edge_neighbors"], expected["triangle_neighbors"]
+    assert (ttk["relations"], ttk["relation_totals"]) == ("ttk", expected)
 
 
 @pytest.mark.parametrize("field", ["eigenfunction4", "height"])

@@ -117,7 +117,7 @@ def expected(data_dir):
 
 def _run(client, mesh, field, structure="compact", **options) -> actopo.JobResult:
     with client.open_session(mesh, scalar=field, structure=structure) as session:
-        return session.run(DIAGRAM, **options)
+        return session.run(DIAGRAM, digests=True, **options)
 
 
 @pytest.mark.parametrize("structure", STRUCTURES)
@@ -312,17 +312,17 @@ def test_plot_draws_each_type_and_the_lines(fingers, tmp_path):
 def test_cli_plot_writes_a_png(cli, tmp_path):
     path = tmp_path / "fertility.png"
     status, out, err = cli("run", DIAGRAM, "--mesh", "fertility_tet.vtu", "--scalar", "height",
-                           "--plot", str(path), "--threshold", "1%", "--json")
+                           "--plot", str(path), "--threshold", "1%", "--json", "--digests")
     assert status == 0, err
     report = json.loads(out)
     assert report["plot"] == str(path) and report["algorithm"] == DIAGRAM
     check_summary(DIAGRAM, report["result"],
-                  ttk("fertility_tet.vtu", "height")["persistence_diagram"])
+                  ttk("fertility_tet.vtu", "height")["persistence_diagram"], digests=True)
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     pixels = matplotlib.image.imread(path)
     assert pixels.shape[:2] == (1050, 1050) and pixels[..., :3].std() > 0  # 7 in at 150 dpi
     status, out, err = cli("run", "--mesh", "manifoldCheck0_tet.vtu", "--algorithm", DIAGRAM,
-                           "--plot", str(tmp_path / "mc0.png"), "--threshold", "0.5")
+                           "--plot", str(tmp_path / "mc0.png"), "--threshold", "0.5", "--digests")
     assert status == 0, err
     assert f"wrote {tmp_path / 'mc0.png'}" in out and '"0_infinite": 1' in out
     assert '"pairs_sha256": "96e8cf70' in out and (tmp_path / "mc0.png").stat().st_size > 0
@@ -334,7 +334,11 @@ def test_cli_parameters_and_usage(cli, capsys, tmp_path):
     assert status == 0, err
     report = json.loads(out)
     assert report["config"]["parameters"] == {"embedding": "domain"}
-    assert report["result"]["pairs_sha256"].startswith("96e8cf70")
+    assert "pairs_sha256" not in report["result"]  # digests only with --digests
+    status, out, err = cli("run", DIAGRAM, *mesh, "--param", "embedding=domain", "--json",
+                           "--digests")
+    assert status == 0, err
+    assert json.loads(out)["result"]["pairs_sha256"].startswith("96e8cf70")
     status, _, err = cli("run", DIAGRAM, *mesh, "--param", "embedding=x")
     assert status == 1
     assert "parameters.embedding: unknown value 'x'; available: diagram, domain" in err

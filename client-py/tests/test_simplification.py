@@ -118,7 +118,7 @@ def original(data_dir):
 def _run(client, mesh, field, structure="compact", algorithm=SIMPLIFICATION,
          **options) -> actopo.JobResult:
     with client.open_session(mesh, scalar=field, structure=structure) as session:
-        return session.run(algorithm, **options)
+        return session.run(algorithm, digests=True, **options)
 
 
 def _relative(threshold: str) -> dict[str, dict[str, str]]:
@@ -346,12 +346,13 @@ def test_cli_runs_a_simplification(cli, data_dir, reference, tmp_path, monkeypat
     prefix = str(tmp_path / "fertility")
     status, out, err = cli("run", SIMPLIFICATION, "--mesh", "fertility_tet.vtu", "--scalar",
                            "height", "--param", "relative_threshold=0.05", "--output", prefix,
-                           "--geometry", str(data_dir / "fertility_tet.vtu"), "--json")
+                           "--geometry", str(data_dir / "fertility_tet.vtu"), "--json",
+                           "--digests")
     assert status == 0, err
     report = json.loads(out)
     assert report["config"]["parameters"] == {"relative_threshold": "0.05"}
     check_summary(SIMPLIFICATION, report["result"],
-                  reference("fertility_tet.vtu", "height", "0.05"))
+                  reference("fertility_tet.vtu", "height", "0.05"), digests=True)
     assert report["files"] == [f"{prefix}_simplified.vtu"]
     monkeypatch.delenv("ACTOPO_DATA_DIR", raising=False)  # else the CLI finds the file there
     monkeypatch.chdir(tmp_path)

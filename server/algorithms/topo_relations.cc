@@ -11,6 +11,8 @@ namespace actopo {
 namespace {
 
 using R = Relation;
+// TTK's 20 first: the default sweep is the first kTtkSweeps.
+constexpr int kTtkSweeps = 20;
 constexpr std::array<Relation, kNumRelations> kSweeps = {
     R::kVT, R::kEV, R::kET, R::kFV, R::kFT, R::kTV, R::kVE, R::kVF, R::kEF, R::kFE, R::kTE,
     R::kTF, R::kVV, R::kTT, R::kVL, R::kEL, R::kFL, R::kVB, R::kEB, R::kFB, R::kEE, R::kFF};
@@ -64,7 +66,9 @@ std::string TopoRelationsResult::checksum_hex() const {
   return buf;
 }
 
-std::span<const Relation> TopoRelationsSweeps() { return kSweeps; }
+std::span<const Relation> TopoRelationsSweeps(bool all) {
+  return std::span<const Relation>(kSweeps).first(all ? kSweeps.size() : kTtkSweeps);
+}
 
 // An explicit structure composes the edge and triangle neighbours from the others as they are
 // read (explicit_structure.h), so they need not be stored.
@@ -72,16 +76,18 @@ RelationSet TopoRelationsDeclared() { return ExplicitStructure::DefaultRelations
 
 template <class Structure>
 absl::StatusOr<TopoRelationsResult> RunTopoRelations(Structure& structure,
-                                                     const RunContext& context) {
+                                                     const RunContext& context,
+                                                     TopoRelationsOptions options) {
   const Topology& topo = structure.topology();
+  const std::span<const Relation> sweeps = TopoRelationsSweeps(options.all);
   std::mutex mu;
-  TopoRelationsResult result;
+  TopoRelationsResult result{.all = options.all};
   const absl::Status status = RunOnConsumers(
-      context, topo, int64_t(kSweeps.size()) * topo.num_blocks(),
+      context, topo, int64_t(sweeps.size()) * topo.num_blocks(),
       [&](int, BlockRange range, WorkTracker& tracker) {
         auto reader = structure.NewReader();
         Partial partial;
-        for (Relation r : kSweeps) {
+        for (Relation r : sweeps) {
           for (int32_t b = range.begin; b < range.end; ++b) {
             SweepBlockDispatch(r, reader, b, partial, std::make_index_sequence<kNumRelations>());
             if (!tracker.Done()) return;
@@ -95,9 +101,11 @@ absl::StatusOr<TopoRelationsResult> RunTopoRelations(Structure& structure,
   return result;
 }
 
-template absl::StatusOr<TopoRelationsResult> RunTopoRelations(ExplicitStructure&,
-                                                              const RunContext&);
-template absl::StatusOr<TopoRelationsResult> RunTopoRelations(CompactStructure&, const RunContext&);
-template absl::StatusOr<TopoRelationsResult> RunTopoRelations(ActopoStructure&, const RunContext&);
+template absl::StatusOr<TopoRelationsResult> RunTopoRelations(ExplicitStructure&, const RunContext&,
+                                                              TopoRelationsOptions);
+template absl::StatusOr<TopoRelationsResult> RunTopoRelations(CompactStructure&, const RunContext&,
+                                                              TopoRelationsOptions);
+template absl::StatusOr<TopoRelationsResult> RunTopoRelations(ActopoStructure&, const RunContext&,
+                                                              TopoRelationsOptions);
 
 }  // namespace actopo

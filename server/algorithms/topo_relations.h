@@ -1,13 +1,15 @@
 // topo-relations: the relation-sweep profiling workload (SEMANTICS.md).
 //
 // Sweeps over all simplices of one dimension in increasing id, reading every element of one
-// relation: VT, EV, ET, FV, FT, TV, VE, VF, EF, FE, TE, TF, then VV, TT, the links, the
-// boundary predicates and the edge and triangle neighbours (EE, FF). Reports the total size of each
-// relation and a checksum of what was read, so the work cannot be optimised away and results can be
-// compared across structures.
+// relation: VT, EV, ET, FV, FT, TV, VE, VF, EF, FE, TE, TF, then VV, TT, the links and the
+// boundary predicates: TTK's 20 relations, by default; with `all`, also the edge and triangle
+// neighbours (EE, FF), which TTK does not offer. Reports the total size of each relation and a
+// checksum of what was read, so the work cannot be optimised away and results can be compared
+// across structures.
 //
 //   ExplicitStructure::Build(topology, {.relations = TopoRelationsDeclared()});
 //   ASSIGN_OR_RETURN(TopoRelationsResult r, RunTopoRelations(*structure, {.consumers = 2}));
+//   RunTopoRelations(*structure, context, {.all = true});  // 22 relations
 #ifndef ACTOPO_SERVER_ALGORITHMS_TOPO_RELATIONS_H_
 #define ACTOPO_SERVER_ALGORITHMS_TOPO_RELATIONS_H_
 
@@ -22,8 +24,14 @@
 
 namespace actopo {
 
+struct TopoRelationsOptions {
+  bool all = false;  // also sweep EE and FF (22 relations instead of TTK's 20)
+};
+
 struct TopoRelationsResult {
-  // Sum over all simplices of the relation's size, indexed by Index(Relation).
+  bool all = false;  // as run: which relations were swept
+  // Sum over all simplices of the relation's size, indexed by Index(Relation); 0 for the
+  // relations not swept.
   std::array<int64_t, kNumRelations> totals{};
   // Order-independent across consumers (a sum of per-simplex hashes), but it hashes internal
   // ids, so it depends on the partition (block size) as well as on the mesh.
@@ -32,8 +40,8 @@ struct TopoRelationsResult {
   std::string checksum_hex() const;
 };
 
-// The sweep order.
-std::span<const Relation> TopoRelationsSweeps();
+// The sweep order: TTK's 20 relations, then EE and FF with `all`.
+std::span<const Relation> TopoRelationsSweeps(bool all = false);
 // What a structure needs stored for the sweeps: all relations but the edge and triangle
 // neighbours, which an explicit structure composes from the others.
 RelationSet TopoRelationsDeclared();
@@ -42,7 +50,8 @@ RelationSet TopoRelationsDeclared();
 // structures. The actopo engine's `auto` mode uses linear prefetch of the requested relation.
 template <class Structure>
 absl::StatusOr<TopoRelationsResult> RunTopoRelations(Structure& structure,
-                                                     const RunContext& context);
+                                                     const RunContext& context,
+                                                     TopoRelationsOptions options = {});
 
 }  // namespace actopo
 

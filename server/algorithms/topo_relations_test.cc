@@ -17,16 +17,17 @@ std::shared_ptr<const Topology> Build(const Mesh& m, int capacity) {
   return *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = capacity}));
 }
 
-TopoRelationsResult RunExplicit(std::shared_ptr<const Topology> topo, int consumers) {
+TopoRelationsResult RunExplicit(std::shared_ptr<const Topology> topo, int consumers,
+                                TopoRelationsOptions options = {}) {
   auto structure = *ExplicitStructure::Build(topo, {.relations = TopoRelationsDeclared()});
-  return *RunTopoRelations(*structure, {.consumers = consumers});
+  return *RunTopoRelations(*structure, {.consumers = consumers}, options);
 }
 
 TEST(TopoRelations, TotalsMatchOracleAndIdentities) {
   const Mesh m = testing::Lattice(7, 6, 5, 21);
   auto topo = Build(m, 20);
   testing::RelationOracle oracle(*topo);
-  const TopoRelationsResult r = RunExplicit(topo, 1);
+  const TopoRelationsResult r = RunExplicit(topo, 1, {.all = true});
   for (Relation rel : AllRelations()) {
     int64_t expected = 0;
     for (const auto& row : oracle.rows(rel)) expected += row.size();
@@ -49,19 +50,43 @@ TEST(TopoRelations, TotalsMatchOracleAndIdentities) {
   EXPECT_EQ(total(Relation::kFB), F);
 }
 
+// By default the sweep reads TTK's 20 relations, the same totals as the full sweep's, and
+// leaves the edge and triangle neighbours unread.
+TEST(TopoRelations, DefaultSweepsTtksTwentyRelations) {
+  auto topo = Build(testing::Lattice(6, 5, 4, 3), 20);
+  const TopoRelationsResult ttk = RunExplicit(topo, 2);
+  const TopoRelationsResult all = RunExplicit(topo, 2, {.all = true});
+  EXPECT_FALSE(ttk.all);
+  EXPECT_TRUE(all.all);
+  ASSERT_EQ(TopoRelationsSweeps().size(), 20u);
+  ASSERT_EQ(TopoRelationsSweeps(true).size(), size_t(kNumRelations));
+  for (Relation rel : TopoRelationsSweeps()) {
+    EXPECT_NE(rel, Relation::kEE);
+    EXPECT_NE(rel, Relation::kFF);
+    EXPECT_EQ(ttk.totals[Index(rel)], all.totals[Index(rel)]) << RelationName(rel);
+  }
+  EXPECT_EQ(ttk.totals[Index(Relation::kEE)], 0);
+  EXPECT_EQ(ttk.totals[Index(Relation::kFF)], 0);
+  EXPECT_GT(all.totals[Index(Relation::kEE)], 0);
+  EXPECT_GT(all.totals[Index(Relation::kFF)], 0);
+  EXPECT_NE(ttk.checksum, all.checksum);
+}
+
 TEST(TopoRelations, IdenticalAcrossStructuresConsumersAndCacheSizes) {
   for (const Mesh& m :
        {testing::Lattice(8, 7, 6, 2), testing::NonManifold(), testing::TwoComponents()}) {
     auto topo = Build(m, 13);
-    const TopoRelationsResult reference = RunExplicit(topo, 1);
+    // All 22 relations, so the neighbours each structure computes are compared too.
+    const TopoRelationsResult reference = RunExplicit(topo, 1, {.all = true});
     EXPECT_NE(reference.checksum, 0u);
     for (int consumers : {1, 2, 3}) {
-      const TopoRelationsResult e = RunExplicit(topo, consumers);
+      const TopoRelationsResult e = RunExplicit(topo, consumers, {.all = true});
       EXPECT_EQ(e.totals, reference.totals);
       EXPECT_EQ(e.checksum, reference.checksum) << "explicit, consumers " << consumers;
       for (double ratio : {0.0, 0.2, 1.0}) {
         CompactStructure compact(topo, {.cache_ratio = ratio, .consumers = consumers});
-        const TopoRelationsResult c = *RunTopoRelations(compact, {.consumers = consumers});
+        const TopoRelationsResult c =
+            *RunTopoRelations(compact, {.consumers = consumers}, {.all = true});
         EXPECT_EQ(c.totals, reference.totals);
         EXPECT_EQ(c.checksum, reference.checksum)
             << "compact, consumers " << consumers << ", ratio " << ratio;
@@ -106,7 +131,7 @@ namespace {
 
 TEST(TopoRelations, ActopoMatchesExplicitInEveryMode) {
   auto topo = Build(testing::Lattice(7, 6, 6, 6), 11);
-  const TopoRelationsResult reference = RunExplicit(topo, 1);
+  const TopoRelationsResult reference = RunExplicit(topo, 1, {.all = true});
   for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
     for (Precompute q : {Precompute::kRequested, Precompute::kDeclared}) {
       for (int producers : {1, 2, 4}) {
@@ -117,7 +142,8 @@ TEST(TopoRelations, ActopoMatchesExplicitInEveryMode) {
                                                              .buffer_ratio = ratio,
                                                              .prefetch = p,
                                                              .precompute = q});
-            const TopoRelationsResult r = *RunTopoRelations(*structure, {.consumers = consumers});
+            const TopoRelationsResult r =
+                *RunTopoRelations(*structure, {.consumers = consumers}, {.all = true});
             EXPECT_EQ(r.totals, reference.totals);
             EXPECT_EQ(r.checksum, reference.checksum)
                 << PrefetchName(p) << " " << PrecomputeName(q) << " P=" << producers

@@ -4,6 +4,7 @@
 //   actopo-bench --mesh ../shared/data/fertility_tet.vtu --algorithm topo-relations
 //       --structure compact --json
 //   actopo-bench --mesh F.vtu --algorithm morse-smale --structure actopo --trace run.json
+//   actopo-bench --mesh F.vtu --algorithm discrete-gradient --digests --json   # TTK-comparable
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
@@ -58,11 +59,13 @@ struct BenchOptions {
   std::string boundary_rule = "ttk";
   std::string persistence_threshold, relative_threshold;  // as given, parsed by ApplyParameters
   std::string embedding;
-  std::string backend;  // simplification: lts or legacy
+  std::string backend;    // simplification: lts or legacy
+  std::string relations;  // topo-relations: ttk or all
   std::string output;
   std::string trace;  // Chrome trace-event JSON file
   int threads = 0;
   bool json = false;
+  bool digests = false;  // the result's *_sha256 keys
 };
 
 // Process start as near as a program can take it: `total` is what a user waits for.
@@ -94,7 +97,7 @@ absl::Status Validate(const BenchOptions& o) {
 
 struct RunOutput {
   double preprocess_s = 0, run_s = 0;
-  double results_s = 0;                 // summary digests and --output files
+  double results_s = 0;                 // the summary (digests with --digests), --output files
   int64_t peak_rss_after_run = 0;       // before result digests and files, which can be large
   std::vector<std::string> files;       // written with --output
   Json engine_detail = Json::object();  // actopo only
@@ -122,7 +125,7 @@ absl::StatusOr<RunOutput> RunAndSummarize(Structure& structure, const AlgorithmI
   out.run_s = outcome.run_s;
   out.peak_rss_after_run = outcome.peak_rss_after_run;
   const auto start = Clock::now();
-  out.result = Summarize(outcome.result, structure.topology());
+  out.result = Summarize(outcome.result, structure.topology(), {.digests = o.digests});
   if (files != nullptr) {
     ASSIGN_OR_RETURN(out.files, WriteResultFiles(o.output, *files, outcome.result));
   }
@@ -227,6 +230,7 @@ absl::StatusOr<AlgorithmInput> PrepareInput(const BenchOptions& o, Algorithm alg
   if (!o.relative_threshold.empty()) parameters["relative_threshold"] = o.relative_threshold;
   if (!o.embedding.empty()) parameters["embedding"] = o.embedding;
   if (!o.backend.empty()) parameters["backend"] = o.backend;
+  if (!o.relations.empty()) parameters["relations"] = o.relations;
   RETURN_IF_ERROR(ApplyParameters(parameters, input));
   seconds = Seconds(start);
   Phase(trace, "vertex order", start);
@@ -490,6 +494,9 @@ int main(int argc, char** argv) {
             "legacy");
   flags.Add("embedding", &o.embedding,
             "persistence-diagram --output: diagram (TTK's birth-death plane) or domain");
+  flags.Add("relations", &o.relations,
+            "topo-relations: ttk (TTK's 20 relations, the default) or all (22: adds the edge "
+            "and triangle neighbours)");
   flags.Add("structure", &o.structure, "explicit, compact or actopo");
   flags.Add("consumers", &o.consumers,
             "consumer threads running the algorithm (0: from the cores, see DefaultThreadPlan)");
@@ -513,6 +520,9 @@ int main(int argc, char** argv) {
             "chrome://tracing): phases, and per thread every block relation computed, every "
             "consumer wait and every eviction");
   flags.Add("json", &o.json, "print one JSON object");
+  flags.Add("digests", &o.digests,
+            "add the result's SHA-256 digests (*_sha256, comparable with TTK's); they cost time "
+            "on large meshes, so they are off unless asked");
   if (absl::Status s = flags.Parse(argc, argv); !s.ok()) {
     std::cerr << "actopo-bench: " << s.message() << "\n";
     return 2;

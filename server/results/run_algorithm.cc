@@ -18,72 +18,81 @@ using Json = nlohmann::ordered_json;
 
 Json TopoRelationsJson(const TopoRelationsResult& r) {
   Json totals = Json::object();
-  for (Relation rel : TopoRelationsSweeps()) {
+  for (Relation rel : TopoRelationsSweeps(r.all)) {
     totals[std::string(RelationName(rel))] = r.totals[Index(rel)];
   }
-  return {{"relation_totals", totals}, {"checksum", r.checksum_hex()}};
+  return {{"relations", r.all ? "all" : "ttk"},
+          {"relation_totals", totals},
+          {"checksum", r.checksum_hex()}};
 }
 
-Json CriticalPointsJson(const CriticalPointsResult& r) {
+Json CriticalPointsJson(const CriticalPointsResult& r, bool digests) {
   const auto count = [&](CriticalType t) { return r.counts[int(t)]; };
-  return {{"counts",
-           {{"minimum", count(CriticalType::kMinimum)},
-            {"saddle1", count(CriticalType::kSaddle1)},
-            {"saddle2", count(CriticalType::kSaddle2)},
-            {"degenerate", count(CriticalType::kDegenerate)},
-            {"maximum", count(CriticalType::kMaximum)}}},
-          {"vertices_sha256", r.VerticesDigest()}};
+  Json j = {{"counts",
+             {{"minimum", count(CriticalType::kMinimum)},
+              {"saddle1", count(CriticalType::kSaddle1)},
+              {"saddle2", count(CriticalType::kSaddle2)},
+              {"degenerate", count(CriticalType::kDegenerate)},
+              {"maximum", count(CriticalType::kMaximum)}}}};
+  if (digests) j["vertices_sha256"] = r.VerticesDigest();
+  return j;
 }
 
-Json DiscreteGradientJson(const DiscreteGradientResult& r, const Topology& topology) {
-  return {{"critical_cells", r.critical_cells},
-          {"pairs_count", r.pairs},
-          {"critical_cells_sha256", r.CriticalCellsDigest(topology)},
-          {"pairs_sha256", r.PairsDigest(topology)}};
+Json DiscreteGradientJson(const DiscreteGradientResult& r, const Topology& topology, bool digests) {
+  Json j = {{"critical_cells", r.critical_cells}, {"pairs_count", r.pairs}};
+  if (digests) {
+    j["critical_cells_sha256"] = r.CriticalCellsDigest(topology);
+    j["pairs_sha256"] = r.PairsDigest(topology);
+  }
+  return j;
 }
 
-Json MorseSmaleJson(const MorseSmaleResult& r) {
+Json MorseSmaleJson(const MorseSmaleResult& r, bool digests) {
   auto unlabelled = [](const std::vector<SimplexId>& labels) {
     return std::count(labels.begin(), labels.end(), -1);
   };
   int64_t minima = 0, maxima = 0;
   for (int64_t s : r.minimum_sizes) minima += s;
   for (int64_t s : r.maximum_sizes) maxima += s;
-  return {{"critical_cells", r.gradient.critical_cells},
-          {"separatrices",
-           {{"descending", r.CountSeparatrices(SeparatrixType::kDescending)},
-            {"ascending", r.CountSeparatrices(SeparatrixType::kAscending)},
-            {"saddle_connectors", r.CountSeparatrices(SeparatrixType::kSaddleConnector)},
-            {"segments", r.Segments()}}},
-          {"regions",
-           {{"descending", MorseSmaleResult::Regions(r.descending)},
-            {"ascending", MorseSmaleResult::Regions(r.ascending)},
-            {"morse_smale", MorseSmaleResult::Regions(r.morse_smale)}}},
-          {"manifold_size_sum", {{"minima", minima}, {"maxima", maxima}}},
-          {"unlabelled_vertices",
-           {{"descending", unlabelled(r.descending)},
-            {"ascending", unlabelled(r.ascending)},
-            {"morse_smale", unlabelled(r.morse_smale)}}},
-          {"segmentation_sha256",
-           {{"descending", MorseSmaleResult::SegmentationDigest(r.descending)},
-            {"ascending", MorseSmaleResult::SegmentationDigest(r.ascending)},
-            {"morse_smale", MorseSmaleResult::SegmentationDigest(r.morse_smale)}}}};
+  Json j = {{"critical_cells", r.gradient.critical_cells},
+            {"separatrices",
+             {{"descending", r.CountSeparatrices(SeparatrixType::kDescending)},
+              {"ascending", r.CountSeparatrices(SeparatrixType::kAscending)},
+              {"saddle_connectors", r.CountSeparatrices(SeparatrixType::kSaddleConnector)},
+              {"segments", r.Segments()}}},
+            {"regions",
+             {{"descending", MorseSmaleResult::Regions(r.descending)},
+              {"ascending", MorseSmaleResult::Regions(r.ascending)},
+              {"morse_smale", MorseSmaleResult::Regions(r.morse_smale)}}},
+            {"manifold_size_sum", {{"minima", minima}, {"maxima", maxima}}},
+            {"unlabelled_vertices",
+             {{"descending", unlabelled(r.descending)},
+              {"ascending", unlabelled(r.ascending)},
+              {"morse_smale", unlabelled(r.morse_smale)}}}};
+  if (digests) {
+    j["segmentation_sha256"] = {
+        {"descending", MorseSmaleResult::SegmentationDigest(r.descending)},
+        {"ascending", MorseSmaleResult::SegmentationDigest(r.ascending)},
+        {"morse_smale", MorseSmaleResult::SegmentationDigest(r.morse_smale)}};
+  }
+  return j;
 }
 
-Json PersistenceDiagramJson(const PersistenceDiagramResult& r) {
+Json PersistenceDiagramJson(const PersistenceDiagramResult& r, bool digests) {
   Json counts = Json::object();
   for (int k = 0; k < 3; ++k) {
     if (r.finite[k] > 0) counts[std::to_string(k)] = r.finite[k];
     if (r.infinite[k] > 0) counts[absl::StrCat(k, "_infinite")] = r.infinite[k];
   }
-  return {{"pairs", r.pairs.size()},
-          {"counts_by_type", counts},
-          {"critical_cells", r.gradient.critical_cells},
-          {"max_persistence", r.MaxPersistence()},
-          {"pairs_sha256", r.PairsDigest()}};
+  Json j = {{"pairs", r.pairs.size()},
+            {"counts_by_type", counts},
+            {"critical_cells", r.gradient.critical_cells},
+            {"max_persistence", r.MaxPersistence()}};
+  if (digests) j["pairs_sha256"] = r.PairsDigest();
+  return j;
 }
 
-Json SimplificationJson(const SimplificationResult& r) {
+Json SimplificationJson(const SimplificationResult& r, bool digests) {
   const SimplificationStats& s = r.stats;
   Json j = {{"backend", r.legacy ? "legacy" : "lts"},
             {"threshold", r.threshold},
@@ -95,9 +104,11 @@ Json SimplificationJson(const SimplificationResult& r) {
             {"removed_minima", s.removed_minima},
             {"changed_values", s.changed_values},
             {"minima", s.minima},
-            {"maxima", s.maxima},
-            {"scalars_sha256", r.ScalarsDigest()},
-            {"order_sha256", r.OrderDigest()}};
+            {"maxima", s.maxima}};
+  if (digests) {
+    j["scalars_sha256"] = r.ScalarsDigest();
+    j["order_sha256"] = r.OrderDigest();
+  }
   if (r.legacy) j["sweeps"] = s.sweeps;
   return j;
 }
@@ -138,6 +149,14 @@ absl::Status ApplyParameters(const std::map<std::string, std::string>& parameter
         return absl::InvalidArgumentError(absl::StrCat("parameters.boundary_rule: unknown value '",
                                                        value, "'; available: ttk, none"));
       }
+      continue;
+    }
+    if (name == "relations" && input.algorithm == Algorithm::kTopoRelations) {
+      if (value != "ttk" && value != "all") {
+        return absl::InvalidArgumentError(
+            absl::StrCat("parameters.relations: unknown value '", value, "'; available: ttk, all"));
+      }
+      input.topo_relations.all = value == "all";
       continue;
     }
     if (name == "embedding" && input.algorithm == Algorithm::kPersistenceDiagram) {
@@ -211,7 +230,7 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
   AlgorithmOutcome out;
   switch (in.algorithm) {
     case Algorithm::kTopoRelations: {
-      ASSIGN_OR_RETURN(out.result, RunTopoRelations(structure, context));
+      ASSIGN_OR_RETURN(out.result, RunTopoRelations(structure, context, in.topo_relations));
       break;
     }
     case Algorithm::kCriticalPoints: {
@@ -267,23 +286,29 @@ template absl::StatusOr<AlgorithmOutcome> RunAlgorithm(CompactStructure&, const 
 template absl::StatusOr<AlgorithmOutcome> RunAlgorithm(ActopoStructure&, const AlgorithmInput&,
                                                        const RunContext&);
 
-Json Summarize(const AlgorithmResult& result, const Topology& topology) {
+Json Summarize(const AlgorithmResult& result, const Topology& topology,
+               const SummaryOptions& options) {
+  const bool digests = options.digests;
   return std::visit(
       [&](const auto& r) -> Json {
         using T = std::decay_t<decltype(r)>;
         if constexpr (std::is_same_v<T, TopoRelationsResult>) return TopoRelationsJson(r);
-        if constexpr (std::is_same_v<T, CriticalPointsResult>) return CriticalPointsJson(r);
+        if constexpr (std::is_same_v<T, CriticalPointsResult>) {
+          return CriticalPointsJson(r, digests);
+        }
         if constexpr (std::is_same_v<T, DiscreteGradientResult>) {
-          return DiscreteGradientJson(r, topology);
+          return DiscreteGradientJson(r, topology, digests);
         }
-        if constexpr (std::is_same_v<T, MorseSmaleResult>) return MorseSmaleJson(r);
+        if constexpr (std::is_same_v<T, MorseSmaleResult>) return MorseSmaleJson(r, digests);
         if constexpr (std::is_same_v<T, PersistenceDiagramResult>) {
-          return PersistenceDiagramJson(r);
+          return PersistenceDiagramJson(r, digests);
         }
-        if constexpr (std::is_same_v<T, SimplificationResult>) return SimplificationJson(r);
+        if constexpr (std::is_same_v<T, SimplificationResult>) {
+          return SimplificationJson(r, digests);
+        }
         if constexpr (std::is_same_v<T, SimplifiedMorseSmaleResult>) {
-          Json j = MorseSmaleJson(r.morse_smale);
-          j["simplification"] = SimplificationJson(r.simplification);
+          Json j = MorseSmaleJson(r.morse_smale, digests);
+          j["simplification"] = SimplificationJson(r.simplification, digests);
           return j;
         }
       },

@@ -3,7 +3,7 @@
 //
 //   AlgorithmInput input{.algorithm = Algorithm::kMorseSmale, .order = ..., ...};
 //   ASSIGN_OR_RETURN(AlgorithmOutcome outcome, RunAlgorithm(*structure, input, context));
-//   nlohmann::ordered_json result = Summarize(outcome, *topology);
+//   nlohmann::ordered_json result = Summarize(outcome, *topology, {.digests = true});
 #ifndef ACTOPO_SERVER_RESULTS_RUN_ALGORITHM_H_
 #define ACTOPO_SERVER_RESULTS_RUN_ALGORITHM_H_
 
@@ -33,6 +33,7 @@ struct AlgorithmInput {
   // The field by input vertex id (persistence-diagram, topological-simplification, morse-smale).
   std::vector<double> scalars;
   CriticalPointsOptions critical_points;
+  TopoRelationsOptions topo_relations;
   bool embed_diagram_in_domain = false;  // persistence-diagram outputs
   // topological-simplification (default: 1% of the range); morse-smale simplifies first when set.
   std::optional<SimplificationOptions> simplification;
@@ -45,7 +46,8 @@ struct SimplifiedMorseSmaleResult {
 };
 
 // Algorithm parameters by name, as the service receives them: "boundary_rule" = "ttk" | "none"
-// (critical-points); "embedding" = "diagram" | "domain" (persistence-diagram: pairs at
+// (critical-points); "relations" = "ttk" (TTK's 20, the default) | "all" (22: with EE and FF;
+// topo-relations); "embedding" = "diagram" | "domain" (persistence-diagram: pairs at
 // (birth, death) or at their vertices); "persistence_threshold" = an absolute persistence, or
 // "relative_threshold" = a fraction of the field's range (topological-simplification, and
 // morse-smale, which then runs on the simplified field), "backend" = "lts" (default) |
@@ -73,8 +75,16 @@ template <class Structure>
 absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const AlgorithmInput& input,
                                               const RunContext& context);
 
-// actopo-bench's "result" object.
-nlohmann::ordered_json Summarize(const AlgorithmResult& result, const Topology& topology);
+struct SummaryOptions {
+  // Add the result's SHA-256 digests (the `*_sha256` keys, DESIGN.md "Digests"): what fidelity
+  // checks compare with TTK. Off by default: on a 10M-tet mesh the gradient's pair digest alone
+  // hashes about 35M lines, a third of the job.
+  bool digests = false;
+};
+
+// actopo-bench's "result" object, and the job summary the service sends.
+nlohmann::ordered_json Summarize(const AlgorithmResult& result, const Topology& topology,
+                                 const SummaryOptions& options = {});
 
 }  // namespace actopo
 

@@ -304,6 +304,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     RETURN_IF_ERROR(ApplyParameters(parameters, input_));
     include_arrays_ = request.include_arrays();
     trace_ = request.trace();
+    digests_ = request.digests();
     // Atomic: of N concurrent calls on a session exactly one gets the lease.
     ASSIGN_OR_RETURN(lease_, host_->StartJob(session_->id(), input_.algorithm));
     job_ = lease_.shared_job();
@@ -392,7 +393,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
       }
     }
     v1::RunJobResponse summary;
-    FillSummary(job.outcome.result, *session_->mesh().topology,
+    FillSummary(job.outcome.result, *session_->mesh().topology, {.digests = digests_},
                 summary.mutable_summary()->mutable_result());
     if (trace != nullptr) {
       trace->Span("results", "phase", start, std::chrono::steady_clock::now());
@@ -470,6 +471,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   AlgorithmInput input_;
   bool include_arrays_ = false;
   bool trace_ = false;
+  bool digests_ = false;
   Progress::Clock::time_point deadline_;  // the call's; the job stops by itself once it passes
 
   Mutex mu_;

@@ -235,11 +235,12 @@ void ToValue(const nlohmann::ordered_json& json, google::protobuf::Value* out) {
 
 }  // namespace
 
-void FillSummary(const AlgorithmResult& result, const Topology& topology, Struct* out) {
+void FillSummary(const AlgorithmResult& result, const Topology& topology,
+                 const SummaryOptions& options, Struct* out) {
   out->Clear();
   // Summarize spells the summary's keys once, for actopo-bench's JSON and for the wire; its tree
   // is copied node by node, without a text round trip.
-  const nlohmann::ordered_json summary = Summarize(result, topology);
+  const nlohmann::ordered_json summary = Summarize(result, topology, options);
   for (const auto& [key, value] : summary.items()) ToValue(value, &(*out->mutable_fields())[key]);
 }
 

@@ -110,7 +110,7 @@ void Fill(const MemoryStats& memory, pb::MemoryStats* out);
 // A job's summary: actopo-bench's "result" (Summarize in run_algorithm.h, the one place that
 // spells its keys) copied node by node into a Struct. Numbers are doubles, as in any Struct.
 void FillSummary(const AlgorithmResult& result, const Topology& topology,
-                 google::protobuf::Struct* out);
+                 const SummaryOptions& options, google::protobuf::Struct* out);
 
 // Raw little-endian arrays.
 void Pack(const std::string& name, std::span<const int64_t> values, pb::Array* out);

@@ -146,16 +146,18 @@ TEST(WireSummary, EqualsTheBenchJsonForEveryAlgorithm) {
     input.algorithm = a;
     const absl::StatusOr<AlgorithmOutcome> outcome = RunAlgorithm(*structure, input, {});
     ASSERT_TRUE(outcome.ok()) << outcome.status();
-    google::protobuf::Struct expected, built;
-    ASSERT_TRUE(google::protobuf::util::JsonStringToMessage(
-                    Summarize(outcome->result, *topology).dump(), &expected)
-                    .ok());
-    FillSummary(outcome->result, *topology, &built);
-    EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(built, expected))
-        << AlgorithmName(a) << "\nbuilt:\n"
-        << built.DebugString() << "\nexpected:\n"
-        << expected.DebugString();
-    EXPECT_GT(built.fields_size(), 1) << AlgorithmName(a);
+    for (bool digests : {false, true}) {
+      google::protobuf::Struct expected, built;
+      ASSERT_TRUE(google::protobuf::util::JsonStringToMessage(
+                      Summarize(outcome->result, *topology, {.digests = digests}).dump(), &expected)
+                      .ok());
+      FillSummary(outcome->result, *topology, {.digests = digests}, &built);
+      EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(built, expected))
+          << AlgorithmName(a) << "\nbuilt:\n"
+          << built.DebugString() << "\nexpected:\n"
+          << expected.DebugString();
+      EXPECT_GT(built.fields_size(), digests ? 1 : 0) << AlgorithmName(a);
+    }
   }
 }
 

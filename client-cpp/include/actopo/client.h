@@ -432,6 +432,9 @@ struct JobOptions {
   // trace-event JSON (block relations computed per thread, consumer waits, evictions, phases)
   // to open in ui.perfetto.dev or chrome://tracing.
   bool trace = false;
+  // Add the result's SHA-256 digests to the summary (its "*_sha256" keys, comparable with
+  // TTK's). Off by default: on large meshes they cost a good part of the job.
+  bool digests = false;
   // Called with the fraction done (0 to 1) as progress arrives, on RunJob's thread.
   std::function<void(double fraction)> progress;
   // Called with the job id once the server accepted the job (e.g. to CancelJob it).
