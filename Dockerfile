@@ -54,7 +54,7 @@ SHELL ["/bin/bash", "-o", "pipefail", "-c"]
 RUN apt-get update \
  && apt-get install -y --no-install-recommends \
       libgrpc++1.51 libgrpc29 libprotobuf32 libabsl20220623 libre2-9 libc-ares2 libssl3 \
-      libvtk9.1 libtbb12 libdouble-conversion3 liblz4-1 libexpat1 liblzma5 zlib1g \
+      libvtk9.1 libtbb12 libdouble-conversion3 liblz4-1 libexpat1 liblzma5 zlib1g libdeflate0 \
       libprometheus-cpp-pull1.0 libprometheus-cpp-core1.0 libcivetweb1 \
       python3-minimal python3-grpcio \
  && rm -rf /var/lib/apt/lists/*

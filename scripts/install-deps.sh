@@ -13,7 +13,7 @@ debian_packages=(
   build-essential cmake ninja-build pkg-config git ca-certificates
   libabsl-dev nlohmann-json3-dev libssl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libvtk9-dev
+  libvtk9-dev libdeflate-dev
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   prometheus-cpp-dev
   python3 python3-venv python3-dev

@@ -181,8 +181,9 @@ absl::StatusOr<Loaded> Load(const BenchOptions& o, Algorithm algorithm,
                             const std::shared_ptr<Trace>& trace) {
   const auto start = Clock::now();
   Loaded out;
-  ASSIGN_OR_RETURN(out.mesh, o.mesh.empty() ? io::MakeSample(o.sample) : io::ReadMesh(o.mesh));
-  RETURN_IF_ERROR(ValidateMesh(out.mesh));
+  ASSIGN_OR_RETURN(out.mesh, o.mesh.empty() ? io::MakeSample(o.sample)
+                                            : io::ReadMesh(o.mesh, {.threads = o.threads}));
+  if (o.mesh.empty()) RETURN_IF_ERROR(ValidateMesh(out.mesh));  // ReadMesh validated a file's
   if (!o.scalar.empty() || NeedsScalar(algorithm)) {
     ASSIGN_OR_RETURN(int field, SelectScalarField(out.mesh, o.scalar, o.block_labels));
     out.scalar_name = out.mesh.point_fields[field].name;

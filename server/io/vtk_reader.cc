@@ -18,7 +18,9 @@
 #include "absl/status/status.h"
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "server/core/parallel.h"
 #include "server/core/status_macros.h"
+#include "server/io/internal/appended_vtu.h"
 #include "server/io/internal/vtk_bridge.h"
 
 namespace actopo::io {
@@ -118,7 +120,7 @@ absl::StatusOr<Mesh> ReadXmlImageData(const std::string& path, const Progress& p
 
 }  // namespace
 
-absl::StatusOr<Mesh> ReadMesh(const std::string& path, const ReadOptions& /*options*/,
+absl::StatusOr<Mesh> ReadMesh(const std::string& path, const ReadOptions& options,
                               const Progress& progress) {
   const std::string extension =
       absl::AsciiStrToLower(std::filesystem::path(path).extension().string());
@@ -139,15 +141,27 @@ absl::StatusOr<Mesh> ReadMesh(const std::string& path, const ReadOptions& /*opti
   }
   // VTK's parsers throw on some corrupt files (a compressed block header promising an absurd
   // size ends in std::length_error or std::bad_alloc): a bad file, not a reason to stop the
-  // process. Whatever VTK built is released as the stack unwinds.
+  // process. Whatever was built is released as the stack unwinds. The parallel reader can run out
+  // of memory too (the isolated reader's limit).
   absl::StatusOr<Mesh> mesh;
   try {
-    mesh = extension == ".vtu"   ? ReadXmlUnstructuredGrid(path, progress)
-           : extension == ".vtk" ? ReadLegacyUnstructuredGrid(path, progress)
-                                 : ReadXmlImageData(path, progress);
+    std::optional<Mesh> fast;
+    if (extension == ".vtu" && options.parallel_vtu) {
+      const int threads = options.threads > 0 ? options.threads : DefaultThreads();
+      ASSIGN_OR_RETURN(fast, internal::ReadAppendedVtu(path, threads, progress));
+    }
+    if (fast) {
+      mesh = std::move(*fast);
+    } else {
+      mesh = extension == ".vtu"   ? ReadXmlUnstructuredGrid(path, progress)
+             : extension == ".vtk" ? ReadLegacyUnstructuredGrid(path, progress)
+                                   : ReadXmlImageData(path, progress);
+    }
   } catch (const std::bad_alloc&) {
     return absl::ResourceExhaustedError(
-        absl::StrCat(path, ": VTK ran out of memory reading it (corrupt sizes in the file?)"));
+        absl::StrCat(path,
+                     ": ran out of memory reading it (a mesh beyond the memory allowed, or "
+                     "corrupt sizes in the file?)"));
   } catch (const std::exception& e) {
     return absl::InvalidArgumentError(
         absl::StrCat(path, ": cannot read: VTK failed with '", e.what(), "' (corrupt file?)"));

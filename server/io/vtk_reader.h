@@ -5,8 +5,10 @@
 //   .vtk  legacy VTK unstructured grid (ASCII or binary);
 //   .vti  VTK XML image data, split into tetrahedra by VTK's vtkDataSetTriangleFilter, which is
 //         ParaView's Tetrahedralize (5 tetrahedra per voxel), so ids match what ParaView shows.
-// Only tetrahedral cells are accepted. Every 1-component point array becomes a PointField;
-// vector and tensor arrays are skipped. The result has passed actopo::ValidateMesh.
+// A .vtu in the layout VTK writes by default is read on every core; any other goes to VTK's
+// reader, with the same result. Only tetrahedral cells are accepted. Every 1-component point array
+// becomes a PointField; vector and tensor arrays are skipped. The result has passed
+// actopo::ValidateMesh.
 //
 //   ASSIGN_OR_RETURN(actopo::Mesh mesh, actopo::io::ReadMesh("/data/fertility_tet.vtu"));
 //
@@ -25,8 +27,14 @@
 
 namespace actopo::io {
 
-// Reserved for reader settings (none yet); a struct so that adding one breaks no caller.
-struct ReadOptions {};
+struct ReadOptions {
+  // Threads that inflate and convert a .vtu's blocks (0: every core).
+  int threads = 0;
+  // .vtu files in the layout VTK writes by default (one piece, raw appended arrays, zlib or
+  // uncompressed) are read by our parallel reader (internal/appended_vtu.h); false reads every
+  // file with VTK's own reader, the reference the parallel one is tested against.
+  bool parallel_vtu = true;
+};
 
 // The VTK library version, e.g. "9.1.0" (for server info).
 std::string VtkVersion();
