@@ -49,7 +49,7 @@ class Builder {
   // The ascending 1-separatrices of 2-saddle f: one per tetrahedron of its star (in TTK's order)
   // whose path ends at a maximum.
   void AscendingSeparatrices(SimplexId f, std::vector<Separatrix>& out) {
-    const auto star = r_.triangle_star(f);
+    const std::span<const SimplexId> star = TriangleStar(f);
     star_.assign(star.begin(), star.end());
     std::sort(star_.begin(), star_.end(), [&](SimplexId a, SimplexId b) {
       return topo_.tetrahedron_input_id(a) < topo_.tetrahedron_input_id(b);
@@ -94,6 +94,22 @@ class Builder {
   }
 
  private:
+  // The tetrahedra of f (one or two), from the star of its lowest vertex. Ascending paths and
+  // TTK's triangle order wander across blocks; a vertex star costs a quarter of a triangle
+  // star to compute per block (part_5M, compact: the triangle stars were computed 13,500
+  // times over 880 blocks in this phase), and the gradient reads vertex stars anyway.
+  std::span<const SimplexId> TriangleStar(SimplexId f) {
+    const auto [a, b, c] = topo_.triangle(f);
+    triangle_star_.clear();
+    for (SimplexId t : r_.vertex_star(a)) {
+      const auto tv = topo_.tetrahedron(t);
+      int found = 0;
+      for (SimplexId v : tv) found += (v == b) + (v == c);
+      if (found == 2) triangle_star_.push_back(t);
+    }
+    return triangle_star_;
+  }
+
   // tet -> its paired triangle -> the next tetrahedron ... until a critical tetrahedron. False
   // when the path ends elsewhere (through the boundary or at a critical triangle).
   bool AscendingPath(SimplexId tet, std::vector<Cell>& cells) {
@@ -114,7 +130,7 @@ class Builder {
   // `cur` itself when there is none.
   SimplexId FirstOtherTet(SimplexId f, SimplexId cur) {
     SimplexId best = cur;
-    for (SimplexId t : r_.triangle_star(f)) {
+    for (SimplexId t : TriangleStar(f)) {
       if (t == cur) continue;
       if (best == cur || topo_.tetrahedron_input_id(t) < topo_.tetrahedron_input_id(best)) {
         best = t;
@@ -123,16 +139,24 @@ class Builder {
     return best;
   }
 
+  // The wall of s2 and, for the paths through it, which wall triangles lie around each edge.
+  // Walls wander across many blocks (part_5M: compact computed each block's edge-triangles ten
+  // times over in this phase), so nothing here reads a block relation: a triangle's edges come
+  // from the static encoding (FindEdge), and the wall's own (edge, triangle) pairs stand in for
+  // the edge-triangle relation restricted to the wall.
   void DescendingWall(SimplexId s2) {
     wall_.clear();
     wall_saddles_.clear();
+    wall_edges_.clear();
     std::queue<SimplexId> bfs;
     bfs.push(s2);
     while (!bfs.empty()) {
       const SimplexId f = bfs.front();
       bfs.pop();
       if (!wall_.insert(f).second) continue;
-      for (SimplexId e : r_.triangle_edges(f)) {
+      const auto [a, b, c] = topo_.triangle(f);
+      for (SimplexId e : {topo_.FindEdge(a, b), topo_.FindEdge(a, c), topo_.FindEdge(b, c)}) {
+        wall_edges_.push_back({e, f});
         if (g_.IsCritical(1, e)) wall_saddles_.push_back(e);
         const SimplexId paired = g_.up[1][e];
         if (paired >= 0 && paired != f) bfs.push(paired);
@@ -141,6 +165,15 @@ class Builder {
     std::sort(wall_saddles_.begin(), wall_saddles_.end());
     wall_saddles_.erase(std::unique(wall_saddles_.begin(), wall_saddles_.end()),
                         wall_saddles_.end());
+    std::sort(wall_edges_.begin(), wall_edges_.end());
+  }
+
+  // The wall's triangles around edge e, ascending: the edge-triangle row's order.
+  std::span<const std::pair<SimplexId, SimplexId>> WallTriangles(SimplexId e) const {
+    const auto [first, last] =
+        std::equal_range(wall_edges_.begin(), wall_edges_.end(), std::pair{e, SimplexId(0)},
+                         [](const auto& x, const auto& y) { return x.first < y.first; });
+    return {first, last};
   }
 
   // From 1-saddle s1 up through the current wall: triangle -> its paired edge -> the wall
@@ -151,8 +184,7 @@ class Builder {
     cells.push_back({1, s1});
     SimplexId cur = -1;
     candidates_.clear();
-    for (SimplexId f : r_.edge_triangles(s1)) {
-      if (!wall_.contains(f)) continue;
+    for (const auto& [e, f] : WallTriangles(s1)) {
       if (g_.IsCritical(2, f)) {
         cells.push_back({2, f});
         return true;
@@ -170,8 +202,8 @@ class Builder {
       cells.push_back({1, e});
       if (g_.IsCritical(1, e)) return true;
       candidates_.clear();
-      for (SimplexId f : r_.edge_triangles(e)) {
-        if (f != old && wall_.contains(f)) candidates_.push_back(f);
+      for (const auto& [edge, f] : WallTriangles(e)) {
+        if (f != old) candidates_.push_back(f);
       }
       if (candidates_.empty()) return true;  // dead end: the path stops at edge e
       cur = LastInTtkOrder(candidates_);
@@ -184,7 +216,7 @@ class Builder {
   uint64_t TtkTriangleRank(SimplexId f) {
     const auto fv = topo_.triangle(f);
     uint64_t best = UINT64_MAX;
-    for (SimplexId t : r_.triangle_star(f)) {
+    for (SimplexId t : TriangleStar(f)) {
       const SimplexId input = topo_.tetrahedron_input_id(t);
       const SimplexId* tv = &input_tets_[4 * size_t(input)];
       int omitted = 0;
@@ -216,7 +248,8 @@ class Builder {
   const GradientField& g_;
   std::span<const SimplexId> input_tets_;
   absl::flat_hash_set<SimplexId> wall_;  // the current wall: a few triangles of many
-  std::vector<SimplexId> wall_saddles_, candidates_, star_;
+  std::vector<std::pair<SimplexId, SimplexId>> wall_edges_;  // (edge, wall triangle), sorted
+  std::vector<SimplexId> wall_saddles_, candidates_, star_, triangle_star_;
 };
 
 std::vector<SimplexId> ToInputOrder(const Topology& topo,
@@ -338,7 +371,8 @@ std::string MorseSmaleResult::SegmentationDigest(std::span<const SimplexId> labe
 }
 
 RelationSet MorseSmaleDeclared() {
-  return {Relation::kVE, Relation::kVF, Relation::kVT, Relation::kFT, Relation::kFE, Relation::kEF};
+  // The gradient's VE, VF, VT. Triangle stars come from vertex stars; the walls read none.
+  return {Relation::kVE, Relation::kVF, Relation::kVT};
 }
 
 template <class Structure>

@@ -56,8 +56,10 @@ struct MorseSmaleResult {
   static std::string SegmentationDigest(std::span<const SimplexId> labels);
 };
 
-// The gradient's lower stars (VE, VF, VT), triangle stars for ascending paths (FT), triangle
-// edges and edge triangles for the descending walls of saddle connectors (FE, EF).
+// The gradient's lower stars (VE, VF, VT). The ascending paths find a triangle's tetrahedra in
+// its lowest vertex's star (VT); the descending walls of saddle connectors read no relation:
+// their triangles' edges come from the static encoding, and the walls themselves say which of
+// their triangles lie around an edge.
 RelationSet MorseSmaleDeclared();
 
 // `input_tetrahedra`: the mesh's tetrahedra as given (4 input vertex ids each), which fix TTK's
