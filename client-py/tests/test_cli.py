@@ -187,6 +187,7 @@ def test_compare_structures(cli):
     rows = report["structures"]
     assert [r["structure"] for r in rows] == ["explicit", "compact", "actopo"]
     assert all(r["same_result"] and r["run_s"] > 0 for r in rows)
+    assert all(r["job_s"] == r["preprocess_s"] + r["run_s"] for r in rows)
     assert rows[0]["result"] == rows[1]["result"] == rows[2]["result"]
     status, out, _ = cli("compare", "--sample", "jittered:6", "--algorithm", "critical-points",
                          "--structures", "compact,actopo", "--repeat", "2")
