@@ -195,15 +195,27 @@ absl::StatusOr<Loaded> Load(const BenchOptions& o, Algorithm algorithm,
 }
 
 // partition: the blocks and the static encoding.
-absl::StatusOr<std::shared_ptr<const Topology>> Partition(const BenchOptions& o, const Mesh& mesh,
+// `input_tetrahedra` gets the mesh's tetrahedra when the algorithm needs them as given
+// (morse-smale, for TTK's order); otherwise, with no --output, they are freed as soon as the
+// encoding has read them.
+absl::StatusOr<std::shared_ptr<const Topology>> Partition(const BenchOptions& o,
+                                                          Algorithm algorithm, Mesh& mesh,
+                                                          std::vector<SimplexId>& input_tetrahedra,
                                                           const std::shared_ptr<Trace>& trace,
                                                           double& seconds) {
   const auto start = Clock::now();
   ASSIGN_OR_RETURN(
       std::vector<int32_t> blocks,
       ComputeBlocks(mesh, {.bucket_capacity = o.block_size, .block_label_field = o.block_labels}));
-  ASSIGN_OR_RETURN(std::shared_ptr<const Topology> topology,
-                   Topology::Build(mesh, blocks, {.threads = o.threads}));
+  const bool keep = algorithm == Algorithm::kMorseSmale || !o.output.empty();
+  ASSIGN_OR_RETURN(
+      std::shared_ptr<const Topology> topology,
+      Topology::Build(mesh, blocks, {.threads = o.threads, .tetrahedra_read = [&] {
+                                       if (!keep) std::vector<SimplexId>().swap(mesh.tetrahedra);
+                                     }}));
+  if (algorithm == Algorithm::kMorseSmale) {
+    input_tetrahedra = o.output.empty() ? std::move(mesh.tetrahedra) : mesh.tetrahedra;
+  }
   seconds = Seconds(start);
   Phase(trace, "partition", start);
   return topology;
@@ -393,10 +405,9 @@ absl::StatusOr<Json> Run(BenchOptions o) {
   PhaseTimes times;
   ASSIGN_OR_RETURN(Loaded loaded, Load(o, algorithm, trace));
   times.load = loaded.seconds;
-  ASSIGN_OR_RETURN(std::shared_ptr<const Topology> topology,
-                   Partition(o, loaded.mesh, trace, times.partition));
   std::vector<SimplexId> input_tetrahedra;
-  if (algorithm == Algorithm::kMorseSmale) input_tetrahedra = loaded.mesh.tetrahedra;
+  ASSIGN_OR_RETURN(std::shared_ptr<const Topology> topology,
+                   Partition(o, algorithm, loaded.mesh, input_tetrahedra, trace, times.partition));
   // Without --output the points and other fields are not needed: free them so peak RSS
   // reflects the structures.
   std::optional<ResultContext> files;

@@ -569,6 +569,7 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   // of the tetrahedra at any time, only one block's per thread).
   encoder.BucketTetrahedra();
   encoder.SortBlockTetrahedra();
+  if (options.tetrahedra_read) options.tetrahedra_read();
   RETURN_IF_ERROR(progress.Update(kPhase, 0.15));
 
   encoder.FindExternalTetrahedra();

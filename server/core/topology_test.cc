@@ -83,6 +83,35 @@ TEST(Topology, SameForAnyThreadCount) {
   }
 }
 
+// A caller may free the tetrahedra once Build says it has read them: the encoding is the same.
+TEST(Topology, TetrahedraFreedWhenReadGiveTheSameEncoding) {
+  const Mesh m = testing::Lattice(9, 8, 7, 5);
+  const std::vector<int32_t> blocks = OctreeBlocks(m.points, {.bucket_capacity = 20});
+  auto kept = *Topology::Build(m, blocks, {.threads = 2});
+  Mesh freed = m;
+  int calls = 0;
+  auto built = Topology::Build(freed, blocks, {.threads = 2, .tetrahedra_read = [&] {
+                                                 ++calls;
+                                                 std::vector<SimplexId>().swap(freed.tetrahedra);
+                                               }});
+  ASSERT_TRUE(built.ok()) << built.status();
+  EXPECT_EQ(calls, 1);
+  EXPECT_TRUE(freed.tetrahedra.empty());
+  const Topology& t = **built;
+  ASSERT_EQ(t.num_tetrahedra(), kept->num_tetrahedra());
+  ASSERT_EQ(t.num_edges(), kept->num_edges());
+  ASSERT_EQ(t.num_triangles(), kept->num_triangles());
+  for (SimplexId x = 0; x < t.num_tetrahedra(); ++x) {
+    ASSERT_TRUE(std::ranges::equal(t.tetrahedron(x), kept->tetrahedron(x)));
+    ASSERT_EQ(t.tetrahedron_input_id(x), kept->tetrahedron_input_id(x));
+  }
+  for (SimplexId f = 0; f < t.num_triangles(); ++f) {
+    ASSERT_EQ(t.triangle(f), kept->triangle(f));
+    ASSERT_EQ(t.triangle_on_boundary(f), kept->triangle_on_boundary(f));
+  }
+  for (SimplexId e = 0; e < t.num_edges(); ++e) ASSERT_EQ(t.edge(e), kept->edge(e));
+}
+
 TEST(Topology, EdgesTrianglesAndBoundaryMatchOracle) {
   for (const Mesh& m : {testing::Lattice(5, 4, 4, 1), testing::NonManifold(),
                         testing::TwoComponents(), testing::SingleTetrahedron()}) {
