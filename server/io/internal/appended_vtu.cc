@@ -219,8 +219,7 @@ std::optional<ArraySpec> AppendedArray(const Tag& tag) {
   spec.scalar = *scalar;
   spec.name = tag.get("Name");
   const std::string_view components = tag.get("NumberOfComponents");
-  if (!components.empty() &&
-      (!ParseInt(components, &spec.components) || spec.components < 1)) {
+  if (!components.empty() && (!ParseInt(components, &spec.components) || spec.components < 1)) {
     return std::nullopt;
   }
   if (spec.name.empty() || !ParseInt(tag.get("offset"), &spec.offset)) return std::nullopt;
