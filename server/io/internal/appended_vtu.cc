@@ -300,17 +300,21 @@ std::optional<Layout> ParseLayout(const MappedFile& file) {
 // what the reader accepts (the file then goes to VTK).
 using Sink = std::function<bool(const uint8_t* bytes, size_t count, uint64_t first)>;
 
+// Sinks write into vectors sized only once every array's header has been checked against the
+// file, so a header that lies about the sizes allocates nothing.
 template <class T>
-Sink ToDouble(double* out) {
+Sink ToDouble(std::vector<double>* out) {
   return [out](const uint8_t* bytes, size_t count, uint64_t first) {
-    for (size_t i = 0; i < count; ++i) out[first + i] = double(Load<T>(bytes + i * sizeof(T)));
+    double* values = out->data() + first;
+    for (size_t i = 0; i < count; ++i) values[i] = double(Load<T>(bytes + i * sizeof(T)));
     return true;
   };
 }
 
 template <class T>
-Sink Connectivity(SimplexId* out, int64_t num_points) {
-  return [out, num_points](const uint8_t* bytes, size_t count, uint64_t first) {
+Sink Connectivity(std::vector<SimplexId>* tetrahedra, int64_t num_points) {
+  return [tetrahedra, num_points](const uint8_t* bytes, size_t count, uint64_t first) {
+    SimplexId* out = tetrahedra->data();
     for (size_t i = 0; i < count; ++i) {
       const T id = Load<T>(bytes + i * sizeof(T));
       if constexpr (std::is_signed_v<T>) {
@@ -395,9 +399,11 @@ bool PlanArray(const MappedFile& file, const Layout& layout, const ArraySpec& sp
       return false;
     }
     const uint64_t first_byte = b * block_bytes;
-    blocks.push_back({sink, file.data() + source, size_t(compressed),
-                      size_t(std::min(block_bytes, total - first_byte)), first_byte / scalar_bytes,
-                      scalar_bytes, true});
+    const uint64_t bytes = std::min(block_bytes, total - first_byte);
+    // Deflate expands at most 1032-fold: a block claiming more holds a lie.
+    if (bytes > compressed * 1032 + 64) return false;
+    blocks.push_back({sink, file.data() + source, size_t(compressed), size_t(bytes),
+                      first_byte / scalar_bytes, scalar_bytes, true});
     source += compressed;
   }
   return true;
@@ -463,9 +469,8 @@ absl::StatusOr<std::optional<Mesh>> ReadAppendedVtu(const std::string& path, int
 
   Mesh mesh;
   const uint64_t np = uint64_t(layout->num_points), nc = uint64_t(layout->num_cells);
-  mesh.points.resize(3 * np);
-  mesh.tetrahedra.resize(4 * nc);
-  // Sinks live here, blocks point at them.
+  // Sinks live here, blocks point at them; the fields' vectors must not move.
+  mesh.point_fields.reserve(layout->point_data.size());
   std::vector<std::unique_ptr<Sink>> sinks;
   std::vector<Block> blocks;
   const auto plan = [&](const ArraySpec& spec, uint64_t scalars, Sink sink) {
@@ -473,7 +478,7 @@ absl::StatusOr<std::optional<Mesh>> ReadAppendedVtu(const std::string& path, int
     return PlanArray(file, *layout, spec, scalars, sinks.back().get(), blocks);
   };
   bool ok = plan(*layout->points, 3 * np, VisitScalar(layout->points->scalar, [&](auto t) {
-    return ToDouble<decltype(t)>(mesh.points.data());
+    return ToDouble<decltype(t)>(&mesh.points);
   }));
   const Scalar id_type = layout->connectivity->scalar;
   const bool integer_ids = id_type != Scalar::kFloat32 && id_type != Scalar::kFloat64;
@@ -484,8 +489,7 @@ absl::StatusOr<std::optional<Mesh>> ReadAppendedVtu(const std::string& path, int
             VisitScalar(id_type,
                         [&](auto t) -> Sink {
                           if constexpr (std::is_integral_v<decltype(t)>) {
-                            return Connectivity<decltype(t)>(mesh.tetrahedra.data(),
-                                                             layout->num_points);
+                            return Connectivity<decltype(t)>(&mesh.tetrahedra, layout->num_points);
                           }
                           return nullptr;
                         })) &&
@@ -504,13 +508,15 @@ absl::StatusOr<std::optional<Mesh>> ReadAppendedVtu(const std::string& path, int
     field.name = std::string(spec.name);
     field.is_integer = spec.scalar != Scalar::kFloat32 && spec.scalar != Scalar::kFloat64;
     field.source_bytes = int8_t(ScalarBytes(spec.scalar) <= 4 ? 4 : 8);
-    field.values.resize(np);
     mesh.point_fields.push_back(std::move(field));
-    double* values = mesh.point_fields.back().values.data();
+    std::vector<double>* values = &mesh.point_fields.back().values;
     ok = plan(spec, np,
               VisitScalar(spec.scalar, [&](auto t) { return ToDouble<decltype(t)>(values); }));
   }
   if (!ok) return std::nullopt;
+  mesh.points.resize(3 * np);
+  mesh.tetrahedra.resize(4 * nc);
+  for (PointField& field : mesh.point_fields) field.values.resize(np);
   ASSIGN_OR_RETURN(const bool converted, RunBlocks(blocks, threads, progress));
   if (!converted) return std::nullopt;
   if (absl::Status s = ValidateMesh(mesh); !s.ok()) {
