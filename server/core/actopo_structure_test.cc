@@ -244,17 +244,42 @@ int ThreadCount() {
                            std::filesystem::directory_iterator()));
 }
 
+// The thread count once it is `expected`, or after 10 s (a bound on a hang, not a timing
+// assertion): a joined thread can linger in /proc/self/task for a moment while the kernel
+// finishes its exit.
+int ThreadCountOnce(int expected) {
+  int count = ThreadCount();
+  for (int waited_ms = 0; count != expected && waited_ms < 10'000; ++waited_ms) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    count = ThreadCount();
+  }
+  return count;
+}
+
+// The thread count once it has not changed for 50 ms (threads of earlier tests done exiting).
+int SettledThreadCount() {
+  int count = ThreadCount(), same_ms = 0;
+  for (int waited_ms = 0; same_ms < 50 && waited_ms < 10'000; ++waited_ms) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    const int now = ThreadCount();
+    same_ms = now == count ? same_ms + 1 : 0;
+    count = now;
+  }
+  return count;
+}
+
 TEST(ActopoStructure, DestroyIdleAndBusyStructures) {
   auto topo = Build(testing::Lattice(8, 8, 8, 1), 8);
   testing::RelationOracle oracle(*topo);
-  const int threads_before = ThreadCount();
+  const int threads_before = SettledThreadCount();
   for (int round = 0; round < 20; ++round) {
     auto structure = Create(topo, {.consumers = 2,
                                    .producers = 4,
                                    .buffer_ratio = 0.3,
                                    .prefetch = Prefetch::kLinear,
                                    .precompute = Precompute::kDeclared});
-    EXPECT_EQ(ThreadCount(), threads_before + 2 * 4) << "C * P producers while alive";
+    EXPECT_EQ(ThreadCountOnce(threads_before + 2 * 4), threads_before + 2 * 4)
+        << "C * P producers while alive";
     if (round % 2 == 1) {
       auto reader = structure->NewReader();
       // Producers are now busy prefetching the declared set; the answer is still exact.
@@ -264,7 +289,7 @@ TEST(ActopoStructure, DestroyIdleAndBusyStructures) {
     }
     // Destruction joins every thread, whatever they were doing.
   }
-  EXPECT_EQ(ThreadCount(), threads_before);
+  EXPECT_EQ(ThreadCountOnce(threads_before), threads_before);
 }
 
 TEST(ActopoStructure, RejectsBadOptions) {
