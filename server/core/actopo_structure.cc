@@ -295,21 +295,21 @@ class ActopoStructure::Consumer {
         ComputeBlockRelation(topo_, task.relation, task.block, ThreadScratch()));
     const auto end = Clock::now();
     const RelationBlock* published = data.get();
-    if (trace) {
-      trace->Span(RelationCode(task.relation).data(), RoleName(role), start, end,
-                  {.block = task.block});
-    }
     if (role != ProducerRole::kConsumer) {
       busy_ns_.Add(std::chrono::duration_cast<std::chrono::nanoseconds>(end - start).count());
     }
     mu_.Lock();
     const int evicted = buffer_.Publish(task.block, task.relation, std::move(data), pin);
-    // Counted once published: whoever sees the count sees the block in the buffer (the
-    // prefetch test waits on the leader's count before reading the next block).
+    // Counted (and traced) once published: whoever sees the count sees the block in the
+    // buffer (the prefetch test waits on the leader's count before reading the next block).
     switch (role) {
       case ProducerRole::kLeader: leader_relations_.Add(1); break;
       case ProducerRole::kWorker: worker_relations_.Add(1); break;
       case ProducerRole::kConsumer: consumer_relations_.Add(1); break;
+    }
+    if (trace) {
+      trace->Span(RelationCode(task.relation).data(), RoleName(role), start, end,
+                  {.block = task.block});
     }
     if (evicted > 0 && trace_) trace_->Instant("evict", "buffer", {.count = evicted});
     if (served_seq_ < request_seq_ && request_.block == task.block &&
