@@ -1,6 +1,7 @@
 #include "server/algorithms/persistence_diagram.h"
 
 #include <algorithm>
+#include <numeric>
 #include <queue>
 #include <tuple>
 
@@ -263,6 +264,14 @@ class DiagramBuilder {
   // ends, else the 2-saddle is left to the saddle-saddle pairing.
   absl::Status SaddleMaxPairs(std::vector<PersistencePair>& pairs, const RunContext& context) {
     std::vector<std::array<int32_t, 2>> ends(saddles2_.size(), {0, 0});
+    // The paths are traced in the order of the saddles' ids, which is the order of their blocks:
+    // neighbouring saddles climb through the same blocks to the same maxima, so a localized
+    // structure reads each block's stars a few times in a row instead of once per saddle met in
+    // filtration order (part_5M, compact: 16,090 star computations for 3,631 blocks before).
+    std::vector<int32_t> in_space(saddles2_.size());
+    std::iota(in_space.begin(), in_space.end(), 0);
+    std::sort(in_space.begin(), in_space.end(),
+              [&](int32_t a, int32_t b) { return saddles2_[a].id < saddles2_[b].id; });
     {
       PrefetchOff<Structure> off(structure_);
       RETURN_IF_ERROR(RunOnConsumersShared(
@@ -273,7 +282,8 @@ class DiagramBuilder {
             std::array<SimplexId, 2> star;
             int64_t begin, end;
             while (queue.Next(begin, end)) {
-              for (int64_t i = begin; i < end; ++i) {
+              for (int64_t j = begin; j < end; ++j) {
+                const int32_t i = in_space[j];
                 const SimplexId f = saddles2_[i].id;
                 reached.clear();
                 const int n = TriangleStar(reader, f, -1, star);

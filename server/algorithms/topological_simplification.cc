@@ -5,8 +5,10 @@
 #include <cstdio>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <queue>
 #include <tuple>
+#include <type_traits>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -20,6 +22,38 @@ namespace actopo {
 namespace {
 
 constexpr const char* kName = "topological-simplification";
+
+// A reader's vertex neighbours, kept for every vertex once read. The passes of a removal go back
+// over the same components (growth, segment, local orders, flags), in the order of their
+// extrema, which is no order in space: on a localized structure each return to a component whose
+// block has left the cache computed that block's neighbours again (part_5M: 13,600 block
+// computations for 3,631 blocks, 0.85 s of a 0.93 s simplification). Rows are copied on first
+// read; the index costs 8 bytes per vertex of the mesh, the rows 4 bytes per neighbour of the
+// vertices visited. The explicit structure's rows are read directly.
+template <class Reader>
+class KeptNeighbors {
+ public:
+  explicit KeptNeighbors(Reader& reader)
+      : reader_(reader), start_(reader.topology().num_vertices(), -1) {}
+
+  const Topology& topology() const { return reader_.topology(); }
+
+  std::span<const SimplexId> vertex_neighbors(SimplexId v) {
+    int64_t start = start_[v];
+    if (start < 0) {
+      const std::span<const SimplexId> row = reader_.vertex_neighbors(v);
+      start = start_[v] = int64_t(rows_.size());
+      rows_.push_back(SimplexId(row.size()));
+      rows_.insert(rows_.end(), row.begin(), row.end());
+    }
+    return {rows_.data() + start + 1, size_t(rows_[start])};
+  }
+
+ private:
+  Reader& reader_;
+  std::vector<int64_t> start_;  // a row's length, then its neighbours, in rows_; -1: not read
+  std::vector<SimplexId> rows_;
+};
 
 // A superlevel-set component growing from one maximum (LTS's "propagation"): a max-heap of
 // (order, vertex) on its frontier; merged components share the heap of the dominant one.
@@ -531,7 +565,16 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
                                        tracker.Done(range.end - range.begin);
                                      }));
     }
-    auto reader = structure.NewReader();
+    auto structure_reader = structure.NewReader();
+    std::optional<KeptNeighbors<decltype(structure_reader)>> kept;
+    auto& reader = [&]() -> auto& {
+      if constexpr (std::is_same_v<Structure, ExplicitStructure>) {
+        return structure_reader;
+      } else {
+        return kept.emplace(structure_reader);
+      }
+    }
+    ();
     if (options.legacy) {
       Trace::Scope pass(context.trace.get(), "legacy sweeps", "phase");
       std::vector<double> values(n);
