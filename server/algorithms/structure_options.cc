@@ -16,6 +16,8 @@ constexpr std::array<Prefetch, 3> kPrefetches = {Prefetch::kLinear, Prefetch::kS
                                                  Prefetch::kAdaptive};
 constexpr std::array<Precompute, 2> kPrecomputes = {Precompute::kRequested, Precompute::kDeclared};
 constexpr std::array<MissPolicy, 2> kMissPolicies = {MissPolicy::kLeader, MissPolicy::kConsumer};
+constexpr std::array<ProducerPriority, 2> kProducerPriorities = {ProducerPriority::kNormal,
+                                                                 ProducerPriority::kIdle};
 
 // The value of `values` whose name(value) is `name`; else INVALID_ARGUMENT listing them.
 template <class T, size_t N, class NameFn>
@@ -64,10 +66,22 @@ absl::StatusOr<MissPolicy> ParseMissPolicy(std::string_view name) {
   return ParseNamed("miss policy", name, kMissPolicies, MissPolicyName);
 }
 
+absl::StatusOr<std::optional<ProducerPriority>> ParseProducerPriority(std::string_view name) {
+  if (name == "auto") return std::nullopt;
+  return ParseNamed("producer priority", name, kProducerPriorities, ProducerPriorityName, "auto");
+}
+
+ProducerPriority DefaultProducerPriority(int consumers, int cores) {
+  return consumers >= cores ? ProducerPriority::kIdle : ProducerPriority::kNormal;
+}
+
 StructureOptions WithDefaults(StructureOptions options, int cores) {
   const ThreadPlan plan = DefaultThreadPlan(options.kind == StructureKind::kActopo, cores);
   if (options.consumers == 0) options.consumers = plan.consumers;
   if (options.producers == 0) options.producers = std::max(plan.producers, 1);
+  if (!options.producer_priority) {
+    options.producer_priority = DefaultProducerPriority(options.consumers, cores);
+  }
   if (options.query_readers == 0) options.query_readers = std::clamp(cores, 1, 4);
   return options;
 }
@@ -95,7 +109,8 @@ ActopoStructure::Options EngineOptions(const StructureOptions& options, Algorith
           .prefetch = options.prefetch.value_or(DefaultPrefetch(algorithm)),
           .precompute = options.precompute.value_or(DefaultPrecompute(algorithm)),
           .declared = DeclaredRelations(algorithm),
-          .miss_policy = options.miss_policy};
+          .miss_policy = options.miss_policy,
+          .producer_priority = options.producer_priority.value_or(ProducerPriority::kNormal)};
 }
 
 ActopoStructure::Options QueryEngineOptions(const StructureOptions& options) {
@@ -106,7 +121,8 @@ ActopoStructure::Options QueryEngineOptions(const StructureOptions& options) {
           .buffer_ratio = options.buffer_ratio,
           .prefetch = options.prefetch.value_or(Prefetch::kSpatial),
           .precompute = Precompute::kRequested,
-          .miss_policy = options.miss_policy};
+          .miss_policy = options.miss_policy,
+          .producer_priority = options.producer_priority.value_or(ProducerPriority::kNormal)};
 }
 
 CompactStructure::Options CacheOptions(const StructureOptions& options, int consumers) {

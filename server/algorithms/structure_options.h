@@ -37,6 +37,11 @@ absl::StatusOr<StructureKind> ParseStructure(std::string_view name);
 absl::StatusOr<std::optional<Prefetch>> ParsePrefetch(std::string_view name);
 absl::StatusOr<std::optional<Precompute>> ParsePrecompute(std::string_view name);
 absl::StatusOr<MissPolicy> ParseMissPolicy(std::string_view name);
+absl::StatusOr<std::optional<ProducerPriority>> ParseProducerPriority(std::string_view name);
+
+// Idle when the consumers take every core: producers would otherwise take their cycles from the
+// consumers (ProducerPriority, bench/RESULTS.md). Normal when cores are left for the producers.
+ProducerPriority DefaultProducerPriority(int consumers, int cores);
 
 struct StructureOptions {
   StructureKind kind = StructureKind::kActopo;
@@ -46,12 +51,14 @@ struct StructureOptions {
   std::optional<Prefetch> prefetch;  // unset: DefaultPrefetch(algorithm)
   std::optional<Precompute> precompute;  // unset: DefaultPrecompute(algorithm)
   MissPolicy miss_policy = MissPolicy::kConsumer;
+  std::optional<ProducerPriority> producer_priority;  // unset: DefaultProducerPriority
   int query_readers = 0;  // service: relation calls answered at once; 0: min(cores, 4)
 };
 
 inline constexpr int kMaxQueryReaders = 64;
 
-// The zeros replaced by this machine's defaults (DefaultThreadPlan); other fields unchanged.
+// The zeros and the unset producer priority replaced by this machine's defaults (DefaultThreadPlan,
+// DefaultProducerPriority); other fields unchanged.
 StructureOptions WithDefaults(StructureOptions options, int cores = DefaultThreads());
 
 // INVALID_ARGUMENT for the first option out of range, named behind `field_prefix`:

@@ -22,6 +22,10 @@ TEST(StructureOptions, NamesRoundTrip) {
   for (MissPolicy p : {MissPolicy::kLeader, MissPolicy::kConsumer}) {
     EXPECT_EQ(*ParseMissPolicy(MissPolicyName(p)), p);
   }
+  for (ProducerPriority p : {ProducerPriority::kNormal, ProducerPriority::kIdle}) {
+    EXPECT_EQ(*ParseProducerPriority(ProducerPriorityName(p)), p);
+  }
+  EXPECT_EQ(*ParseProducerPriority("auto"), std::nullopt);
   EXPECT_EQ(*ParsePrefetch("auto"), std::nullopt);
   EXPECT_EQ(*ParsePrecompute("auto"), std::nullopt);
 }
@@ -40,6 +44,8 @@ TEST(StructureOptions, UnknownNamesListWhatIsAccepted) {
        "unknown precompute scope 'all'; available: auto, requested, declared"},
       {ParseMissPolicy("worker").status(),
        "unknown miss policy 'worker'; available: leader, consumer"},
+      {ParseProducerPriority("high").status(),
+       "unknown producer priority 'high'; available: auto, normal, idle"},
   };
   for (const Case& c : cases) {
     EXPECT_EQ(c.status.code(), absl::StatusCode::kInvalidArgument) << c.message;
@@ -62,6 +68,23 @@ TEST(StructureOptions, ZerosComeFromTheCores) {
   EXPECT_EQ(set.producers, 5);
   EXPECT_EQ(set.buffer_ratio, 0.5);
   EXPECT_EQ(set.query_readers, 7);
+}
+
+TEST(StructureOptions, ProducersIdleWhenTheConsumersTakeEveryCore) {
+  EXPECT_EQ(WithDefaults({.kind = StructureKind::kActopo}, 2).producer_priority,
+            ProducerPriority::kIdle);
+  EXPECT_EQ(WithDefaults({.kind = StructureKind::kActopo, .consumers = 1}, 2).producer_priority,
+            ProducerPriority::kNormal);
+  EXPECT_EQ(WithDefaults({.kind = StructureKind::kActopo, .consumers = 6}, 16).producer_priority,
+            ProducerPriority::kNormal);
+  EXPECT_EQ(WithDefaults(
+                {.kind = StructureKind::kActopo, .producer_priority = ProducerPriority::kNormal}, 2)
+                .producer_priority,
+            ProducerPriority::kNormal);
+  StructureOptions idle = WithDefaults({.kind = StructureKind::kActopo}, 4);
+  EXPECT_EQ(EngineOptions(idle, Algorithm::kCriticalPoints).producer_priority,
+            ProducerPriority::kIdle);
+  EXPECT_EQ(QueryEngineOptions(idle).producer_priority, ProducerPriority::kIdle);
 }
 
 TEST(StructureOptions, ValidatorNamesTheOptionBehindThePrefix) {

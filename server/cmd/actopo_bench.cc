@@ -53,6 +53,7 @@ struct BenchOptions {
   std::string prefetch = "auto";
   std::string precompute = "auto";
   std::string miss_policy = "consumer";
+  std::string producer_priority = "auto";
   double buffer_ratio = 0.2;
   int block_size = 1000;
   std::string block_labels;
@@ -156,6 +157,10 @@ absl::StatusOr<StructureOptions> StructureFromFlags(const BenchOptions& o) {
   absl::StatusOr<MissPolicy> miss_policy = ParseMissPolicy(o.miss_policy);
   if (!miss_policy.ok()) return flag("miss-policy", miss_policy.status());
   s.miss_policy = *miss_policy;
+  absl::StatusOr<std::optional<ProducerPriority>> priority =
+      ParseProducerPriority(o.producer_priority);
+  if (!priority.ok()) return flag("producer-priority", priority.status());
+  s.producer_priority = *priority;
   s = WithDefaults(s);
   if (absl::Status status = ValidateStructureOptions(s); !status.ok()) {
     // "buffer_ratio: 2 is outside [0, 1]" names the option; here it is the flag --buffer-ratio.
@@ -204,15 +209,21 @@ absl::StatusOr<std::shared_ptr<const Topology>> Partition(const BenchOptions& o,
                                                           const std::shared_ptr<Trace>& trace,
                                                           double& seconds) {
   const auto start = Clock::now();
-  ASSIGN_OR_RETURN(
-      std::vector<int32_t> blocks,
-      ComputeBlocks(mesh, {.bucket_capacity = o.block_size, .block_label_field = o.block_labels}));
+  std::vector<int32_t> blocks;
+  {
+    Trace::Scope span(trace.get(), "blocks", "encode");
+    ASSIGN_OR_RETURN(blocks, ComputeBlocks(mesh, {.bucket_capacity = o.block_size,
+                                                  .block_label_field = o.block_labels}));
+  }
   const bool keep = algorithm == Algorithm::kMorseSmale || !o.output.empty();
-  ASSIGN_OR_RETURN(
-      std::shared_ptr<const Topology> topology,
-      Topology::Build(mesh, blocks, {.threads = o.threads, .tetrahedra_read = [&] {
-                                       if (!keep) std::vector<SimplexId>().swap(mesh.tetrahedra);
-                                     }}));
+  ASSIGN_OR_RETURN(std::shared_ptr<const Topology> topology,
+                   Topology::Build(mesh, blocks,
+                                   {.threads = o.threads,
+                                    .tetrahedra_read =
+                                        [&] {
+                                          if (!keep) std::vector<SimplexId>().swap(mesh.tetrahedra);
+                                        },
+                                    .trace = trace.get()}));
   if (algorithm == Algorithm::kMorseSmale) {
     input_tetrahedra = o.output.empty() ? std::move(mesh.tetrahedra) : mesh.tetrahedra;
   }
@@ -273,6 +284,7 @@ Json EngineDetail(const ActopoStructure& structure, const ActopoStructure::Optio
                  {"prefetch", std::string(PrefetchName(engine.prefetch))},
                  {"precompute", std::string(PrecomputeName(engine.precompute))},
                  {"miss_policy", std::string(MissPolicyName(engine.miss_policy))},
+                 {"producer_priority", std::string(ProducerPriorityName(engine.producer_priority))},
                  {"buffer_capacity_blocks", structure.buffer_capacity_blocks()},
                  {"leader_relations", stats.leader_relations},
                  {"worker_relations", stats.worker_relations},
@@ -521,6 +533,9 @@ int main(int argc, char** argv) {
   flags.Add("precompute", &o.precompute, "actopo: auto (per algorithm), requested or declared");
   flags.Add("miss-policy", &o.miss_policy,
             "actopo: who computes a missed relation: leader (the paper) or consumer");
+  flags.Add("producer-priority", &o.producer_priority,
+            "actopo: auto (idle when the consumers take every core), normal or idle (SCHED_IDLE: "
+            "producers run only on cycles the consumers leave)");
   flags.Add("block-size", &o.block_size, "octree bucket capacity: max vertices per block");
   flags.Add("block-labels", &o.block_labels,
             "partition by this integer point field instead of the octree");

@@ -1,5 +1,8 @@
 #include "server/core/actopo_structure.h"
 
+#include <pthread.h>
+#include <sched.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -41,6 +44,13 @@ const char* RoleName(ProducerRole role) {
   return "?";
 }
 
+// Moves the calling thread to SCHED_IDLE. Lowering a thread's own priority needs no privilege;
+// should the kernel refuse anyway, the thread keeps its priority, which changes only the speed.
+void LowerToIdlePriority() {
+  sched_param param{};
+  pthread_setschedparam(pthread_self(), SCHED_IDLE, &param);
+}
+
 BlockScratch& ThreadScratch() {
   thread_local BlockScratch scratch;
   return scratch;
@@ -50,6 +60,10 @@ BlockScratch& ThreadScratch() {
 
 std::string_view MissPolicyName(MissPolicy p) {
   return p == MissPolicy::kLeader ? "leader" : "consumer";
+}
+
+std::string_view ProducerPriorityName(ProducerPriority p) {
+  return p == ProducerPriority::kIdle ? "idle" : "normal";
 }
 
 EngineStats& EngineStats::operator+=(const EngineStats& o) {
@@ -87,11 +101,13 @@ class ActopoStructure::Consumer {
   void Start() {
     MutexLock lifecycle(lifecycle_mu_);
     producers_.emplace_back([this] {
+      if (options_.producer_priority == ProducerPriority::kIdle) LowerToIdlePriority();
       SetThreadRole(absl::StrCat("leader ", index_));
       LeaderLoop();
     });
     for (int w = 1; w < options_.producers; ++w) {
       producers_.emplace_back([this, w] {
+        if (options_.producer_priority == ProducerPriority::kIdle) LowerToIdlePriority();
         SetThreadRole(absl::StrCat("worker ", index_, ".", w));
         WorkerLoop();
       });

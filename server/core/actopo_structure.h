@@ -94,6 +94,19 @@ enum class MissPolicy : uint8_t {
 
 std::string_view MissPolicyName(MissPolicy p);
 
+// The CPU priority of the producer threads. A producer's work is speculative: when every core
+// runs a consumer, a producer at normal priority takes its cycles from a consumer, and the
+// relations it prefetches are ones that consumer would have computed anyway (on 2 cores with 2
+// consumers, critical points ran 1.5x longer than without producers). At idle priority
+// (Linux's SCHED_IDLE) a producer runs only on a core no consumer wants: while its consumer
+// waits, in a phase with fewer consumers than cores, or on a machine with cores to spare.
+enum class ProducerPriority : uint8_t {
+  kNormal,  // the consumers' priority: producers compete with them for the cores
+  kIdle,    // SCHED_IDLE: producers use only cycles no other thread wants
+};
+
+std::string_view ProducerPriorityName(ProducerPriority p);
+
 // Engine counters of one consumer (and summed per session).
 struct EngineStats {
   AccessStats access;
@@ -122,6 +135,7 @@ class ActopoStructure {
     Precompute precompute = Precompute::kRequested;
     RelationSet declared = RelationSet::All();       // used by Precompute::kDeclared
     MissPolicy miss_policy = MissPolicy::kConsumer;  // measured faster; kLeader: the paper
+    ProducerPriority producer_priority = ProducerPriority::kNormal;
   };
   // The ranges Validate enforces: consumers and producers in [1, 64], buffer_ratio in [0, 1].
   static constexpr int kMaxConsumers = 64;

@@ -3,11 +3,14 @@
 // consumers are reading and waiting.
 #include "server/core/actopo_structure.h"
 
+#include <sched.h>
+
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <iterator>
+#include <string>
 #include <thread>
 #include <tuple>
 #include <vector>
@@ -290,6 +293,47 @@ TEST(ActopoStructure, DestroyIdleAndBusyStructures) {
     // Destruction joins every thread, whatever they were doing.
   }
   EXPECT_EQ(ThreadCountOnce(threads_before), threads_before);
+}
+
+// Threads of this process under SCHED_IDLE (Linux: the policy of every /proc/self/task entry).
+int IdleThreadCount() {
+  int idle = 0;
+  for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+    const pid_t tid = std::stoi(task.path().filename().string());
+    idle += sched_getscheduler(tid) == SCHED_IDLE;
+  }
+  return idle;
+}
+
+TEST(ActopoStructure, IdleProducersRunUnderSchedIdleAndStayExact) {
+  auto topo = Build(testing::Lattice(9, 8, 8, 3), 6);
+  testing::RelationOracle oracle(*topo);
+  for (ProducerPriority priority : {ProducerPriority::kNormal, ProducerPriority::kIdle}) {
+    SCOPED_TRACE(ProducerPriorityName(priority));
+    auto structure = Create(topo, {.consumers = 2,
+                                   .producers = 2,
+                                   .buffer_ratio = 0.1,
+                                   .prefetch = Prefetch::kSpatial,
+                                   .producer_priority = priority});
+    std::vector<std::thread> threads;
+    for (int k = 0; k < 2; ++k) {
+      threads.emplace_back([&, k] {
+        auto reader = structure->NewReader();
+        testing::CompareRandomAccess(reader, oracle, 90 + k, 200, "random access");
+        EXPECT_EQ(testing::CompareWithOracle(reader, oracle, "sweep"), 0);
+      });
+    }
+    // Every producer lowers itself as it starts; the count is read once they have (or after a
+    // 10 s bound on a hang).
+    const int expected = priority == ProducerPriority::kIdle ? 2 * 2 : 0;
+    int idle = IdleThreadCount();
+    for (int waited_ms = 0; idle != expected && waited_ms < 10'000; ++waited_ms) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      idle = IdleThreadCount();
+    }
+    EXPECT_EQ(idle, expected) << "producers under SCHED_IDLE; consumers keep their priority";
+    for (auto& t : threads) t.join();
+  }
 }
 
 TEST(ActopoStructure, RejectsBadOptions) {

@@ -12,8 +12,8 @@ namespace {
 
 // Bytes in use: the face arrays keep an untouched upper-bound reservation (see Build), which
 // costs address space, not memory.
-template <class T>
-int64_t VectorBytes(const std::vector<T>& v) {
+template <class T, class A>
+int64_t VectorBytes(const std::vector<T, A>& v) {
   return static_cast<int64_t>(v.size() * sizeof(T));
 }
 
@@ -37,9 +37,9 @@ std::vector<T> PrefixSum(const std::vector<T>& counts) {
 // Stable bucket sort of the items 0 .. n-1 over `threads` contiguous chunks in parallel:
 // for_each_bucket(i, emit) calls emit(bucket) once per bucket item i goes to. Fills `offsets`
 // (buckets + 1) and `items` (per bucket, its items ascending).
-template <class ForEachBucket>
+template <class ForEachBucket, class Items>
 void BucketItems(int64_t n, int32_t buckets, int threads, ForEachBucket&& for_each_bucket,
-                 std::vector<SimplexId>& offsets, std::vector<SimplexId>& items) {
+                 std::vector<SimplexId>& offsets, Items& items) {
   const int chunks = int(std::clamp<int64_t>(threads, 1, std::max<int64_t>(n, 1)));
   const auto chunk_begin = [&](int64_t c) { return n * c / chunks; };
   // Per chunk: its count per bucket, then where its items of that bucket go.
@@ -72,7 +72,7 @@ void BucketItems(int64_t n, int32_t buckets, int threads, ForEachBucket&& for_ea
 
 }  // namespace
 
-void RunLookup::Build(const std::vector<SimplexId>& begin, SimplexId items) {
+void RunLookup::Build(std::span<const SimplexId> begin, SimplexId items) {
   sample_.assign((size_t(items) + 63) / 64 + 1, 0);
   offset_.assign(size_t(items), kFar);
   SimplexId run = 0;
@@ -85,7 +85,7 @@ void RunLookup::Build(const std::vector<SimplexId>& begin, SimplexId items) {
   if (items > 0) sample_.back() = run;
 }
 
-SimplexId RunLookup::Search(const std::vector<SimplexId>& begin, SimplexId x) const {
+SimplexId RunLookup::Search(std::span<const SimplexId> begin, SimplexId x) const {
   // The run lies between the runs of item 64 * (x / 64) and of the next sample (or last item).
   SimplexId lo = sample_[size_t(x) >> 6], hi = sample_[(size_t(x) >> 6) + 1];
   while (lo < hi) {
@@ -563,30 +563,49 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   t.num_vertices_ = nv;
   t.num_blocks_ = num_blocks;
   Encoder encoder{mesh, vertex_block, nv, nt, num_blocks, threads, t};
-  RETURN_IF_ERROR(encoder.SortVertices());
+  const auto step = [&](const char* name) { return Trace::Scope(options.trace, name, "encode"); };
+  {
+    auto span = step("sort vertices");
+    RETURN_IF_ERROR(encoder.SortVertices());
+  }
   // Tetrahedra: stable bucket sort by the block of the lowest vertex, then within each block by
   // the lowest vertex, each sorted internal tuple written straight to its place (no second copy
   // of the tetrahedra at any time, only one block's per thread).
-  encoder.BucketTetrahedra();
-  encoder.SortBlockTetrahedra();
+  {
+    auto span = step("bucket tetrahedra");
+    encoder.BucketTetrahedra();
+  }
+  {
+    auto span = step("sort tetrahedra");
+    encoder.SortBlockTetrahedra();
+  }
   if (options.tetrahedra_read) options.tetrahedra_read();
   RETURN_IF_ERROR(progress.Update(kPhase, 0.15));
 
-  encoder.FindExternalTetrahedra();
-  encoder.ReserveFaces();
-  for (int32_t window = 0; window < num_blocks; window += kWindow) {
-    // Edges and triangles are about three quarters of the time.
-    RETURN_IF_ERROR(progress.Update(kPhase, 0.2 + 0.75 * window / num_blocks));
-    const int32_t window_size = std::min(kWindow, num_blocks - window);
-    encoder.ComputeWindowFaces(window, window_size);
-    encoder.AppendWindowFaces(window_size);
+  {
+    auto span = step("external tetrahedra");
+    encoder.FindExternalTetrahedra();
   }
-  encoder.faces.clear();  // the last window's, now appended
+  {
+    auto span = step("faces");
+    encoder.ReserveFaces();
+    for (int32_t window = 0; window < num_blocks; window += kWindow) {
+      // Edges and triangles are about three quarters of the time.
+      RETURN_IF_ERROR(progress.Update(kPhase, 0.2 + 0.75 * window / num_blocks));
+      const int32_t window_size = std::min(kWindow, num_blocks - window);
+      encoder.ComputeWindowFaces(window, window_size);
+      encoder.AppendWindowFaces(window_size);
+    }
+    encoder.faces.clear();  // the last window's, now appended
+  }
   RETURN_IF_ERROR(progress.Update(kPhase, 0.95));
 
-  RETURN_IF_ERROR(encoder.SumRunStarts());
-  encoder.BuildRunLookups();
-  encoder.ListBlockNeighbors();
+  {
+    auto span = step("run lookups");
+    RETURN_IF_ERROR(encoder.SumRunStarts());
+    encoder.BuildRunLookups();
+    encoder.ListBlockNeighbors();
+  }
   RETURN_IF_ERROR(progress.Update(kPhase, 1));
   return topo;
 }
