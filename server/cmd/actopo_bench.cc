@@ -315,6 +315,9 @@ absl::StatusOr<RunOutput> RunOnActopo(std::shared_ptr<const Topology> topology,
   const double preprocess_s = Seconds(start);
   Phase(context.trace, "preprocess", start);
   ASSIGN_OR_RETURN(RunOutput out, RunAndSummarize(*structure, input, context, o, files));
+  // Producers still finishing a prefetch would count it after the statistics were read; joined
+  // first, the statistics count everything the trace holds.
+  structure->Shutdown();
   out.preprocess_s = preprocess_s;
   out.access = structure->stats().access;
   out.memory = structure->memory();

@@ -72,17 +72,28 @@ void BucketItems(int64_t n, int32_t buckets, int threads, ForEachBucket&& for_ea
 
 }  // namespace
 
-void RunLookup::Build(std::span<const SimplexId> begin, SimplexId items) {
-  sample_.assign((size_t(items) + 63) / 64 + 1, 0);
-  offset_.assign(size_t(items), kFar);
-  SimplexId run = 0;
-  for (SimplexId x = 0; x < items; ++x) {
-    while (begin[run + 1] <= x) ++run;
-    if (x % 64 == 0) sample_[x / 64] = run;
-    const SimplexId offset = run - sample_[x / 64];
-    if (offset < kFar) offset_[x] = uint16_t(offset);
-  }
-  if (items > 0) sample_.back() = run;
+void RunLookup::Build(std::span<const SimplexId> begin, SimplexId items, int threads) {
+  // The largest r with begin[r] <= x (begin.back() == items > x bounds it).
+  const auto run_of = [&](SimplexId x) {
+    return SimplexId(std::upper_bound(begin.begin(), begin.end(), x) - begin.begin()) - 1;
+  };
+  const int64_t groups = (int64_t(items) + 63) / 64;
+  sample_.assign(size_t(groups) + 1, 0);
+  offset_.resize(size_t(items));  // every entry is written below
+  // Stretches of groups in parallel, each starting from its first item's run.
+  constexpr int64_t kGroupsPerTask = 1 << 12;
+  ParallelFor((groups + kGroupsPerTask - 1) / kGroupsPerTask, threads, [&](int64_t task, int) {
+    const SimplexId first = SimplexId(task * kGroupsPerTask * 64);
+    const SimplexId last = SimplexId(std::min<int64_t>(items, (task + 1) * kGroupsPerTask * 64));
+    SimplexId run = run_of(first);
+    for (SimplexId x = first; x < last; ++x) {
+      while (begin[run + 1] <= x) ++run;
+      if (x % 64 == 0) sample_[x / 64] = run;
+      const SimplexId offset = run - sample_[x / 64];
+      offset_[x] = offset < kFar ? uint16_t(offset) : kFar;
+    }
+  });
+  if (items > 0) sample_.back() = run_of(items - 1);
 }
 
 SimplexId RunLookup::Search(std::span<const SimplexId> begin, SimplexId x) const {
@@ -526,13 +537,8 @@ absl::Status Topology::Encoder::SumRunStarts() {
 
 // Builds the edge -> vertex and triangle -> edge lookups; only the block adjacency is left.
 void Topology::Encoder::BuildRunLookups() {
-  ParallelFor(2, threads, [&](int64_t which, int) {
-    if (which == 0) {
-      t.edge_lowest_.Build(t.vertex_edge_begin_, t.num_edges());
-    } else {
-      t.triangle_edge_.Build(t.edge_triangle_begin_, t.num_triangles());
-    }
-  });
+  t.edge_lowest_.Build(t.vertex_edge_begin_, t.num_edges(), threads);
+  t.triangle_edge_.Build(t.edge_triangle_begin_, t.num_triangles(), threads);
 }
 
 // Concatenates the per-block neighbour lists into the block adjacency, the topology's last part.

@@ -105,7 +105,7 @@ struct TopologyBytes {
 // over that stretch of runs.
 class RunLookup {
  public:
-  void Build(std::span<const SimplexId> begin, SimplexId items);
+  void Build(std::span<const SimplexId> begin, SimplexId items, int threads);
   SimplexId Owner(std::span<const SimplexId> begin, SimplexId x) const {
     const SimplexId base = sample_[size_t(x) >> 6];
     const uint16_t offset = offset_[x];
@@ -119,7 +119,7 @@ class RunLookup {
   static constexpr uint16_t kFar = 0xffff;
   SimplexId Search(std::span<const SimplexId> begin, SimplexId x) const;
   std::vector<SimplexId> sample_;  // run of item 64k; the last entry, run of the last item
-  std::vector<uint16_t> offset_;   // per item: its run - sample_[x / 64], or kFar
+  FilledVector<uint16_t> offset_;  // per item: its run - sample_[x / 64], or kFar
 };
 
 class Topology {

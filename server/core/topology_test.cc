@@ -151,7 +151,8 @@ TEST(Topology, EdgesTrianglesAndBoundaryMatchOracle) {
 }
 
 // Runs of items with long stretches of empty runs (unused vertices): offsets past 16 bits take
-// the binary-search path.
+// the binary-search path. Built on 1 and 3 threads: the items span several of Build's parallel
+// stretches (262,144 items each), with empty runs at their edges.
 TEST(RunLookup, MatchesLinearScanAcrossEmptyStretches) {
   std::vector<SimplexId> begin = {0};
   const auto add_runs = [&](int runs, SimplexId items_each) {
@@ -163,13 +164,19 @@ TEST(RunLookup, MatchesLinearScanAcrossEmptyStretches) {
   add_runs(200000, 0);
   add_runs(3, 70);
   add_runs(10, 0);
+  add_runs(87381, 3);  // up to item 262,658: past the first stretch
+  add_runs(90000, 0);
+  add_runs(100000, 5);
+  add_runs(3, 0);
   const SimplexId items = begin.back();
-  RunLookup lookup;
-  lookup.Build(begin, items);
-  SimplexId run = 0;
-  for (SimplexId x = 0; x < items; ++x) {
-    while (begin[run + 1] <= x) ++run;
-    ASSERT_EQ(lookup.Owner(begin, x), run) << "item " << x;
+  for (int threads : {1, 3}) {
+    RunLookup lookup;
+    lookup.Build(begin, items, threads);
+    SimplexId run = 0;
+    for (SimplexId x = 0; x < items; ++x) {
+      while (begin[run + 1] <= x) ++run;
+      ASSERT_EQ(lookup.Owner(begin, x), run) << "item " << x << ", " << threads << " threads";
+    }
   }
 }
 

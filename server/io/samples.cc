@@ -17,6 +17,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "server/core/parallel.h"
 #include "server/io/internal/vtk_bridge.h"
 
 namespace actopo::io {
@@ -95,11 +96,13 @@ Mesh MakeJittered(int n) {
   mesh.points.resize(3 * num_vertices);
   PointField scalar{.name = "scalar", .values = std::vector<double>(num_vertices)};
   PointField height{.name = "height", .values = std::vector<double>(num_vertices)};
-  size_t v = 0;
-  for (size_t k = 0; k < side; ++k) {
+  // One z-slice of vertices, then of cubes, per task, on every core: each slice writes its own
+  // ranges, and the jitter is a hash of the vertex id, so the mesh is the same on any core count.
+  ParallelFor(int64_t(side), DefaultThreads(), [&](int64_t k, int) {
+    size_t v = size_t(k) * side * side;
     for (size_t j = 0; j < side; ++j) {
       for (size_t i = 0; i < side; ++i, ++v) {
-        const std::array<size_t, 3> index = {i, j, k};
+        const std::array<size_t, 3> index = {i, j, size_t(k)};
         for (int axis = 0; axis < 3; ++axis) {
           // A boundary point moves only within its boundary plane, so the box stays a box.
           const bool on_boundary = index[axis] == 0 || index[axis] == side - 1;
@@ -112,7 +115,7 @@ Mesh MakeJittered(int n) {
         height.values[v] = p[2];
       }
     }
-  }
+  });
 
   // The Freudenthal (Kuhn) split: one tetrahedron per order in which the axes are walked from a
   // cube's lowest corner to its highest. Every cube uses the same diagonal, so neighbouring cubes
@@ -123,11 +126,11 @@ Mesh MakeJittered(int n) {
       {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}}};
   const size_t cells = side - 1;
   mesh.tetrahedra.resize(24 * cells * cells * cells);
-  size_t t = 0;
-  for (size_t k = 0; k < cells; ++k) {
+  ParallelFor(int64_t(cells), DefaultThreads(), [&](int64_t k, int) {
+    size_t t = 24 * cells * cells * size_t(k);
     for (size_t j = 0; j < cells; ++j) {
       for (size_t i = 0; i < cells; ++i) {
-        const SimplexId corner = static_cast<SimplexId>(i + side * (j + side * k));
+        const SimplexId corner = static_cast<SimplexId>(i + side * (j + side * size_t(k)));
         for (int order = 0; order < 6; ++order) {
           const std::array<int, 3>& axes = kAxisOrders[order];
           const SimplexId v1 = corner + stride[axes[0]];
@@ -141,7 +144,7 @@ Mesh MakeJittered(int n) {
         }
       }
     }
-  }
+  });
   mesh.point_fields.push_back(std::move(scalar));
   mesh.point_fields.push_back(std::move(height));
   return mesh;

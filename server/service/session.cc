@@ -356,9 +356,12 @@ absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input, const Ru
     ASSIGN_OR_RETURN(auto engine, ActopoStructure::Create(mesh_->topology, engine_options));
     if (ctx.trace) ctx.trace->Span("start engine", "phase", engine_start, Clock::now());
     absl::StatusOr<AlgorithmOutcome> outcome = RunAlgorithm(*engine, input, ctx);
+    // Its producers joined first: a prefetch finishing later would be missing from the
+    // statistics while its span is in the job's trace.
+    engine->Shutdown();
     out.engine = engine->stats();
     out.memory = engine->memory();
-    engine.reset();  // stop its producers before reporting
+    engine.reset();
     if (!outcome.ok()) return outcome.status();
     out.outcome = std::move(*outcome);
   }
