@@ -36,10 +36,11 @@ std::vector<T> PrefixSum(const std::vector<T>& counts) {
 
 // Stable bucket sort of the items 0 .. n-1 over `threads` contiguous chunks in parallel:
 // for_each_bucket(i, emit) calls emit(bucket) once per bucket item i goes to. Fills `offsets`
-// (buckets + 1) and `items` (per bucket, its items ascending).
-template <class ForEachBucket, class Items>
+// (buckets + 1) and `items` (per bucket, its items ascending), and calls placed(i, slot) as item
+// i is written to items[slot], on the thread that writes it.
+template <class ForEachBucket, class Items, class Placed>
 void BucketItems(int64_t n, int32_t buckets, int threads, ForEachBucket&& for_each_bucket,
-                 std::vector<SimplexId>& offsets, Items& items) {
+                 std::vector<SimplexId>& offsets, Items& items, Placed&& placed) {
   const int chunks = int(std::clamp<int64_t>(threads, 1, std::max<int64_t>(n, 1)));
   const auto chunk_begin = [&](int64_t c) { return n * c / chunks; };
   // Per chunk: its count per bucket, then where its items of that bucket go.
@@ -65,7 +66,11 @@ void BucketItems(int64_t n, int32_t buckets, int threads, ForEachBucket&& for_ea
   ParallelFor(chunks, chunks, [&](int64_t c, int) {
     std::vector<SimplexId>& at = cursor[c];
     for (int64_t i = chunk_begin(c); i < chunk_begin(c + 1); ++i) {
-      for_each_bucket(i, [&](int32_t b) { items[at[b]++] = SimplexId(i); });
+      for_each_bucket(i, [&](int32_t b) {
+        const SimplexId slot = at[b]++;
+        items[slot] = SimplexId(i);
+        placed(i, slot);
+      });
     }
   });
 }
@@ -299,37 +304,39 @@ absl::Status Topology::Encoder::SortVertices() {
   return absl::OkStatus();
 }
 
-// Buckets the tetrahedra by their lowest vertex's block; leaves block_tet_begin_, tet_input_id_.
+// Buckets the tetrahedra by their lowest vertex's block; leaves block_tet_begin_, tet_input_id_
+// and each tetrahedron's sorted internal tuple at its place in tet_vertices_.
 void Topology::Encoder::BucketTetrahedra() {
+  // The tuples are written as the tetrahedra are placed, while the mesh is read in order: the
+  // sort within each block then reads its own tuples, not the mesh's at scattered places.
+  t.tet_vertices_.resize(4 * size_t(nt));
   BucketItems(
       nt, num_blocks, threads,
       [&](int64_t i, auto&& emit) {
         emit(t.vertex_block_[std::min(std::min(InternalVertex(i, 0), InternalVertex(i, 1)),
                                       std::min(InternalVertex(i, 2), InternalVertex(i, 3)))]);
       },
-      t.block_tet_begin_, t.tet_input_id_);
+      t.block_tet_begin_, t.tet_input_id_,
+      [&](int64_t i, SimplexId slot) {
+        SimplexId* s = &t.tet_vertices_[4 * size_t(slot)];
+        for (int k = 0; k < 4; ++k) s[k] = InternalVertex(i, k);
+        SortVertexIds(s, 4);
+      });
 }
 
-// Orders each block's tetrahedra by lowest vertex; leaves tet_vertices_ sorted, for the stars.
+// Orders each block's tetrahedra by lowest vertex (a stable counting sort of the block's own
+// tuples), so a vertex's star is a few nearby runs, however the file ordered its cells.
 void Topology::Encoder::SortBlockTetrahedra() {
-  // Per block, in parallel: each tetrahedron's sorted internal tuple, then the block's
-  // tetrahedra ordered by lowest vertex (a stable counting sort), written to their places. A
-  // vertex's star is then a few nearby runs, however the file ordered its cells.
-  t.tet_vertices_.resize(4 * size_t(nt));
   std::vector<BlockTets> block_tets(std::max(threads, 1));
   ParallelFor(num_blocks, threads, [&](int64_t b, int thread) {
     const SimplexId begin = t.block_tet_begin_[b], end = t.block_tet_begin_[b + 1];
     const SimplexId vbegin = t.block_vertex_begin_[b];
     BlockTets& sc = block_tets[thread];
     sc.at.assign(size_t(t.block_vertex_begin_[b + 1] - vbegin) + 1, 0);
-    sc.tuples.resize(4 * size_t(end - begin));
+    sc.tuples.assign(t.tet_vertices_.begin() + 4 * size_t(begin),
+                     t.tet_vertices_.begin() + 4 * size_t(end));
     sc.inputs.assign(t.tet_input_id_.begin() + begin, t.tet_input_id_.begin() + end);
-    for (SimplexId i = 0; i < end - begin; ++i) {
-      SimplexId* s = &sc.tuples[4 * size_t(i)];
-      for (int k = 0; k < 4; ++k) s[k] = InternalVertex(sc.inputs[i], k);
-      SortVertexIds(s, 4);
-      ++sc.at[s[0] - vbegin + 1];
-    }
+    for (SimplexId i = 0; i < end - begin; ++i) ++sc.at[sc.tuples[4 * size_t(i)] - vbegin + 1];
     for (size_t i = 1; i < sc.at.size(); ++i) sc.at[i] += sc.at[i - 1];
     for (SimplexId i = 0; i < end - begin; ++i) {
       const SimplexId* s = &sc.tuples[4 * size_t(i)];
@@ -356,7 +363,7 @@ void Topology::Encoder::FindExternalTetrahedra() {
     }
   };
   BucketItems(nt, num_blocks, threads, for_each_external_block, t.external_offsets_,
-              t.external_tets_);
+              t.external_tets_, [](int64_t, SimplexId) {});
 }
 
 // Allocates the window buffers and reserves the face arrays; leaves them empty for the windows.
@@ -581,11 +588,11 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     auto span = step("bucket tetrahedra");
     encoder.BucketTetrahedra();
   }
+  if (options.tetrahedra_read) options.tetrahedra_read();
   {
     auto span = step("sort tetrahedra");
     encoder.SortBlockTetrahedra();
   }
-  if (options.tetrahedra_read) options.tetrahedra_read();
   RETURN_IF_ERROR(progress.Update(kPhase, 0.15));
 
   {
