@@ -100,17 +100,16 @@ class ActopoStructure::Consumer {
 
   void Start() {
     MutexLock lifecycle(lifecycle_mu_);
-    producers_.emplace_back([this] {
-      if (options_.producer_priority == ProducerPriority::kIdle) LowerToIdlePriority();
-      SetThreadRole(absl::StrCat("leader ", index_));
-      LeaderLoop();
-    });
-    for (int w = 1; w < options_.producers; ++w) {
-      producers_.emplace_back([this, w] {
+    const auto spawn = [this](std::string role, void (Consumer::*loop)()) {
+      return std::thread([this, role = std::move(role), loop] {
         if (options_.producer_priority == ProducerPriority::kIdle) LowerToIdlePriority();
-        SetThreadRole(absl::StrCat("worker ", index_, ".", w));
-        WorkerLoop();
+        SetThreadRole(role);
+        (this->*loop)();
       });
+    };
+    producers_.push_back(spawn(absl::StrCat("leader ", index_), &Consumer::LeaderLoop));
+    for (int w = 1; w < options_.producers; ++w) {
+      producers_.push_back(spawn(absl::StrCat("worker ", index_, ".", w), &Consumer::WorkerLoop));
     }
   }
 

@@ -60,6 +60,22 @@ class EveryConfiguration : public ::testing::TestWithParam<
   }
 };
 
+// One reader thread per consumer, each comparing `reads` random reads and then a full sweep
+// with the oracle (seeds seed, seed + 1, ...); the caller joins them.
+std::vector<std::thread> CompareOnEveryConsumer(ActopoStructure& structure,
+                                                const testing::RelationOracle& oracle, int seed,
+                                                int reads) {
+  std::vector<std::thread> threads;
+  for (int k = 0; k < structure.options().consumers; ++k) {
+    threads.emplace_back([&structure, &oracle, seed, reads, k] {
+      auto reader = structure.NewReader();
+      testing::CompareRandomAccess(reader, oracle, seed + k, reads, "random access");
+      EXPECT_EQ(testing::CompareWithOracle(reader, oracle, "sweep"), 0);
+    });
+  }
+  return threads;
+}
+
 TEST_P(EveryConfiguration, MatchesTheOracle) {
   const Config c = config();
   for (const Mesh& mesh : {testing::Lattice(5, 5, 4, 9), testing::NonManifold()}) {
@@ -167,15 +183,7 @@ TEST(ActopoStructure, OneBlockBufferManyProducers) {
                                    .miss_policy = p == Prefetch::kSpatial ? MissPolicy::kConsumer
                                                                           : MissPolicy::kLeader});
     ASSERT_EQ(structure->buffer_capacity_blocks(), 1);
-    std::vector<std::thread> threads;
-    for (int k = 0; k < 2; ++k) {
-      threads.emplace_back([&, k] {
-        auto reader = structure->NewReader();
-        testing::CompareRandomAccess(reader, oracle, 5 + k, 150, "stress");
-        EXPECT_EQ(testing::CompareWithOracle(reader, oracle, "stress sweep"), 0);
-      });
-    }
-    for (auto& t : threads) t.join();
+    for (auto& t : CompareOnEveryConsumer(*structure, oracle, 5, 150)) t.join();
     // What holds under any schedule (whether workers got a task before the consumers needed it
     // does not): a one-block buffer evicts, and every miss was computed by someone.
     const EngineStats s = structure->stats();
@@ -247,17 +255,20 @@ int ThreadCount() {
                            std::filesystem::directory_iterator()));
 }
 
-// The thread count once it is `expected`, or after 10 s (a bound on a hang, not a timing
-// assertion): a joined thread can linger in /proc/self/task for a moment while the kernel
-// finishes its exit.
-int ThreadCountOnce(int expected) {
-  int count = ThreadCount();
-  for (int waited_ms = 0; count != expected && waited_ms < 10'000; ++waited_ms) {
+// count() once it is `expected`, or after 10 s (a bound on a hang, not a timing assertion).
+template <class Count>
+int CountOnce(Count&& count, int expected) {
+  int now = count();
+  for (int waited_ms = 0; now != expected && waited_ms < 10'000; ++waited_ms) {
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    count = ThreadCount();
+    now = count();
   }
-  return count;
+  return now;
 }
+
+// The thread count once it is `expected`: a joined thread can linger in /proc/self/task for a
+// moment while the kernel finishes its exit.
+int ThreadCountOnce(int expected) { return CountOnce(ThreadCount, expected); }
 
 // The thread count once it has not changed for 50 ms (threads of earlier tests done exiting).
 int SettledThreadCount() {
@@ -315,23 +326,11 @@ TEST(ActopoStructure, IdleProducersRunUnderSchedIdleAndStayExact) {
                                    .buffer_ratio = 0.1,
                                    .prefetch = Prefetch::kSpatial,
                                    .producer_priority = priority});
-    std::vector<std::thread> threads;
-    for (int k = 0; k < 2; ++k) {
-      threads.emplace_back([&, k] {
-        auto reader = structure->NewReader();
-        testing::CompareRandomAccess(reader, oracle, 90 + k, 200, "random access");
-        EXPECT_EQ(testing::CompareWithOracle(reader, oracle, "sweep"), 0);
-      });
-    }
-    // Every producer lowers itself as it starts; the count is read once they have (or after a
-    // 10 s bound on a hang).
+    std::vector<std::thread> threads = CompareOnEveryConsumer(*structure, oracle, 90, 200);
+    // Every producer lowers itself as it starts; the count is read once they have.
     const int expected = priority == ProducerPriority::kIdle ? 2 * 2 : 0;
-    int idle = IdleThreadCount();
-    for (int waited_ms = 0; idle != expected && waited_ms < 10'000; ++waited_ms) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      idle = IdleThreadCount();
-    }
-    EXPECT_EQ(idle, expected) << "producers under SCHED_IDLE; consumers keep their priority";
+    EXPECT_EQ(CountOnce(IdleThreadCount, expected), expected)
+        << "producers under SCHED_IDLE; consumers keep their priority";
     for (auto& t : threads) t.join();
   }
 }
