@@ -1,6 +1,7 @@
 #include "server/algorithms/discrete_gradient.h"
 
 #include <algorithm>
+#include <optional>
 #include <queue>
 #include <utility>
 
@@ -9,6 +10,8 @@
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
+#include "server/core/parallel.h"
+#include "server/core/status_macros.h"
 
 namespace actopo {
 namespace {
@@ -31,9 +34,12 @@ class LowerStarPairing {
   std::array<std::vector<SimplexId>, 4>& critical() { return critical_; }
   const std::array<int64_t, 3>& pairs() const { return pairs_; }
 
+  // Pairs the cells of x's lower star. With `clear`, first forgets what the gradient held for
+  // them (a gradient being updated to a new order: critical cells are left unwritten).
   template <class Reader>
-  void Process(Reader& reader, SimplexId x, std::span<const SimplexId> order) {
+  void Process(Reader& reader, SimplexId x, std::span<const SimplexId> order, bool clear = false) {
     Build(reader, x, order);
+    if (clear) Clear();
     IndexCofacets();
     auto& edges = star_[1];
     if (edges.empty()) {  // a minimum
@@ -183,6 +189,17 @@ class LowerStarPairing {
       int face;
       const Ref ref{dim + 1, j, star_[dim + 1][j].key};
       if (UnpairedFaces(ref, face) == 1) one_.push(ref);
+    }
+  }
+
+  void Clear() {
+    for (int d = 0; d < 4; ++d) {
+      std::vector<SimplexId>& up = gradient_.up[d];
+      std::vector<SimplexId>& down = gradient_.down[d];
+      for (const StarCell& c : star_[d]) {
+        if (!up.empty()) up[c.id] = -1;
+        if (!down.empty()) down[c.id] = -1;
+      }
     }
   }
 
@@ -376,6 +393,160 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,
   }
   return result;
 }
+
+namespace {
+
+// Fills the arrays a GradientArrays::kPersistence gradient leaves out, from the ones it keeps:
+// pairs are a matching, so each left-out array is the inverse of a kept one.
+void CompleteGradient(GradientField& g, const Topology& topo, int threads) {
+  const auto invert = [threads](const std::vector<SimplexId>& from, std::vector<SimplexId>& to,
+                                SimplexId size) {
+    if (!to.empty()) return;
+    to.assign(size_t(size), -1);
+    constexpr int64_t kChunk = int64_t(1) << 16;
+    ParallelFor((int64_t(from.size()) + kChunk - 1) / kChunk, threads, [&](int64_t chunk, int) {
+      const size_t end = std::min(from.size(), size_t((chunk + 1) * kChunk));
+      for (size_t c = size_t(chunk * kChunk); c < end; ++c) {
+        if (from[c] >= 0) to[from[c]] = SimplexId(c);
+      }
+    });
+  };
+  invert(g.up[0], g.down[1], topo.num_edges());
+  invert(g.up[1], g.down[2], topo.num_triangles());
+  invert(g.down[3], g.up[2], topo.num_triangles());
+}
+
+// The vertex of cell (d, c) that comes last in `order`: the vertex whose lower star holds it.
+SimplexId HighestVertex(const Topology& topo, int d, SimplexId c,
+                        std::span<const SimplexId> order) {
+  SimplexId ids[4];
+  switch (d) {
+    case 0: return c;
+    case 1: std::copy_n(topo.edge(c).begin(), 2, ids); break;
+    case 2: std::copy_n(topo.triangle(c).begin(), 3, ids); break;
+    default: std::copy_n(topo.tetrahedron(c).begin(), 4, ids); break;
+  }
+  return *std::max_element(ids, ids + d + 1,
+                           [&](SimplexId a, SimplexId b) { return order[a] < order[b]; });
+}
+
+// Where each block's vertices start in `vertices` (ascending): (block, first index) per block
+// holding any, then (-1, size).
+std::vector<std::pair<int32_t, size_t>> BlockRuns(const Topology& topo,
+                                                  std::span<const SimplexId> vertices) {
+  std::vector<std::pair<int32_t, size_t>> runs;
+  for (size_t i = 0; i < vertices.size(); ++i) {
+    const int32_t b = topo.vertex_block(vertices[i]);
+    if (runs.empty() || runs.back().first != b) runs.emplace_back(b, i);
+  }
+  runs.emplace_back(-1, vertices.size());
+  return runs;
+}
+
+// Per consumer, each block of `vertices` (ascending) in turn, whole blocks to whichever consumer
+// is free: visit(consumer, reader, v) for each vertex.
+template <class Structure, class Visit>
+absl::Status ForEachVertexByBlock(Structure& structure, std::span<const SimplexId> vertices,
+                                  const RunContext& context, Visit&& visit) {
+  const auto runs = BlockRuns(structure.topology(), vertices);
+  return RunOnConsumersShared(context, int64_t(runs.size()) - 1, /*chunk=*/1,
+                              [&](int consumer, ItemQueue& queue, WorkTracker& tracker) {
+                                auto reader = structure.NewReader();
+                                int64_t begin, end;
+                                while (queue.Next(begin, end)) {
+                                  for (size_t i = runs[begin].second; i < runs[end].second; ++i) {
+                                    visit(consumer, reader, vertices[i]);
+                                  }
+                                  if (!tracker.Done(end - begin)) return;
+                                }
+                              });
+}
+
+}  // namespace
+
+template <class Structure>
+absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(Structure& structure,
+                                                              DiscreteGradientResult previous,
+                                                              std::span<const SimplexId> order,
+                                                              std::span<const SimplexId> reordered,
+                                                              const RunContext& context) {
+  Trace::Scope span(context.trace.get(), "gradient update", "phase");
+  const Topology& topo = structure.topology();
+  const int consumers = std::max(context.consumers, 1);
+  DiscreteGradientResult result = std::move(previous);
+  GradientField& g = result.gradient;
+  CompleteGradient(g, topo, consumers);
+
+  // The lower stars that can change: those of the reordered vertices and of their neighbours.
+  // Any other vertex's star holds no reordered vertex, so its vertices compare as before.
+  std::vector<SimplexId> moved(reordered.begin(), reordered.end());
+  std::sort(moved.begin(), moved.end());
+  moved.erase(std::unique(moved.begin(), moved.end()), moved.end());
+  std::vector<std::vector<SimplexId>> found(consumers);
+  RunContext quiet = context;
+  quiet.progress = nullptr;
+  RETURN_IF_ERROR(
+      ForEachVertexByBlock(structure, moved, quiet, [&](int consumer, auto& reader, SimplexId v) {
+        found[consumer].push_back(v);
+        for (SimplexId e : reader.vertex_edges(v)) {
+          const auto ev = reader.edge_vertices(e);
+          found[consumer].push_back(ev[0] == v ? ev[1] : ev[0]);
+        }
+      }));
+  std::vector<SimplexId> dirty;
+  for (const auto& list : found) dirty.insert(dirty.end(), list.begin(), list.end());
+  found = {};
+  std::sort(dirty.begin(), dirty.end());
+  dirty.erase(std::unique(dirty.begin(), dirty.end()), dirty.end());
+
+  // Their lower stars paired again, as RunDiscreteGradient pairs every star. A cell's highest
+  // vertex is dirty in both orders or in neither, so every cell whose pairing may change is
+  // cleared and paired here, and no other is touched.
+  std::vector<std::array<std::vector<SimplexId>, 4>> critical(consumers);
+  std::vector<std::optional<LowerStarPairing>> pairings(consumers);
+  RETURN_IF_ERROR(
+      ForEachVertexByBlock(structure, dirty, context, [&](int consumer, auto& reader, SimplexId v) {
+        if (!pairings[consumer]) pairings[consumer].emplace(g);
+        pairings[consumer]->Process(reader, v, order, /*clear=*/true);
+      }));
+  for (int c = 0; c < consumers; ++c) {
+    if (pairings[c]) critical[c] = std::move(pairings[c]->critical());
+  }
+
+  // The critical cells: those of clean stars, kept, and the dirty stars' new ones.
+  for (int d = 0; d < 4; ++d) {
+    std::vector<SimplexId>& cells = result.critical[d];
+    std::erase_if(cells, [&](SimplexId c) {
+      return std::binary_search(dirty.begin(), dirty.end(), HighestVertex(topo, d, c, order));
+    });
+    for (const auto& per_consumer : critical) {
+      cells.insert(cells.end(), per_consumer[d].begin(), per_consumer[d].end());
+    }
+    std::sort(cells.begin(), cells.end());
+    result.critical_cells[d] = int64_t(cells.size());
+  }
+  // Every cell is critical or in one pair: the pairs of each dimension follow from the counts.
+  result.pairs[0] = topo.num_vertices() - result.critical_cells[0];
+  result.pairs[1] = topo.num_edges() - result.critical_cells[1] - result.pairs[0];
+  result.pairs[2] = topo.num_triangles() - result.critical_cells[2] - result.pairs[1];
+  return result;
+}
+
+template absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(ExplicitStructure&,
+                                                                       DiscreteGradientResult,
+                                                                       std::span<const SimplexId>,
+                                                                       std::span<const SimplexId>,
+                                                                       const RunContext&);
+template absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(CompactStructure&,
+                                                                       DiscreteGradientResult,
+                                                                       std::span<const SimplexId>,
+                                                                       std::span<const SimplexId>,
+                                                                       const RunContext&);
+template absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(ActopoStructure&,
+                                                                       DiscreteGradientResult,
+                                                                       std::span<const SimplexId>,
+                                                                       std::span<const SimplexId>,
+                                                                       const RunContext&);
 
 template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(ExplicitStructure&,
                                                                     std::span<const SimplexId>,

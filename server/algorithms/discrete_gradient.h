@@ -63,6 +63,19 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
     Structure& structure, std::span<const SimplexId> order, const RunContext& context,
     GradientArrays arrays = GradientArrays::kAll);
 
+// The gradient of `order` from `previous`, the gradient of an order in which every two vertices
+// not in `reordered` compare as in `order` (a simplified field's order and its input's: LTS moves
+// only the vertices it flattens). A cell's pairing depends on its highest vertex's lower star
+// alone, so only the stars of the reordered vertices and of their neighbours are paired again.
+// The result equals RunDiscreteGradient(structure, order, context) (GradientArrays::kAll), at a
+// fraction of its cost when few vertices moved; `previous` may keep either set of arrays.
+template <class Structure>
+absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(Structure& structure,
+                                                              DiscreteGradientResult previous,
+                                                              std::span<const SimplexId> order,
+                                                              std::span<const SimplexId> reordered,
+                                                              const RunContext& context);
+
 }  // namespace actopo
 
 #endif  // ACTOPO_SERVER_ALGORITHMS_DISCRETE_GRADIENT_H_

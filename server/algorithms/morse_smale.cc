@@ -12,6 +12,7 @@
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
+#include "server/core/status_macros.h"
 
 namespace actopo {
 namespace {
@@ -379,7 +380,8 @@ template <class Structure>
 absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
                                                std::span<const SimplexId> order,
                                                std::span<const SimplexId> input_tetrahedra,
-                                               const RunContext& context) {
+                                               const RunContext& context,
+                                               std::optional<DiscreteGradientResult> gradient) {
   const Topology& topo = structure.topology();
   if (input_tetrahedra.size() != 4 * size_t(topo.num_tetrahedra())) {
     return absl::InvalidArgumentError(absl::StrCat("morse-smale: ", input_tetrahedra.size(),
@@ -395,10 +397,10 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
     return c;
   };
   MorseSmaleResult result;
-  {
-    auto gradient = RunDiscreteGradient(structure, order, phase(0.0, 0.5));
-    if (!gradient.ok()) return gradient.status();
+  if (gradient) {
     result.gradient = std::move(*gradient);
+  } else {
+    ASSIGN_OR_RETURN(result.gradient, RunDiscreteGradient(structure, order, phase(0.0, 0.5)));
   }
   const GradientField& g = result.gradient.gradient;
   DescendingSeparatrices(topo, g, result.gradient.critical[1], result.separatrices);
@@ -488,14 +490,17 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
 template absl::StatusOr<MorseSmaleResult> RunMorseSmale(ExplicitStructure&,
                                                         std::span<const SimplexId>,
                                                         std::span<const SimplexId>,
-                                                        const RunContext&);
+                                                        const RunContext&,
+                                                        std::optional<DiscreteGradientResult>);
 template absl::StatusOr<MorseSmaleResult> RunMorseSmale(CompactStructure&,
                                                         std::span<const SimplexId>,
                                                         std::span<const SimplexId>,
-                                                        const RunContext&);
+                                                        const RunContext&,
+                                                        std::optional<DiscreteGradientResult>);
 template absl::StatusOr<MorseSmaleResult> RunMorseSmale(ActopoStructure&,
                                                         std::span<const SimplexId>,
                                                         std::span<const SimplexId>,
-                                                        const RunContext&);
+                                                        const RunContext&,
+                                                        std::optional<DiscreteGradientResult>);
 
 }  // namespace actopo

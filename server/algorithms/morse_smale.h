@@ -14,6 +14,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -63,13 +64,15 @@ struct MorseSmaleResult {
 RelationSet MorseSmaleDeclared();
 
 // `input_tetrahedra`: the mesh's tetrahedra as given (4 input vertex ids each), which fix TTK's
-// triangle numbering. Everything that reads relations runs on all consumers: the gradient and
-// the ascending segmentation by blocks, the separatrices by 2-saddle.
+// triangle numbering. `gradient`: the gradient of `order` (GradientArrays::kAll) when the caller
+// has it already (a simplified field's, from UpdateDiscreteGradient); computed otherwise.
+// Everything that reads relations runs on all consumers: the gradient and the ascending
+// segmentation by blocks, the separatrices by 2-saddle.
 template <class Structure>
-absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
-                                               std::span<const SimplexId> order,
-                                               std::span<const SimplexId> input_tetrahedra,
-                                               const RunContext& context);
+absl::StatusOr<MorseSmaleResult> RunMorseSmale(
+    Structure& structure, std::span<const SimplexId> order,
+    std::span<const SimplexId> input_tetrahedra, const RunContext& context,
+    std::optional<DiscreteGradientResult> gradient = std::nullopt);
 
 }  // namespace actopo
 

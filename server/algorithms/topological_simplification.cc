@@ -599,6 +599,9 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
         result.stats.removed_maxima = removal.removed();
         segments = removal.TakeSegments();
         RefreshFlags(reader, new_order, segments, flags);
+        for (const auto& [saddle, segment] : segments) {
+          result.reordered.insert(result.reordered.end(), segment.begin(), segment.end());
+        }
       }
       if (context.progress) context.progress(0.9);
       if (has_minima) {
@@ -610,6 +613,9 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
         result.stats.removed_minima = removal.removed();
         auto minima_segments = removal.TakeSegments();
         RefreshFlags(reader, new_order, minima_segments, flags);
+        for (const auto& [saddle, segment] : minima_segments) {
+          result.reordered.insert(result.reordered.end(), segment.begin(), segment.end());
+        }
         // Values: the maxima's components first, then the minima's, as TTK.
         for (const auto& [saddle, segment] : segments) {
           for (SimplexId v : segment) {
@@ -632,6 +638,9 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
       result.stats.changed_values += result.scalars[input] != scalars[input];
     }
   }
+  std::sort(result.reordered.begin(), result.reordered.end());
+  result.reordered.erase(std::unique(result.reordered.begin(), result.reordered.end()),
+                         result.reordered.end());
   result.order.resize(n);
   for (SimplexId v = 0; v < n; ++v) result.order[topo.vertex_input_id(v)] = new_order[v];
   result.internal_order = std::move(new_order);

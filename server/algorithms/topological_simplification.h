@@ -61,6 +61,11 @@ struct SimplificationResult {
   std::vector<SimplexId> order;  // its vertex order (TTK's "<field>_Order"), by input id
   // The same order by internal vertex id, for running another algorithm on the result.
   std::vector<SimplexId> internal_order;
+  // LTS: the vertices it flattened (internal ids, ascending). They are the only ones whose order
+  // moved against the others: any two other vertices compare in `internal_order` as in the
+  // input's, so the diagram's gradient needs updating only around them (UpdateDiscreteGradient).
+  // Empty with the legacy backend, whose sweeps may move any vertex.
+  std::vector<SimplexId> reordered;
 
   // "<vertex id> <value %.17g>\n" and "<vertex id> <order>\n" per vertex, ascending id.
   std::string ScalarsDigest() const;

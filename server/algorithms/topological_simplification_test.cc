@@ -1,9 +1,11 @@
 #include "server/algorithms/topological_simplification.h"
 
+#include <algorithm>
 #include <random>
 #include <set>
 
 #include "gtest/gtest.h"
+#include "server/algorithms/discrete_gradient.h"
 #include "server/algorithms/vertex_order.h"
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
@@ -151,6 +153,109 @@ TEST(TopologicalSimplification, DoesNotDependOnTheStructureThreadsOrBlocks) {
   auto s = *ExplicitStructure::Build(other.topo, {});
   EXPECT_EQ(digests(*RunTopologicalSimplification(*s, other.order, other.scalars, options, {})),
             digests(reference));
+}
+
+void ExpectSameGradient(const DiscreteGradientResult& got, const DiscreteGradientResult& want) {
+  for (int d = 0; d < 4; ++d) {
+    EXPECT_EQ(got.gradient.up[d], want.gradient.up[d]) << "up " << d;
+    EXPECT_EQ(got.gradient.down[d], want.gradient.down[d]) << "down " << d;
+    EXPECT_EQ(got.critical[d], want.critical[d]) << "critical " << d;
+  }
+  EXPECT_EQ(got.critical_cells, want.critical_cells);
+  EXPECT_EQ(got.pairs, want.pairs);
+}
+
+// LTS moves only the vertices it flattens: every two others compare as in the input order.
+TEST(TopologicalSimplification, ReorderedHoldsEveryVertexWhoseOrderMoved) {
+  const Input in = Noisy(9, 5);
+  auto structure = *ExplicitStructure::Build(in.topo, {});
+  for (double fraction : {0.02, 0.1, 0.3}) {
+    SCOPED_TRACE(fraction);
+    const auto r = *RunTopologicalSimplification(*structure, in.order, in.scalars,
+                                                 {.threshold = fraction, .relative = true}, {});
+    ASSERT_FALSE(r.reordered.empty());
+    EXPECT_TRUE(std::is_sorted(r.reordered.begin(), r.reordered.end()));
+    std::vector<SimplexId> kept;  // the others, by input order
+    for (SimplexId v = 0; v < in.topo->num_vertices(); ++v) {
+      if (!std::binary_search(r.reordered.begin(), r.reordered.end(), v)) kept.push_back(v);
+    }
+    std::sort(kept.begin(), kept.end(),
+              [&](SimplexId a, SimplexId b) { return in.order[a] < in.order[b]; });
+    for (size_t i = 1; i < kept.size(); ++i) {
+      ASSERT_LT(r.internal_order[kept[i - 1]], r.internal_order[kept[i]]);
+    }
+    // Each flattened vertex moved: none was left where it was among the others.
+    EXPECT_LT(kept.size(), size_t(in.topo->num_vertices()));
+  }
+  const auto legacy = *RunTopologicalSimplification(
+      *structure, in.order, in.scalars, {.threshold = 0.1, .relative = true, .legacy = true}, {});
+  EXPECT_TRUE(legacy.reordered.empty());
+}
+
+// The diagram's gradient, updated around the flattened vertices, is the simplified order's
+// gradient computed from scratch: on every structure and consumer count, from either set of
+// arrays.
+TEST(TopologicalSimplification, UpdatedGradientEqualsTheSimplifiedOrdersGradient) {
+  const Input in = Noisy(10, 17, /*block_size=*/25);
+  auto explicit_structure = *ExplicitStructure::Build(in.topo, {});
+  for (double fraction : {0.0, 0.02, 0.1, 0.3}) {
+    SCOPED_TRACE(fraction);
+    const auto r = *RunTopologicalSimplification(*explicit_structure, in.order, in.scalars,
+                                                 {.threshold = fraction, .relative = true}, {});
+    const std::vector<SimplexId>& order = r.internal_order;
+    const auto want = *RunDiscreteGradient(*explicit_structure, order, {});
+    if (fraction > 0) {
+      ASSERT_LT(r.reordered.size(), size_t(in.topo->num_vertices()) / 2);
+      ASSERT_NE(want.gradient.up[0], r.diagram.gradient.gradient.up[0]);  // something to update
+    }
+    ExpectSameGradient(
+        *UpdateDiscreteGradient(*explicit_structure, r.diagram.gradient, order, r.reordered, {}),
+        want);
+    const auto full_before = *RunDiscreteGradient(*explicit_structure, in.order, {});
+    ExpectSameGradient(
+        *UpdateDiscreteGradient(*explicit_structure, full_before, order, r.reordered, {}), want);
+    for (int consumers : {1, 2, 3}) {
+      SCOPED_TRACE(consumers);
+      const RunContext context{.consumers = consumers};
+      CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = consumers});
+      ExpectSameGradient(
+          *UpdateDiscreteGradient(compact, r.diagram.gradient, order, r.reordered, context), want);
+      auto actopo = *ActopoStructure::Create(in.topo, {.consumers = consumers,
+                                                       .producers = 2,
+                                                       .buffer_ratio = 0.05,
+                                                       .declared = DiscreteGradientDeclared()});
+      ExpectSameGradient(
+          *UpdateDiscreteGradient(*actopo, r.diagram.gradient, order, r.reordered, context), want);
+    }
+  }
+}
+
+// The update's contract holds for any set of moved vertices, not only LTS's (whose neighbours
+// rarely change side): vertices moved to random ranks, the others keeping their order.
+TEST(TopologicalSimplification, UpdatedGradientFollowsAnyReordering) {
+  const Input in = Noisy(9, 23, /*block_size=*/30);
+  auto structure = *ExplicitStructure::Build(in.topo, {});
+  const auto before = *RunDiscreteGradient(*structure, in.order, {});
+  std::mt19937_64 rng(7);
+  for (double share : {0.01, 0.05, 0.3}) {
+    SCOPED_TRACE(share);
+    const SimplexId n = in.topo->num_vertices();
+    std::vector<SimplexId> by_rank(n), moved, rest;
+    for (SimplexId v = 0; v < n; ++v) by_rank[in.order[v]] = v;
+    std::bernoulli_distribution pick(share);
+    for (SimplexId v : by_rank) (pick(rng) ? moved : rest).push_back(v);
+    for (SimplexId v : moved) {
+      rest.insert(rest.begin() + std::uniform_int_distribution<size_t>(0, rest.size())(rng), v);
+    }
+    std::vector<SimplexId> order(n);
+    for (SimplexId r = 0; r < n; ++r) order[rest[r]] = r;
+    std::sort(moved.begin(), moved.end());
+    const auto want = *RunDiscreteGradient(*structure, order, {});
+    ExpectSameGradient(*UpdateDiscreteGradient(*structure, before, order, moved, {}), want);
+    CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = 2});
+    ExpectSameGradient(*UpdateDiscreteGradient(compact, before, order, moved, {.consumers = 2}),
+                       want);
+  }
 }
 
 TEST(TopologicalSimplification, RejectsBadThresholds) {
