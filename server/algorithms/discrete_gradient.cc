@@ -223,13 +223,17 @@ class LowerStarPairing {
 
 }  // namespace
 
-void CellTokens(const Topology& topology, int d, SimplexId c, SimplexId* ids) {
+void CellVertices(const Topology& topology, int d, SimplexId c, SimplexId* ids) {
   switch (d) {
     case 0: ids[0] = c; break;
     case 1: std::copy_n(topology.edge(c).begin(), 2, ids); break;
     case 2: std::copy_n(topology.triangle(c).begin(), 3, ids); break;
     default: std::copy_n(topology.tetrahedron(c).begin(), 4, ids); break;
   }
+}
+
+void CellTokens(const Topology& topology, int d, SimplexId c, SimplexId* ids) {
+  CellVertices(topology, d, c, ids);
   for (int i = 0; i <= d; ++i) ids[i] = topology.vertex_input_id(ids[i]);
   SortVertexIds(ids, d + 1);
 }
@@ -428,12 +432,7 @@ void CompleteGradient(GradientField& g, const Topology& topo, int threads) {
 SimplexId HighestVertex(const Topology& topo, int d, SimplexId c,
                         std::span<const SimplexId> order) {
   SimplexId ids[4];
-  switch (d) {
-    case 0: return c;
-    case 1: std::copy_n(topo.edge(c).begin(), 2, ids); break;
-    case 2: std::copy_n(topo.triangle(c).begin(), 3, ids); break;
-    default: std::copy_n(topo.tetrahedron(c).begin(), 4, ids); break;
-  }
+  CellVertices(topo, d, c, ids);
   return *std::max_element(ids, ids + d + 1,
                            [&](SimplexId a, SimplexId b) { return order[a] < order[b]; });
 }

@@ -46,6 +46,9 @@ struct DiscreteGradientResult {
   std::string PairsDigest(const Topology& topology) const;
 };
 
+// Internal vertex ids of a cell, as the static encoding holds them (ascending), into ids[0..d].
+void CellVertices(const Topology& topology, int d, SimplexId c, SimplexId* ids);
+
 // Input vertex ids of a cell, ascending, into ids[0..d] (no allocation, for digests).
 void CellTokens(const Topology& topology, int d, SimplexId c, SimplexId* ids);
 

@@ -89,9 +89,6 @@ class Builder {
     return next == t ? -1 : next;
   }
 
-  // The tetrahedra of triangle f (one or two).
-  std::span<const SimplexId> StarOf(SimplexId f) { return TriangleStar(f); }
-
   // The tetrahedron of v's star with the lowest input id, -1 for an unused vertex.
   SimplexId FirstInStar(SimplexId v) {
     const auto star = r_.vertex_star(v);
@@ -103,7 +100,6 @@ class Builder {
     return first;
   }
 
- private:
   // The tetrahedra of f (one or two), from the star of its lowest vertex. Ascending paths and
   // TTK's triangle order wander across blocks; a vertex star costs a quarter of a triangle
   // star to compute per block (part_5M, compact: the triangle stars were computed 13,500
@@ -120,6 +116,7 @@ class Builder {
     return triangle_star_;
   }
 
+ private:
   // tet -> its paired triangle -> the next tetrahedron ... until a critical tetrahedron. False
   // when the path ends elsewhere (through the boundary or at a critical triangle).
   bool AscendingPath(SimplexId tet, std::vector<Cell>& cells) {
@@ -440,7 +437,7 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
           for (auto i =
                    std::lower_bound(saddles.begin(), saddles.end(), topo.block_triangle_begin(b));
                i != saddles.end() && *i < topo.block_triangle_begin(b + 1); ++i) {
-            const auto star = builder.StarOf(*i);
+            const auto star = builder.TriangleStar(*i);
             std::copy(star.begin(), star.end(), saddle_tets.begin() + 2 * (i - saddles.begin()));
           }
           if (!tracker.Done()) return;

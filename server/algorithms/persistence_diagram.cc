@@ -32,12 +32,7 @@ struct CriticalCell {
 CriticalCell MakeCriticalCell(const Topology& topo, std::span<const SimplexId> order, int d,
                               SimplexId c) {
   std::array<SimplexId, 4> v{-1, -1, -1, -1};
-  switch (d) {
-    case 0: v[0] = c; break;
-    case 1: std::copy_n(topo.edge(c).begin(), 2, v.begin()); break;
-    case 2: std::copy_n(topo.triangle(c).begin(), 3, v.begin()); break;
-    default: std::copy_n(topo.tetrahedron(c).begin(), 4, v.begin()); break;
-  }
+  CellVertices(topo, d, c, v.data());
   // Highest order first, by insertion: at most four (std::sort here makes GCC 12 warn about
   // its large-input path, which four elements never take).
   for (int i = 1; i <= d; ++i) {
