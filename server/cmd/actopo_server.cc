@@ -19,9 +19,11 @@
 #include "absl/strings/str_cat.h"
 #include "server/cmd/flags.h"
 #include "server/core/parallel.h"
+#include "server/core/process_memory.h"
 #include "server/service/server.h"
 
 int main(int argc, char** argv) {
+  actopo::LimitAllocatorArenas(actopo::DefaultThreads());
   actopo::service::ServerOptions o;
   // A default session runs a consumer and a producer per core: leave room for several.
   o.max_engine_threads = std::max(o.max_engine_threads, 4 * actopo::DefaultThreads());

@@ -3,7 +3,9 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
@@ -28,6 +30,15 @@ int64_t CurrentRssBytes() {
 void ReleaseFreeMemory() {
 #if defined(__GLIBC__)
   malloc_trim(0);
+#endif
+}
+
+void LimitAllocatorArenas(int cores) {
+#if defined(__GLIBC__)
+  if (std::getenv("MALLOC_ARENA_MAX") != nullptr) return;
+  mallopt(M_ARENA_MAX, std::max(cores, 1));
+#else
+  (void)cores;
 #endif
 }
 
