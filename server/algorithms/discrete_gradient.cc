@@ -354,7 +354,8 @@ template <class Structure>
 absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,
                                                            std::span<const SimplexId> order,
                                                            const RunContext& context,
-                                                           GradientArrays arrays) {
+                                                           GradientArrays arrays,
+                                                           VertexNeighbors* neighbors) {
   const Topology& topo = structure.topology();
   DiscreteGradientResult result;
   GradientField& g = result.gradient;
@@ -385,6 +386,7 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,
                  ++v) {
               pairing.Process(reader, v, order);
             }
+            if (neighbors != nullptr) neighbors->FillBlock(b, reader);
           }
           if (!tracker.Done(end - begin)) break;
         }
@@ -476,7 +478,8 @@ absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(Structure& structu
                                                               DiscreteGradientResult previous,
                                                               std::span<const SimplexId> order,
                                                               std::span<const SimplexId> reordered,
-                                                              const RunContext& context) {
+                                                              const RunContext& context,
+                                                              std::span<const SimplexId> around) {
   Trace::Scope span(context.trace.get(), "gradient update", "phase");
   const Topology& topo = structure.topology();
   const int consumers = std::max(context.consumers, 1);
@@ -486,25 +489,28 @@ absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(Structure& structu
 
   // The lower stars that can change: those of the reordered vertices and of their neighbours.
   // Any other vertex's star holds no reordered vertex, so its vertices compare as before.
-  std::vector<SimplexId> moved(reordered.begin(), reordered.end());
-  std::sort(moved.begin(), moved.end());
-  moved.erase(std::unique(moved.begin(), moved.end()), moved.end());
-  std::vector<std::vector<SimplexId>> found(consumers);
-  RunContext quiet = context;
-  quiet.progress = nullptr;
-  RETURN_IF_ERROR(
-      ForEachVertexByBlock(structure, moved, quiet, [&](int consumer, auto& reader, SimplexId v) {
-        found[consumer].push_back(v);
-        for (SimplexId e : reader.vertex_edges(v)) {
-          const auto ev = reader.edge_vertices(e);
-          found[consumer].push_back(ev[0] == v ? ev[1] : ev[0]);
-        }
-      }));
   std::vector<SimplexId> dirty;
-  for (const auto& list : found) dirty.insert(dirty.end(), list.begin(), list.end());
-  found = {};
-  std::sort(dirty.begin(), dirty.end());
-  dirty.erase(std::unique(dirty.begin(), dirty.end()), dirty.end());
+  if (!around.empty()) {
+    dirty.assign(around.begin(), around.end());
+  } else {
+    std::vector<SimplexId> moved(reordered.begin(), reordered.end());
+    std::sort(moved.begin(), moved.end());
+    moved.erase(std::unique(moved.begin(), moved.end()), moved.end());
+    std::vector<std::vector<SimplexId>> found(consumers);
+    RunContext quiet = context;
+    quiet.progress = nullptr;
+    RETURN_IF_ERROR(
+        ForEachVertexByBlock(structure, moved, quiet, [&](int consumer, auto& reader, SimplexId v) {
+          found[consumer].push_back(v);
+          for (SimplexId e : reader.vertex_edges(v)) {
+            const auto ev = reader.edge_vertices(e);
+            found[consumer].push_back(ev[0] == v ? ev[1] : ev[0]);
+          }
+        }));
+    for (const auto& list : found) dirty.insert(dirty.end(), list.begin(), list.end());
+    std::sort(dirty.begin(), dirty.end());
+    dirty.erase(std::unique(dirty.begin(), dirty.end()), dirty.end());
+  }
 
   // Their lower stars paired again, as RunDiscreteGradient pairs every star. A cell's highest
   // vertex is dirty in both orders or in neither, so every cell whose pairing may change is
@@ -539,33 +545,30 @@ absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(Structure& structu
   return result;
 }
 
-template absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(ExplicitStructure&,
-                                                                       DiscreteGradientResult,
-                                                                       std::span<const SimplexId>,
-                                                                       std::span<const SimplexId>,
-                                                                       const RunContext&);
-template absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(CompactStructure&,
-                                                                       DiscreteGradientResult,
-                                                                       std::span<const SimplexId>,
-                                                                       std::span<const SimplexId>,
-                                                                       const RunContext&);
-template absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(ActopoStructure&,
-                                                                       DiscreteGradientResult,
-                                                                       std::span<const SimplexId>,
-                                                                       std::span<const SimplexId>,
-                                                                       const RunContext&);
+template absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(
+    ExplicitStructure&, DiscreteGradientResult, std::span<const SimplexId>,
+    std::span<const SimplexId>, const RunContext&, std::span<const SimplexId>);
+template absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(
+    CompactStructure&, DiscreteGradientResult, std::span<const SimplexId>,
+    std::span<const SimplexId>, const RunContext&, std::span<const SimplexId>);
+template absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(
+    ActopoStructure&, DiscreteGradientResult, std::span<const SimplexId>,
+    std::span<const SimplexId>, const RunContext&, std::span<const SimplexId>);
 
 template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(ExplicitStructure&,
                                                                     std::span<const SimplexId>,
                                                                     const RunContext&,
-                                                                    GradientArrays);
+                                                                    GradientArrays,
+                                                                    VertexNeighbors*);
 template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(CompactStructure&,
                                                                     std::span<const SimplexId>,
                                                                     const RunContext&,
-                                                                    GradientArrays);
+                                                                    GradientArrays,
+                                                                    VertexNeighbors*);
 template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(ActopoStructure&,
                                                                     std::span<const SimplexId>,
                                                                     const RunContext&,
-                                                                    GradientArrays);
+                                                                    GradientArrays,
+                                                                    VertexNeighbors*);
 
 }  // namespace actopo

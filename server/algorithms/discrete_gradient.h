@@ -17,6 +17,7 @@
 
 #include "absl/status/statusor.h"
 #include "server/algorithms/consumers.h"
+#include "server/algorithms/vertex_neighbors.h"
 #include "server/core/relation.h"
 #include "server/core/topology.h"
 
@@ -61,10 +62,12 @@ RelationSet DiscreteGradientDeclared();
 // (`critical` lists every dimension's critical cells).
 enum class GradientArrays : uint8_t { kAll, kPersistence };
 
+// With `neighbors`, each consumer also keeps its blocks' vertex neighbours there, read from the
+// VE rows the pairing has just read (a caller whose next passes read VV in no order in space).
 template <class Structure>
 absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
     Structure& structure, std::span<const SimplexId> order, const RunContext& context,
-    GradientArrays arrays = GradientArrays::kAll);
+    GradientArrays arrays = GradientArrays::kAll, VertexNeighbors* neighbors = nullptr);
 
 // The gradient of `order` from `previous`, the gradient of an order in which every two vertices
 // not in `reordered` compare as in `order` (a simplified field's order and its input's: LTS moves
@@ -72,12 +75,14 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
 // alone, so only the stars of the reordered vertices and of their neighbours are paired again.
 // The result equals RunDiscreteGradient(structure, order, context) (GradientArrays::kAll), at a
 // fraction of its cost when few vertices moved; `previous` may keep either set of arrays.
+// `around`: when not empty, `reordered` with all their neighbours, ascending and distinct, as a
+// caller that already read them knows them (SimplificationResult::around_reordered); the update
+// then reads no VE to find them.
 template <class Structure>
-absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(Structure& structure,
-                                                              DiscreteGradientResult previous,
-                                                              std::span<const SimplexId> order,
-                                                              std::span<const SimplexId> reordered,
-                                                              const RunContext& context);
+absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(
+    Structure& structure, DiscreteGradientResult previous, std::span<const SimplexId> order,
+    std::span<const SimplexId> reordered, const RunContext& context,
+    std::span<const SimplexId> around = {});
 
 }  // namespace actopo
 

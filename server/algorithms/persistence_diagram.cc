@@ -450,7 +450,8 @@ template <class Structure>
 absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(Structure& structure,
                                                                std::span<const SimplexId> order,
                                                                std::span<const double> scalars,
-                                                               const RunContext& context) {
+                                                               const RunContext& context,
+                                                               VertexNeighbors* neighbors) {
   const Topology& topo = structure.topology();
   if (scalars.size() != size_t(topo.num_vertices()) || order.size() != scalars.size()) {
     return absl::InvalidArgumentError(
@@ -469,7 +470,7 @@ absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(Structure& struct
   PersistenceDiagramResult result;
   {
     auto gradient = RunDiscreteGradient(structure, order, phase(0.0, 0.6, context.consumers),
-                                        GradientArrays::kPersistence);
+                                        GradientArrays::kPersistence, neighbors);
     if (!gradient.ok()) return gradient.status();
     result.gradient = std::move(*gradient);
   }
@@ -500,14 +501,17 @@ absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(Structure& struct
 template absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(ExplicitStructure&,
                                                                         std::span<const SimplexId>,
                                                                         std::span<const double>,
-                                                                        const RunContext&);
+                                                                        const RunContext&,
+                                                                        VertexNeighbors*);
 template absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(CompactStructure&,
                                                                         std::span<const SimplexId>,
                                                                         std::span<const double>,
-                                                                        const RunContext&);
+                                                                        const RunContext&,
+                                                                        VertexNeighbors*);
 template absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(ActopoStructure&,
                                                                         std::span<const SimplexId>,
                                                                         std::span<const double>,
-                                                                        const RunContext&);
+                                                                        const RunContext&,
+                                                                        VertexNeighbors*);
 
 }  // namespace actopo

@@ -75,12 +75,12 @@ RelationSet PersistenceDiagramDeclared();
 
 // `scalars`: the field by input vertex id, only reported (births, deaths, persistence).
 // The gradient, the descending and ascending paths run on every consumer; the union-finds and the
-// boundary reduction, sequential as in TTK's reference, on one.
+// boundary reduction, sequential as in TTK's reference, on one. `neighbors`: as for
+// RunDiscreteGradient, filled by the gradient's pass.
 template <class Structure>
-absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(Structure& structure,
-                                                               std::span<const SimplexId> order,
-                                                               std::span<const double> scalars,
-                                                               const RunContext& context);
+absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(
+    Structure& structure, std::span<const SimplexId> order, std::span<const double> scalars,
+    const RunContext& context, VertexNeighbors* neighbors = nullptr);
 
 }  // namespace actopo
 

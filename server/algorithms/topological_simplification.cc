@@ -13,6 +13,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "server/algorithms/digest.h"
+#include "server/algorithms/vertex_neighbors.h"
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
@@ -33,56 +34,23 @@ uint8_t ExtremumFlags(std::span<const SimplexId> neighbors, SimplexId v,
   return (lower ? 0 : kMinimum) | (higher ? 0 : kMaximum);
 }
 
-// Every vertex's neighbours (VV) and extremum flags, read block by block on every consumer and
-// kept for the removal passes. The passes go back over the same components (growth, segment,
-// local orders, flags) in the order of their extrema, which is no order in space: through a
-// localized structure, one consumer computed most blocks' VV again and again while its leader
-// prefetched blocks in id order (part_5M at 1%: 4,321 block computations on the consumer and
-// 5,777 on the leader for 3,631 blocks; 0.49 s against explicit's 0.07 s). The sweep for the
-// input's extrema already read every block's VV on all consumers (0.2 s); keeping its rows costs
-// 4 bytes per neighbour and per vertex until the passes end. The explicit structure's rows are
-// read in place.
+// What the removal passes read: every vertex's neighbours (VV). The passes go back over the same
+// components (growth, segment, local orders, flags) in the order of their extrema, which is no
+// order in space: through a localized structure, one consumer computed most blocks' VV again
+// and again while its leader prefetched blocks in id order (part_5M at 1%: 4,321 block
+// computations on the consumer and 5,777 on the leader for 3,631 blocks; 0.49 s against
+// explicit's 0.07 s). On compact and actopo the rows are therefore those the diagram's gradient
+// kept while it held each block's VE (VertexNeighbors: 4 bytes per neighbour and per vertex);
+// the explicit structure's own rows are read in place.
 template <class Structure>
 class NeighborRows {
  public:
-  // Reads every block's rows, and sets flags[v] to v's ExtremumFlags in `order`.
-  absl::Status Read(Structure& structure, std::span<const SimplexId> order,
-                    std::vector<uint8_t>& flags, const RunContext& context) {
-    const Topology& topo = structure.topology();
-    topo_ = &topo;
-    if constexpr (!kInPlace) {
-      rows_.resize(topo.num_blocks());
-      begin_.resize(topo.num_vertices());
-    }
-    RunContext sweep = context;
-    sweep.progress = nullptr;
-    const int32_t blocks = topo.num_blocks();
-    const int consumers = std::max(context.consumers, 1);
-    RETURN_IF_ERROR(RunOnConsumersShared(
-        sweep, blocks, std::max(1, blocks / (16 * consumers)),
-        [&](int, ItemQueue& queue, WorkTracker& tracker) {
-          auto reader = structure.NewReader();
-          std::vector<SimplexId> rows;
-          int64_t begin, end;
-          while (queue.Next(begin, end)) {
-            for (int32_t b = int32_t(begin); b < int32_t(end); ++b) {
-              rows.clear();
-              for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1);
-                   ++v) {
-                const std::span<const SimplexId> row = reader.vertex_neighbors(v);
-                flags[v] = ExtremumFlags(row, v, order);
-                if constexpr (!kInPlace) {
-                  begin_[v] = uint32_t(rows.size());
-                  rows.insert(rows.end(), row.begin(), row.end());
-                }
-              }
-              if constexpr (!kInPlace) rows_[b].assign(rows.begin(), rows.end());
-            }
-            if (!tracker.Done(end - begin)) break;
-          }
-        }));
+  static constexpr bool kInPlace = std::is_same_v<Structure, ExplicitStructure>;
+
+  // `kept`: filled for every block, unless kInPlace (then unused, may be null).
+  NeighborRows(Structure& structure, const VertexNeighbors* kept)
+      : topo_(&structure.topology()), kept_(kept) {
     if constexpr (kInPlace) reader_.emplace(structure.NewReader());
-    return absl::OkStatus();
   }
 
   const Topology& topology() const { return *topo_; }
@@ -91,22 +59,16 @@ class NeighborRows {
     if constexpr (kInPlace) {
       return reader_->vertex_neighbors(v);
     } else {
-      const int32_t b = topo_->vertex_block(v);
-      const std::vector<SimplexId>& rows = rows_[b];
-      const uint32_t end =
-          v + 1 == topo_->block_vertex_begin(b + 1) ? uint32_t(rows.size()) : begin_[v + 1];
-      return {rows.data() + begin_[v], rows.data() + end};
+      return kept_->vertex_neighbors(v);
     }
   }
 
  private:
-  static constexpr bool kInPlace = std::is_same_v<Structure, ExplicitStructure>;
   using Reader = decltype(std::declval<Structure&>().NewReader());
 
-  const Topology* topo_ = nullptr;
-  std::optional<Reader> reader_;              // explicit: read in place
-  std::vector<std::vector<SimplexId>> rows_;  // per block: its vertices' rows back to back
-  std::vector<uint32_t> begin_;               // per vertex: its row's start in its block's
+  const Topology* topo_;
+  const VertexNeighbors* kept_;
+  std::optional<Reader> reader_;  // explicit: read in place
 };
 
 // A superlevel-set component growing from one maximum (LTS's "propagation"): a max-heap of
@@ -567,8 +529,10 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
     diagram_context.progress = [&context](double f) { context.progress(0.8 * f); };
   }
   SimplificationResult result;
-  ASSIGN_OR_RETURN(result.diagram,
-                   RunPersistenceDiagram(structure, order, scalars, diagram_context));
+  std::optional<VertexNeighbors> kept;
+  if constexpr (!NeighborRows<Structure>::kInPlace) kept.emplace(topo);
+  ASSIGN_OR_RETURN(result.diagram, RunPersistenceDiagram(structure, order, scalars, diagram_context,
+                                                         kept ? &*kept : nullptr));
   const auto [lo, hi] = std::minmax_element(scalars.begin(), scalars.end());
   result.threshold = options.relative ? options.threshold * (*hi - *lo) : options.threshold;
   result.legacy = options.legacy;
@@ -593,11 +557,11 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
   result.scalars.assign(scalars.begin(), scalars.end());
   if (result.stats.constraints > 0) {
     Trace::Scope span(context.trace.get(), "simplify", "phase");
-    // The input's extrema and every vertex's neighbours, on every consumer; the passes then
-    // refresh the flags only around what they flatten (LTS scans every vertex before each pass).
+    // The input's extrema; the passes then refresh them only around what they flatten (LTS
+    // scans every vertex before each pass).
+    NeighborRows<Structure> rows(structure, kept ? &*kept : nullptr);
     std::vector<uint8_t> flags(n, 0);
-    NeighborRows<Structure> rows;
-    RETURN_IF_ERROR(rows.Read(structure, order, flags, context));
+    for (SimplexId v = 0; v < n; ++v) flags[v] = ExtremumFlags(rows.vertex_neighbors(v), v, order);
     if (options.legacy) {
       Trace::Scope pass(context.trace.get(), "legacy sweeps", "phase");
       std::vector<double> values(n);
@@ -653,6 +617,14 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
         }
       }
     }
+    for (SimplexId v : result.reordered) {
+      result.around_reordered.push_back(v);
+      for (SimplexId u : rows.vertex_neighbors(v)) result.around_reordered.push_back(u);
+    }
+    std::sort(result.around_reordered.begin(), result.around_reordered.end());
+    result.around_reordered.erase(
+        std::unique(result.around_reordered.begin(), result.around_reordered.end()),
+        result.around_reordered.end());
     // Statistics of the simplified field: its extrema and what changed.
     for (SimplexId v = 0; v < n; ++v) {
       result.stats.minima += (flags[v] & kMinimum) != 0;

@@ -186,6 +186,13 @@ TEST(TopologicalSimplification, ReorderedHoldsEveryVertexWhoseOrderMoved) {
     }
     // Each flattened vertex moved: none was left where it was among the others.
     EXPECT_LT(kept.size(), size_t(in.topo->num_vertices()));
+    // Around them: themselves and their neighbours, each once, ascending.
+    std::set<SimplexId> around(r.reordered.begin(), r.reordered.end());
+    auto reader = structure->NewReader();
+    for (SimplexId v : r.reordered) {
+      for (SimplexId u : reader.vertex_neighbors(v)) around.insert(u);
+    }
+    EXPECT_EQ(r.around_reordered, std::vector<SimplexId>(around.begin(), around.end()));
   }
   const auto legacy = *RunTopologicalSimplification(
       *structure, in.order, in.scalars, {.threshold = 0.1, .relative = true, .legacy = true}, {});
@@ -226,7 +233,44 @@ TEST(TopologicalSimplification, UpdatedGradientEqualsTheSimplifiedOrdersGradient
                                                        .declared = DiscreteGradientDeclared()});
       ExpectSameGradient(
           *UpdateDiscreteGradient(*actopo, r.diagram.gradient, order, r.reordered, context), want);
+      // The same stars, given instead of read.
+      ExpectSameGradient(*UpdateDiscreteGradient(*actopo, r.diagram.gradient, order, r.reordered,
+                                                 context, r.around_reordered),
+                         want);
     }
+  }
+}
+
+// The rows the gradient's pass keeps for the removals are the structure's VV, every vertex,
+// whichever consumer read which block.
+TEST(TopologicalSimplification, GradientPassKeepsEveryVertexsNeighbours) {
+  const Input in = Noisy(9, 31, /*block_size=*/20);
+  auto explicit_structure = *ExplicitStructure::Build(in.topo, {});
+  auto want = explicit_structure->NewReader();
+  const auto expect_rows = [&](const VertexNeighbors& kept) {
+    for (SimplexId v = 0; v < in.topo->num_vertices(); ++v) {
+      const auto row = kept.vertex_neighbors(v);
+      const auto expected = want.vertex_neighbors(v);
+      ASSERT_EQ(std::vector<SimplexId>(row.begin(), row.end()),
+                std::vector<SimplexId>(expected.begin(), expected.end()))
+          << "vertex " << v;
+    }
+  };
+  for (int consumers : {1, 2, 3}) {
+    SCOPED_TRACE(consumers);
+    const RunContext context{.consumers = consumers};
+    CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = consumers});
+    VertexNeighbors from_compact(*in.topo);
+    ASSERT_TRUE(
+        RunDiscreteGradient(compact, in.order, context, GradientArrays::kPersistence, &from_compact)
+            .ok());
+    expect_rows(from_compact);
+    auto actopo = *ActopoStructure::Create(
+        in.topo, {.consumers = consumers, .producers = 2, .buffer_ratio = 0.05});
+    VertexNeighbors from_actopo(*in.topo);
+    ASSERT_TRUE(
+        RunDiscreteGradient(*actopo, in.order, context, GradientArrays::kAll, &from_actopo).ok());
+    expect_rows(from_actopo);
   }
 }
 
