@@ -479,7 +479,7 @@ absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(Structure& structu
                                                               std::span<const SimplexId> order,
                                                               std::span<const SimplexId> reordered,
                                                               const RunContext& context,
-                                                              std::span<const SimplexId> around) {
+                                                              std::span<const SimplexId> changed) {
   Trace::Scope span(context.trace.get(), "gradient update", "phase");
   const Topology& topo = structure.topology();
   const int consumers = std::max(context.consumers, 1);
@@ -487,11 +487,12 @@ absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(Structure& structu
   GradientField& g = result.gradient;
   CompleteGradient(g, topo, consumers);
 
-  // The lower stars that can change: those of the reordered vertices and of their neighbours.
-  // Any other vertex's star holds no reordered vertex, so its vertices compare as before.
+  // The lower stars that can change: those of the reordered vertices and of their neighbours
+  // (or the caller's `changed`, a subset). Any other vertex's star holds no reordered vertex,
+  // so its vertices compare as before.
   std::vector<SimplexId> dirty;
-  if (!around.empty()) {
-    dirty.assign(around.begin(), around.end());
+  if (!changed.empty()) {
+    dirty.assign(changed.begin(), changed.end());
   } else {
     std::vector<SimplexId> moved(reordered.begin(), reordered.end());
     std::sort(moved.begin(), moved.end());
@@ -513,8 +514,9 @@ absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(Structure& structu
   }
 
   // Their lower stars paired again, as RunDiscreteGradient pairs every star. A cell's highest
-  // vertex is dirty in both orders or in neither, so every cell whose pairing may change is
-  // cleared and paired here, and no other is touched.
+  // vertex is dirty in both orders or in neither (when it differs, each of the two has the other
+  // below it in one order only), so every cell whose pairing may change is cleared and paired
+  // here, and no other is touched.
   std::vector<std::array<std::vector<SimplexId>, 4>> critical(consumers);
   std::vector<std::optional<LowerStarPairing>> pairings(consumers);
   RETURN_IF_ERROR(

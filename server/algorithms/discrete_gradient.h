@@ -75,14 +75,16 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
 // alone, so only the stars of the reordered vertices and of their neighbours are paired again.
 // The result equals RunDiscreteGradient(structure, order, context) (GradientArrays::kAll), at a
 // fraction of its cost when few vertices moved; `previous` may keep either set of arrays.
-// `around`: when not empty, `reordered` with all their neighbours, ascending and distinct, as a
-// caller that already read them knows them (SimplificationResult::around_reordered); the update
-// then reads no VE to find them.
+// `changed`: when not empty, the vertices whose lower star differs between the two orders,
+// ascending and distinct, as a caller that knows both orders and the neighbours found them
+// (SimplificationResult::changed_stars): `reordered` and those of their neighbours whose lower
+// neighbours moved. Only those stars are paired again, and no VE is read to find them. Without
+// it, every neighbour of a reordered vertex is paired again.
 template <class Structure>
 absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(
     Structure& structure, DiscreteGradientResult previous, std::span<const SimplexId> order,
     std::span<const SimplexId> reordered, const RunContext& context,
-    std::span<const SimplexId> around = {});
+    std::span<const SimplexId> changed = {});
 
 }  // namespace actopo
 

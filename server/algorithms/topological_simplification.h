@@ -66,9 +66,11 @@ struct SimplificationResult {
   // input's, so the diagram's gradient needs updating only around them (UpdateDiscreteGradient).
   // Empty with the legacy backend, whose sweeps may move any vertex.
   std::vector<SimplexId> reordered;
-  // `reordered` and all their neighbours (internal ids, ascending): the lower stars the update
-  // pairs again, read while the simplification held every vertex's neighbours.
-  std::vector<SimplexId> around_reordered;
+  // The vertices whose lower star the simplification changed (internal ids, ascending):
+  // `reordered`, and each of their neighbours whose lower neighbours no longer come in the same
+  // order. The stars the gradient update pairs again (UpdateDiscreteGradient's `changed`), found
+  // while the simplification held every vertex's neighbours.
+  std::vector<SimplexId> changed_stars;
 
   // "<vertex id> <value %.17g>\n" and "<vertex id> <order>\n" per vertex, ascending id.
   std::string ScalarsDigest() const;

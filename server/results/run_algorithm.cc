@@ -258,11 +258,10 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
       // (part_5M.vtu at 1%: 4% of the vertices flattened); legacy sweeps may move every vertex.
       std::optional<DiscreteGradientResult> gradient;
       if (!r.simplification.legacy) {
-        ASSIGN_OR_RETURN(
-            gradient,
-            UpdateDiscreteGradient(structure, std::move(r.simplification.diagram.gradient),
-                                   r.simplification.internal_order, r.simplification.reordered,
-                                   Phase(context, 0.5, 0.75), r.simplification.around_reordered));
+        ASSIGN_OR_RETURN(gradient, UpdateDiscreteGradient(
+                                       structure, std::move(r.simplification.diagram.gradient),
+                                       r.simplification.internal_order, r.simplification.reordered,
+                                       Phase(context, 0.5, 0.75), r.simplification.changed_stars));
       }
       ASSIGN_OR_RETURN(r.morse_smale, RunMorseSmale(structure, r.simplification.internal_order,
                                                     in.input_tetrahedra, Phase(context, 0.5, 1),
