@@ -39,11 +39,19 @@ void DescendingSeparatrices(const Topology& topo, const GradientField& g,
   }
 }
 
+// Whether tetrahedron tv has vertices b and c.
+bool Contains(std::span<const SimplexId, 4> tv, SimplexId b, SimplexId c) {
+  int found = 0;
+  for (SimplexId v : tv) found += (v == b) + (v == c);
+  return found == 2;
+}
+
 // The work after the gradient that reads relations, per item, on one consumer's reader.
 template <class Reader>
 class Builder {
  public:
-  // `next_up`: NextUp of every non-critical tetrahedron, for AscendingSeparatrices.
+  // `next_up`: every non-critical tetrahedron's next one up (ScanStar), for
+  // AscendingSeparatrices.
   Builder(Reader& reader, const GradientField& gradient,
           std::span<const SimplexId> input_tetrahedra, std::span<const SimplexId> next_up = {})
       : r_(reader),
@@ -82,20 +90,32 @@ class Builder {
     }
   }
 
-  // The next tetrahedron up from non-maximum t (across its paired triangle), -1 when that
-  // triangle is on the boundary.
-  SimplexId NextUp(SimplexId t) {
-    const SimplexId next = FirstOtherTet(g_.down[3][t], t);
-    return next == t ? -1 : next;
-  }
-
-  // The tetrahedron of v's star with the lowest input id, -1 for an unused vertex.
-  SimplexId FirstInStar(SimplexId v) {
-    const auto star = r_.vertex_star(v);
+  // One read of vertex a's star: returns a's first tetrahedron in input order (-1 for an unused
+  // vertex), and sets up[t] to the next tetrahedron up (across its paired triangle; -1 when that
+  // triangle is on the boundary) for each tetrahedron t paired with a triangle whose lowest
+  // vertex is a. That triangle's star lies in a's. Every paired triangle has one lowest vertex,
+  // so a pass over every vertex sets each non-critical tetrahedron's entry once, and a block's
+  // pass reads only its own vertices' stars (part_5M.vtu, actopo: following each tetrahedron's
+  // triangle to its lowest vertex, in whichever block, computed VT 7,283 times over 3,631 blocks).
+  SimplexId ScanStar(SimplexId a, std::span<SimplexId> up) {
+    const auto star = r_.vertex_star(a);
     if (star.empty()) return -1;
+    const SimplexId first_triangle = topo_.vertex_first_triangle(a);
+    const SimplexId end_triangle = topo_.vertex_first_triangle(a + 1);
     SimplexId first = star[0];
     for (SimplexId t : star) {
       if (topo_.tetrahedron_input_id(t) < topo_.tetrahedron_input_id(first)) first = t;
+      if (g_.IsCritical(3, t)) continue;
+      const SimplexId f = g_.down[3][t];
+      if (f < first_triangle || f >= end_triangle) continue;  // another vertex's triangle
+      const SimplexId b = topo_.edge_upper(topo_.triangle_edge(f)), c = topo_.triangle_third(f);
+      up[t] = -1;
+      for (SimplexId other : star) {
+        if (other != t && Contains(topo_.tetrahedron(other), b, c)) {
+          up[t] = other;
+          break;
+        }
+      }
     }
     return first;
   }
@@ -108,10 +128,7 @@ class Builder {
     const auto [a, b, c] = topo_.triangle(f);
     triangle_star_.clear();
     for (SimplexId t : r_.vertex_star(a)) {
-      const auto tv = topo_.tetrahedron(t);
-      int found = 0;
-      for (SimplexId v : tv) found += (v == b) + (v == c);
-      if (found == 2) triangle_star_.push_back(t);
+      if (Contains(topo_.tetrahedron(t), b, c)) triangle_star_.push_back(t);
     }
     return triangle_star_;
   }
@@ -131,19 +148,6 @@ class Builder {
       if (next < 0) return false;
       cur = next;
     }
-  }
-
-  // The first tetrahedron of f's star, in TTK's order (ascending input id), other than `cur`;
-  // `cur` itself when there is none.
-  SimplexId FirstOtherTet(SimplexId f, SimplexId cur) {
-    SimplexId best = cur;
-    for (SimplexId t : TriangleStar(f)) {
-      if (t == cur) continue;
-      if (best == cur || topo_.tetrahedron_input_id(t) < topo_.tetrahedron_input_id(best)) {
-        best = t;
-      }
-    }
-    return best;
   }
 
   // The wall of s2 and, for the paths through it, which wall triangles lie around each edge.
@@ -306,7 +310,7 @@ std::vector<SimplexId> DescendingSegmentation(const Topology& topo, const Gradie
 // Labels as codes that cannot be tetrahedron ids: label L (>= -1) is -2 - L, so -1 stays -1.
 constexpr SimplexId LabelCode(SimplexId label) { return -2 - label; }
 
-// `next` holds per tetrahedron the next one up (NextUp), -1 at the boundary, or a maximum's
+// `next` holds per tetrahedron the next one up (ScanStar), -1 at the boundary, or a maximum's
 // LabelCode. Follows every path to its end and leaves the labels: the maximum reached, -1 when
 // the path leaves through the boundary. Needs no relation.
 void ResolveAscendingLabels(std::vector<SimplexId>& next) {
@@ -413,8 +417,8 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
   DescendingSeparatrices(topo, g, result.gradient.critical[1], result.separatrices);
 
   // In one pass over the blocks, while their vertex stars are at hand: each tetrahedron's next
-  // one up (NextUp; -1 for the critical ones until they are labelled), each vertex's first
-  // tetrahedron (FirstInStar, in vertex_label until the labels are known) and each 2-saddle's
+  // one up (ScanStar; -1 for the critical ones until they are labelled), each vertex's first
+  // tetrahedron (ScanStar's result, in vertex_label until the labels are known) and each 2-saddle's
   // tetrahedra (two slots, -1 when on the boundary). The separatrices then read no relation
   // (part_5M.vtu, actopo: tracing them through vertex stars recomputed VT 10,066 times over
   // 3,631 blocks), and the ascending segmentation resolves `up`.
@@ -427,12 +431,8 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
         auto reader = structure.NewReader();
         Builder builder(reader, g, input_tetrahedra);
         for (int32_t b = range.begin; b < range.end; ++b) {
-          for (SimplexId t = topo.block_tetrahedron_begin(b);
-               t < topo.block_tetrahedron_begin(b + 1); ++t) {
-            if (!g.IsCritical(3, t)) up[t] = builder.NextUp(t);
-          }
           for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
-            vertex_label[v] = builder.FirstInStar(v);
+            vertex_label[v] = builder.ScanStar(v, up);
           }
           for (auto i =
                    std::lower_bound(saddles.begin(), saddles.end(), topo.block_triangle_begin(b));
