@@ -46,17 +46,36 @@ bool Contains(std::span<const SimplexId, 4> tv, SimplexId b, SimplexId c) {
   return found == 2;
 }
 
+// Which edges and triangles are critical, one bit each. The gradient keeps only the pairings
+// the paths follow (GradientArrays::kPersistence: vertex -> edge, edge -> triangle, tetrahedron
+// -> triangle); a triangle's edge comes from its edges' pairings (DownEdge). The three arrays
+// left out are 4 bytes per edge and 8 per triangle: 259 MB on wavelet128.vtu.
+class CriticalSaddles {
+ public:
+  CriticalSaddles(const Topology& topo, const std::array<std::vector<SimplexId>, 4>& critical)
+      : edges_(size_t(topo.num_edges()), false), triangles_(size_t(topo.num_triangles()), false) {
+    for (SimplexId e : critical[1]) edges_[e] = true;
+    for (SimplexId f : critical[2]) triangles_[f] = true;
+  }
+  bool edge(SimplexId e) const { return edges_[e]; }
+  bool triangle(SimplexId f) const { return triangles_[f]; }
+
+ private:
+  std::vector<bool> edges_, triangles_;
+};
+
 // The work after the gradient that reads relations, per item, on one consumer's reader.
 template <class Reader>
 class Builder {
  public:
   // `next_up`: every non-critical tetrahedron's next one up (ScanStar), for
   // AscendingSeparatrices.
-  Builder(Reader& reader, const GradientField& gradient,
+  Builder(Reader& reader, const GradientField& gradient, const CriticalSaddles& saddles,
           std::span<const SimplexId> input_tetrahedra, std::span<const SimplexId> next_up = {})
       : r_(reader),
         topo_(reader.topology()),
         g_(gradient),
+        saddles_(saddles),
         input_tets_(input_tetrahedra),
         next_up_(next_up) {}
 
@@ -143,7 +162,7 @@ class Builder {
       if (g_.IsCritical(3, cur)) return true;
       const SimplexId f = g_.down[3][cur];
       cells.push_back({2, f});
-      if (g_.IsCritical(2, f)) return false;
+      if (saddles_.triangle(f)) return false;
       const SimplexId next = next_up_[cur];
       if (next < 0) return false;
       cur = next;
@@ -168,7 +187,7 @@ class Builder {
       const auto [a, b, c] = topo_.triangle(f);
       for (SimplexId e : {topo_.FindEdge(a, b), topo_.FindEdge(a, c), topo_.FindEdge(b, c)}) {
         wall_edges_.push_back({e, f});
-        if (g_.IsCritical(1, e)) wall_saddles_.push_back(e);
+        if (saddles_.edge(e)) wall_saddles_.push_back(e);
         const SimplexId paired = g_.up[1][e];
         if (paired >= 0 && paired != f) bfs.push(paired);
       }
@@ -196,7 +215,7 @@ class Builder {
     SimplexId cur = -1;
     candidates_.clear();
     for (const auto& [e, f] : WallTriangles(s1)) {
-      if (g_.IsCritical(2, f)) {
+      if (saddles_.triangle(f)) {
         cells.push_back({2, f});
         return true;
       }
@@ -208,10 +227,10 @@ class Builder {
     for (size_t steps = 0; steps <= wall_.size(); ++steps) {
       const SimplexId old = cur;
       cells.push_back({2, cur});
-      if (g_.IsCritical(2, cur)) return true;
-      const SimplexId e = g_.down[2][cur];
+      if (saddles_.triangle(cur)) return true;
+      const SimplexId e = DownEdge(cur);
       cells.push_back({1, e});
-      if (g_.IsCritical(1, e)) return true;
+      if (saddles_.edge(e)) return true;
       candidates_.clear();
       for (const auto& [edge, f] : WallTriangles(e)) {
         if (f != old) candidates_.push_back(f);
@@ -220,6 +239,16 @@ class Builder {
       cur = LastInTtkOrder(candidates_);
     }
     return true;
+  }
+
+  // The edge paired with wall triangle f (every wall triangle but its saddle is paired with one
+  // of its edges): the one of its three edges whose pairing points back at it.
+  SimplexId DownEdge(SimplexId f) const {
+    const auto [a, b, c] = topo_.triangle(f);
+    for (SimplexId e : {topo_.FindEdge(a, b), topo_.FindEdge(a, c), topo_.FindEdge(b, c)}) {
+      if (g_.up[1][e] == f) return e;
+    }
+    return -1;
   }
 
   // TTK numbers triangles by first appearance over tetrahedra in input order, faces (v0 v1 v2),
@@ -257,6 +286,7 @@ class Builder {
   Reader& r_;
   const Topology& topo_;
   const GradientField& g_;
+  const CriticalSaddles& saddles_;
   std::span<const SimplexId> input_tets_;
   std::span<const SimplexId> next_up_;
   absl::flat_hash_set<SimplexId> wall_;  // the current wall: a few triangles of many
@@ -411,9 +441,14 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
   if (gradient) {
     result.gradient = std::move(*gradient);
   } else {
-    ASSIGN_OR_RETURN(result.gradient, RunDiscreteGradient(structure, order, phase(0.0, 0.5)));
+    ASSIGN_OR_RETURN(result.gradient, RunDiscreteGradient(structure, order, phase(0.0, 0.5),
+                                                          GradientArrays::kPersistence));
   }
-  const GradientField& g = result.gradient.gradient;
+  GradientField& g = result.gradient.gradient;
+  // What the paths do not follow (a caller's gradient may have every array), freed before the
+  // arrays below are allocated.
+  for (auto* unused : {&g.up[2], &g.down[1], &g.down[2]}) std::vector<SimplexId>().swap(*unused);
+  const CriticalSaddles critical_saddles(topo, result.gradient.critical);
   DescendingSeparatrices(topo, g, result.gradient.critical[1], result.separatrices);
 
   // In one pass over the blocks, while their vertex stars are at hand: each tetrahedron's next
@@ -429,7 +464,7 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
   absl::Status status = RunOnConsumers(
       phase(0.5, 0.6), topo, topo.num_blocks(), [&](int, BlockRange range, WorkTracker& tracker) {
         auto reader = structure.NewReader();
-        Builder builder(reader, g, input_tetrahedra);
+        Builder builder(reader, g, critical_saddles, input_tetrahedra);
         for (int32_t b = range.begin; b < range.end; ++b) {
           for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
             vertex_label[v] = builder.ScanStar(v, up);
@@ -459,7 +494,7 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
       phase(0.6, 0.95), int64_t(saddles.size()), chunk,
       [&](int, ItemQueue& queue, WorkTracker& tracker) {
         auto reader = structure.NewReader();
-        Builder builder(reader, g, input_tetrahedra, up);
+        Builder builder(reader, g, critical_saddles, input_tetrahedra, up);
         int64_t begin, end;
         while (queue.Next(begin, end)) {
           for (int64_t i = begin; i < end; ++i) {

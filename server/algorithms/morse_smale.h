@@ -42,7 +42,7 @@ struct Separatrix {
 };
 
 struct MorseSmaleResult {
-  DiscreteGradientResult gradient;
+  DiscreteGradientResult gradient;       // its GradientArrays::kPersistence arrays, and every list
   std::vector<Separatrix> separatrices;  // descending, then ascending, then saddle connectors
   // Per input vertex: DescendingManifold, AscendingManifold, MorseSmaleManifold.
   std::vector<SimplexId> descending, ascending, morse_smale;
@@ -64,8 +64,9 @@ struct MorseSmaleResult {
 RelationSet MorseSmaleDeclared();
 
 // `input_tetrahedra`: the mesh's tetrahedra as given (4 input vertex ids each), which fix TTK's
-// triangle numbering. `gradient`: the gradient of `order` (GradientArrays::kAll) when the caller
-// has it already (a simplified field's, from UpdateDiscreteGradient); computed otherwise.
+// triangle numbering. `gradient`: the gradient of `order`, either set of arrays, when the caller
+// has it already (a simplified field's, from UpdateDiscreteGradient); computed otherwise. The
+// result's gradient keeps the GradientArrays::kPersistence arrays and the critical cells.
 // Everything that reads relations runs on all consumers: the gradient and the ascending
 // segmentation by blocks, the separatrices by 2-saddle.
 template <class Structure>
