@@ -129,6 +129,11 @@ TEST(DiscreteGradient, ValidAndIdenticalOnEveryStructureAndMode) {
       EXPECT_EQ(r.PairsDigest(*f.topo), pairs) << label;
       EXPECT_EQ(r.CriticalCellsDigest(*f.topo), critical) << label;
     };
+    // The persistence arrays only: the same pairs, read from down[3] for d = 2.
+    const auto kept =
+        *RunDiscreteGradient(*explicit_structure, f.order, {}, GradientArrays::kPersistence);
+    EXPECT_TRUE(kept.gradient.up[2].empty());
+    check(kept, "explicit, persistence arrays");
     for (int consumers : {1, 2}) {
       CompactStructure compact(f.topo, {.cache_ratio = 0.1, .consumers = consumers});
       check(*RunDiscreteGradient(compact, f.order, {.consumers = consumers}), "compact");

