@@ -10,7 +10,6 @@
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
-#include "server/core/parallel.h"
 #include "server/core/status_macros.h"
 
 namespace actopo {
@@ -427,26 +426,6 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,
 
 namespace {
 
-// Fills the arrays a GradientArrays::kPersistence gradient leaves out, from the ones it keeps:
-// pairs are a matching, so each left-out array is the inverse of a kept one.
-void CompleteGradient(GradientField& g, const Topology& topo, int threads) {
-  const auto invert = [threads](const std::vector<SimplexId>& from, std::vector<SimplexId>& to,
-                                SimplexId size) {
-    if (!to.empty()) return;
-    to.assign(size_t(size), -1);
-    constexpr int64_t kChunk = int64_t(1) << 16;
-    ParallelFor((int64_t(from.size()) + kChunk - 1) / kChunk, threads, [&](int64_t chunk, int) {
-      const size_t end = std::min(from.size(), size_t((chunk + 1) * kChunk));
-      for (size_t c = size_t(chunk * kChunk); c < end; ++c) {
-        if (from[c] >= 0) to[from[c]] = SimplexId(c);
-      }
-    });
-  };
-  invert(g.up[0], g.down[1], topo.num_edges());
-  invert(g.up[1], g.down[2], topo.num_triangles());
-  invert(g.down[3], g.up[2], topo.num_triangles());
-}
-
 // The vertex of cell (d, c) that comes last in `order`: the vertex whose lower star holds it.
 SimplexId HighestVertex(const Topology& topo, int d, SimplexId c,
                         std::span<const SimplexId> order) {
@@ -502,7 +481,6 @@ absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(Structure& structu
   const int consumers = std::max(context.consumers, 1);
   DiscreteGradientResult result = std::move(previous);
   GradientField& g = result.gradient;
-  CompleteGradient(g, topo, consumers);
 
   // The lower stars that can change: those of the reordered vertices and of their neighbours
   // (or the caller's `changed`, a subset). Any other vertex's star holds no reordered vertex,

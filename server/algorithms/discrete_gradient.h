@@ -73,8 +73,10 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
 // not in `reordered` compare as in `order` (a simplified field's order and its input's: LTS moves
 // only the vertices it flattens). A cell's pairing depends on its highest vertex's lower star
 // alone, so only the stars of the reordered vertices and of their neighbours are paired again.
-// The result equals RunDiscreteGradient(structure, order, context) (GradientArrays::kAll), at a
-// fraction of its cost when few vertices moved; `previous` may keep either set of arrays.
+// The result keeps the arrays `previous` keeps (either set: a pair's two cells lie in one lower
+// star, so clearing a star's cells in the kept arrays clears its pairs) and equals
+// RunDiscreteGradient(structure, order, context, those arrays), at a fraction of its cost when
+// few vertices moved.
 // `changed`: when not empty, the vertices whose lower star differs between the two orders,
 // ascending and distinct, as a caller that knows both orders and the neighbours found them
 // (SimplificationResult::changed_stars): `reordered` and those of their neighbours whose lower
