@@ -366,20 +366,21 @@ void ResolveAscendingLabels(std::vector<SimplexId>& next) {
 std::vector<SimplexId> FinalSegmentation(const std::vector<SimplexId>& descending,
                                          const std::vector<SimplexId>& ascending,
                                          int64_t num_maxima) {
-  std::vector<int64_t> sparse(descending.size());
-  for (size_t v = 0; v < sparse.size(); ++v) {
-    sparse[v] = descending[v] < 0 || ascending[v] < 0
-                    ? -1
-                    : int64_t(descending[v]) * num_maxima + ascending[v];
-  }
-  // Dense ranks of the distinct sparse ids, -1 included (so it becomes region 0, as in TTK).
-  std::vector<int64_t> distinct = sparse;
+  const auto sparse = [&](size_t v) {
+    return descending[v] < 0 || ascending[v] < 0
+               ? int64_t(-1)
+               : int64_t(descending[v]) * num_maxima + ascending[v];
+  };
+  // Dense ranks of the distinct sparse ids, -1 included (so it becomes region 0, as in TTK). The
+  // regions are few: their ids are collected in a set, not in a copy per vertex.
+  absl::flat_hash_set<int64_t> seen;
+  for (size_t v = 0; v < descending.size(); ++v) seen.insert(sparse(v));
+  std::vector<int64_t> distinct(seen.begin(), seen.end());
   std::sort(distinct.begin(), distinct.end());
-  distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
-  std::vector<SimplexId> out(sparse.size());
-  for (size_t v = 0; v < sparse.size(); ++v) {
+  std::vector<SimplexId> out(descending.size());
+  for (size_t v = 0; v < out.size(); ++v) {
     out[v] =
-        SimplexId(std::lower_bound(distinct.begin(), distinct.end(), sparse[v]) - distinct.begin());
+        SimplexId(std::lower_bound(distinct.begin(), distinct.end(), sparse(v)) - distinct.begin());
   }
   return out;
 }
@@ -528,6 +529,7 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
   for (SimplexId& label : vertex_label) {
     if (label >= 0) label = up[label];
   }
+  std::vector<SimplexId>().swap(up);  // 4 bytes per tetrahedron, before the last arrays
   result.maximum_sizes.assign(maxima.size(), 0);
   for (SimplexId l : vertex_label) {
     if (l >= 0) ++result.maximum_sizes[l];
