@@ -243,14 +243,15 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   RunJobReactor(ReactorHost* host, grpc::CallbackServerContext* context,
                 const v1::RunJobRequest* request)
       : host_(host) {
+    deadline_ = SteadyDeadline(*context);
     absl::Status s = host_->Admit(context);
+    if (s.ok()) s = NotPastDeadline();
     if (s.ok()) s = Prepare(*request);
     if (!s.ok()) {
       host_->Count("RunJob", s);
       Finish(ToGrpcStatus(s));
       return;
     }
-    deadline_ = SteadyDeadline(*context);
     v1::RunJobResponse accepted;
     accepted.mutable_accepted()->set_job_id(job_id_);
     Push(std::move(accepted));
@@ -290,6 +291,14 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
       last = --holds_ == 0;
     }
     if (last) delete this;
+  }
+
+  // A call that reaches the server after its deadline (queued in gRPC while the client gave up)
+  // starts no job: its client has DEADLINE_EXCEEDED already, and a job started now would hold
+  // the session's lease and refuse that client's next call with FAILED_PRECONDITION.
+  absl::Status NotPastDeadline() const {
+    if (Progress::Clock::now() < deadline_) return absl::OkStatus();
+    return absl::DeadlineExceededError("the call's deadline passed before its job started");
   }
 
   absl::Status Prepare(const v1::RunJobRequest& request) {
