@@ -80,7 +80,7 @@ class Server:
         self.process = subprocess.Popen(
             [str(binary), "--port", str(self.port), "--host", "127.0.0.1",
              "--data-dir", str(data_dir), "--session-idle-timeout-s", "30"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         self.target = f"127.0.0.1:{self.port}"
         deadline = time.monotonic() + 30
         while time.monotonic() < deadline:

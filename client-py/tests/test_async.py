@@ -86,12 +86,19 @@ async def _stopped(session: actopo.AsyncSession, seconds: float = 30) -> bool:
             and (await session.stats()).jobs.count == 0)
 
 
-async def _ran_on(session: actopo.AsyncSession, when: str) -> str:
-    """The message of a failed _stopped(), with what the server says of the session."""
-    return f"the job ran on {when}: {await session.describe()} {(await session.stats()).jobs}"
+async def _assert_stopped(session: actopo.AsyncSession, when: str, log: list[str]) -> None:
+    """Fails unless _stopped(), saying what the server says of the session and the last job
+    lines of its log (each job's start and end)."""
+    if await _stopped(session):
+        return
+    jobs = "".join([line for line in log if " job job-" in line][-8:])
+    pytest.fail(f"the job ran on {when}: {await session.describe()} "
+                f"{(await session.stats()).jobs}\nserver log:\n{jobs}")
 
 
-def test_async_errors_and_cancellation(server):
+def test_async_errors_and_cancellation(shared_server):
+    server, log = shared_server.target, shared_server.stderr
+
     async def scenario():
         async with actopo.AsyncClient(server) as aclient:
             with pytest.raises(actopo.NotFoundError):
@@ -108,15 +115,15 @@ def test_async_errors_and_cancellation(server):
                     task.cancel()  # what Ctrl-C does under asyncio.run
                     with pytest.raises(asyncio.CancelledError):
                         await task
-                    assert await _stopped(session), await _ran_on(session, "after task.cancel()")
+                    await _assert_stopped(session, "after task.cancel()", log)
                     job = await session.submit("morse-smale")
                     await job.cancel()
                     with pytest.raises(actopo.CancelledError):
                         await job.result()
-                    assert await _stopped(session), await _ran_on(session, "after CancelJob")
+                    await _assert_stopped(session, "after CancelJob", log)
                     with pytest.raises(actopo.DeadlineExceededError):
                         await session.run("morse-smale", timeout=0.01)
-                    assert await _stopped(session), await _ran_on(session, "past its deadline")
+                    await _assert_stopped(session, "past its deadline", log)
             finally:
                 await aclient.delete_mesh(mesh)
             with pytest.raises(actopo.NotFoundError):

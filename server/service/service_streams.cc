@@ -4,12 +4,15 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cstring>
 #include <deque>
 #include <map>
 #include <sstream>
+#include <string>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
 #include "server/core/sync.h"
@@ -233,6 +236,14 @@ class StreamRelationsReactor final
 };
 
 // ---------------------------------------------------------------------------------------------
+// One line on the server's stderr, written whole (one write call), so that lines of jobs ending
+// together do not interleave: where each job started and how it ended, for operators and for
+// the tests' failure messages.
+void LogLine(const std::string& line) {
+  const std::string text = absl::StrCat("actopo-server: ", line, "\n");
+  std::fwrite(text.data(), 1, text.size(), stderr);
+}
+
 // RunJob: the algorithm runs on the jobs executor; its events (progress, result arrays,
 // summary, statistics) are queued and written one at a time. Cancelling the call, CancelJob,
 // closing the session or draining the server set the job's cancel flag; the job also stops by
@@ -334,8 +345,17 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
       progress.mutable_progress()->set_fraction(fraction);
       Push(std::move(progress));
     };
+    const std::string what = absl::StrCat(
+        "job ", job_id_, " (", std::string(AlgorithmName(input_.algorithm)), ", ",
+        std::string(StructureName(session_->options().structure.kind)), ", ", session_->id(), ")");
+    LogLine(absl::StrCat(what, " started"));
+    const auto start = std::chrono::steady_clock::now();
     absl::StatusOr<JobOutcome> outcome = session_->RunJob(input_, context);
     lease_.Release();  // before the client can see the end of the stream
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    LogLine(absl::StrCat(what, " ended after ", absl::StrFormat("%.3f", seconds),
+                         " s: ", outcome.ok() ? "OK" : outcome.status().ToString()));
     absl::Status status = outcome.status();
     if (status.ok()) status = SendResult(*outcome, context.trace.get());
     host_->Count("RunJob", status);
