@@ -80,6 +80,25 @@ def test_persistence_diagram_equals_ttk_and_writes_the_diagram(tmp_path):
 
 
 @pytest.mark.parametrize("structure", ["explicit", "compact", "actopo"])
+def test_critical_points_build_no_faces_and_equal_ttk(structure):
+    """critical points reads VV, VT and VB, computed from the vertices' stars: the encoding
+    builds no edges or triangles, and the result is still TTK's (fertility has a boundary)."""
+    upstream = json.loads((DATA / "expected-ttk.json").read_text())["fertility_tet.vtu"]
+    upstream = upstream["height"]["upstream"]
+    want = upstream["critical_points"]
+    r = run_json("--mesh", str(DATA / "fertility_tet.vtu"), "--scalar", "height",
+                 "--algorithm", "critical-points", "--structure", structure, "--digests")
+    assert r["mesh"]["edges"] is None and r["mesh"]["triangles"] is None
+    assert r["memory"]["static_breakdown_bytes"]["edges"] == 0
+    assert r["result"]["vertices_sha256"] == want["vertices_sha256"]
+    assert r["result"]["counts"] == want["counts"]
+    # Every other algorithm reads edges or triangles: they are built and counted.
+    r = run_json("--mesh", str(DATA / "fertility_tet.vtu"), "--scalar", "height",
+                 "--algorithm", "discrete-gradient", "--structure", structure)
+    assert r["mesh"]["edges"] == upstream["mesh"]["edges"]
+
+
+@pytest.mark.parametrize("structure", ["explicit", "compact", "actopo"])
 def test_simplified_morse_smale_on_every_structure(structure, tmp_path):
     """morse-smale with a threshold reads the simplification's relations too (VV): the explicit
     structure must have stored them."""

@@ -63,6 +63,13 @@ RelationSet DeclaredRelations(Algorithm a) {
   return {};
 }
 
+bool NeedsFaces(Algorithm a) {
+  // Critical points reads VV, VT and VB and no other part of the topology's faces.
+  static_assert(!NeedsFaces(Relation::kVV) && !NeedsFaces(Relation::kVT) &&
+                !NeedsFaces(Relation::kVB));
+  return a != Algorithm::kCriticalPoints;
+}
+
 bool NeedsScalar(Algorithm a) { return a != Algorithm::kTopoRelations; }
 
 bool NeedsScalarValues(Algorithm a) {

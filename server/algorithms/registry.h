@@ -30,6 +30,9 @@ absl::StatusOr<Algorithm> ParseAlgorithm(std::string_view name);
 std::span<const Algorithm> AllAlgorithms();
 
 RelationSet DeclaredRelations(Algorithm a);
+// Whether the algorithm reads edges or triangles (its relations or the topology's), so needs a
+// topology built with faces (TopologyOptions::faces): every one but critical points.
+bool NeedsFaces(Algorithm a);
 // Whether the algorithm reads a scalar field.
 bool NeedsScalar(Algorithm a);
 // Whether it needs the field's values, not only their order: the persistence diagram reports

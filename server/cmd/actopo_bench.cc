@@ -194,6 +194,8 @@ absl::StatusOr<Loaded> Load(const BenchOptions& o, Algorithm algorithm,
     out.scalar_name = out.mesh.point_fields[field].name;
     out.scalars = out.mesh.point_fields[field].values;
   }
+  // Without --output no result file carries the mesh's fields: the one read is copied above.
+  if (o.output.empty()) std::vector<PointField>().swap(out.mesh.point_fields);
   out.seconds = Seconds(start);
   Phase(trace, "load", start);
   return out;
@@ -215,6 +217,9 @@ absl::StatusOr<std::shared_ptr<const Topology>> Partition(const BenchOptions& o,
     ASSIGN_OR_RETURN(blocks, ComputeBlocks(mesh, {.bucket_capacity = o.block_size,
                                                   .block_label_field = o.block_labels}));
   }
+  // Without --output the points have done their part once the blocks are known: free them
+  // before the encoding's peak (wavelet128: 48 MiB).
+  if (o.output.empty()) std::vector<double>().swap(mesh.points);
   const bool keep = algorithm == Algorithm::kMorseSmale || !o.output.empty();
   ASSIGN_OR_RETURN(std::shared_ptr<const Topology> topology,
                    Topology::Build(mesh, blocks,
@@ -223,6 +228,7 @@ absl::StatusOr<std::shared_ptr<const Topology>> Partition(const BenchOptions& o,
                                         [&] {
                                           if (!keep) std::vector<SimplexId>().swap(mesh.tetrahedra);
                                         },
+                                    .faces = NeedsFaces(algorithm),
                                     .trace = trace.get()}));
   if (algorithm == Algorithm::kMorseSmale) {
     input_tetrahedra = o.output.empty() ? std::move(mesh.tetrahedra) : mesh.tetrahedra;
@@ -348,8 +354,9 @@ Json Report(const BenchOptions& o, Algorithm algorithm, const Topology& topology
   Json j;
   j["mesh"] = {{"source", o.mesh.empty() ? "sample:" + o.sample : o.mesh},
                {"vertices", topology.num_vertices()},
-               {"edges", topology.num_edges()},
-               {"triangles", topology.num_triangles()},
+               // null when the algorithm needs no faces (critical points): none were built.
+               {"edges", topology.has_faces() ? Json(topology.num_edges()) : Json(nullptr)},
+               {"triangles", topology.has_faces() ? Json(topology.num_triangles()) : Json(nullptr)},
                {"tetrahedra", topology.num_tetrahedra()},
                {"blocks", topology.num_blocks()}};
   j["structure"] = o.structure;
@@ -460,11 +467,13 @@ absl::StatusOr<Json> Run(BenchOptions o) {
 
 void PrintHuman(const Json& j) {
   const Json& m = j["mesh"];
-  std::printf(
-      "mesh       %s: %lld vertices, %lld edges, %lld triangles, %lld tetrahedra, %lld blocks\n",
-      m["source"].get<std::string>().c_str(), m["vertices"].get<long long>(),
-      m["edges"].get<long long>(), m["triangles"].get<long long>(),
-      m["tetrahedra"].get<long long>(), m["blocks"].get<long long>());
+  const std::string faces = m["edges"].is_null()
+                                ? std::string("edges and triangles not built")
+                                : absl::StrCat(m["edges"].get<long long>(), " edges, ",
+                                               m["triangles"].get<long long>(), " triangles");
+  std::printf("mesh       %s: %lld vertices, %s, %lld tetrahedra, %lld blocks\n",
+              m["source"].get<std::string>().c_str(), m["vertices"].get<long long>(), faces.c_str(),
+              m["tetrahedra"].get<long long>(), m["blocks"].get<long long>());
   std::printf("run        %s on %s, %d consumer(s)\n", j["algorithm"].get<std::string>().c_str(),
               j["structure"].get<std::string>().c_str(), j["config"]["consumers"].get<int>());
   const Json& t = j["times_s"];

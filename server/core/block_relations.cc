@@ -210,13 +210,78 @@ class BlockComputer {
     PairsToCsr(out, false);
   }
 
-  void VertexNeighbors(RelationBlock& out) {
-    LowerEdges(out, [](SimplexId a, SimplexId) { return a; });
-    AppendUpperRanges(out, [&](SimplexId v, std::vector<SimplexId>& row) {
-      for (SimplexId e = topo_.vertex_first_edge(v); e < topo_.vertex_first_edge(v + 1); ++e) {
-        row.push_back(topo_.edge_upper(e));
+  // VV and VB come from the vertices' stars, not from the edge and triangle runs, so that
+  // critical points need no faces (TopologyOptions::faces).
+
+  // The block's vertex stars as CSR (VT), for the two relations below.
+  RelationBlock BlockStars(const RelationBlock& out) {
+    RelationBlock star;
+    star.count = out.count;
+    VertexStar(star);
+    return star;
+  }
+  // The other vertices of v's star tetrahedra, ascending: the other ends of v's edges. Each
+  // comes once per tetrahedron around its edge (a few), inserted into a short sorted row.
+  void StarNeighbors(SimplexId v, std::span<const SimplexId> star,
+                     std::vector<SimplexId>& row) const {
+    row.clear();
+    for (SimplexId t : star) {
+      for (SimplexId w : topo_.tetrahedron(t)) {
+        if (w == v) continue;
+        const auto at = std::lower_bound(row.begin(), row.end(), w);
+        if (at == row.end() || *at != w) row.insert(at, w);
       }
-    });
+    }
+  }
+  // Whether a triangle of v's star lies in one tetrahedron only: v's link edges (the pairs of
+  // other vertices of each star tetrahedron, `neighbors` giving their local indices) counted up
+  // to 2, v being on the boundary when one is seen once. A square table for the usual tens of
+  // neighbours, sorted keys beyond.
+  bool StarOnBoundary(SimplexId v, std::span<const SimplexId> star,
+                      const std::vector<SimplexId>& neighbors) {
+    const size_t n = neighbors.size();
+    const auto local = [&](SimplexId w) {
+      return size_t(std::lower_bound(neighbors.begin(), neighbors.end(), w) - neighbors.begin());
+    };
+    const auto for_each_link_edge = [&](auto&& fn) {
+      for (SimplexId t : star) {
+        size_t other[3];
+        int k = 0;
+        for (SimplexId w : topo_.tetrahedron(t)) {
+          if (w != v) other[k++] = local(w);  // ascending, as the tuple is
+        }
+        fn(other[0] * n + other[1]);
+        fn(other[0] * n + other[2]);
+        fn(other[1] * n + other[2]);
+      }
+    };
+    if (n <= 64) {
+      s_.link.assign(n * n, 0);
+      for_each_link_edge(
+          [&](size_t key) { s_.link[key] = s_.link[key] < 2 ? s_.link[key] + 1 : 2; });
+      return std::find(s_.link.begin(), s_.link.end(), 1) != s_.link.end();
+    }
+    s_.keys.clear();
+    for_each_link_edge([&](size_t key) { s_.keys.push_back(int64_t(key)); });
+    std::sort(s_.keys.begin(), s_.keys.end());
+    for (size_t i = 0; i < s_.keys.size();) {
+      size_t j = i + 1;
+      while (j < s_.keys.size() && s_.keys[j] == s_.keys[i]) ++j;
+      if (j - i == 1) return true;
+      i = j;
+    }
+    return false;
+  }
+
+  void VertexNeighbors(RelationBlock& out) {
+    const RelationBlock star = BlockStars(out);
+    out.offsets.assign(size_t(out.count) + 1, 0);
+    out.values.clear();
+    for (SimplexId i = 0; i < out.count; ++i) {
+      StarNeighbors(vbegin_ + i, star.row(i), s_.tmp);
+      out.values.insert(out.values.end(), s_.tmp.begin(), s_.tmp.end());
+      out.offsets[i + 1] = SimplexId(out.values.size());
+    }
   }
 
   void VertexEdges(RelationBlock& out) {
@@ -538,14 +603,13 @@ class BlockComputer {
   // A vertex or edge is on the boundary iff it is a face of a boundary triangle: read from the
   // boundary bits of the triangles the block's vertices can be in, no triangle search.
   void VertexOnBoundary(RelationBlock& out) {
+    const RelationBlock star = BlockStars(out);
     out.stride = 1;
     out.values.assign(out.count, 0);
-    ForEachCandidateTriangle([&](SimplexId a, SimplexId e, SimplexId f) {
-      if (!topo_.triangle_on_boundary(f)) return;
-      for (SimplexId v : {a, topo_.edge_upper(e), topo_.triangle_third(f)}) {
-        if (Inside(v)) out.values[v - vbegin_] = 1;
-      }
-    });
+    for (SimplexId i = 0; i < out.count; ++i) {
+      StarNeighbors(vbegin_ + i, star.row(i), s_.tmp);
+      out.values[i] = StarOnBoundary(vbegin_ + i, star.row(i), s_.tmp);
+    }
   }
 
   void EdgeOnBoundary(RelationBlock& out) {

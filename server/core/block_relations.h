@@ -50,6 +50,7 @@ struct RelationBlock {
 struct BlockScratch {
   std::vector<SimplexId> rows, values, counts, mark, tmp, candidates;
   std::vector<int64_t> keys;
+  std::vector<uint8_t> link;
 };
 
 // Computes R (not a static relation: EV, FV, TV, FB live in the topology) for block b.

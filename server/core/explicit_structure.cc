@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <iterator>
 
+#include "absl/strings/str_cat.h"
 #include "server/core/block_relations.h"
 #include "server/core/parallel.h"
 #include "server/core/status_macros.h"
@@ -57,6 +58,13 @@ absl::StatusOr<std::unique_ptr<ExplicitStructure>> ExplicitStructure::Build(
   auto structure = std::unique_ptr<ExplicitStructure>(new ExplicitStructure(topology));
   structure->relations_ = options.relations;
   const Topology& topo = *topology;
+  for (Relation r : AllRelations()) {
+    if (options.relations.Contains(r) && NeedsFaces(r) && !topo.has_faces()) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("explicit structure: relation ", std::string(RelationName(r)),
+                       " needs edges and triangles, and the topology was built without them"));
+    }
+  }
   const int threads = options.threads > 0 ? options.threads : DefaultThreads();
   const int32_t nb = topo.num_blocks();
   std::vector<BlockScratch> scratch(threads);

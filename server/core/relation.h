@@ -58,6 +58,12 @@ constexpr int TargetDimension(Relation r) {
   return kDim[Index(r)];
 }
 
+// Whether computing or reading R touches edges or triangles, which a topology built without
+// faces lacks (TopologyOptions::faces): every relation but VV, VT, TV and VB.
+constexpr bool NeedsFaces(Relation r) {
+  return r != Relation::kVV && r != Relation::kVT && r != Relation::kTV && r != Relation::kVB;
+}
+
 // Number of elements when fixed for every simplex (EV 2, FE 3, ...), 0 when variable.
 constexpr int FixedSize(Relation r) {
   constexpr std::array<int8_t, kNumRelations> kSize = {0, 0, 0, 0, 2, 0, 0, 3, 3, 0, 4,

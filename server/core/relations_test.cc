@@ -67,6 +67,44 @@ TEST_P(RelationsTest, CompactMatchesOracle) {
   }
 }
 
+// A topology built without edges and triangles (TopologyOptions::faces, the points freed first)
+// answers VV, VT and VB like the oracle of the full one; both structures refuse to need more.
+TEST_P(RelationsTest, WithoutFacesVertexRelationsMatchOracle) {
+  const int capacity = GetParam();
+  for (const Case& c : Meshes()) {
+    const std::vector<int32_t> blocks = OctreeBlocks(c.mesh.points, {.bucket_capacity = capacity});
+    testing::RelationOracle oracle(**Topology::Build(c.mesh, blocks));
+    Mesh no_points = c.mesh;
+    no_points.points.clear();
+    auto topo = *Topology::Build(no_points, blocks, {.faces = false});
+    ASSERT_FALSE(topo->has_faces());
+    EXPECT_EQ(topo->num_edges(), 0);
+    EXPECT_EQ(topo->bytes().edges + topo->bytes().triangles, 0);
+    CompactStructure compact(topo, {.cache_ratio = 0.2});
+    auto compact_reader = compact.NewReader();
+    auto structure = ExplicitStructure::Build(
+        topo, {.relations = {Relation::kVV, Relation::kVT, Relation::kVB}});
+    ASSERT_TRUE(structure.ok()) << structure.status();
+    auto explicit_reader = (*structure)->NewReader();
+    for (SimplexId v = 0; v < topo->num_vertices(); ++v) {
+      const auto expect = [&](Relation r) { return oracle.rows(r)[v]; };
+      const auto as_vector = [](std::span<const SimplexId> row) {
+        return std::vector<SimplexId>(row.begin(), row.end());
+      };
+      const std::string where = c.name + " vertex " + std::to_string(v);
+      EXPECT_EQ(as_vector(compact_reader.vertex_neighbors(v)), expect(Relation::kVV)) << where;
+      EXPECT_EQ(as_vector(compact_reader.vertex_star(v)), expect(Relation::kVT)) << where;
+      EXPECT_EQ(compact_reader.vertex_on_boundary(v), expect(Relation::kVB)[0] != 0) << where;
+      EXPECT_EQ(as_vector(explicit_reader.vertex_neighbors(v)), expect(Relation::kVV)) << where;
+      EXPECT_EQ(explicit_reader.vertex_on_boundary(v), expect(Relation::kVB)[0] != 0) << where;
+    }
+    const auto refused = ExplicitStructure::Build(topo, {.relations = {Relation::kVE}});
+    EXPECT_EQ(refused.status().code(), absl::StatusCode::kFailedPrecondition);
+    EXPECT_NE(refused.status().message().find("vertex_edges"), std::string_view::npos)
+        << refused.status();
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(BlockSizes, RelationsTest, ::testing::Values(1, 7, 100, 1000));
 
 TEST(CompactStructure, CacheIsBoundedAndCounted) {

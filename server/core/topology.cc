@@ -257,7 +257,7 @@ struct Topology::Encoder {
   Topology& t;
   // Allocated by ReserveFaces for the window loop.
   std::vector<BlockFaces> faces;                // per block of the current window
-  std::vector<std::vector<int32_t>> neighbors;  // per block, until ListBlockNeighbors
+  std::vector<std::vector<int32_t>> neighbors;  // per block, FindBlockNeighbors to List...
   std::vector<Scratch> scratch;                 // per thread
 
   SimplexId InternalVertex(int64_t tet, int k) const {
@@ -268,10 +268,11 @@ struct Topology::Encoder {
   void BucketTetrahedra();
   void SortBlockTetrahedra();
   void FindExternalTetrahedra();
+  void FindBlockNeighbors();
   void ReserveFaces();
   void ComputeWindowFaces(int32_t window, int32_t window_size);
   void ComputeBlockFaces(int32_t b, Scratch& sc, BlockFaces& out);
-  void CollectStars(int32_t b, Scratch& sc, std::vector<int32_t>& adjacent) const;
+  void CollectStars(int32_t b, Scratch& sc) const;
   void CollectUpperFaces(SimplexId v, SimplexId star_from, SimplexId star_to, Scratch& sc) const;
   static void EmitVertexFaces(SimplexId v, const Scratch& sc, BlockFaces& out);
   void AppendWindowFaces(int32_t window_size);
@@ -372,7 +373,6 @@ void Topology::Encoder::ReserveFaces() {
   // the final arrays, whose upper bounds (6 edges and 4 triangles per tetrahedron) are reserved
   // but untouched, so memory grows by what is written and no second copy of the faces exists.
   faces.resize(std::min(num_blocks, kWindow));
-  neighbors.resize(num_blocks);
   scratch.resize(std::max(threads, 1));
   t.edge_upper_.reserve(6 * size_t(nt));
   t.edge_triangle_begin_.reserve(6 * size_t(nt) + 1);
@@ -389,7 +389,7 @@ void Topology::Encoder::ComputeWindowFaces(int32_t window, int32_t window_size) 
   });
 }
 
-// Block b's edges, triangles and boundary flags into `out`; its sorted neighbours in neighbors[b].
+// Block b's edges, triangles and boundary flags into `out`.
 void Topology::Encoder::ComputeBlockFaces(int32_t b, Scratch& sc, BlockFaces& out) {
   // Per internal vertex v (ascending), from its star: the vertices above v give its edges, the
   // pairs above v in each tetrahedron its triangles, each seen once per incident tetrahedron (so a
@@ -399,8 +399,7 @@ void Topology::Encoder::ComputeBlockFaces(int32_t b, Scratch& sc, BlockFaces& ou
   out.edge_triangles.clear();
   out.triangle_third.clear();
   out.triangle_boundary.clear();
-  std::vector<int32_t>& adjacent = neighbors[b];
-  CollectStars(b, sc, adjacent);
+  CollectStars(b, sc);
   SimplexId star_from = 0;
   for (SimplexId v = vbegin; v < vend; ++v) {
     const SimplexId star_to = sc.star_begin[v - vbegin];
@@ -408,12 +407,33 @@ void Topology::Encoder::ComputeBlockFaces(int32_t b, Scratch& sc, BlockFaces& ou
     star_from = star_to;
     EmitVertexFaces(v, sc, out);
   }
-  std::sort(adjacent.begin(), adjacent.end());
-  adjacent.shrink_to_fit();
 }
 
-// Block b's vertex stars (CSR) and other blocks met; leaves star_begin[i] at the end of star i.
-void Topology::Encoder::CollectStars(int32_t b, Scratch& sc, std::vector<int32_t>& adjacent) const {
+// Each block's neighbours (the other blocks of its vertices' stars), sorted, in neighbors[b].
+void Topology::Encoder::FindBlockNeighbors() {
+  neighbors.resize(num_blocks);
+  ParallelFor(num_blocks, threads, [&](int64_t b, int) {
+    std::vector<int32_t>& adjacent = neighbors[b];
+    const auto add_blocks_of = [&](SimplexId tet) {
+      for (int k = 0; k < 4; ++k) {
+        // Neighbours are few (tens) and met thousands of times: keep them unique.
+        const int32_t nb = t.vertex_block_[t.tet_vertices_[4 * size_t(tet) + k]];
+        if (nb != b && std::find(adjacent.begin(), adjacent.end(), nb) == adjacent.end()) {
+          adjacent.push_back(nb);
+        }
+      }
+    };
+    for (SimplexId tet : t.external_tetrahedra(int32_t(b))) add_blocks_of(tet);
+    for (SimplexId tet = t.block_tet_begin_[b]; tet < t.block_tet_begin_[b + 1]; ++tet) {
+      add_blocks_of(tet);
+    }
+    std::sort(adjacent.begin(), adjacent.end());
+    adjacent.shrink_to_fit();
+  });
+}
+
+// Block b's vertex stars (CSR); leaves star_begin[i] at the end of star i.
+void Topology::Encoder::CollectStars(int32_t b, Scratch& sc) const {
   const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
   const auto external = t.external_tetrahedra(b);
   const SimplexId tet_begin = t.block_tet_begin_[b], tet_end = t.block_tet_begin_[b + 1];
@@ -427,15 +447,7 @@ void Topology::Encoder::CollectStars(int32_t b, Scratch& sc, std::vector<int32_t
   sc.star_begin.assign(size_t(vend - vbegin) + 1, 0);
   for_each_tet([&](SimplexId, const SimplexId* s) {
     for (int k = 0; k < 4; ++k) {
-      if (s[k] >= vbegin && s[k] < vend) {
-        ++sc.star_begin[s[k] - vbegin + 1];
-      } else {
-        // Neighbours are few (tens) and met thousands of times: keep them unique.
-        const int32_t nb = t.vertex_block_[s[k]];
-        if (std::find(adjacent.begin(), adjacent.end(), nb) == adjacent.end()) {
-          adjacent.push_back(nb);
-        }
-      }
+      if (s[k] >= vbegin && s[k] < vend) ++sc.star_begin[s[k] - vbegin + 1];
     }
   });
   for (size_t i = 1; i < sc.star_begin.size(); ++i) sc.star_begin[i] += sc.star_begin[i - 1];
@@ -542,7 +554,7 @@ absl::Status Topology::Encoder::SumRunStarts() {
   return absl::OkStatus();
 }
 
-// Builds the edge -> vertex and triangle -> edge lookups; only the block adjacency is left.
+// Builds the edge -> vertex and triangle -> edge lookups.
 void Topology::Encoder::BuildRunLookups() {
   t.edge_lowest_.Build(t.vertex_edge_begin_, t.num_edges(), threads);
   t.triangle_edge_.Build(t.edge_triangle_begin_, t.num_triangles(), threads);
@@ -565,9 +577,14 @@ void Topology::Encoder::ListBlockNeighbors() {
 absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     const Mesh& mesh, std::span<const int32_t> vertex_block, const TopologyOptions& options,
     const Progress& progress) {
-  const SimplexId nv = mesh.num_vertices();
+  // The vertex count comes from the blocks: a caller may have freed the points already.
+  const SimplexId nv = SimplexId(vertex_block.size());
   const SimplexId nt = mesh.num_tetrahedra();
   const int threads = options.threads > 0 ? options.threads : DefaultThreads();
+  if (!mesh.points.empty() && mesh.num_vertices() != nv) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "blocks: ", vertex_block.size(), " block ids for ", mesh.num_vertices(), " vertices"));
+  }
   ASSIGN_OR_RETURN(const int32_t num_blocks, CountBlocks(vertex_block, nv));
 
   RETURN_IF_ERROR(progress.Update(kPhase, 0));
@@ -600,24 +617,28 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     encoder.FindExternalTetrahedra();
   }
   {
-    auto span = step("faces");
-    encoder.ReserveFaces();
-    for (int32_t window = 0; window < num_blocks; window += kWindow) {
-      // Edges and triangles are about three quarters of the time.
-      RETURN_IF_ERROR(progress.Update(kPhase, 0.2 + 0.75 * window / num_blocks));
-      const int32_t window_size = std::min(kWindow, num_blocks - window);
-      encoder.ComputeWindowFaces(window, window_size);
-      encoder.AppendWindowFaces(window_size);
-    }
-    encoder.faces.clear();  // the last window's, now appended
+    auto span = step("block neighbors");
+    encoder.FindBlockNeighbors();
+    encoder.ListBlockNeighbors();
   }
-  RETURN_IF_ERROR(progress.Update(kPhase, 0.95));
-
-  {
+  if (options.faces) {
+    {
+      auto span = step("faces");
+      encoder.ReserveFaces();
+      for (int32_t window = 0; window < num_blocks; window += kWindow) {
+        // Edges and triangles are about three quarters of the time.
+        RETURN_IF_ERROR(progress.Update(kPhase, 0.2 + 0.75 * window / num_blocks));
+        const int32_t window_size = std::min(kWindow, num_blocks - window);
+        encoder.ComputeWindowFaces(window, window_size);
+        encoder.AppendWindowFaces(window_size);
+      }
+      encoder.faces.clear();  // the last window's, now appended
+    }
+    RETURN_IF_ERROR(progress.Update(kPhase, 0.95));
     auto span = step("run lookups");
     RETURN_IF_ERROR(encoder.SumRunStarts());
     encoder.BuildRunLookups();
-    encoder.ListBlockNeighbors();
+    t.has_faces_ = true;
   }
   RETURN_IF_ERROR(progress.Update(kPhase, 1));
   return topo;

@@ -19,11 +19,11 @@
 // plus its rank inside the block (TopoCluster's numbering). Both permutations are kept so results
 // can be reported in input ids.
 //
-// Storage. Faces are stored as runs, not as tuples: the edges (a, *) of a vertex a are a run
-// holding only their upper vertex, the triangles (a, b, *) of an edge (a, b) a run holding only
-// their third vertex; boundary flags are bits. An edge's lowest vertex and a triangle's edge come
-// from a RunLookup (2 bytes per face). About 49 bytes per tetrahedron in all on the wavelet
-// meshes, instead of 65 with explicit tuples.
+// Storage. Faces (when built, TopologyOptions::faces) are stored as runs, not as tuples: the edges
+// (a, *) of a vertex a are a run holding only their upper vertex, the triangles (a, b, *) of an
+// edge (a, b) a run holding only their third vertex; boundary flags are bits. An edge's lowest
+// vertex and a triangle's edge come from a RunLookup (2 bytes per face). About 49 bytes per
+// tetrahedron in all on the wavelet meshes, instead of 65 with explicit tuples.
 #ifndef ACTOPO_SERVER_CORE_TOPOLOGY_H_
 #define ACTOPO_SERVER_CORE_TOPOLOGY_H_
 
@@ -79,10 +79,16 @@ struct TopologyOptions {
   int threads = 0;  // 0: DefaultThreads()
   // Called once Build has read the mesh's tetrahedra for the last time, before the edges and
   // triangles (the larger part of the encoding) are built. A caller that needs them no longer
-  // may free them there (Build reads the mesh's points and tetrahedra, nothing else, and only
-  // its points after this), so they and the whole encoding are never resident together:
-  // wavelet128, 156 MiB off the peak of a critical points job.
+  // may free them there (Build reads the mesh's tetrahedra, nothing else), so they and the whole
+  // encoding are never resident together: wavelet128, 156 MiB off the peak of a critical points
+  // job.
   std::function<void()> tetrahedra_read;
+  // Whether to build the edges and triangles (the "faces" step: on wavelet128 about 70% of the
+  // encoding's time and half its bytes). Without them the topology holds vertices, tetrahedra and
+  // blocks: enough for the relations VV, VT, TV and VB and for critical points
+  // (NeedsFaces in server/algorithms/registry.h); every edge and triangle accessor then must not
+  // be called (has_faces() says which).
+  bool faces = true;
   // Records each step of the encoding as a span (category "encode": sort vertices, bucket
   // tetrahedra, sort tetrahedra, external tetrahedra, faces, run lookups), when set.
   Trace* trace = nullptr;
@@ -125,8 +131,10 @@ class RunLookup {
 class Topology {
  public:
   // `vertex_block` gives the block of each input vertex (dense ids 0..B-1, e.g. OctreeBlocks).
-  // The mesh must be valid (ValidateMesh). Reports phase "encode" and stops (CANCELLED or
-  // DEADLINE_EXCEEDED, nothing kept) between its steps when `progress` says so.
+  // The mesh must be valid (ValidateMesh). Build reads its tetrahedra only, so a caller that has
+  // its blocks may free the points first (then vertex_block.size() is the vertex count). Reports
+  // phase "encode" and stops (CANCELLED or DEADLINE_EXCEEDED, nothing kept) between its steps when
+  // `progress` says so.
   static absl::StatusOr<std::shared_ptr<const Topology>> Build(
       const Mesh& mesh, std::span<const int32_t> vertex_block, const TopologyOptions& options = {},
       const Progress& progress = {});
@@ -136,6 +144,9 @@ class Topology {
   SimplexId num_triangles() const { return static_cast<SimplexId>(triangle_third_.size()); }
   SimplexId num_tetrahedra() const { return static_cast<SimplexId>(tet_vertices_.size() / 4); }
   int32_t num_blocks() const { return num_blocks_; }
+  // Whether edges and triangles were built (TopologyOptions::faces); without them num_edges()
+  // and num_triangles() are 0.
+  bool has_faces() const { return has_faces_; }
   SimplexId num_simplices(int dimension) const;
 
   // Sorted vertex tuples (internal ids). Edges and triangles are decoded (by value); when the
@@ -219,6 +230,7 @@ class Topology {
 
   SimplexId num_vertices_ = 0;
   int32_t num_blocks_ = 0;
+  bool has_faces_ = false;
   std::vector<int32_t> vertex_block_;            // by internal vertex
   std::vector<SimplexId> block_vertex_begin_;    // B + 1
   std::vector<SimplexId> block_tet_begin_;       // B + 1

@@ -112,6 +112,43 @@ TEST(Topology, TetrahedraFreedWhenReadGiveTheSameEncoding) {
   for (SimplexId e = 0; e < t.num_edges(); ++e) ASSERT_EQ(t.edge(e), kept->edge(e));
 }
 
+// Without faces (and with the points freed first) everything but edges and triangles is the same.
+TEST(Topology, WithoutFacesTheRestIsTheSame) {
+  const Mesh m = testing::Lattice(9, 8, 7, 5);
+  const std::vector<int32_t> blocks = OctreeBlocks(m.points, {.bucket_capacity = 20});
+  auto full = *Topology::Build(m, blocks, {.threads = 2});
+  Mesh no_points = m;
+  no_points.points.clear();
+  auto built = Topology::Build(no_points, blocks, {.threads = 2, .faces = false});
+  ASSERT_TRUE(built.ok()) << built.status();
+  const Topology& t = **built;
+  EXPECT_TRUE(full->has_faces());
+  EXPECT_FALSE(t.has_faces());
+  EXPECT_EQ(t.num_edges(), 0);
+  EXPECT_EQ(t.num_triangles(), 0);
+  ASSERT_EQ(t.num_vertices(), full->num_vertices());
+  ASSERT_EQ(t.num_tetrahedra(), full->num_tetrahedra());
+  ASSERT_EQ(t.num_blocks(), full->num_blocks());
+  for (SimplexId v = 0; v < t.num_vertices(); ++v) {
+    ASSERT_EQ(t.vertex_input_id(v), full->vertex_input_id(v));
+  }
+  for (SimplexId x = 0; x < t.num_tetrahedra(); ++x) {
+    ASSERT_TRUE(std::ranges::equal(t.tetrahedron(x), full->tetrahedron(x)));
+    ASSERT_EQ(t.tetrahedron_input_id(x), full->tetrahedron_input_id(x));
+  }
+  for (int32_t b = 0; b < t.num_blocks(); ++b) {
+    EXPECT_TRUE(std::ranges::equal(t.block_neighbors(b), full->block_neighbors(b)));
+    EXPECT_TRUE(std::ranges::equal(t.external_tetrahedra(b), full->external_tetrahedra(b)));
+  }
+  const TopologyBytes bytes = t.bytes();
+  EXPECT_EQ(bytes.edges + bytes.triangles, 0);
+  EXPECT_EQ(bytes.tetrahedra, full->bytes().tetrahedra);
+  // The vertex count comes from the blocks; points, when kept, must agree with them.
+  const std::vector<int32_t> short_blocks(blocks.begin(), blocks.end() - 1);
+  EXPECT_THAT(Topology::Build(m, short_blocks, {.faces = false}).status().message(),
+              ::testing::HasSubstr("block ids for"));
+}
+
 TEST(Topology, EdgesTrianglesAndBoundaryMatchOracle) {
   for (const Mesh& m : {testing::Lattice(5, 4, 4, 1), testing::NonManifold(),
                         testing::TwoComponents(), testing::SingleTetrahedron()}) {

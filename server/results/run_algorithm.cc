@@ -226,6 +226,11 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
       if constexpr (requires { structure.SetTrace(nullptr); }) structure.SetTrace(nullptr);
     }
   } recording(structure, context.trace);
+  if (NeedsFaces(in.algorithm) && !structure.topology().has_faces()) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("algorithm: ", std::string(AlgorithmName(in.algorithm)),
+                     " needs edges and triangles, and the topology was built without them"));
+  }
   Trace::Scope span(context.trace.get(), AlgorithmName(in.algorithm).data(), "phase");
   AlgorithmOutcome out;
   switch (in.algorithm) {
