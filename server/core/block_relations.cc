@@ -220,39 +220,60 @@ class BlockComputer {
     VertexStar(star);
     return star;
   }
-  // The other vertices of v's star tetrahedra, ascending: the other ends of v's edges. Each
-  // comes once per tetrahedron around its edge (a few), inserted into a short sorted row.
-  void StarNeighbors(SimplexId v, std::span<const SimplexId> star,
-                     std::vector<SimplexId>& row) const {
-    row.clear();
-    for (SimplexId t : star) {
-      for (SimplexId w : topo_.tetrahedron(t)) {
-        if (w == v) continue;
-        const auto at = std::lower_bound(row.begin(), row.end(), w);
-        if (at == row.end() || *at != w) row.insert(at, w);
-      }
-    }
-  }
-  // Whether a triangle of v's star lies in one tetrahedron only: v's link edges (the pairs of
-  // other vertices of each star tetrahedron, `neighbors` giving their local indices) counted up
-  // to 2, v being on the boundary when one is seen once. A square table for the usual tens of
+  // The other vertices of v's star tetrahedra (the other ends of v's edges), in the order first
+  // met, into s_.tmp. Each comes once per tetrahedron around its edge (a few times): an
+  // open-addressing table (at most half full) keeps them unique and gives each its index in
+  // s_.tmp. With `boundary`, also whether a triangle of v's star lies in one tetrahedron only:
+  // v's link edges (the pairs of other vertices of each star tetrahedron) counted up to 2, v
+  // being on the boundary when one is seen once; a square table for the usual tens of
   // neighbours, sorted keys beyond.
-  bool StarOnBoundary(SimplexId v, std::span<const SimplexId> star,
-                      const std::vector<SimplexId>& neighbors) {
-    const size_t n = neighbors.size();
-    const auto local = [&](SimplexId w) {
-      return size_t(std::lower_bound(neighbors.begin(), neighbors.end(), w) - neighbors.begin());
-    };
-    const auto for_each_link_edge = [&](auto&& fn) {
-      for (SimplexId t : star) {
-        size_t other[3];
-        int k = 0;
-        for (SimplexId w : topo_.tetrahedron(t)) {
-          if (w != v) other[k++] = local(w);  // ascending, as the tuple is
+  bool ScanStar(SimplexId v, std::span<const SimplexId> star, bool boundary) {
+    std::vector<SimplexId>& row = s_.tmp;
+    row.clear();
+    int bits = 4;
+    while ((size_t(1) << bits) < 6 * star.size()) ++bits;
+    const uint32_t mask = (uint32_t(1) << bits) - 1;
+    s_.slot_vertex.assign(size_t(mask) + 1, -1);
+    s_.slot_index.resize(size_t(mask) + 1);
+    const auto index_of = [&](SimplexId w) {
+      uint32_t h = (uint32_t(w) * 0x9e3779b1u) >> (32 - bits);
+      while (s_.slot_vertex[h] != w) {
+        if (s_.slot_vertex[h] < 0) {
+          s_.slot_vertex[h] = w;
+          s_.slot_index[h] = SimplexId(row.size());
+          row.push_back(w);
+          break;
         }
-        fn(other[0] * n + other[1]);
-        fn(other[0] * n + other[2]);
-        fn(other[1] * n + other[2]);
+        h = (h + 1) & mask;
+      }
+      return size_t(s_.slot_index[h]);
+    };
+    if (!boundary) {
+      for (SimplexId t : star) {
+        for (SimplexId w : topo_.tetrahedron(t)) {
+          if (w != v) index_of(w);
+        }
+      }
+      return false;
+    }
+    // Indices of the three other vertices of each star tetrahedron, then the link edges.
+    s_.keys.clear();
+    for (SimplexId t : star) {
+      size_t other[3];
+      int k = 0;
+      for (SimplexId w : topo_.tetrahedron(t)) {
+        if (w != v) other[k++] = index_of(w);
+      }
+      std::sort(other, other + 3);
+      s_.keys.insert(s_.keys.end(), {int64_t(other[0]), int64_t(other[1]), int64_t(other[2])});
+    }
+    const size_t n = row.size();
+    const auto for_each_link_edge = [&](auto&& fn) {
+      for (size_t i = 0; i < s_.keys.size(); i += 3) {
+        const size_t a = size_t(s_.keys[i]), b = size_t(s_.keys[i + 1]), c = size_t(s_.keys[i + 2]);
+        fn(a * n + b);
+        fn(a * n + c);
+        fn(b * n + c);
       }
     };
     if (n <= 64) {
@@ -261,12 +282,12 @@ class BlockComputer {
           [&](size_t key) { s_.link[key] = s_.link[key] < 2 ? s_.link[key] + 1 : 2; });
       return std::find(s_.link.begin(), s_.link.end(), 1) != s_.link.end();
     }
-    s_.keys.clear();
-    for_each_link_edge([&](size_t key) { s_.keys.push_back(int64_t(key)); });
-    std::sort(s_.keys.begin(), s_.keys.end());
-    for (size_t i = 0; i < s_.keys.size();) {
+    std::vector<size_t> edges;  // hundreds of neighbours: rare enough to allocate
+    for_each_link_edge([&](size_t key) { edges.push_back(key); });
+    std::sort(edges.begin(), edges.end());
+    for (size_t i = 0; i < edges.size();) {
       size_t j = i + 1;
-      while (j < s_.keys.size() && s_.keys[j] == s_.keys[i]) ++j;
+      while (j < edges.size() && edges[j] == edges[i]) ++j;
       if (j - i == 1) return true;
       i = j;
     }
@@ -278,7 +299,8 @@ class BlockComputer {
     out.offsets.assign(size_t(out.count) + 1, 0);
     out.values.clear();
     for (SimplexId i = 0; i < out.count; ++i) {
-      StarNeighbors(vbegin_ + i, star.row(i), s_.tmp);
+      ScanStar(vbegin_ + i, star.row(i), false);
+      std::sort(s_.tmp.begin(), s_.tmp.end());
       out.values.insert(out.values.end(), s_.tmp.begin(), s_.tmp.end());
       out.offsets[i + 1] = SimplexId(out.values.size());
     }
@@ -606,10 +628,8 @@ class BlockComputer {
     const RelationBlock star = BlockStars(out);
     out.stride = 1;
     out.values.assign(out.count, 0);
-    for (SimplexId i = 0; i < out.count; ++i) {
-      StarNeighbors(vbegin_ + i, star.row(i), s_.tmp);
-      out.values[i] = StarOnBoundary(vbegin_ + i, star.row(i), s_.tmp);
-    }
+    for (SimplexId i = 0; i < out.count; ++i)
+      out.values[i] = ScanStar(vbegin_ + i, star.row(i), true);
   }
 
   void EdgeOnBoundary(RelationBlock& out) {

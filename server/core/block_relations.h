@@ -51,6 +51,7 @@ struct BlockScratch {
   std::vector<SimplexId> rows, values, counts, mark, tmp, candidates;
   std::vector<int64_t> keys;
   std::vector<uint8_t> link;
+  std::vector<SimplexId> slot_vertex, slot_index;  // a vertex's neighbours, hashed (VV, VB)
 };
 
 // Computes R (not a static relation: EV, FV, TV, FB live in the topology) for block b.

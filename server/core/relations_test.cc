@@ -2,6 +2,7 @@
 // brute-force oracle.
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <thread>
 
 #include "gtest/gtest.h"
@@ -106,6 +107,40 @@ TEST_P(RelationsTest, WithoutFacesVertexRelationsMatchOracle) {
 }
 
 INSTANTIATE_TEST_SUITE_P(BlockSizes, RelationsTest, ::testing::Values(1, 7, 100, 1000));
+
+// A vertex with more than 64 neighbours (VB then counts its link edges by sorting): the centre
+// of a bipyramid over a ring of 80 vertices is inside; without the lower half, on the boundary.
+TEST(BlockRelations, ManyNeighboursVertexRelationsMatchOracle) {
+  for (bool closed : {true, false}) {
+    constexpr int kRing = 80;
+    Mesh m;
+    m.points = {0, 0, 0, 0, 0, 1, 0, 0, -1};  // centre, top, bottom
+    for (int i = 0; i < kRing; ++i) {
+      const double a = 6.283185307179586 * i / kRing;
+      m.points.insert(m.points.end(), {std::cos(a), std::sin(a), 0});
+    }
+    for (int i = 0; i < kRing; ++i) {
+      const SimplexId r0 = 3 + i, r1 = 3 + (i + 1) % kRing;
+      m.tetrahedra.insert(m.tetrahedra.end(), {0, r0, r1, 1});
+      if (closed) m.tetrahedra.insert(m.tetrahedra.end(), {0, r0, r1, 2});
+    }
+    for (int capacity : {1, 10, 1000}) {
+      const std::vector<int32_t> blocks = OctreeBlocks(m.points, {.bucket_capacity = capacity});
+      testing::RelationOracle oracle(**Topology::Build(m, blocks));
+      auto topo = *Topology::Build(m, blocks, {.faces = false});
+      CompactStructure compact(topo, {});
+      auto reader = compact.NewReader();
+      const SimplexId centre = topo->vertex_internal_id(0);
+      const auto vv = reader.vertex_neighbors(centre);
+      EXPECT_EQ(std::vector<SimplexId>(vv.begin(), vv.end()), oracle.rows(Relation::kVV)[centre]);
+      EXPECT_EQ(vv.size(), size_t(closed ? kRing + 2 : kRing + 1));
+      EXPECT_EQ(reader.vertex_on_boundary(centre), !closed) << "capacity " << capacity;
+      for (SimplexId v = 0; v < topo->num_vertices(); ++v) {
+        EXPECT_EQ(reader.vertex_on_boundary(v), oracle.rows(Relation::kVB)[v][0] != 0);
+      }
+    }
+  }
+}
 
 TEST(CompactStructure, CacheIsBoundedAndCounted) {
   const Mesh m = testing::Lattice(8, 8, 8, 3);
