@@ -622,14 +622,16 @@ class BlockComputer {
     });
   }
 
-  // A vertex or edge is on the boundary iff it is a face of a boundary triangle: read from the
-  // boundary bits of the triangles the block's vertices can be in, no triangle search.
+  // A vertex or edge is on the boundary iff it is a face of a boundary triangle. A vertex: from
+  // its star (ScanStar). An edge: from the boundary bits of the triangles the block's vertices
+  // can be in, no triangle search.
   void VertexOnBoundary(RelationBlock& out) {
     const RelationBlock star = BlockStars(out);
     out.stride = 1;
     out.values.assign(out.count, 0);
-    for (SimplexId i = 0; i < out.count; ++i)
+    for (SimplexId i = 0; i < out.count; ++i) {
       out.values[i] = ScanStar(vbegin_ + i, star.row(i), true);
+    }
   }
 
   void EdgeOnBoundary(RelationBlock& out) {
