@@ -257,7 +257,7 @@ struct Topology::Encoder {
   Topology& t;
   // Allocated by ReserveFaces for the window loop.
   std::vector<BlockFaces> faces;                // per block of the current window
-  std::vector<std::vector<int32_t>> neighbors;  // per block, FindBlockNeighbors to List...
+  std::vector<std::vector<int32_t>> neighbors;  // per block, until ListBlockNeighbors
   std::vector<Scratch> scratch;                 // per thread
 
   SimplexId InternalVertex(int64_t tet, int k) const {
@@ -577,14 +577,10 @@ void Topology::Encoder::ListBlockNeighbors() {
 absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     const Mesh& mesh, std::span<const int32_t> vertex_block, const TopologyOptions& options,
     const Progress& progress) {
-  // The vertex count comes from the blocks: a caller may have freed the points already.
-  const SimplexId nv = SimplexId(vertex_block.size());
+  // Without points (a caller may have freed them) the vertex count comes from the blocks.
+  const SimplexId nv = mesh.points.empty() ? SimplexId(vertex_block.size()) : mesh.num_vertices();
   const SimplexId nt = mesh.num_tetrahedra();
   const int threads = options.threads > 0 ? options.threads : DefaultThreads();
-  if (!mesh.points.empty() && mesh.num_vertices() != nv) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "blocks: ", vertex_block.size(), " block ids for ", mesh.num_vertices(), " vertices"));
-  }
   ASSIGN_OR_RETURN(const int32_t num_blocks, CountBlocks(vertex_block, nv));
 
   RETURN_IF_ERROR(progress.Update(kPhase, 0));
