@@ -29,54 +29,89 @@ class LinkComponents {
   std::vector<int> parent_;
 };
 
+// Per consumer, reused across vertices.
+struct ClassifyScratch {
+  LinkComponents components;
+  std::vector<SimplexId> neighbors;
+  std::vector<uint8_t> link_edges;  // n x n: how often each link edge was met, up to 2
+};
+
+// Link edges are counted in a square table up to this many link vertices; past it (rare), the
+// vertex's boundary flag is read from VB.
+constexpr size_t kMaxCountedLink = 64;
+
+struct Classified {
+  CriticalType type = CriticalType::kRegular;
+  bool on_boundary = false;
+};
+
 template <class Reader>
-CriticalType Classify(Reader& reader, SimplexId v, std::span<const SimplexId> order,
-                      const CriticalPointsOptions& options, LinkComponents& uf,
-                      std::vector<SimplexId>& neighbors) {
+Classified Classify(Reader& reader, SimplexId v, std::span<const SimplexId> order,
+                    const CriticalPointsOptions& options, ClassifyScratch& scratch) {
   // Copy: the boundary rule below reads other vertices' VV-adjacent relations.
+  std::vector<SimplexId>& neighbors = scratch.neighbors;
   const auto vv = reader.vertex_neighbors(v);
   neighbors.assign(vv.begin(), vv.end());
+  const size_t n = neighbors.size();
   const SimplexId ov = order[v];
-  uf.Reset(neighbors.size());
-  auto local = [&](SimplexId w) {
-    return int(std::lower_bound(neighbors.begin(), neighbors.end(), w) - neighbors.begin());
-  };
+  LinkComponents& uf = scratch.components;
+  uf.Reset(n);
+  // v is on the boundary iff a triangle of its star lies in one tetrahedron only, i.e. one of
+  // its link edges (two other vertices of a star tetrahedron) is met once. The star is scanned
+  // here anyway, so v's own flag costs a table, not VB: VB is read only for the neighbours of
+  // boundary vertices, and localized structures compute it only for blocks near the boundary.
+  const bool count_link = n <= kMaxCountedLink;
+  std::vector<uint8_t>& link = scratch.link_edges;
+  if (count_link) link.assign(n * n, 0);
   for (SimplexId t : reader.vertex_star(v)) {
-    const auto tv = reader.tetrahedron_vertices(t);
-    SimplexId other[3];
-    int n = 0;
-    for (SimplexId w : tv) {
-      if (w != v) other[n++] = w;
+    int local[3];
+    bool lower[3];
+    int m = 0;
+    for (SimplexId w : reader.tetrahedron_vertices(t)) {
+      if (w == v) continue;
+      local[m] = int(std::lower_bound(neighbors.begin(), neighbors.end(), w) - neighbors.begin());
+      lower[m++] = order[w] < ov;
     }
     for (int i = 0; i < 3; ++i) {
       for (int j = i + 1; j < 3; ++j) {
-        if ((order[other[i]] < ov) == (order[other[j]] < ov)) {
-          uf.Union(local(other[i]), local(other[j]));
+        if (lower[i] == lower[j]) uf.Union(local[i], local[j]);
+        if (count_link) {
+          const size_t a = size_t(std::min(local[i], local[j]));
+          const size_t b = size_t(std::max(local[i], local[j]));
+          uint8_t& seen = link[a * n + b];
+          seen = seen < 2 ? seen + 1 : 2;
         }
       }
     }
   }
+  Classified out;
+  out.on_boundary = count_link ? std::find(link.begin(), link.end(), uint8_t{1}) != link.end()
+                               : reader.vertex_on_boundary(v);
   int lower = 0, upper = 0;
-  for (size_t i = 0; i < neighbors.size(); ++i) {
+  for (size_t i = 0; i < n; ++i) {
     if (uf.Find(int(i)) != int(i)) continue;
     (order[neighbors[i]] < ov ? lower : upper)++;
   }
-  if (lower == 0 && upper == 1) return CriticalType::kMinimum;
-  if (lower == 1 && upper == 0) return CriticalType::kMaximum;
-  if (lower == 2 && upper == 1) return CriticalType::kSaddle1;
-  if (lower == 1 && upper == 2) return CriticalType::kSaddle2;
-  if (lower != 1 || upper != 1) return CriticalType::kDegenerate;
-  if (options.boundary_rule == BoundaryRule::kNone || !reader.vertex_on_boundary(v)) {
-    return CriticalType::kRegular;
+  if (lower == 0 && upper == 1) {
+    out.type = CriticalType::kMinimum;
+  } else if (lower == 1 && upper == 0) {
+    out.type = CriticalType::kMaximum;
+  } else if (lower == 2 && upper == 1) {
+    out.type = CriticalType::kSaddle1;
+  } else if (lower == 1 && upper == 2) {
+    out.type = CriticalType::kSaddle2;
+  } else if (lower != 1 || upper != 1) {
+    out.type = CriticalType::kDegenerate;
+  } else if (options.boundary_rule == BoundaryRule::kTtk && out.on_boundary) {
+    bool lower_on_boundary = false, upper_on_boundary = false;
+    for (SimplexId w : neighbors) {
+      if (!reader.vertex_on_boundary(w)) continue;
+      (order[w] < ov ? lower_on_boundary : upper_on_boundary) = true;
+    }
+    if (upper_on_boundary && !lower_on_boundary) out.type = CriticalType::kSaddle1;
+    if (lower_on_boundary && !upper_on_boundary) out.type = CriticalType::kSaddle2;
   }
-  bool lower_on_boundary = false, upper_on_boundary = false;
-  for (SimplexId w : neighbors) {
-    if (!reader.vertex_on_boundary(w)) continue;
-    (order[w] < ov ? lower_on_boundary : upper_on_boundary) = true;
-  }
-  if (upper_on_boundary && !lower_on_boundary) return CriticalType::kSaddle1;
-  if (lower_on_boundary && !upper_on_boundary) return CriticalType::kSaddle2;
-  return CriticalType::kRegular;
+  return out;
 }
 
 }  // namespace
@@ -91,6 +126,7 @@ std::string CriticalPointsResult::VerticesDigest() const {
 }
 
 RelationSet CriticalPointsDeclared() { return {Relation::kVV, Relation::kVT, Relation::kVB}; }
+RelationSet CriticalPointsSwept() { return {Relation::kVV, Relation::kVT}; }
 
 template <class Structure>
 absl::StatusOr<CriticalPointsResult> RunCriticalPoints(Structure& structure,
@@ -103,14 +139,13 @@ absl::StatusOr<CriticalPointsResult> RunCriticalPoints(Structure& structure,
   const absl::Status status = RunOnConsumers(
       context, topo, topo.num_blocks(), [&](int, BlockRange range, WorkTracker& tracker) {
         auto reader = structure.NewReader();
-        LinkComponents uf;
-        std::vector<SimplexId> neighbors;
+        ClassifyScratch scratch;
         std::vector<CriticalPoint> found;
         for (int32_t b = range.begin; b < range.end; ++b) {
           for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
-            const CriticalType type = Classify(reader, v, order, options, uf, neighbors);
-            if (type == CriticalType::kRegular) continue;
-            found.push_back({topo.vertex_input_id(v), type, reader.vertex_on_boundary(v)});
+            const Classified c = Classify(reader, v, order, options, scratch);
+            if (c.type == CriticalType::kRegular) continue;
+            found.push_back({topo.vertex_input_id(v), c.type, c.on_boundary});
           }
           if (!tracker.Done()) return;
         }

@@ -61,6 +61,9 @@ struct CriticalPointsResult {
 
 // VV (link vertices), VT (link edges) and VB (the boundary rule).
 RelationSet CriticalPointsDeclared();
+// What it reads for every vertex: VV and VT. A vertex's own boundary flag comes from the link
+// edges it counts anyway; VB is read only for the neighbours of boundary vertices.
+RelationSet CriticalPointsSwept();
 
 // `order` is VertexOrder() of the scalar field (by internal id). Defined for the explicit,
 // compact and actopo structures.

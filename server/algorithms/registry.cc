@@ -63,6 +63,10 @@ RelationSet DeclaredRelations(Algorithm a) {
   return {};
 }
 
+RelationSet SweptRelations(Algorithm a) {
+  return a == Algorithm::kCriticalPoints ? CriticalPointsSwept() : DeclaredRelations(a);
+}
+
 bool NeedsFaces(Algorithm a) {
   // Critical points reads VV, VT and VB and no other part of the topology's faces.
   static_assert(!NeedsFaces(Relation::kVV) && !NeedsFaces(Relation::kVT) &&

@@ -30,6 +30,10 @@ absl::StatusOr<Algorithm> ParseAlgorithm(std::string_view name);
 std::span<const Algorithm> AllAlgorithms();
 
 RelationSet DeclaredRelations(Algorithm a);
+// The declared relations the algorithm reads on every block, which actopo's producers compute
+// ahead under Precompute::kDeclared: all of them but critical points' VB, read only around
+// boundary vertices (prefetching it everywhere would compute it for blocks nobody asks).
+RelationSet SweptRelations(Algorithm a);
 // Whether the algorithm reads edges or triangles (its relations or the topology's), so needs a
 // topology built with faces (TopologyOptions::faces): every one but critical points.
 bool NeedsFaces(Algorithm a);

@@ -108,7 +108,7 @@ ActopoStructure::Options EngineOptions(const StructureOptions& options, Algorith
           .buffer_ratio = options.buffer_ratio,
           .prefetch = options.prefetch.value_or(DefaultPrefetch(algorithm)),
           .precompute = options.precompute.value_or(DefaultPrecompute(algorithm)),
-          .declared = DeclaredRelations(algorithm),
+          .declared = SweptRelations(algorithm),
           .miss_policy = options.miss_policy,
           .producer_priority = options.producer_priority.value_or(ProducerPriority::kNormal)};
 }

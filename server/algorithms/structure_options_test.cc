@@ -124,7 +124,11 @@ TEST(StructureOptions, EngineTakesTheAlgorithmsChoicesUnlessSet) {
     EXPECT_EQ(e.producers, 3);
     EXPECT_EQ(e.prefetch, DefaultPrefetch(a));
     EXPECT_EQ(e.precompute, DefaultPrecompute(a));
-    EXPECT_EQ(e.declared, DeclaredRelations(a));
+    // Producers compute only what the algorithm declared, and all of it but critical points' VB.
+    EXPECT_EQ(e.declared | DeclaredRelations(a), DeclaredRelations(a));
+    RelationSet swept = DeclaredRelations(a);
+    if (a == Algorithm::kCriticalPoints) swept.Remove(Relation::kVB);
+    EXPECT_EQ(e.declared, swept);
     EXPECT_TRUE(ActopoStructure::Validate(e).ok());
   }
   StructureOptions set = o;

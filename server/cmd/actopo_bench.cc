@@ -315,7 +315,7 @@ absl::StatusOr<RunOutput> RunOnActopo(std::shared_ptr<const Topology> topology,
                                       const RunContext& context, const BenchOptions& o,
                                       const ResultContext* files) {
   ActopoStructure::Options engine = EngineOptions(options, input.algorithm);
-  engine.declared = DeclaredRelations(input);
+  engine.declared = SweptRelations(input);
   const auto start = Clock::now();
   ASSIGN_OR_RETURN(auto structure, ActopoStructure::Create(std::move(topology), engine));
   const double preprocess_s = Seconds(start);

@@ -212,6 +212,12 @@ RelationSet DeclaredRelations(const AlgorithmInput& input) {
   return relations;
 }
 
+RelationSet SweptRelations(const AlgorithmInput& input) {
+  RelationSet relations = SweptRelations(input.algorithm);
+  if (input.simplification) relations = relations | TopologicalSimplificationDeclared();
+  return relations;
+}
+
 template <class Structure>
 absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const AlgorithmInput& in,
                                               const RunContext& context) {

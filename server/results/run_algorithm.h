@@ -69,6 +69,9 @@ struct AlgorithmOutcome {
 // The relations a run of `input` reads: its algorithm's declared set, and the simplification's
 // when morse-smale simplifies first.
 RelationSet DeclaredRelations(const AlgorithmInput& input);
+// Of those, what it reads on every block (SweptRelations): actopo's producers compute these
+// ahead (ActopoStructure::Options::declared).
+RelationSet SweptRelations(const AlgorithmInput& input);
 
 // Defined for the explicit, compact and actopo structures.
 template <class Structure>

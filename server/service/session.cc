@@ -352,7 +352,7 @@ absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input, const Ru
   } else {
     const auto engine_start = Clock::now();
     ActopoStructure::Options engine_options = EngineOptions(options_.structure, input.algorithm);
-    engine_options.declared = DeclaredRelations(input);
+    engine_options.declared = SweptRelations(input);
     ASSIGN_OR_RETURN(auto engine, ActopoStructure::Create(mesh_->topology, engine_options));
     if (ctx.trace) ctx.trace->Span("start engine", "phase", engine_start, Clock::now());
     absl::StatusOr<AlgorithmOutcome> outcome = RunAlgorithm(*engine, input, ctx);
