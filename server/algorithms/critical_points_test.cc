@@ -10,6 +10,7 @@
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
+#include "server/core/testing/oracle.h"
 #include "server/core/testing/test_meshes.h"
 
 namespace actopo {
@@ -106,6 +107,45 @@ TEST(CriticalPoints, BoundaryRuleOnlyAddsBoundarySaddles) {
     }
     EXPECT_EQ(j, none.points.size());
   }
+}
+
+// A vertex's own boundary flag comes from the link edges Classify counts (VB past 64
+// neighbours): every reported point's flag must be the oracle's VB, on every structure.
+// The bipyramid's centre has 81 or 82 neighbours and is the minimum of the distance to it.
+TEST(CriticalPoints, OnBoundaryIsTheOraclesVertexBoundary) {
+  std::vector<Fixture> fixtures = Fixtures();
+  for (bool closed : {true, false}) {
+    const Mesh m = testing::Bipyramid(80, closed);
+    auto topo = Build(m, 10);
+    fixtures.push_back({topo, VertexOrder(*topo, m.point_fields[0].values)});
+  }
+  for (const Fixture& f : fixtures) {
+    const testing::RelationOracle oracle(*f.topo);
+    const auto& vb = oracle.rows(Relation::kVB);
+    auto explicit_structure =
+        *ExplicitStructure::Build(f.topo, {.relations = CriticalPointsDeclared()});
+    CompactStructure compact(f.topo, {.cache_ratio = 0.1});
+    auto actopo = *ActopoStructure::Create(
+        f.topo, {.precompute = Precompute::kDeclared, .declared = CriticalPointsSwept()});
+    const auto check = [&](const CriticalPointsResult& r, const char* structure) {
+      ASSERT_FALSE(r.points.empty());
+      for (const CriticalPoint& p : r.points) {
+        EXPECT_EQ(p.on_boundary, vb[f.topo->vertex_internal_id(p.vertex)][0] != 0)
+            << structure << ": input vertex " << p.vertex;
+      }
+    };
+    check(*RunCriticalPoints(*explicit_structure, f.order, {}, {}), "explicit");
+    check(*RunCriticalPoints(compact, f.order, {}, {}), "compact");
+    check(*RunCriticalPoints(*actopo, f.order, {}, {}), "actopo");
+  }
+  // The centre is the open bipyramid's minimum, on the boundary.
+  const Fixture& open = fixtures.back();
+  auto s = *ExplicitStructure::Build(open.topo, {.relations = CriticalPointsDeclared()});
+  const CriticalPointsResult r = *RunCriticalPoints(*s, open.order, {}, {});
+  ASSERT_FALSE(r.points.empty());
+  EXPECT_EQ(r.points[0].vertex, 0);
+  EXPECT_EQ(r.points[0].type, CriticalType::kMinimum);
+  EXPECT_TRUE(r.points[0].on_boundary);
 }
 
 TEST(CriticalPoints, MinimaAgreeWithTheGradient) {

@@ -109,21 +109,11 @@ TEST_P(RelationsTest, WithoutFacesVertexRelationsMatchOracle) {
 INSTANTIATE_TEST_SUITE_P(BlockSizes, RelationsTest, ::testing::Values(1, 7, 100, 1000));
 
 // A vertex with more than 64 neighbours (VB then counts its link edges by sorting): the centre
-// of a bipyramid over a ring of 80 vertices is inside; without the lower half, on the boundary.
+// of testing::Bipyramid.
 TEST(BlockRelations, ManyNeighboursVertexRelationsMatchOracle) {
   for (bool closed : {true, false}) {
     constexpr int kRing = 80;
-    Mesh m;
-    m.points = {0, 0, 0, 0, 0, 1, 0, 0, -1};  // centre, top, bottom
-    for (int i = 0; i < kRing; ++i) {
-      const double a = 6.283185307179586 * i / kRing;
-      m.points.insert(m.points.end(), {std::cos(a), std::sin(a), 0});
-    }
-    for (int i = 0; i < kRing; ++i) {
-      const SimplexId r0 = 3 + i, r1 = 3 + (i + 1) % kRing;
-      m.tetrahedra.insert(m.tetrahedra.end(), {0, r0, r1, 1});
-      if (closed) m.tetrahedra.insert(m.tetrahedra.end(), {0, r0, r1, 2});
-    }
+    const Mesh m = testing::Bipyramid(kRing, closed);
     for (int capacity : {1, 10, 1000}) {
       const std::vector<int32_t> blocks = OctreeBlocks(m.points, {.bucket_capacity = capacity});
       testing::RelationOracle oracle(**Topology::Build(m, blocks));

@@ -94,4 +94,25 @@ Mesh NonManifold() {
   return m;
 }
 
+Mesh Bipyramid(int ring, bool closed) {
+  Mesh m;
+  m.points = {0, 0, 0, 0, 0, 1, 0, 0, -1};  // centre, top, bottom
+  for (int i = 0; i < ring; ++i) {
+    const double a = 6.283185307179586 * i / ring;
+    m.points.insert(m.points.end(), {std::cos(a), std::sin(a), 0});
+  }
+  for (int i = 0; i < ring; ++i) {
+    const SimplexId r0 = 3 + i, r1 = 3 + (i + 1) % ring;
+    m.tetrahedra.insert(m.tetrahedra.end(), {0, r0, r1, 1});
+    if (closed) m.tetrahedra.insert(m.tetrahedra.end(), {0, r0, r1, 2});
+  }
+  std::vector<double> distance;
+  for (size_t i = 0; i < m.points.size(); i += 3) {
+    distance.push_back(std::hypot(m.points[i], m.points[i + 1], m.points[i + 2]) +
+                       1e-3 * double(i));
+  }
+  m.point_fields.push_back({"distance", std::move(distance)});
+  return m;
+}
+
 }  // namespace actopo::testing

@@ -23,6 +23,11 @@ Mesh TwoComponents();
 // single vertex and two touching along a single edge.
 Mesh NonManifold();
 
+// A vertex with many neighbours: the centre (input vertex 0) of a bipyramid over a ring of
+// `ring` vertices (then the apexes 1 and 2). Closed, the centre is inside; without the lower
+// half, on the boundary. Field "distance" (from the centre, ties broken by id).
+Mesh Bipyramid(int ring, bool closed);
+
 }  // namespace actopo::testing
 
 #endif  // ACTOPO_SERVER_CORE_TESTING_TEST_MESHES_H_
