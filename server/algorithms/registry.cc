@@ -64,7 +64,11 @@ RelationSet DeclaredRelations(Algorithm a) {
 }
 
 RelationSet SweptRelations(Algorithm a) {
-  return a == Algorithm::kCriticalPoints ? CriticalPointsSwept() : DeclaredRelations(a);
+  switch (a) {
+    case Algorithm::kCriticalPoints: return CriticalPointsSwept();
+    case Algorithm::kTopologicalSimplification: return TopologicalSimplificationSwept();
+    default: return DeclaredRelations(a);
+  }
 }
 
 bool NeedsFaces(Algorithm a) {

@@ -30,9 +30,10 @@ absl::StatusOr<Algorithm> ParseAlgorithm(std::string_view name);
 std::span<const Algorithm> AllAlgorithms();
 
 RelationSet DeclaredRelations(Algorithm a);
-// The declared relations the algorithm reads on every block, which actopo's producers compute
-// ahead under Precompute::kDeclared: all of them but critical points' VB, read only around
-// boundary vertices (prefetching it everywhere would compute it for blocks nobody asks).
+// The declared relations the algorithm reads block by block on actopo, which its producers
+// compute ahead under Precompute::kDeclared: all of them but critical points' VB (read only
+// around boundary vertices) and the simplification's VV (read from rows the diagram keeps).
+// Prefetching those would compute blocks nobody asks for.
 RelationSet SweptRelations(Algorithm a);
 // Whether the algorithm reads edges or triangles (its relations or the topology's), so needs a
 // topology built with faces (TopologyOptions::faces): every one but critical points.

@@ -538,6 +538,8 @@ std::string SimplificationResult::OrderDigest() const {
   });
 }
 
+RelationSet TopologicalSimplificationSwept() { return PersistenceDiagramDeclared(); }
+
 RelationSet TopologicalSimplificationDeclared() {
   RelationSet s = PersistenceDiagramDeclared();
   s.Add(Relation::kVV);

@@ -79,6 +79,10 @@ struct SimplificationResult {
 
 // The diagram's relations and VV (the propagations' neighbourhoods).
 RelationSet TopologicalSimplificationDeclared();
+// What it reads from a localized structure block by block: the diagram's relations only. There
+// the neighbourhoods come from the rows the diagram's gradient pass keeps (VertexNeighbors);
+// only the explicit structure serves VV itself.
+RelationSet TopologicalSimplificationSwept();
 
 // Validates the options against the field: a finite, non-negative threshold (relative: at most 1).
 absl::Status ValidateSimplificationOptions(const SimplificationOptions& options);

@@ -214,7 +214,7 @@ RelationSet DeclaredRelations(const AlgorithmInput& input) {
 
 RelationSet SweptRelations(const AlgorithmInput& input) {
   RelationSet relations = SweptRelations(input.algorithm);
-  if (input.simplification) relations = relations | TopologicalSimplificationDeclared();
+  if (input.simplification) relations = relations | TopologicalSimplificationSwept();
   return relations;
 }
 
