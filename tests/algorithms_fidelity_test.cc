@@ -58,8 +58,8 @@ Json Expected(const Case& c) {
 struct Loaded {
   std::shared_ptr<const Topology> topology;
   std::vector<SimplexId> order;
-  std::vector<SimplexId> tetrahedra;  // as in the file
-  std::vector<double> scalars;        // by input vertex id
+  std::vector<uint8_t> corners;  // InputCorners of the file's tetrahedra
+  std::vector<double> scalars;   // by input vertex id
 };
 
 Loaded Load(const std::string& file, const std::string& field) {
@@ -67,8 +67,8 @@ Loaded Load(const std::string& file, const std::string& field) {
   EXPECT_TRUE(mesh.ok()) << mesh.status();
   const int f = *SelectScalarField(*mesh, field);
   auto topo = *Topology::Build(*mesh, OctreeBlocks(mesh->points, {.bucket_capacity = 1000}));
-  return {topo, VertexOrder(*topo, mesh->point_fields[f].values), mesh->tetrahedra,
-          mesh->point_fields[f].values};
+  return {topo, VertexOrder(*topo, mesh->point_fields[f].values),
+          *InputCorners(*topo, mesh->tetrahedra), mesh->point_fields[f].values};
 }
 
 class MatchesTtk : public io::testing::DataTest {};
@@ -159,7 +159,7 @@ TEST_P(MatchesTtkOn, MorseSmale) {
       in, Prefetch::kLinear,
       [&](const std::string& label, auto& structure, const RunContext& context) {
         SCOPED_TRACE(label);
-        const MorseSmaleResult r = *RunMorseSmale(structure, in.order, in.tetrahedra, context);
+        const MorseSmaleResult r = *RunMorseSmale(structure, in.order, in.corners, context);
         testing::ExpectMorseSmaleEquals(r, ms);
       });
 }

@@ -122,7 +122,8 @@ TEST_P(SimplificationMatchesTtk, ValuesOrderAndMorseSmale) {
     }
     EXPECT_EQ(r->ScalarsDigest(), expected["scalars_sha256"].get<std::string>());
     EXPECT_EQ(r->OrderDigest(), expected["order_sha256"].get<std::string>());
-    const auto ms = RunMorseSmale(structure, r->internal_order, mesh->tetrahedra, context);
+    const auto ms = RunMorseSmale(structure, r->internal_order,
+                                  *InputCorners(structure.topology(), mesh->tetrahedra), context);
     ASSERT_TRUE(ms.ok()) << ms.status();
     testing::ExpectMorseSmaleEquals(*ms, expected["morse_smale"]);
   };

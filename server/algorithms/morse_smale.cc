@@ -1,6 +1,7 @@
 #include "server/algorithms/morse_smale.h"
 
 #include <algorithm>
+#include <atomic>
 #include <iterator>
 #include <optional>
 #include <queue>
@@ -12,6 +13,7 @@
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
+#include "server/core/parallel.h"
 #include "server/core/status_macros.h"
 
 namespace actopo {
@@ -71,12 +73,12 @@ class Builder {
   // `next_up`: every non-critical tetrahedron's next one up (ScanStar), for
   // AscendingSeparatrices.
   Builder(Reader& reader, const GradientField& gradient, const CriticalSaddles& saddles,
-          std::span<const SimplexId> input_tetrahedra, std::span<const SimplexId> next_up = {})
+          std::span<const uint8_t> input_corners, std::span<const SimplexId> next_up = {})
       : r_(reader),
         topo_(reader.topology()),
         g_(gradient),
         saddles_(saddles),
-        input_tets_(input_tetrahedra),
+        input_corners_(input_corners),
         next_up_(next_up) {}
 
   // The ascending 1-separatrices of 2-saddle f: one per tetrahedron of its star (in TTK's order)
@@ -257,13 +259,11 @@ class Builder {
     const auto fv = topo_.triangle(f);
     uint64_t best = UINT64_MAX;
     for (SimplexId t : TriangleStar(f)) {
+      const auto tv = topo_.tetrahedron(t);
+      int corner = 0;  // of the sorted tuple, the vertex not in f
+      while (tv[corner] == fv[0] || tv[corner] == fv[1] || tv[corner] == fv[2]) ++corner;
+      const int omitted = (input_corners_[t] >> (2 * corner)) & 3;  // its position as given
       const SimplexId input = topo_.tetrahedron_input_id(t);
-      const SimplexId* tv = &input_tets_[4 * size_t(input)];
-      int omitted = 0;
-      for (int p = 0; p < 4; ++p) {
-        const SimplexId v = topo_.vertex_internal_id(tv[p]);
-        if (v != fv[0] && v != fv[1] && v != fv[2]) omitted = p;
-      }
       best = std::min(best, uint64_t(input) * 4 + uint64_t((omitted + 1) % 4));
     }
     return best;
@@ -287,7 +287,7 @@ class Builder {
   const Topology& topo_;
   const GradientField& g_;
   const CriticalSaddles& saddles_;
-  std::span<const SimplexId> input_tets_;
+  std::span<const uint8_t> input_corners_;
   std::span<const SimplexId> next_up_;
   absl::flat_hash_set<SimplexId> wall_;  // the current wall: a few triangles of many
   std::vector<std::pair<SimplexId, SimplexId>> wall_edges_;  // (edge, wall triangle), sorted
@@ -418,17 +418,60 @@ RelationSet MorseSmaleDeclared() {
   return {Relation::kVE, Relation::kVF, Relation::kVT};
 }
 
+absl::StatusOr<std::vector<uint8_t>> InputCorners(const Topology& topology,
+                                                  std::span<const SimplexId> input_tetrahedra) {
+  const SimplexId num_tets = topology.num_tetrahedra();
+  if (input_tetrahedra.size() != 4 * size_t(num_tets)) {
+    return absl::InvalidArgumentError(absl::StrCat("morse-smale: ", input_tetrahedra.size(),
+                                                   " tetrahedron vertex ids for ", num_tets,
+                                                   " tetrahedra"));
+  }
+  std::vector<uint8_t> corners(size_t(num_tets), 0);
+  std::atomic<SimplexId> mismatch{-1};
+  const SimplexId num_vertices = topology.num_vertices();
+  constexpr int64_t kChunk = 1 << 16;
+  ParallelFor((int64_t(num_tets) + kChunk - 1) / kChunk, DefaultThreads(), [&](int64_t chunk, int) {
+    const SimplexId end = SimplexId(std::min<int64_t>(num_tets, (chunk + 1) * kChunk));
+    for (SimplexId t = SimplexId(chunk * kChunk); t < end; ++t) {
+      const auto sorted = topology.tetrahedron(t);
+      const SimplexId* given = &input_tetrahedra[4 * size_t(topology.tetrahedron_input_id(t))];
+      uint8_t byte = 0;
+      int seen = 0;  // corners of the sorted tuple met, one bit each
+      for (int p = 0; p < 4; ++p) {
+        if (given[p] < 0 || given[p] >= num_vertices) break;
+        const SimplexId v = topology.vertex_internal_id(given[p]);
+        for (int k = 0; k < 4; ++k) {
+          if (sorted[k] != v || (seen & (1 << k))) continue;
+          byte |= uint8_t(p << (2 * k));
+          seen |= 1 << k;
+          break;
+        }
+      }
+      if (seen != 0xF) {
+        mismatch.store(topology.tetrahedron_input_id(t));
+        return;
+      }
+      corners[t] = byte;
+    }
+  });
+  if (const SimplexId t = mismatch.load(); t >= 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("morse-smale: input tetrahedron ", t, " is not the one the topology holds"));
+  }
+  return corners;
+}
+
 template <class Structure>
 absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
                                                std::span<const SimplexId> order,
-                                               std::span<const SimplexId> input_tetrahedra,
+                                               std::span<const uint8_t> input_corners,
                                                const RunContext& context,
                                                std::optional<DiscreteGradientResult> gradient) {
   const Topology& topo = structure.topology();
-  if (input_tetrahedra.size() != 4 * size_t(topo.num_tetrahedra())) {
-    return absl::InvalidArgumentError(absl::StrCat("morse-smale: ", input_tetrahedra.size(),
-                                                   " tetrahedron vertex ids for ",
-                                                   topo.num_tetrahedra(), " tetrahedra"));
+  if (input_corners.size() != size_t(topo.num_tetrahedra())) {
+    return absl::InvalidArgumentError(absl::StrCat("morse-smale: input corners of ",
+                                                   input_corners.size(), " tetrahedra for ",
+                                                   topo.num_tetrahedra()));
   }
   // Progress: the gradient is the first half, the separatrices and segmentations the rest.
   const auto phase = [&context](double from, double to) {
@@ -465,7 +508,7 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
   absl::Status status = RunOnConsumers(
       phase(0.5, 0.6), topo, topo.num_blocks(), [&](int, BlockRange range, WorkTracker& tracker) {
         auto reader = structure.NewReader();
-        Builder builder(reader, g, critical_saddles, input_tetrahedra);
+        Builder builder(reader, g, critical_saddles, input_corners);
         for (int32_t b = range.begin; b < range.end; ++b) {
           for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
             vertex_label[v] = builder.ScanStar(v, up);
@@ -495,7 +538,7 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
       phase(0.6, 0.95), int64_t(saddles.size()), chunk,
       [&](int, ItemQueue& queue, WorkTracker& tracker) {
         auto reader = structure.NewReader();
-        Builder builder(reader, g, critical_saddles, input_tetrahedra, up);
+        Builder builder(reader, g, critical_saddles, input_corners, up);
         int64_t begin, end;
         while (queue.Next(begin, end)) {
           for (int64_t i = begin; i < end; ++i) {
@@ -543,18 +586,15 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
 
 template absl::StatusOr<MorseSmaleResult> RunMorseSmale(ExplicitStructure&,
                                                         std::span<const SimplexId>,
-                                                        std::span<const SimplexId>,
-                                                        const RunContext&,
+                                                        std::span<const uint8_t>, const RunContext&,
                                                         std::optional<DiscreteGradientResult>);
 template absl::StatusOr<MorseSmaleResult> RunMorseSmale(CompactStructure&,
                                                         std::span<const SimplexId>,
-                                                        std::span<const SimplexId>,
-                                                        const RunContext&,
+                                                        std::span<const uint8_t>, const RunContext&,
                                                         std::optional<DiscreteGradientResult>);
 template absl::StatusOr<MorseSmaleResult> RunMorseSmale(ActopoStructure&,
                                                         std::span<const SimplexId>,
-                                                        std::span<const SimplexId>,
-                                                        const RunContext&,
+                                                        std::span<const uint8_t>, const RunContext&,
                                                         std::optional<DiscreteGradientResult>);
 
 }  // namespace actopo

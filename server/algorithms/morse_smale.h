@@ -2,8 +2,9 @@
 // descending and ascending 1-separatrices, saddle connectors and the descending, ascending and
 // Morse-Smale segmentations; no 2-separatrices, no simplification.
 //
+//   ASSIGN_OR_RETURN(std::vector<uint8_t> corners, InputCorners(*topology, mesh.tetrahedra));
 //   ASSIGN_OR_RETURN(MorseSmaleResult ms,
-//                    RunMorseSmale(*structure, order, mesh.tetrahedra, {.consumers = 2}));
+//                    RunMorseSmale(*structure, order, corners, {.consumers = 2}));
 //   ms.descending[v];   // DescendingManifold of input vertex v
 //
 // Where TTK's traversal order decides (the first other tetrahedron of a triangle's star, the
@@ -63,17 +64,23 @@ struct MorseSmaleResult {
 // their triangles lie around an edge.
 RelationSet MorseSmaleDeclared();
 
-// `input_tetrahedra`: the mesh's tetrahedra as given (4 input vertex ids each), which fix TTK's
-// triangle numbering. `gradient`: the gradient of `order`, either set of arrays, when the caller
-// has it already (a simplified field's, from UpdateDiscreteGradient); computed otherwise. The
-// result's gradient keeps the GradientArrays::kPersistence arrays and the critical cells.
-// Everything that reads relations runs on all consumers: the gradient and the ascending
-// segmentation by blocks, the separatrices by 2-saddle.
+// TTK numbers triangles by their first appearance over the tetrahedra as given, so it depends on
+// the order each tetrahedron's vertices came in. InputCorners keeps just that: per internal
+// tetrahedron t one byte, whose bits 2k..2k+1 are the position, in t as given, of corner k of
+// its sorted tuple (topology.tetrahedron(t)[k]). One byte instead of the mesh's 16.
+// INVALID_ARGUMENT when `input_tetrahedra` (4 input vertex ids each) is not the topology's mesh.
+absl::StatusOr<std::vector<uint8_t>> InputCorners(const Topology& topology,
+                                                  std::span<const SimplexId> input_tetrahedra);
+
+// `input_corners`: InputCorners of the mesh. `gradient`: the gradient of `order`, either set of
+// arrays, when the caller has it already (a simplified field's, from UpdateDiscreteGradient);
+// computed otherwise. The result's gradient keeps the GradientArrays::kPersistence arrays and the
+// critical cells. Everything that reads relations runs on all consumers: the gradient and the
+// ascending segmentation by blocks, the separatrices by 2-saddle.
 template <class Structure>
 absl::StatusOr<MorseSmaleResult> RunMorseSmale(
-    Structure& structure, std::span<const SimplexId> order,
-    std::span<const SimplexId> input_tetrahedra, const RunContext& context,
-    std::optional<DiscreteGradientResult> gradient = std::nullopt);
+    Structure& structure, std::span<const SimplexId> order, std::span<const uint8_t> input_corners,
+    const RunContext& context, std::optional<DiscreteGradientResult> gradient = std::nullopt);
 
 }  // namespace actopo
 

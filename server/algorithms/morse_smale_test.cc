@@ -17,12 +17,14 @@ struct Input {
   Mesh mesh;
   std::shared_ptr<const Topology> topo;
   std::vector<SimplexId> order;
+  std::vector<uint8_t> corners;  // InputCorners
 };
 
 Input Make(Mesh mesh, int block_size) {
   auto topo = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = block_size}));
   auto order = VertexOrder(*topo, mesh.point_fields[0].values);
-  return {std::move(mesh), topo, std::move(order)};
+  auto corners = *InputCorners(*topo, mesh.tetrahedra);
+  return {std::move(mesh), topo, std::move(order), std::move(corners)};
 }
 
 void ExpectInvariants(const MorseSmaleResult& r, const Topology& topo) {
@@ -71,7 +73,7 @@ TEST(MorseSmale, InvariantsAndStructureIndependence) {
   for (Input in : {Make(testing::Lattice(10, 9, 8, 31), 23), Make(testing::TwoComponents(), 9)}) {
     auto explicit_structure = *ExplicitStructure::Build(in.topo, {});
     const MorseSmaleResult reference =
-        *RunMorseSmale(*explicit_structure, in.order, in.mesh.tetrahedra, {});
+        *RunMorseSmale(*explicit_structure, in.order, in.corners, {});
     ExpectInvariants(reference, *in.topo);
     EXPECT_GT(reference.gradient.critical_cells[1], 0);  // the field has saddles to trace
     const auto digests = [](const MorseSmaleResult& r) {
@@ -89,14 +91,13 @@ TEST(MorseSmale, InvariantsAndStructureIndependence) {
     };
     const auto expected = digests(reference);
     for (int consumers : {1, 2, 3}) {
-      EXPECT_EQ(digests(*RunMorseSmale(*explicit_structure, in.order, in.mesh.tetrahedra,
+      EXPECT_EQ(digests(*RunMorseSmale(*explicit_structure, in.order, in.corners,
                                        {.consumers = consumers})),
                 expected)
           << consumers << " consumers";
       CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = consumers});
-      EXPECT_EQ(
-          digests(*RunMorseSmale(compact, in.order, in.mesh.tetrahedra, {.consumers = consumers})),
-          expected)
+      EXPECT_EQ(digests(*RunMorseSmale(compact, in.order, in.corners, {.consumers = consumers})),
+                expected)
           << consumers << " consumers";
     }
     for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
@@ -105,8 +106,7 @@ TEST(MorseSmale, InvariantsAndStructureIndependence) {
                                                        .buffer_ratio = 0.05,
                                                        .prefetch = p,
                                                        .declared = MorseSmaleDeclared()});
-      EXPECT_EQ(digests(*RunMorseSmale(*actopo, in.order, in.mesh.tetrahedra, {.consumers = 3})),
-                expected)
+      EXPECT_EQ(digests(*RunMorseSmale(*actopo, in.order, in.corners, {.consumers = 3})), expected)
           << PrefetchName(p);
     }
   }
@@ -118,7 +118,7 @@ TEST(MorseSmale, DoesNotDependOnTheBlockSize) {
   for (int block_size : {1, 7, 100, 1000}) {
     Input in = Make(mesh, block_size);
     auto s = *ExplicitStructure::Build(in.topo, {});
-    const MorseSmaleResult r = *RunMorseSmale(*s, in.order, in.mesh.tetrahedra, {});
+    const MorseSmaleResult r = *RunMorseSmale(*s, in.order, in.corners, {});
     seen.insert(MorseSmaleResult::SegmentationDigest(r.morse_smale) + " " +
                 std::to_string(r.CountSeparatrices(SeparatrixType::kSaddleConnector)) + " " +
                 std::to_string(r.Segments()));
@@ -129,16 +129,37 @@ TEST(MorseSmale, DoesNotDependOnTheBlockSize) {
 TEST(MorseSmale, RejectsMismatchedTetrahedra) {
   Input in = Make(testing::SingleTetrahedron(), 10);
   auto s = *ExplicitStructure::Build(in.topo, {});
-  const std::vector<SimplexId> wrong = {0, 1, 2};
-  EXPECT_EQ(RunMorseSmale(*s, in.order, wrong, {}).status().code(),
+  const std::vector<uint8_t> two = {0, 0};
+  EXPECT_EQ(RunMorseSmale(*s, in.order, two, {}).status().code(),
             absl::StatusCode::kInvalidArgument);
+  for (const std::vector<SimplexId>& wrong :
+       {std::vector<SimplexId>{0, 1, 2}, {0, 1, 2, 2}, {0, 1, 2, 7}, {0, 1, -1, 3}}) {
+    const auto corners = InputCorners(*in.topo, wrong);
+    EXPECT_EQ(corners.status().code(), absl::StatusCode::kInvalidArgument) << corners.status();
+  }
+}
+
+// Each byte says where each corner of the sorted tuple was in the tetrahedron as given.
+TEST(MorseSmale, InputCornersGiveTheOrderAsGiven) {
+  Mesh mesh = testing::Lattice(4, 4, 3, 5);  // shuffled ids: tuples as given are not sorted
+  auto topo = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 9}));
+  const std::vector<uint8_t> corners = *InputCorners(*topo, mesh.tetrahedra);
+  ASSERT_EQ(corners.size(), size_t(topo->num_tetrahedra()));
+  for (SimplexId t = 0; t < topo->num_tetrahedra(); ++t) {
+    const auto sorted = topo->tetrahedron(t);
+    const SimplexId* given = &mesh.tetrahedra[4 * size_t(topo->tetrahedron_input_id(t))];
+    for (int k = 0; k < 4; ++k) {
+      const int p = (corners[t] >> (2 * k)) & 3;
+      EXPECT_EQ(topo->vertex_internal_id(given[p]), sorted[k]) << "tetrahedron " << t;
+    }
+  }
 }
 
 TEST(MorseSmale, StopsWhenCancelled) {
   Input in = Make(testing::Lattice(9, 9, 9, 2), 20);
   auto s = *ExplicitStructure::Build(in.topo, {});
   std::atomic<bool> cancel{true};
-  EXPECT_EQ(RunMorseSmale(*s, in.order, in.mesh.tetrahedra, {.cancel = &cancel}).status().code(),
+  EXPECT_EQ(RunMorseSmale(*s, in.order, in.corners, {.cancel = &cancel}).status().code(),
             absl::StatusCode::kCancelled);
 }
 
@@ -146,11 +167,11 @@ TEST(MorseSmale, StopsOnceItsDeadlinePassed) {
   Input in = Make(testing::Lattice(9, 9, 9, 2), 20);
   auto s = *ExplicitStructure::Build(in.topo, {});
   const RunContext context{.deadline = Progress::Clock::now() - std::chrono::milliseconds(1)};
-  EXPECT_EQ(RunMorseSmale(*s, in.order, in.mesh.tetrahedra, context).status().code(),
+  EXPECT_EQ(RunMorseSmale(*s, in.order, in.corners, context).status().code(),
             absl::StatusCode::kDeadlineExceeded);
   // A deadline still ahead changes nothing.
   const RunContext ahead{.deadline = Progress::Clock::now() + std::chrono::hours(1)};
-  EXPECT_TRUE(RunMorseSmale(*s, in.order, in.mesh.tetrahedra, ahead).ok());
+  EXPECT_TRUE(RunMorseSmale(*s, in.order, in.corners, ahead).ok());
 }
 
 }  // namespace

@@ -202,14 +202,13 @@ absl::StatusOr<Loaded> Load(const BenchOptions& o, Algorithm algorithm,
 }
 
 // partition: the blocks and the static encoding.
-// `input_tetrahedra` gets the mesh's tetrahedra when the algorithm needs them as given
-// (morse-smale, for TTK's order); otherwise, with no --output, they are freed as soon as the
-// encoding has read them.
-absl::StatusOr<std::shared_ptr<const Topology>> Partition(const BenchOptions& o,
-                                                          Algorithm algorithm, Mesh& mesh,
-                                                          std::vector<SimplexId>& input_tetrahedra,
-                                                          const std::shared_ptr<Trace>& trace,
-                                                          double& seconds) {
+// `input_corners` gets InputCorners of the mesh when the algorithm needs the order of each
+// tetrahedron's vertices as given (morse-smale, for TTK's triangle order). With no --output the
+// mesh's tetrahedra are freed as soon as the encoding (and InputCorners) have read them.
+absl::StatusOr<std::shared_ptr<const Topology>> Partition(
+    const BenchOptions& o, Algorithm algorithm, Mesh& mesh,
+    std::shared_ptr<const std::vector<uint8_t>>& input_corners, const std::shared_ptr<Trace>& trace,
+    double& seconds) {
   const auto start = Clock::now();
   std::vector<int32_t> blocks;
   {
@@ -231,7 +230,9 @@ absl::StatusOr<std::shared_ptr<const Topology>> Partition(const BenchOptions& o,
                                     .faces = NeedsFaces(algorithm),
                                     .trace = trace.get()}));
   if (algorithm == Algorithm::kMorseSmale) {
-    input_tetrahedra = o.output.empty() ? std::move(mesh.tetrahedra) : mesh.tetrahedra;
+    ASSIGN_OR_RETURN(std::vector<uint8_t> corners, InputCorners(*topology, mesh.tetrahedra));
+    input_corners = std::make_shared<const std::vector<uint8_t>>(std::move(corners));
+    if (o.output.empty()) std::vector<SimplexId>().swap(mesh.tetrahedra);
   }
   seconds = Seconds(start);
   Phase(trace, "partition", start);
@@ -240,18 +241,17 @@ absl::StatusOr<std::shared_ptr<const Topology>> Partition(const BenchOptions& o,
 
 // vertex order: the algorithm's input, with the vertex order as its preconditioning (like TTK's
 // offsets; counted in `preprocess`) and the parameters given as flags.
-absl::StatusOr<AlgorithmInput> PrepareInput(const BenchOptions& o, Algorithm algorithm,
-                                            const Topology& topology,
-                                            const std::vector<double>& scalars,
-                                            std::vector<SimplexId> input_tetrahedra,
-                                            const std::shared_ptr<Trace>& trace, double& seconds) {
+absl::StatusOr<AlgorithmInput> PrepareInput(
+    const BenchOptions& o, Algorithm algorithm, const Topology& topology,
+    const std::vector<double>& scalars, std::shared_ptr<const std::vector<uint8_t>> input_corners,
+    const std::shared_ptr<Trace>& trace, double& seconds) {
   const auto start = Clock::now();
   AlgorithmInput input{
       .algorithm = algorithm,
       .critical_points = {.boundary_rule = o.boundary_rule == "none" ? BoundaryRule::kNone
                                                                      : BoundaryRule::kTtk}};
   if (!scalars.empty()) input.order = VertexOrder(topology, scalars);
-  input.input_tetrahedra = std::move(input_tetrahedra);
+  input.input_corners = std::move(input_corners);
   if (NeedsScalarValues(algorithm)) input.scalars = scalars;
   // Thresholds go through the service's parameter parser: one spelling, one set of errors.
   std::map<std::string, std::string> parameters;
@@ -427,9 +427,9 @@ absl::StatusOr<Json> Run(BenchOptions o) {
   PhaseTimes times;
   ASSIGN_OR_RETURN(Loaded loaded, Load(o, algorithm, trace));
   times.load = loaded.seconds;
-  std::vector<SimplexId> input_tetrahedra;
+  std::shared_ptr<const std::vector<uint8_t>> input_corners;
   ASSIGN_OR_RETURN(std::shared_ptr<const Topology> topology,
-                   Partition(o, algorithm, loaded.mesh, input_tetrahedra, trace, times.partition));
+                   Partition(o, algorithm, loaded.mesh, input_corners, trace, times.partition));
   // Without --output the points and other fields are not needed: free them so peak RSS
   // reflects the structures.
   std::optional<ResultContext> files;
@@ -440,8 +440,8 @@ absl::StatusOr<Json> Run(BenchOptions o) {
                                 VertexBoundary(topology)});
   }
   ASSIGN_OR_RETURN(const AlgorithmInput input,
-                   PrepareInput(o, algorithm, *topology, loaded.scalars,
-                                std::move(input_tetrahedra), trace, times.order));
+                   PrepareInput(o, algorithm, *topology, loaded.scalars, std::move(input_corners),
+                                trace, times.order));
   const ResultContext* files_or_null = files ? &*files : nullptr;
   const RunContext context{.consumers = o.consumers, .trace = trace};
   absl::StatusOr<RunOutput> run =

@@ -160,7 +160,8 @@ TEST(SimplificationOutputs, SimplifiedMorseSmaleReportsTheSimplifiedField) {
   r.simplification =
       *RunTopologicalSimplification(*structure, VertexOrder(*topology, scalars), scalars,
                                     {.threshold = 0.2, .relative = true}, {});
-  r.morse_smale = *RunMorseSmale(*structure, r.simplification.internal_order, mesh.tetrahedra, {});
+  r.morse_smale = *RunMorseSmale(*structure, r.simplification.internal_order,
+                                 *InputCorners(*topology, mesh.tetrahedra), {});
   const ResultContext context{mesh, *topology, "height", scalars,
                               std::vector<uint8_t>(mesh.num_vertices(), 0)};
   const ResultOutputs out = BuildOutputs(context, r);

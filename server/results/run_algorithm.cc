@@ -135,6 +135,11 @@ RunContext Phase(const RunContext& context, double from, double to) {
   return c;
 }
 
+std::span<const uint8_t> InputCornersOf(const AlgorithmInput& input) {
+  if (input.input_corners == nullptr) return {};  // RunMorseSmale names the mismatch
+  return *input.input_corners;
+}
+
 }  // namespace
 
 absl::Status ApplyParameters(const std::map<std::string, std::string>& parameters,
@@ -259,7 +264,7 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
     case Algorithm::kMorseSmale: {
       if (!in.simplification) {
         ASSIGN_OR_RETURN(out.result,
-                         RunMorseSmale(structure, in.order, in.input_tetrahedra, context));
+                         RunMorseSmale(structure, in.order, InputCornersOf(in), context));
         break;
       }
       // As a TTK user chains the filters: simplify, then the complex of the simplified field
@@ -277,9 +282,9 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
                                        r.simplification.internal_order, r.simplification.reordered,
                                        Phase(context, 0.5, 0.75), r.simplification.changed_stars));
       }
-      ASSIGN_OR_RETURN(r.morse_smale, RunMorseSmale(structure, r.simplification.internal_order,
-                                                    in.input_tetrahedra, Phase(context, 0.5, 1),
-                                                    std::move(gradient)));
+      ASSIGN_OR_RETURN(r.morse_smale,
+                       RunMorseSmale(structure, r.simplification.internal_order, InputCornersOf(in),
+                                     Phase(context, 0.5, 1), std::move(gradient)));
       out.result = std::move(r);
       break;
     }

@@ -8,6 +8,7 @@
 #define ACTOPO_SERVER_RESULTS_RUN_ALGORITHM_H_
 
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <variant>
@@ -28,8 +29,9 @@ namespace actopo {
 
 struct AlgorithmInput {
   Algorithm algorithm = Algorithm::kTopoRelations;
-  std::vector<SimplexId> order;             // VertexOrder(); empty for topo-relations
-  std::vector<SimplexId> input_tetrahedra;  // the mesh's tetrahedra as given (morse-smale)
+  std::vector<SimplexId> order;  // VertexOrder(); empty for topo-relations
+  // morse-smale: InputCorners of the mesh, shared by the jobs of a session.
+  std::shared_ptr<const std::vector<uint8_t>> input_corners;
   // The field by input vertex id (persistence-diagram, topological-simplification, morse-smale).
   std::vector<double> scalars;
   CriticalPointsOptions critical_points;

@@ -317,7 +317,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     ASSIGN_OR_RETURN(input_.algorithm, FromProto(request.algorithm()));
     const AlgorithmInput& base = session_->base_input();
     input_.order = base.order;
-    if (input_.algorithm == Algorithm::kMorseSmale) input_.input_tetrahedra = base.input_tetrahedra;
+    if (input_.algorithm == Algorithm::kMorseSmale) input_.input_corners = base.input_corners;
     if (NeedsScalarValues(input_.algorithm)) input_.scalars = base.scalars;
     std::map<std::string, std::string> parameters(request.parameters().begin(),
                                                   request.parameters().end());

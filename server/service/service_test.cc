@@ -483,7 +483,8 @@ TEST_F(ServiceTest, JobsStreamAcceptedProgressArraysSummaryStats) {
   auto reference = *ExplicitStructure::Build(topo, {});
   AlgorithmInput input;
   input.order = VertexOrder(*topo, mesh.point_fields[0].values);
-  input.input_tetrahedra = mesh.tetrahedra;
+  input.input_corners =
+      std::make_shared<const std::vector<uint8_t>>(*InputCorners(*topo, mesh.tetrahedra));
   input.scalars = mesh.point_fields[0].values;
   for (v1::Structure kind : {v1::STRUCTURE_EXPLICIT, v1::STRUCTURE_COMPACT, v1::STRUCTURE_ACTOPO}) {
     const std::string session = Open(mesh_id, kind, 2);

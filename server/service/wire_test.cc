@@ -140,7 +140,8 @@ TEST(WireSummary, EqualsTheBenchJsonForEveryAlgorithm) {
   auto structure = *ExplicitStructure::Build(topology, {});
   AlgorithmInput input;
   input.order = VertexOrder(*topology, mesh.point_fields[0].values);
-  input.input_tetrahedra = mesh.tetrahedra;
+  input.input_corners =
+      std::make_shared<const std::vector<uint8_t>>(*InputCorners(*topology, mesh.tetrahedra));
   input.scalars = mesh.point_fields[0].values;
   for (Algorithm a : AllAlgorithms()) {
     input.algorithm = a;
