@@ -13,7 +13,10 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <string>
+#include <system_error>
+#include <vector>
 
 #include "gtest/gtest.h"
 #include "server/core/mesh.h"
@@ -39,12 +42,23 @@ class DataTest : public ::testing::Test {
   static std::string DataFile(const std::string& name) { return DataDir() + "/" + name; }
 };
 
-// A fresh empty directory for the files one test writes.
+// A fresh empty directory for the files one test writes, removed when the test program exits
+// (callers use the path in one expression, so no object of theirs could own it).
 inline std::filesystem::path MakeTempDir(const std::string& name) {
+  static struct Made {
+    std::mutex mu;
+    std::vector<std::filesystem::path> dirs;
+    ~Made() {
+      std::error_code ignored;  // nothing to do about a directory that will not go
+      for (const auto& dir : dirs) std::filesystem::remove_all(dir, ignored);
+    }
+  } made;
   const std::filesystem::path dir = std::filesystem::path(::testing::TempDir()) /
                                     ("actopo_io_" + name + "_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
+  std::lock_guard<std::mutex> lock(made.mu);
+  made.dirs.push_back(dir);
   return dir;
 }
 
