@@ -84,6 +84,14 @@ class Deployment:
     def direct(self, name: str) -> actopo.Client:
         return actopo.Client(f"127.0.0.1:{self.ports[name]}")
 
+    def answers(self, name: str) -> bool:
+        try:
+            with self.direct(name) as client:
+                client.server_info()
+            return True
+        except actopo.UnavailableError:
+            return False
+
 
 @pytest.fixture
 def deployment(tmp_path: Path) -> Iterator[Deployment]:
@@ -95,6 +103,11 @@ def deployment(tmp_path: Path) -> Iterator[Deployment]:
     d = Deployment(f"127.0.0.1:{listen}", stats, ports, {})
     for name in ports:
         d.start(name)
+    # HAProxy counts a server up until its first check, which it may delay by up to an interval
+    # (2 s) to spread checks: its status alone does not say the server listens yet, and a first
+    # call could reach one still starting (503, seen once in CI).
+    for name in ports:
+        wait_for(f"{name} to answer", lambda name=name: d.answers(name))
     proxy = start([haproxy, "-f", str(config)], log=tmp_path / "haproxy.log")
     try:
         d.wait_status(dict.fromkeys(SERVERS, "UP"))
