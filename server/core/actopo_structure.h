@@ -119,8 +119,10 @@ struct EngineStats {
   int64_t producer_busy_ns = 0;    // time producers spent computing
   int64_t buffer_bytes = 0;        // now
   int64_t buffer_peak_bytes = 0;
-  int64_t buffer_blocks = 0;       // resident blocks now
-  int64_t buffer_peak_blocks = 0;  // at most capacity + 1 + blocks pinned by the consumer
+  int64_t buffer_blocks = 0;  // resident blocks now
+  // At most capacity + 1 + blocks pinned by the consumer + blocks with a relation being
+  // computed (eviction spares both; one computation per producer and per consumer at a time).
+  int64_t buffer_peak_blocks = 0;
 
   EngineStats& operator+=(const EngineStats& o);
 };

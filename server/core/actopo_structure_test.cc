@@ -172,11 +172,12 @@ TEST(ActopoStructure, PrefetchingOffComputesOnlyWhatIsMissed) {
 }
 
 TEST(ActopoStructure, OneBlockBufferManyProducers) {
+  constexpr int kProducers = 8;
   auto topo = Build(testing::Lattice(7, 7, 6, 5), 6);
   testing::RelationOracle oracle(*topo);
   for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
     auto structure = Create(topo, {.consumers = 2,
-                                   .producers = 8,
+                                   .producers = kProducers,
                                    .buffer_ratio = 0.0,
                                    .prefetch = p,
                                    .precompute = Precompute::kDeclared,
@@ -185,12 +186,15 @@ TEST(ActopoStructure, OneBlockBufferManyProducers) {
     ASSERT_EQ(structure->buffer_capacity_blocks(), 1);
     for (auto& t : CompareOnEveryConsumer(*structure, oracle, 5, 150)) t.join();
     // What holds under any schedule (whether workers got a task before the consumers needed it
-    // does not): a one-block buffer evicts, and every miss was computed by someone.
+    // does not): a one-block buffer evicts, and every miss was computed by someone. Beyond the
+    // one block (and the one coming in), eviction spares the blocks the consumer's reader pins
+    // (one per relation slot) and those with a relation being computed (one per producer and
+    // the consumer): 25 blocks were seen once under ASan where pins alone would allow 24.
     const EngineStats s = structure->stats();
     EXPECT_GT(s.access.evictions, 0);
     EXPECT_GE(s.leader_relations + s.worker_relations + s.consumer_relations, s.access.misses);
     for (const EngineStats& c : structure->consumer_stats()) {
-      EXPECT_LE(c.buffer_peak_blocks, 2 + kNumRelations);
+      EXPECT_LE(c.buffer_peak_blocks, 2 + kNumRelations + kProducers + 1);
     }
   }
 }

@@ -49,7 +49,7 @@ class RelationBuffer {
     int64_t bytes = 0;  // relation data resident now
     int64_t peak_bytes = 0;
     int64_t blocks = 0;           // blocks with a relation resident now
-    int64_t peak_blocks = 0;      // at most capacity + 1 + blocks kept by pins
+    int64_t peak_blocks = 0;      // at most capacity + 1 + blocks kept by pins or computations
     int64_t blocks_inserted = 0;  // times a block entered the buffer
     int64_t evictions = 0;        // times a block left it
   };
