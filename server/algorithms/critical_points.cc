@@ -8,6 +8,7 @@
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
+#include "server/core/link_edges.h"
 
 namespace actopo {
 namespace {
@@ -33,12 +34,8 @@ class LinkComponents {
 struct ClassifyScratch {
   LinkComponents components;
   std::vector<SimplexId> neighbors;
-  std::vector<uint8_t> link_edges;  // n x n: how often each link edge was met, up to 2
+  LinkEdgeCounter link;
 };
-
-// Link edges are counted in a square table up to this many link vertices; past it (rare), the
-// vertex's boundary flag is read from VB.
-constexpr size_t kMaxCountedLink = 64;
 
 struct Classified {
   CriticalType type = CriticalType::kRegular;
@@ -56,13 +53,11 @@ Classified Classify(Reader& reader, SimplexId v, std::span<const SimplexId> orde
   const SimplexId ov = order[v];
   LinkComponents& uf = scratch.components;
   uf.Reset(n);
-  // v is on the boundary iff a triangle of its star lies in one tetrahedron only, i.e. one of
-  // its link edges (two other vertices of a star tetrahedron) is met once. The star is scanned
-  // here anyway, so v's own flag costs a table, not VB: VB is read only for the neighbours of
-  // boundary vertices, and localized structures compute it only for blocks near the boundary.
-  const bool count_link = n <= kMaxCountedLink;
-  std::vector<uint8_t>& link = scratch.link_edges;
-  if (count_link) link.assign(n * n, 0);
+  // v's own boundary flag from the link edges of the star scanned here anyway, not from VB:
+  // VB is read only for the neighbours of boundary vertices, and localized structures compute it
+  // only for blocks near the boundary.
+  LinkEdgeCounter& link = scratch.link;
+  link.Reset(n);
   for (SimplexId t : reader.vertex_star(v)) {
     int local[3];
     bool lower[3];
@@ -75,18 +70,12 @@ Classified Classify(Reader& reader, SimplexId v, std::span<const SimplexId> orde
     for (int i = 0; i < 3; ++i) {
       for (int j = i + 1; j < 3; ++j) {
         if (lower[i] == lower[j]) uf.Union(local[i], local[j]);
-        if (count_link) {
-          const size_t a = size_t(std::min(local[i], local[j]));
-          const size_t b = size_t(std::max(local[i], local[j]));
-          uint8_t& seen = link[a * n + b];
-          seen = seen < 2 ? seen + 1 : 2;
-        }
       }
     }
+    link.AddTriangle(size_t(local[0]), size_t(local[1]), size_t(local[2]));
   }
   Classified out;
-  out.on_boundary = count_link ? std::find(link.begin(), link.end(), uint8_t{1}) != link.end()
-                               : reader.vertex_on_boundary(v);
+  out.on_boundary = link.AnyOnce();
   int lower = 0, upper = 0;
   for (size_t i = 0; i < n; ++i) {
     if (uf.Find(int(i)) != int(i)) continue;

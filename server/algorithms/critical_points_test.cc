@@ -109,9 +109,10 @@ TEST(CriticalPoints, BoundaryRuleOnlyAddsBoundarySaddles) {
   }
 }
 
-// A vertex's own boundary flag comes from the link edges Classify counts (VB past 64
-// neighbours): every reported point's flag must be the oracle's VB, on every structure.
-// The bipyramid's centre has 81 or 82 neighbours and is the minimum of the distance to it.
+// A vertex's own boundary flag comes from the link edges Classify counts (LinkEdgeCounter,
+// whose sorted keys take over past 64 link vertices): every reported point's flag must be the
+// oracle's VB, on every structure. The bipyramid's centre has 81 or 82 neighbours and is the
+// minimum of the distance to it.
 TEST(CriticalPoints, OnBoundaryIsTheOraclesVertexBoundary) {
   std::vector<Fixture> fixtures = Fixtures();
   for (bool closed : {true, false}) {

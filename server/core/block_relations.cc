@@ -256,42 +256,19 @@ class BlockComputer {
       }
       return false;
     }
-    // Indices of the three other vertices of each star tetrahedron, then the link edges.
+    // Indices of the three other vertices of each star tetrahedron (the neighbours are
+    // numbered as they are met, so the count starts once all are), then the link edges.
     s_.keys.clear();
     for (SimplexId t : star) {
-      size_t other[3];
-      int k = 0;
       for (SimplexId w : topo_.tetrahedron(t)) {
-        if (w != v) other[k++] = index_of(w);
+        if (w != v) s_.keys.push_back(int64_t(index_of(w)));
       }
-      std::sort(other, other + 3);
-      s_.keys.insert(s_.keys.end(), {int64_t(other[0]), int64_t(other[1]), int64_t(other[2])});
     }
-    const size_t n = row.size();
-    const auto for_each_link_edge = [&](auto&& fn) {
-      for (size_t i = 0; i < s_.keys.size(); i += 3) {
-        const size_t a = size_t(s_.keys[i]), b = size_t(s_.keys[i + 1]), c = size_t(s_.keys[i + 2]);
-        fn(a * n + b);
-        fn(a * n + c);
-        fn(b * n + c);
-      }
-    };
-    if (n <= 64) {
-      s_.link.assign(n * n, 0);
-      for_each_link_edge(
-          [&](size_t key) { s_.link[key] = s_.link[key] < 2 ? s_.link[key] + 1 : 2; });
-      return std::find(s_.link.begin(), s_.link.end(), 1) != s_.link.end();
+    s_.link.Reset(row.size());
+    for (size_t i = 0; i < s_.keys.size(); i += 3) {
+      s_.link.AddTriangle(size_t(s_.keys[i]), size_t(s_.keys[i + 1]), size_t(s_.keys[i + 2]));
     }
-    std::vector<size_t> edges;  // hundreds of neighbours: rare enough to allocate
-    for_each_link_edge([&](size_t key) { edges.push_back(key); });
-    std::sort(edges.begin(), edges.end());
-    for (size_t i = 0; i < edges.size();) {
-      size_t j = i + 1;
-      while (j < edges.size() && edges[j] == edges[i]) ++j;
-      if (j - i == 1) return true;
-      i = j;
-    }
-    return false;
+    return s_.link.AnyOnce();
   }
 
   void VertexNeighbors(RelationBlock& out) {

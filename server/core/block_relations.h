@@ -19,6 +19,7 @@
 #include <span>
 #include <vector>
 
+#include "server/core/link_edges.h"
 #include "server/core/mesh.h"
 #include "server/core/relation.h"
 #include "server/core/topology.h"
@@ -50,7 +51,7 @@ struct RelationBlock {
 struct BlockScratch {
   std::vector<SimplexId> rows, values, counts, mark, tmp, candidates;
   std::vector<int64_t> keys;
-  std::vector<uint8_t> link;
+  LinkEdgeCounter link;                            // VB
   std::vector<SimplexId> slot_vertex, slot_index;  // a vertex's neighbours, hashed (VV, VB)
 };
 
