@@ -225,6 +225,7 @@ def _report(mesh: MeshInfo, session: Session, result: JobResult, stats: SessionS
                    "worker_relations": engine.worker_relations,
                    "consumer_relations": engine.consumer_relations,
                    "duplicates_avoided": engine.duplicates_avoided,
+                   "waits_abandoned": engine.waits_abandoned,
                    "producer_busy_s": engine.producer_busy_ns / 1e9},
         "memory": {"process_rss_bytes": max(memory.process_rss_bytes,
                                             stats.memory.process_rss_bytes),

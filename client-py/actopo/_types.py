@@ -146,6 +146,8 @@ class EngineStats:
     producer_busy_ns: int = 0
     buffer_bytes: int = 0
     buffer_peak_bytes: int = 0
+    # Misses a consumer computed itself after waiting for a starved idle-priority producer.
+    waits_abandoned: int = 0
 
     @property
     def wait_seconds(self) -> float:

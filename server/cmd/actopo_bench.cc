@@ -296,6 +296,7 @@ Json EngineDetail(const ActopoStructure& structure, const ActopoStructure::Optio
                  {"worker_relations", stats.worker_relations},
                  {"consumer_relations", stats.consumer_relations},
                  {"duplicates_avoided", stats.duplicates_avoided},
+                 {"waits_abandoned", stats.waits_abandoned},
                  {"blocks_inserted", stats.blocks_inserted},
                  {"producer_busy_s", stats.producer_busy_ns * 1e-9}};
   Json per_consumer = Json::array();

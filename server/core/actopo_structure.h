@@ -55,12 +55,12 @@
 // Abseil's thread-safety attributes and checked by clang -Wthread-safety (make
 // test-thread-safety).
 //
-// Guarantees beyond the reference code: nothing computed twice at once and an empty relation is
-// "ready" (the state above); producers sleep on condition variables when there is nothing to do;
-// eviction never frees a relation a consumer is reading (pins); the configuration is fixed before
-// any thread starts; destruction and Shutdown stop and join every producer, also while a
-// consumer waits on a miss (that consumer then computes the relation itself, so its results stay
-// correct).
+// Guarantees beyond the reference code: nothing computed twice at once (but see
+// ProducerPriority::kIdle) and an empty relation is "ready" (the state above); producers sleep on
+// condition variables when there is nothing to do; eviction never frees a relation a consumer is
+// reading (pins); the configuration is fixed before any thread starts; destruction and Shutdown
+// stop and join every producer, also while a consumer waits on a miss (that consumer then computes
+// the relation itself, so its results stay correct).
 //
 // A read inside the block a reader is already on is a comparison; moving to another block is a
 // few atomic operations on a hit.
@@ -70,6 +70,7 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string_view>
 #include <vector>
@@ -100,6 +101,10 @@ std::string_view MissPolicyName(MissPolicy p);
 // consumers, critical points ran 1.5x longer than without producers). At idle priority
 // (Linux's SCHED_IDLE) a producer runs only on a core no consumer wants: while its consumer
 // waits, in a phase with fewer consumers than cores, or on a machine with cores to spare.
+// While other threads hold every core (other sessions' consumers, other processes) it gets
+// almost no cycles, so a consumer whose miss such a producer is computing waits only as long as
+// a computation of that relation takes (its mean so far), then computes its own copy
+// (EngineStats::waits_abandoned): the one case where a relation is computed twice at once.
 enum class ProducerPriority : uint8_t {
   kNormal,  // the consumers' priority: producers compete with them for the cores
   kIdle,    // SCHED_IDLE: producers use only cycles no other thread wants
@@ -115,9 +120,12 @@ struct EngineStats {
   int64_t consumer_relations = 0;  // ... by consumers (their misses under kConsumer, and
                                    // every miss once the engine is stopping)
   int64_t duplicates_avoided = 0;  // tasks skipped because already computing or ready
-  int64_t blocks_inserted = 0;     // blocks that entered the buffer
-  int64_t producer_busy_ns = 0;    // time producers spent computing
-  int64_t buffer_bytes = 0;        // now
+  // Misses the consumer computed itself after waiting as long as a computation takes for a
+  // producer at idle priority (ProducerPriority::kIdle), which gets no cycles on busy cores.
+  int64_t waits_abandoned = 0;
+  int64_t blocks_inserted = 0;   // blocks that entered the buffer
+  int64_t producer_busy_ns = 0;  // time producers spent computing
+  int64_t buffer_bytes = 0;      // now
   int64_t buffer_peak_bytes = 0;
   int64_t buffer_blocks = 0;  // resident blocks now
   // At most capacity + 1 + blocks pinned by the consumer + blocks with a relation being
@@ -138,6 +146,9 @@ class ActopoStructure {
     RelationSet declared = RelationSet::All();       // used by Precompute::kDeclared
     MissPolicy miss_policy = MissPolicy::kConsumer;  // measured faster; kLeader: the paper
     ProducerPriority producer_priority = ProducerPriority::kNormal;
+    // Tests only: called by a producer before each computation, outside every lock (a test
+    // holds a producer there to stand for one that gets no cycles).
+    std::function<void(int32_t block, Relation r)> before_producer_computes;
   };
   // The ranges Validate enforces: consumers and producers in [1, 64], buffer_ratio in [0, 1].
   static constexpr int kMaxConsumers = 64;

@@ -193,6 +193,7 @@ void Fill(const EngineStats& s, pb::EngineStats* out) {
   out->set_worker_relations(s.worker_relations);
   out->set_consumer_relations(s.consumer_relations);
   out->set_duplicates_avoided(s.duplicates_avoided);
+  out->set_waits_abandoned(s.waits_abandoned);
   out->set_producer_busy_ns(s.producer_busy_ns);
   out->set_buffer_bytes(s.buffer_bytes);
   out->set_buffer_peak_bytes(s.buffer_peak_bytes);

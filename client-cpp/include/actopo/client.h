@@ -263,6 +263,9 @@ struct EngineStats {
   int64_t producer_busy_ns = 0;
   int64_t buffer_bytes = 0;
   int64_t buffer_peak_bytes = 0;
+  // Misses a consumer computed itself after waiting for a producer at idle priority that got
+  // no cycles (other threads held every core).
+  int64_t waits_abandoned = 0;
 
   // hits / requests; 1.0 without requests (nothing was missed), as in the Python client.
   double hit_rate() const { return requests > 0 ? double(hits) / double(requests) : 1.0; }

@@ -99,6 +99,7 @@ EngineStats FromProto(const v1::EngineStats& e) {
       .producer_busy_ns = e.producer_busy_ns(),
       .buffer_bytes = e.buffer_bytes(),
       .buffer_peak_bytes = e.buffer_peak_bytes(),
+      .waits_abandoned = e.waits_abandoned(),
   };
 }
 
