@@ -362,7 +362,8 @@ class ActopoStructure::Consumer {
     compute_ns_[Index(task.relation)].Add(ns);
     computed_[Index(task.relation)].Add(1);
     mu_.Lock();
-    const int evicted = buffer_.Publish(task.block, task.relation, std::move(data), pin);
+    RelationBuffer::Evicted evicted =
+        buffer_.Publish(task.block, task.relation, std::move(data), pin);
     // Counted (and traced) once published: whoever sees the count sees the block in the
     // buffer (the prefetch test waits on the leader's count before reading the next block).
     switch (role) {
@@ -374,10 +375,19 @@ class ActopoStructure::Consumer {
       trace->Span(RelationCode(task.relation).data(), RoleName(role), start, end,
                   {.block = task.block});
     }
-    if (evicted > 0 && trace_) trace_->Instant("evict", "buffer", {.count = evicted});
+    if (evicted.blocks > 0 && trace_) {
+      trace_->Instant("evict", "buffer", {.count = evicted.blocks});
+    }
     if (served_seq_ < request_seq_ && request_.block == task.block &&
         request_.relation == task.relation) {
       HandOver(buffer_.TryPin(task.block, task.relation));
+    }
+    if (!evicted.data.empty()) {
+      // Freed without mu_: the consumer may need it meanwhile, and a producer at idle priority
+      // can be descheduled for long while it returns megabytes to the system.
+      mu_.Unlock();
+      evicted.data.clear();
+      mu_.Lock();
     }
     return published;
   }

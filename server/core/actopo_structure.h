@@ -47,9 +47,11 @@
 //   lifecycle_mu  Start/Stop of the producer threads (Shutdown and the destructor may race).
 //   mu            one per consumer: stop flag, request/hint/served numbers and their payloads,
 //                 the current plan and its cursor, the prefetching switch, the trace pointer.
-//                 Producers hold it except while computing a relation; the consumer takes it
-//                 only on a miss and once per plan (a hint).
-//   buffer mu     inside RelationBuffer::Publish only: the resident list.
+//                 Producers hold it except while computing a relation or freeing what an
+//                 eviction returned; the consumer takes it only on a miss and once per plan (a
+//                 hint).
+//   buffer mu     inside RelationBuffer::Publish only: the resident list (evicted data is
+//                 handed back and freed after both locks are released).
 // Lock-free: pins and states (RelationBuffer), the trigger block, statistics counters, and the
 // TransitionModel of the adaptive mode (consumer thread only). Members are annotated with
 // Abseil's thread-safety attributes and checked by clang -Wthread-safety (make

@@ -37,44 +37,43 @@ bool RelationBuffer::StartComputing(int32_t block, Relation r) {
                                                       std::memory_order_acq_rel);
 }
 
-int RelationBuffer::Publish(int32_t block, Relation r, std::unique_ptr<RelationBlock> data,
-                            bool pin) {
+RelationBuffer::Evicted RelationBuffer::Publish(int32_t block, Relation r,
+                                                std::unique_ptr<RelationBlock> data, bool pin) {
+  Evicted evicted;
   MutexLock lock(mu_);
   Cell& c = cell(block, r);
   AddBytes(data->bytes());
   c.data.store(data.release(), std::memory_order_release);
   if (pin) c.pins.fetch_add(1, std::memory_order_seq_cst);
   c.state.store(State::kReady, std::memory_order_seq_cst);
-  if (is_resident_[block]) return 0;
+  if (is_resident_[block]) return evicted;
   is_resident_[block] = 1;
   resident_.push_back(block);
   blocks_inserted_.fetch_add(1, std::memory_order_relaxed);
   Raise(peak_blocks_, int64_t(resident_.size()));
-  const int evicted = int(resident_.size()) > capacity_ ? EvictOldestHalf(block) : 0;
+  if (int(resident_.size()) > capacity_) EvictOldestHalf(block, evicted);
   blocks_.store(int64_t(resident_.size()), std::memory_order_relaxed);
   return evicted;
 }
 
-int RelationBuffer::EvictOldestHalf(int32_t keep) {
+void RelationBuffer::EvictOldestHalf(int32_t keep, Evicted& out) {
   size_t to_evict = std::max<size_t>(1, resident_.size() / 2);
-  int evicted = 0;
   std::vector<int32_t> still;
   still.reserve(resident_.size());
   for (int32_t b : resident_) {
-    if (to_evict == 0 || b == keep || !TryEvictBlock(b)) {
+    if (to_evict == 0 || b == keep || !TryEvictBlock(b, out)) {
       still.push_back(b);
       continue;
     }
     --to_evict;
-    ++evicted;
+    ++out.blocks;
     is_resident_[b] = 0;
   }
   resident_ = std::move(still);
-  evictions_.fetch_add(evicted, std::memory_order_relaxed);
-  return evicted;
+  evictions_.fetch_add(out.blocks, std::memory_order_relaxed);
 }
 
-bool RelationBuffer::TryEvictBlock(int32_t b) {
+bool RelationBuffer::TryEvictBlock(int32_t b, Evicted& out) {
   for (Relation r : AllRelations()) {
     if (cell(b, r).state.load(std::memory_order_acquire) == State::kComputing) return false;
   }
@@ -91,9 +90,9 @@ bool RelationBuffer::TryEvictBlock(int32_t b) {
       all_gone = false;
       continue;
     }
-    RelationBlock* data = c.data.exchange(nullptr, std::memory_order_acq_rel);
+    std::unique_ptr<RelationBlock> data(c.data.exchange(nullptr, std::memory_order_acq_rel));
     AddBytes(-data->bytes());
-    delete data;
+    out.data.push_back(std::move(data));
     c.state.store(State::kAbsent, std::memory_order_release);
   }
   return all_gone;

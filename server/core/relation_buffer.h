@@ -74,8 +74,14 @@ class RelationBuffer {
   // eviction can look at it). When this brings a new block in beyond capacity, the oldest half
   // of the resident blocks (by insertion) is evicted, sparing `block`, blocks with a relation
   // being computed and pinned relations (a block with a pinned relation stays resident).
-  // Returns how many blocks were evicted.
-  int Publish(int32_t block, Relation r, std::unique_ptr<RelationBlock> data, bool pin);
+  // Returns the evicted relations' data, for the caller to free once it holds no lock of its
+  // own: half a buffer can be tens of megabytes, and nobody should wait on a lock while it is
+  // returned to the system.
+  struct Evicted {
+    int blocks = 0;
+    std::vector<std::unique_ptr<RelationBlock>> data;
+  };
+  Evicted Publish(int32_t block, Relation r, std::unique_ptr<RelationBlock> data, bool pin);
 
   Stats stats() const;
   int capacity_blocks() const { return capacity_; }
@@ -90,8 +96,8 @@ class RelationBuffer {
   const Cell& cell(int32_t block, Relation r) const {
     return cells_[size_t(block) * kNumRelations + Index(r)];
   }
-  int EvictOldestHalf(int32_t keep) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
-  bool TryEvictBlock(int32_t block) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  void EvictOldestHalf(int32_t keep, Evicted& out) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  bool TryEvictBlock(int32_t block, Evicted& out) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   void AddBytes(int64_t delta);
   static void Raise(std::atomic<int64_t>& peak, int64_t value);
 

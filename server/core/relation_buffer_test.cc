@@ -2,8 +2,11 @@
 // memory accounting, and pinning racing eviction (run under ASan and TSan in make test).
 #include "server/core/relation_buffer.h"
 
+#include <algorithm>
 #include <atomic>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "gtest/gtest.h"
 
@@ -68,7 +71,19 @@ TEST(RelationBuffer, EvictsTheOldestHalfBeyondCapacity) {
   Put(buffer, 0, Relation::kVE);  // a second relation of a resident block is no new block
   EXPECT_EQ(buffer.stats().blocks, 4);
   EXPECT_EQ(buffer.stats().evictions, 0);
-  Put(buffer, 4);  // 5 blocks > 4: the oldest half of the 5 (2 blocks) goes, block 0 first
+  // 5 blocks > 4: the oldest half of the 5 (2 blocks) goes, block 0 first. Their data comes
+  // back to the caller, to be freed outside its locks, already out of the statistics.
+  ASSERT_TRUE(buffer.StartComputing(4, Relation::kVT));
+  RelationBuffer::Evicted evicted =
+      buffer.Publish(4, Relation::kVT, Block(4, Relation::kVT), /*pin=*/false);
+  EXPECT_EQ(evicted.blocks, 2);
+  std::vector<std::pair<int32_t, Relation>> returned;
+  for (const auto& data : evicted.data) returned.push_back({data->block, data->relation});
+  std::sort(returned.begin(), returned.end());
+  EXPECT_EQ(returned, (std::vector<std::pair<int32_t, Relation>>{
+                          {0, Relation::kVE}, {0, Relation::kVT}, {1, Relation::kVT}}));
+  EXPECT_EQ(buffer.stats().bytes, 3 * BytesOf(0, Relation::kVT));
+  evicted.data.clear();
   for (Relation r : {Relation::kVT, Relation::kVE}) {
     EXPECT_EQ(buffer.state(0, r), State::kAbsent) << RelationCode(r);
   }
