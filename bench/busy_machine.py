@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Our structures while other work holds every core, as on a shared server: BUSY threads that
+"""Our structures while other work holds every core, as on a shared server: BUSY processes that
 spin at normal priority (one per core by default) run beside actopo-bench for the whole
 measurement. For every mesh and workload the configurations run in turn, RUNS times (so a drift
 of the machine hits all of them), each a whole process under /usr/bin/time. Prints a Markdown
@@ -33,6 +33,31 @@ ROOT = Path(__file__).resolve().parents[1]
 def spin(stop) -> None:
     while not stop.is_set():
         pass
+
+
+def start_busy(kind: str, count: int) -> tuple[list, object]:
+    """`count` busy processes: Python loops, or `yes > /dev/null` (a write per line: a
+    kernel entry and exit each time, which starves idle-priority threads worse)."""
+    if kind == "yes":
+        procs = [subprocess.Popen(["yes"], stdout=subprocess.DEVNULL) for _ in range(count)]
+        return procs, None
+    stop = multiprocessing.Event()
+    procs = [multiprocessing.Process(target=spin, args=(stop,), daemon=True)
+             for _ in range(count)]
+    for p in procs:
+        p.start()
+    return procs, stop
+
+
+def stop_busy(procs: list, stop) -> None:
+    if stop is None:
+        for p in procs:
+            p.terminate()
+            p.wait()
+        return
+    stop.set()
+    for p in procs:
+        p.join()
 
 
 def timed(cmd: list[str], timeout: float) -> dict:
@@ -79,6 +104,8 @@ def main() -> None:
                     help="LABEL=PATH: that label's actopo-bench (default: this build's)")
     ap.add_argument("--busy", type=int, default=os.cpu_count() or 2,
                     help="spinning threads beside each run (default: one per core)")
+    ap.add_argument("--spinner", choices=["python", "yes"], default="python",
+                    help="what keeps the cores busy (default: Python loops)")
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--timeout", type=float, default=600,
                     help="seconds after which a run is killed and counted as that long")
@@ -88,15 +115,12 @@ def main() -> None:
     benches = dict(b.split("=", 1) for b in args.bench)
     configs = [c.split("=", 1) for c in args.config]
 
-    print(f"{args.busy} spinning threads beside each run; medians (min-max) of {args.runs}\n")
+    print(f"{args.busy} {args.spinner} spinners beside each run; medians (min-max) of "
+          f"{args.runs}\n")
     print("| mesh | workload | configuration | wall s | peak MiB | consumer wait s | "
           "waits abandoned |")
     print("|---|---|---|---|---|---|---|", flush=True)
-    stop = multiprocessing.Event()
-    spinners = [multiprocessing.Process(target=spin, args=(stop,), daemon=True)
-                for _ in range(args.busy)]
-    for s in spinners:
-        s.start()
+    spinners, stop = start_busy(args.spinner, args.busy)
     cases = []
     try:
         for spec in args.mesh:
@@ -118,12 +142,10 @@ def main() -> None:
                 cases.append(case)
                 print_case(case)
                 Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-                Path(args.json).write_text(json.dumps({"busy": args.busy, "cases": cases},
-                                                      indent=1))
+                Path(args.json).write_text(json.dumps(
+                    {"busy": args.busy, "spinner": args.spinner, "cases": cases}, indent=1))
     finally:
-        stop.set()
-        for s in spinners:
-            s.join()
+        stop_busy(spinners, stop)
 
 
 

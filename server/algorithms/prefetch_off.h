@@ -1,11 +1,14 @@
-// Switches an actopo structure's prefetching off for a scope (the other structures have none):
-// for phases whose reads follow V-paths and walls across blocks, not blocks in order, where
-// speculative block computations only compete with the consumers.
+// Phase controls of an actopo structure, no-ops on the others. PrefetchOff switches its
+// prefetching off for a scope: for phases whose reads follow V-paths and walls across blocks, not
+// blocks in order, where speculative block computations only compete with the consumers.
+// DropBufferedRelations empties its buffers between phases (compact's caches belong to readers,
+// which end with their phase; explicit's relations are the structure).
 //
 //   {
 //     PrefetchOff<Structure> off(structure);
 //     ... trace paths ...
 //   }
+//   DropBufferedRelations(structure);  // the next phase reads other relations
 #ifndef ACTOPO_SERVER_ALGORITHMS_PREFETCH_OFF_H_
 #define ACTOPO_SERVER_ALGORITHMS_PREFETCH_OFF_H_
 
@@ -31,6 +34,11 @@ class PrefetchOff {
   static constexpr bool kActopo = std::is_same_v<Structure, ActopoStructure>;
   Structure& structure_;
 };
+
+template <class Structure>
+void DropBufferedRelations(Structure& structure) {
+  if constexpr (std::is_same_v<Structure, ActopoStructure>) structure.DropBufferedRelations();
+}
 
 }  // namespace actopo
 

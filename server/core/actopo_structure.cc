@@ -13,6 +13,7 @@
 
 #include "absl/base/thread_annotations.h"
 #include "absl/strings/str_cat.h"
+#include "server/core/process_memory.h"
 #include "server/core/relation_buffer.h"
 #include "server/core/sync.h"
 
@@ -144,6 +145,9 @@ class ActopoStructure::Consumer {
     prefetching_ = on;
     if (!on) DropTasks();
   }
+
+  // Any thread: evicts (and frees) what no reader pins and no one computes.
+  void DropBuffered() { buffer_.EvictAll(); }
 
   // Consumer thread: (block, r) pinned for the caller, or null when the engine is stopping.
   const RelationBlock* Acquire(int32_t block, Relation r, int32_t previous_block) {
@@ -503,6 +507,11 @@ void ActopoStructure::Shutdown() {
 
 void ActopoStructure::SetPrefetching(bool on) {
   for (auto& c : consumers_) c->SetPrefetching(on);
+}
+
+void ActopoStructure::DropBufferedRelations() {
+  for (auto& c : consumers_) c->DropBuffered();
+  ReleaseFreeMemory();
 }
 
 void ActopoStructure::SetTrace(std::shared_ptr<Trace> trace) {

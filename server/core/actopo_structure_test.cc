@@ -412,6 +412,26 @@ TEST(ActopoStructure, ConsumerComputesWhatAStalledIdleProducerHolds) {
   }
 }
 
+TEST(ActopoStructure, DropBufferedRelationsKeepsWhatAReaderPins) {
+  auto topo = Build(testing::Lattice(8, 8, 8, 2), 16);
+  testing::RelationOracle oracle(*topo);
+  auto structure = Create(topo, {.consumers = 1, .producers = 2, .buffer_ratio = 0.5});
+  structure->SetPrefetching(false);  // the reader's misses only: nothing comes in meanwhile
+  {
+    auto sweeping = structure->NewReader();
+    EXPECT_EQ(testing::CompareWithOracle(sweeping, oracle, "before the drop"), 0);
+  }
+  EXPECT_GT(structure->stats().buffer_blocks, 1);
+  auto reader = structure->NewReader();
+  const SimplexId v = topo->num_vertices() / 2;
+  const auto star = reader.vertex_star(v);  // pins v's block for VT
+  structure->DropBufferedRelations();
+  const EngineStats s = structure->stats();
+  EXPECT_EQ(s.buffer_blocks, 1) << "only the block the reader pins";
+  EXPECT_EQ(std::vector<SimplexId>(star.begin(), star.end()), oracle.rows(Relation::kVT)[v]);
+  EXPECT_EQ(testing::CompareWithOracle(reader, oracle, "after the drop"), 0);
+}
+
 TEST(ActopoStructure, RejectsBadOptions) {
   struct Case {
     ActopoStructure::Options options;

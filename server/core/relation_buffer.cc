@@ -56,6 +56,24 @@ RelationBuffer::Evicted RelationBuffer::Publish(int32_t block, Relation r,
   return evicted;
 }
 
+RelationBuffer::Evicted RelationBuffer::EvictAll() {
+  Evicted evicted;
+  MutexLock lock(mu_);
+  std::vector<int32_t> still;
+  for (int32_t b : resident_) {
+    if (TryEvictBlock(b, evicted)) {
+      ++evicted.blocks;
+      is_resident_[b] = 0;
+    } else {
+      still.push_back(b);
+    }
+  }
+  resident_ = std::move(still);
+  blocks_.store(int64_t(resident_.size()), std::memory_order_relaxed);
+  evictions_.fetch_add(evicted.blocks, std::memory_order_relaxed);
+  return evicted;
+}
+
 void RelationBuffer::EvictOldestHalf(int32_t keep, Evicted& out) {
   size_t to_evict = std::max<size_t>(1, resident_.size() / 2);
   std::vector<int32_t> still;

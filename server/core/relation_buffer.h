@@ -83,6 +83,10 @@ class RelationBuffer {
   };
   Evicted Publish(int32_t block, Relation r, std::unique_ptr<RelationBlock> data, bool pin);
 
+  // Evicts every resident block whose relations no one pins or computes (between an
+  // algorithm's phases, when what the last phase kept is not what the next reads).
+  Evicted EvictAll();
+
   Stats stats() const;
   int capacity_blocks() const { return capacity_; }
 

@@ -101,6 +101,26 @@ TEST(RelationBuffer, EvictsTheOldestHalfBeyondCapacity) {
   EXPECT_EQ(buffer.state(0, Relation::kVT), State::kReady);
 }
 
+TEST(RelationBuffer, EvictAllSparesOnlyPinnedAndComputingBlocks) {
+  RelationBuffer buffer(8, 8);
+  for (int32_t b = 0; b < 4; ++b) Put(buffer, b);
+  ASSERT_NE(buffer.TryPin(1, Relation::kVT), nullptr);
+  ASSERT_TRUE(buffer.StartComputing(2, Relation::kVE));  // block 2 is being extended
+  const RelationBuffer::Evicted evicted = buffer.EvictAll();
+  EXPECT_EQ(evicted.blocks, 2);
+  EXPECT_EQ(evicted.data.size(), 2u);
+  for (int32_t b : {0, 3}) EXPECT_EQ(buffer.state(b, Relation::kVT), State::kAbsent) << b;
+  for (int32_t b : {1, 2}) EXPECT_EQ(buffer.state(b, Relation::kVT), State::kReady) << b;
+  EXPECT_EQ(buffer.stats().blocks, 2);
+  EXPECT_EQ(buffer.stats().bytes, 2 * BytesOf(0, Relation::kVT));
+  buffer.Unpin(1, Relation::kVT);
+  buffer.Publish(2, Relation::kVE, Block(2, Relation::kVE), /*pin=*/false);
+  EXPECT_EQ(buffer.EvictAll().blocks, 2);
+  EXPECT_EQ(buffer.stats().bytes, 0);
+  Put(buffer, 0);  // and it fills again
+  EXPECT_EQ(buffer.state(0, Relation::kVT), State::kReady);
+}
+
 TEST(RelationBuffer, KeepsPinnedRelationsAndTheirBlocks) {
   RelationBuffer buffer(8, 2);
   Put(buffer, 0);
