@@ -36,6 +36,7 @@ void DescendingSeparatrices(const Topology& topo, const GradientField& g,
         v = ev[0] == v ? ev[1] : ev[0];
       }
       s.destination = s.cells.back();
+      s.cells.shrink_to_fit();  // as in SaddleConnectors
       out.push_back(std::move(s));
     }
   }
@@ -94,6 +95,7 @@ class Builder {
       Separatrix s{SeparatrixType::kAscending, {2, f}, {}, {{2, f}}};
       if (AscendingPath(t, s.cells)) {
         s.destination = s.cells.back();
+        s.cells.shrink_to_fit();  // as in SaddleConnectors
         out.push_back(std::move(s));
       }
     }
@@ -106,6 +108,9 @@ class Builder {
     for (SimplexId s1 : wall_saddles_) {
       Separatrix s{SeparatrixType::kSaddleConnector, {1, s1}, {2, s2}, {}};
       if (PathThroughWall(s1, s.cells) && s.cells.back().dim == 2 && s.cells.back().id == s2) {
+        // The result holds every path to the end: without the slack of their growth (part_5M,
+        // 4.9M cells of 8 bytes in 84k separatrices, most of them saddle connectors).
+        s.cells.shrink_to_fit();
         out.push_back(std::move(s));
       }
     }
