@@ -164,11 +164,26 @@ class ActopoStructure::Consumer {
 
   void Unpin(int32_t block, Relation r) { buffer_.Unpin(block, r); }
 
-  // A relation the reader computed for itself (the engine stopping, or a producer at idle
-  // priority computing it too slowly), in `ns`, counted as the consumer's wait.
-  void CountOwnComputation(int64_t ns) {
+  // Consumer thread: (block, r) for the reader alone, outside the buffer (the engine stopping,
+  // or a producer at idle priority computing it too slowly). Counted and traced as the
+  // consumer's computation, its time as the consumer's wait.
+  std::unique_ptr<RelationBlock> ComputeOwnCopy(int32_t block, Relation r) {
+    std::shared_ptr<Trace> trace;
+    {
+      MutexLock lock(mu_);
+      trace = trace_;
+    }
+    const auto start = Clock::now();
+    auto data =
+        std::make_unique<RelationBlock>(ComputeBlockRelation(topo_, r, block, ThreadScratch()));
+    const auto end = Clock::now();
     consumer_relations_.Add(1);
-    wait_ns_.Add(ns);
+    wait_ns_.Add(std::chrono::duration_cast<std::chrono::nanoseconds>(end - start).count());
+    if (trace) {
+      trace->Span(RelationCode(r).data(), RoleName(ProducerRole::kConsumer), start, end,
+                  {.block = block});
+    }
+    return data;
   }
 
   EngineStats Stats() const {
@@ -579,10 +594,7 @@ void ActopoStructure::Reader::MoveSlot(Relation r, int32_t block) {
   } else {
     // The engine is stopping, or a producer at idle priority is computing it too slowly:
     // compute it here so the algorithm reads correct data at once.
-    const auto start = Clock::now();
-    own_[Index(r)] = std::make_unique<RelationBlock>(
-        ComputeBlockRelation(*topology_, r, block, ThreadScratch()));
-    consumer_->CountOwnComputation(NanosSince(start));
+    own_[Index(r)] = consumer_->ComputeOwnCopy(block, r);
     data = own_[Index(r)].get();
   }
   last_block_ = block;
