@@ -146,8 +146,12 @@ class ActopoStructure::Consumer {
     if (!on) DropTasks();
   }
 
-  // Any thread: evicts (and frees) what no reader pins and no one computes.
-  void DropBuffered() { buffer_.EvictAll(); }
+  // Any thread: evicts and frees what no reader pins and no one computes; returns its bytes.
+  int64_t DropBuffered() {
+    int64_t bytes = 0;
+    for (const auto& data : buffer_.EvictAll().data) bytes += data->bytes();
+    return bytes;
+  }
 
   // Consumer thread: (block, r) pinned for the caller, or null when the engine is stopping.
   const RelationBlock* Acquire(int32_t block, Relation r, int32_t previous_block) {
@@ -525,8 +529,13 @@ void ActopoStructure::SetPrefetching(bool on) {
 }
 
 void ActopoStructure::DropBufferedRelations() {
-  for (auto& c : consumers_) c->DropBuffered();
-  ReleaseFreeMemory();
+  int64_t bytes = 0;
+  for (auto& c : consumers_) bytes += c->DropBuffered();
+  // malloc_trim walks every arena and stalls other sessions' allocations meanwhile: worth it
+  // for a large buffer (wavelet128.vtu's held 100 MiB), not for the small meshes a server may
+  // run many jobs a second on.
+  constexpr int64_t kWorthReturning = int64_t(32) << 20;
+  if (bytes >= kWorthReturning) ReleaseFreeMemory();
 }
 
 void ActopoStructure::SetTrace(std::shared_ptr<Trace> trace) {
