@@ -51,7 +51,9 @@ RelationBuffer::Evicted RelationBuffer::Publish(int32_t block, Relation r,
   resident_.push_back(block);
   blocks_inserted_.fetch_add(1, std::memory_order_relaxed);
   Raise(peak_blocks_, int64_t(resident_.size()));
-  if (int(resident_.size()) > capacity_) EvictOldestHalf(block, evicted);
+  if (int(resident_.size()) > capacity_) {
+    EvictOldest(std::max<size_t>(1, resident_.size() / 2), block, evicted);
+  }
   blocks_.store(int64_t(resident_.size()), std::memory_order_relaxed);
   return evicted;
 }
@@ -59,23 +61,12 @@ RelationBuffer::Evicted RelationBuffer::Publish(int32_t block, Relation r,
 RelationBuffer::Evicted RelationBuffer::EvictAll() {
   Evicted evicted;
   MutexLock lock(mu_);
-  std::vector<int32_t> still;
-  for (int32_t b : resident_) {
-    if (TryEvictBlock(b, evicted)) {
-      ++evicted.blocks;
-      is_resident_[b] = 0;
-    } else {
-      still.push_back(b);
-    }
-  }
-  resident_ = std::move(still);
+  EvictOldest(resident_.size(), /*keep=*/-1, evicted);
   blocks_.store(int64_t(resident_.size()), std::memory_order_relaxed);
-  evictions_.fetch_add(evicted.blocks, std::memory_order_relaxed);
   return evicted;
 }
 
-void RelationBuffer::EvictOldestHalf(int32_t keep, Evicted& out) {
-  size_t to_evict = std::max<size_t>(1, resident_.size() / 2);
+void RelationBuffer::EvictOldest(size_t to_evict, int32_t keep, Evicted& out) {
   std::vector<int32_t> still;
   still.reserve(resident_.size());
   for (int32_t b : resident_) {

@@ -100,7 +100,8 @@ class RelationBuffer {
   const Cell& cell(int32_t block, Relation r) const {
     return cells_[size_t(block) * kNumRelations + Index(r)];
   }
-  void EvictOldestHalf(int32_t keep, Evicted& out) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // Up to `to_evict` resident blocks, oldest first, sparing `keep` (-1: none).
+  void EvictOldest(size_t to_evict, int32_t keep, Evicted& out) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   bool TryEvictBlock(int32_t block, Evicted& out) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   void AddBytes(int64_t delta);
   static void Raise(std::atomic<int64_t>& peak, int64_t value);
