@@ -101,6 +101,7 @@ def test_prometheus_scrapes_the_server_and_the_alerts_follow(server_and_promethe
                     lambda: prom.value('actopo_requests_total{rpc="LoadMesh",code="0"}')) >= 1
     assert prom.value("actopo_memory_budget_limit_bytes") > 0
     assert prom.value("actopo_process_resident_bytes") > 0
+    assert 0 < prom.value("actopo_process_heap_bytes") < prom.value("actopo_process_resident_bytes")
     assert prom.value("actopo_buffer_hits_total + actopo_buffer_misses_total") > 0
     # Nothing is wrong yet.
     assert prom.get("alerts")["alerts"] == []

@@ -52,11 +52,6 @@ void LowerToIdlePriority() {
   pthread_setschedparam(pthread_self(), SCHED_IDLE, &param);
 }
 
-BlockScratch& ThreadScratch() {
-  thread_local BlockScratch scratch;
-  return scratch;
-}
-
 }  // namespace
 
 std::string_view MissPolicyName(MissPolicy p) {
@@ -154,7 +149,9 @@ class ActopoStructure::Consumer {
   }
 
   // Consumer thread: (block, r) pinned for the caller, or null when the engine is stopping.
-  const RelationBlock* Acquire(int32_t block, Relation r, int32_t previous_block) {
+  // A computation on the consumer's thread uses the reader's `scratch`.
+  const RelationBlock* Acquire(int32_t block, Relation r, int32_t previous_block,
+                               BlockScratch& scratch) {
     requests_.Add(1);
     if (options_.prefetch == Prefetch::kAdaptive) model_.Learn(previous_block, block);
     if (const RelationBlock* data = buffer_.TryPin(block, r)) {
@@ -163,7 +160,7 @@ class ActopoStructure::Consumer {
       return data;
     }
     misses_.Add(1);
-    return Miss(block, r);
+    return Miss(block, r, scratch);
   }
 
   void Unpin(int32_t block, Relation r) { buffer_.Unpin(block, r); }
@@ -171,15 +168,14 @@ class ActopoStructure::Consumer {
   // Consumer thread: (block, r) for the reader alone, outside the buffer (the engine stopping,
   // or a producer at idle priority computing it too slowly). Counted and traced as the
   // consumer's computation, its time as the consumer's wait.
-  std::unique_ptr<RelationBlock> ComputeOwnCopy(int32_t block, Relation r) {
+  std::unique_ptr<RelationBlock> ComputeOwnCopy(int32_t block, Relation r, BlockScratch& scratch) {
     std::shared_ptr<Trace> trace;
     {
       MutexLock lock(mu_);
       trace = trace_;
     }
     const auto start = Clock::now();
-    auto data =
-        std::make_unique<RelationBlock>(ComputeBlockRelation(topo_, r, block, ThreadScratch()));
+    auto data = std::make_unique<RelationBlock>(ComputeBlockRelation(topo_, r, block, scratch));
     const auto end = Clock::now();
     consumer_relations_.Add(1);
     wait_ns_.Add(std::chrono::duration_cast<std::chrono::nanoseconds>(end - start).count());
@@ -225,7 +221,7 @@ class ActopoStructure::Consumer {
   };
 
   // Consumer thread, (block, r) not ready at the lock-free look.
-  const RelationBlock* Miss(int32_t block, Relation r) {
+  const RelationBlock* Miss(int32_t block, Relation r, BlockScratch& scratch) {
     const auto start = Clock::now();
     MutexLock lock(mu_);
     WaitSpan span{trace_, start, {.block = block, .relation = RelationCode(r).data()}};
@@ -238,7 +234,8 @@ class ActopoStructure::Consumer {
       // Compute it here: waking the leader to compute exactly this would only add a hand-off.
       // The leader still learns where the consumer is and re-plans.
       PostHint(block, r);
-      const RelationBlock* data = Compute({block, r}, ProducerRole::kConsumer, /*pin=*/true);
+      const RelationBlock* data =
+          Compute({block, r}, ProducerRole::kConsumer, /*pin=*/true, scratch);
       wait_ns_.Add(NanosSince(start));
       return data;
     }
@@ -261,7 +258,8 @@ class ActopoStructure::Consumer {
         served_seq_ = seq;  // withdrawn: nobody hands it over now
         waits_abandoned_.Add(1);
         if (buffer_.StartComputing(block, r)) {  // the leader has not started on it
-          const RelationBlock* data = Compute({block, r}, ProducerRole::kConsumer, /*pin=*/true);
+          const RelationBlock* data =
+              Compute({block, r}, ProducerRole::kConsumer, /*pin=*/true, scratch);
           wait_ns_.Add(NanosSince(start));
           return data;
         }
@@ -310,7 +308,9 @@ class ActopoStructure::Consumer {
     }
   }
 
+  // A producer's scratch lives as long as its thread, which the engine joins when it stops.
   void LeaderLoop() {
+    BlockScratch scratch;
     MutexLock lock(mu_);
     uint64_t seen_request = 0, seen_hint = 0;
     while (true) {
@@ -323,53 +323,55 @@ class ActopoStructure::Consumer {
         seen_request = request_seq_;
         const BlockTask request = request_;
         const std::vector<int32_t> prediction = request_prediction_;
-        Serve(request);
+        Serve(request, scratch);
         if (stop_) return;
         Replan(request, prediction);
       } else if (hint_seq_ != seen_hint) {
         seen_hint = hint_seq_;
         Replan(hint_, hint_prediction_);
       } else {
-        RunTask(ProducerRole::kLeader);
+        RunTask(ProducerRole::kLeader, scratch);
       }
     }
   }
 
   void WorkerLoop() {
+    BlockScratch scratch;
     MutexLock lock(mu_);
     while (true) {
       while (!stop_ && next_task_ >= plan_.tasks.size()) worker_cv_.Wait(mu_);
       if (stop_) return;
-      RunTask(ProducerRole::kWorker);
+      RunTask(ProducerRole::kWorker, scratch);
     }
   }
 
   // Leader: answer the consumer's pending miss.
-  void Serve(const BlockTask& request) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
+  void Serve(const BlockTask& request, BlockScratch& scratch) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
     if (served_seq_ >= request_seq_) return;  // a producer's Publish already handed it over
     if (const RelationBlock* data = buffer_.TryPin(request.block, request.relation)) {
       HandOver(data);
     } else if (buffer_.StartComputing(request.block, request.relation)) {
-      Compute(request, ProducerRole::kLeader, /*pin=*/false);
+      Compute(request, ProducerRole::kLeader, /*pin=*/false, scratch);
     } else {
       duplicates_avoided_.Add(1);  // a worker is on it; its Publish hands it over
     }
   }
 
   // Producer: take the next planned task; skip it if it is computing or there already.
-  void RunTask(ProducerRole role) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
+  void RunTask(ProducerRole role, BlockScratch& scratch) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
     const BlockTask task = plan_.tasks[next_task_++];
     if (!buffer_.StartComputing(task.block, task.relation)) {
       duplicates_avoided_.Add(1);
       return;
     }
-    Compute(task, role, /*pin=*/false);
+    Compute(task, role, /*pin=*/false, scratch);
   }
 
   // (task) was moved to computing by this thread: compute it with mu_ released, publish it,
   // and hand it to the consumer if it waits for exactly this. Returns the data, pinned if `pin`.
-  const RelationBlock* Compute(const BlockTask& task, ProducerRole role, bool pin)
-      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
+  // `scratch` is the computing thread's.
+  const RelationBlock* Compute(const BlockTask& task, ProducerRole role, bool pin,
+                               BlockScratch& scratch) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
     const std::shared_ptr<Trace> trace = trace_;
     mu_.Unlock();
     if (role != ProducerRole::kConsumer && options_.before_producer_computes) {
@@ -377,7 +379,7 @@ class ActopoStructure::Consumer {
     }
     const auto start = Clock::now();
     auto data = std::make_unique<RelationBlock>(
-        ComputeBlockRelation(topo_, task.relation, task.block, ThreadScratch()));
+        ComputeBlockRelation(topo_, task.relation, task.block, scratch));
     const auto end = Clock::now();
     const RelationBlock* published = data.get();
     const int64_t ns = std::chrono::duration_cast<std::chrono::nanoseconds>(end - start).count();
@@ -580,6 +582,7 @@ ActopoStructure::Reader::Reader(Reader&& other) noexcept
       consumer_(std::exchange(other.consumer_, nullptr)),
       slots_(std::exchange(other.slots_, {})),
       own_(std::move(other.own_)),
+      scratch_(std::move(other.scratch_)),
       last_block_(other.last_block_) {}
 
 ActopoStructure::Reader::~Reader() {
@@ -597,13 +600,13 @@ void ActopoStructure::Reader::Release(Relation r) {
 void ActopoStructure::Reader::MoveSlot(Relation r, int32_t block) {
   Release(r);
   Slot& slot = slots_[Index(r)];
-  const RelationBlock* data = consumer_->Acquire(block, r, last_block_);
+  const RelationBlock* data = consumer_->Acquire(block, r, last_block_, scratch_);
   if (data != nullptr) {
     slot.pinned = true;
   } else {
     // The engine is stopping, or a producer at idle priority is computing it too slowly:
     // compute it here so the algorithm reads correct data at once.
-    own_[Index(r)] = consumer_->ComputeOwnCopy(block, r);
+    own_[Index(r)] = consumer_->ComputeOwnCopy(block, r, scratch_);
     data = own_[Index(r)].get();
   }
   last_block_ = block;

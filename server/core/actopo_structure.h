@@ -220,8 +220,11 @@ class ActopoStructure {
 
     Consumer* consumer_;
     std::array<Slot, kNumRelations> slots_;
-    // Relations this consumer computed itself while the engine was stopping.
+    // Relations this reader computed for itself (see MoveSlot).
     std::array<std::unique_ptr<RelationBlock>, kNumRelations> own_;
+    // For what the consumer computes on its thread: it goes with the reader, so no thread of a
+    // server's pool keeps the largest block's scratch after the job (it would, thread_local).
+    BlockScratch scratch_;
     int32_t last_block_ = -1;
   };
 

@@ -10,6 +10,18 @@
 #include <malloc.h>
 #endif
 
+// Under a sanitizer, its own allocator serves malloc and glibc's statistics stay empty.
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define ACTOPO_SANITIZER_ALLOCATOR 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define ACTOPO_SANITIZER_ALLOCATOR 1
+#endif
+#endif
+#if defined(ACTOPO_SANITIZER_ALLOCATOR)
+extern "C" size_t __sanitizer_get_current_allocated_bytes();  // sanitizer/allocator_interface.h
+#endif
+
 namespace actopo {
 
 int64_t PeakRssBytes() {
@@ -25,6 +37,17 @@ int64_t CurrentRssBytes() {
   const int n = std::fscanf(f, "%lld %lld", &pages_total, &pages_resident);
   std::fclose(f);
   return n == 2 ? pages_resident * int64_t(sysconf(_SC_PAGESIZE)) : 0;
+}
+
+int64_t HeapInUseBytes() {
+#if defined(ACTOPO_SANITIZER_ALLOCATOR)
+  return int64_t(__sanitizer_get_current_allocated_bytes());
+#elif defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 33))
+  const struct mallinfo2 info = mallinfo2();
+  return int64_t(info.uordblks + info.hblkhd);  // chunks in use in the arenas, and mmapped ones
+#else
+  return 0;
+#endif
 }
 
 void ReleaseFreeMemory() {

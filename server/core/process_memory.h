@@ -10,6 +10,11 @@ namespace actopo {
 int64_t PeakRssBytes();
 // Current resident set size (/proc/self/statm), in bytes; 0 if unavailable.
 int64_t CurrentRssBytes();
+// Bytes the allocator has handed out and not taken back: what the process's objects occupy, free
+// memory the allocator keeps excluded (glibc's mallinfo2, or the sanitizer's allocator; 0
+// elsewhere). Unlike RSS, it does not move with fragmentation or the allocator's caches: a leak
+// check compares it, idle to idle.
+int64_t HeapInUseBytes();
 // Hands the allocator's free memory back to the system (glibc's malloc_trim; a no-op elsewhere).
 // Freed blocks otherwise stay resident in the allocator's arenas: after a large mesh or session
 // is gone, or a load stopped half way, the process would keep its peak.

@@ -22,6 +22,7 @@ struct Metrics::Families {
   prometheus::Gauge* budget_used;
   prometheus::Gauge* budget_limit;
   prometheus::Gauge* rss;
+  prometheus::Gauge* heap;
   prometheus::Gauge* threads;
 };
 
@@ -46,6 +47,7 @@ class Metrics::ScrapeTimeGauges : public prometheus::Collectable {
         f_->budget_used->Set(double(v.budget_used_bytes));
         f_->budget_limit->Set(double(v.budget_limit_bytes));
         f_->rss->Set(double(v.process_rss_bytes));
+        f_->heap->Set(double(v.process_heap_bytes));
         f_->threads->Set(v.engine_threads);
       }
     }
@@ -97,6 +99,9 @@ absl::StatusOr<std::unique_ptr<Metrics>> Metrics::Create(const std::string& host
   m->f_->budget_limit =
       gauge("actopo_memory_budget_limit_bytes", "The memory budget (--memory-budget-mib)");
   m->f_->rss = gauge("actopo_process_resident_bytes", "Resident memory of the server");
+  m->f_->heap = gauge("actopo_process_heap_bytes",
+                      "Bytes allocated and not freed in the server (free memory the allocator "
+                      "keeps excluded)");
   m->f_->threads = gauge("actopo_engine_threads", "Engine threads reserved");
   m->collectable_ = std::make_shared<ScrapeTimeGauges>(m->registry_, m->f_.get());
   if (port > 0) {

@@ -25,6 +25,7 @@ struct GaugeValues {
   int64_t budget_used_bytes = 0;
   int64_t budget_limit_bytes = 0;
   int64_t process_rss_bytes = 0;
+  int64_t process_heap_bytes = 0;
   int engine_threads = 0;
 };
 

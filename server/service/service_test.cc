@@ -918,7 +918,7 @@ TEST_F(ServiceTest, PrometheusMetrics) {
         "actopo_job_duration_seconds_count{algorithm=\"critical-points\",structure=\"actopo\"} 1",
         "actopo_sessions 1", "actopo_meshes 1", "actopo_buffer_hits_total",
         "actopo_consumer_wait_seconds_total", "actopo_process_resident_bytes",
-        "actopo_memory_budget_limit_bytes 4294967296"}) {
+        "actopo_process_heap_bytes", "actopo_memory_budget_limit_bytes 4294967296"}) {
     EXPECT_NE(text.find(expected), std::string::npos) << expected << "\n" << text.substr(0, 2000);
   }
   // Low cardinality: no ids in labels.

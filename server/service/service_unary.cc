@@ -79,6 +79,7 @@ GaugeValues TopologyServiceImpl::Gauges() const {
           .budget_used_bytes = budget_->used(),
           .budget_limit_bytes = budget_->limit(),
           .process_rss_bytes = CurrentRssBytes(),
+          .process_heap_bytes = HeapInUseBytes(),
           .engine_threads = sessions_->threads_in_use()};
 }
 
