@@ -2,6 +2,7 @@
 
 #include <pthread.h>
 #include <sched.h>
+#include <time.h>
 
 #include <algorithm>
 #include <chrono>
@@ -47,6 +48,13 @@ const char* RoleName(ProducerRole role) {
 
 // Moves the calling thread to SCHED_IDLE. Lowering a thread's own priority needs no privilege;
 // should the kernel refuse anyway, the thread keeps its priority, which changes only the speed.
+// CPU time of the calling thread, in nanoseconds.
+int64_t ThreadCpuNanos() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return int64_t(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
 void LowerToIdlePriority() {
   sched_param param{};
   pthread_setschedparam(pthread_self(), SCHED_IDLE, &param);
@@ -271,14 +279,16 @@ class ActopoStructure::Consumer {
     return served_seq_ >= seq ? handed_over_ : nullptr;
   }
 
-  // How long a consumer waits for a producer at idle priority: the mean time computations of
-  // r have taken in this consumer's engine so far (of any relation before the first of r).
-  // A producer that runs finishes within it, having started first.
+  // How long a consumer waits for a producer at idle priority: the mean CPU time computations
+  // of r have taken in this consumer's engine so far (of any relation before the first of r).
+  // A producer that runs finishes within it, having started first. CPU time, not wall time: a
+  // producer the scheduler starved took long on the clock, and counting that would make every
+  // later wait longer just when the machine is busy.
   Clock::duration Patience(Relation r) const {
-    int64_t ns = compute_ns_[Index(r)].Get(), count = computed_[Index(r)].Get();
+    int64_t ns = compute_cpu_ns_[Index(r)].Get(), count = computed_[Index(r)].Get();
     if (count == 0) {
       for (Relation other : AllRelations()) {
-        ns += compute_ns_[Index(other)].Get();
+        ns += compute_cpu_ns_[Index(other)].Get();
         count += computed_[Index(other)].Get();
       }
     }
@@ -378,13 +388,14 @@ class ActopoStructure::Consumer {
       options_.before_producer_computes(task.block, task.relation);
     }
     const auto start = Clock::now();
+    const int64_t cpu_start = ThreadCpuNanos();
     auto data = std::make_unique<RelationBlock>(
         ComputeBlockRelation(topo_, task.relation, task.block, scratch));
+    compute_cpu_ns_[Index(task.relation)].Add(ThreadCpuNanos() - cpu_start);
     const auto end = Clock::now();
     const RelationBlock* published = data.get();
     const int64_t ns = std::chrono::duration_cast<std::chrono::nanoseconds>(end - start).count();
     if (role != ProducerRole::kConsumer) busy_ns_.Add(ns);
-    compute_ns_[Index(task.relation)].Add(ns);
     computed_[Index(task.relation)].Add(1);
     mu_.Lock();
     RelationBuffer::Evicted evicted =
@@ -481,8 +492,8 @@ class ActopoStructure::Consumer {
   Counter requests_, hits_, misses_, wait_ns_;
   Counter leader_relations_, worker_relations_, consumer_relations_, duplicates_avoided_;
   Counter busy_ns_, waits_abandoned_;
-  // Per relation: time spent computing it and how many times, by anyone (Patience).
-  std::array<Counter, kNumRelations> compute_ns_, computed_;
+  // Per relation: CPU time spent computing it and how many times, by anyone (Patience).
+  std::array<Counter, kNumRelations> compute_cpu_ns_, computed_;
 };
 
 ActopoStructure::ActopoStructure(std::shared_ptr<const Topology> topology, const Options& options)

@@ -105,7 +105,7 @@ std::string_view MissPolicyName(MissPolicy p);
 // waits, in a phase with fewer consumers than cores, or on a machine with cores to spare.
 // While other threads hold every core (other sessions' consumers, other processes) it gets
 // almost no cycles, so a consumer whose miss such a producer is computing waits only as long as
-// a computation of that relation takes (its mean so far), then computes its own copy
+// a computation of that relation takes (its mean CPU time so far), then computes its own copy
 // (EngineStats::waits_abandoned): the one case where a relation is computed twice at once.
 enum class ProducerPriority : uint8_t {
   kNormal,  // the consumers' priority: producers compete with them for the cores
