@@ -19,6 +19,7 @@
 #include "absl/cleanup/cleanup.h"
 #include "gtest/gtest.h"
 #include "server/core/partition.h"
+#include "server/core/process_memory.h"
 #include "server/core/testing/oracle.h"
 #include "server/core/testing/relation_checks.h"
 #include "server/core/testing/test_meshes.h"
@@ -410,6 +411,25 @@ TEST(ActopoStructure, ConsumerComputesWhatAStalledIdleProducerHolds) {
           << "block 1 computed by the consumer at idle priority, by the leader at normal";
     }
   }
+}
+
+// What a consumer computes in (its block scratch) goes with its reader: a thread that runs
+// consumers for the server's whole life (the service's executors) keeps nothing of a job.
+TEST(ActopoStructure, TheConsumersThreadKeepsNoScratchOnceItsReaderIsGone) {
+  // One block of ~180k tetrahedra: the scratch of its triangle relations is megabytes.
+  auto topo = Build(testing::Lattice(32, 32, 32), 1 << 30);
+  ASSERT_EQ(topo->num_blocks(), 1);
+  const int64_t before = HeapInUseBytes();
+  int64_t computed = 0;
+  {
+    auto structure = Create(topo, {.consumers = 1, .producers = 1});
+    structure->SetPrefetching(false);  // every relation computed here, on this thread
+    auto reader = structure->NewReader();
+    for (Relation r : AllRelations()) EXPECT_FALSE(reader.get(r, 0).empty()) << RelationCode(r);
+    computed = structure->stats().consumer_relations;
+  }
+  EXPECT_EQ(computed, kNumRelations - 4);  // all but EV, FV, TV and FB, which are static
+  EXPECT_LT(HeapInUseBytes() - before, int64_t(1) << 20);
 }
 
 TEST(ActopoStructure, DropBufferedRelationsKeepsWhatAReaderPins) {
