@@ -559,11 +559,19 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
       });
   prefetch_off.reset();
   if (!status.ok()) return status;
+  size_t total = result.separatrices.size();
+  for (auto* per_saddle : {&ascending, &connectors}) {
+    for (const auto& list : *per_saddle) total += list.size();
+  }
+  result.separatrices.reserve(total);  // no doubling slack, no old copy beside the new one
   for (auto* per_saddle : {&ascending, &connectors}) {
     for (auto& list : *per_saddle) {
       std::move(list.begin(), list.end(), std::back_inserter(result.separatrices));
     }
+    // Moved-from shells: freed before the segmentations allocate, where the peak is.
+    std::vector<std::vector<Separatrix>>().swap(*per_saddle);
   }
+  std::vector<SimplexId>().swap(saddle_tets);
 
   result.descending =
       DescendingSegmentation(topo, g, result.gradient.critical[0], result.minimum_sizes);
