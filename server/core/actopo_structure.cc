@@ -46,8 +46,6 @@ const char* RoleName(ProducerRole role) {
   return "?";
 }
 
-// Moves the calling thread to SCHED_IDLE. Lowering a thread's own priority needs no privilege;
-// should the kernel refuse anyway, the thread keeps its priority, which changes only the speed.
 // CPU time of the calling thread, in nanoseconds.
 int64_t ThreadCpuNanos() {
   timespec ts{};
@@ -55,6 +53,8 @@ int64_t ThreadCpuNanos() {
   return int64_t(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
+// Moves the calling thread to SCHED_IDLE. Lowering a thread's own priority needs no privilege;
+// should the kernel refuse anyway, the thread keeps its priority, which changes only the speed.
 void LowerToIdlePriority() {
   sched_param param{};
   pthread_setschedparam(pthread_self(), SCHED_IDLE, &param);
