@@ -219,21 +219,25 @@ absl::StatusOr<std::shared_ptr<const Topology>> Partition(
   // Without --output the points have done their part once the blocks are known: free them
   // before the encoding's peak (wavelet128: 48 MiB).
   if (o.output.empty()) std::vector<double>().swap(mesh.points);
-  const bool keep = algorithm == Algorithm::kMorseSmale || !o.output.empty();
+  absl::Status corners = absl::OkStatus();
+  const auto tetrahedra_read = [&](const Topology& encoded) {
+    if (algorithm == Algorithm::kMorseSmale) {
+      absl::StatusOr<std::vector<uint8_t>> taken = InputCorners(encoded, mesh.tetrahedra);
+      if (!taken.ok()) {
+        corners = taken.status();
+        return;
+      }
+      input_corners = std::make_shared<const std::vector<uint8_t>>(*std::move(taken));
+    }
+    if (o.output.empty()) std::vector<SimplexId>().swap(mesh.tetrahedra);
+  };
   ASSIGN_OR_RETURN(std::shared_ptr<const Topology> topology,
                    Topology::Build(mesh, blocks,
                                    {.threads = o.threads,
-                                    .tetrahedra_read =
-                                        [&] {
-                                          if (!keep) std::vector<SimplexId>().swap(mesh.tetrahedra);
-                                        },
+                                    .tetrahedra_read = tetrahedra_read,
                                     .faces = NeedsFaces(algorithm),
                                     .trace = trace.get()}));
-  if (algorithm == Algorithm::kMorseSmale) {
-    ASSIGN_OR_RETURN(std::vector<uint8_t> corners, InputCorners(*topology, mesh.tetrahedra));
-    input_corners = std::make_shared<const std::vector<uint8_t>>(std::move(corners));
-    if (o.output.empty()) std::vector<SimplexId>().swap(mesh.tetrahedra);
-  }
+  RETURN_IF_ERROR(corners);
   seconds = Seconds(start);
   Phase(trace, "partition", start);
   return topology;

@@ -601,11 +601,11 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     auto span = step("bucket tetrahedra");
     encoder.BucketTetrahedra();
   }
-  if (options.tetrahedra_read) options.tetrahedra_read();
   {
     auto span = step("sort tetrahedra");
     encoder.SortBlockTetrahedra();
   }
+  if (options.tetrahedra_read) options.tetrahedra_read(t);
   RETURN_IF_ERROR(progress.Update(kPhase, 0.15));
 
   {

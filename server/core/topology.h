@@ -75,14 +75,18 @@ struct UninitializedAllocator : std::allocator<T> {
 template <class T>
 using FilledVector = std::vector<T, UninitializedAllocator<T>>;
 
+class Topology;
+
 struct TopologyOptions {
   int threads = 0;  // 0: DefaultThreads()
   // Called once Build has read the mesh's tetrahedra for the last time, before the edges and
-  // triangles (the larger part of the encoding) are built. A caller that needs them no longer
-  // may free them there (Build reads the mesh's tetrahedra, nothing else), so they and the whole
-  // encoding are never resident together: wavelet128, 156 MiB off the peak of a critical points
-  // job.
-  std::function<void()> tetrahedra_read;
+  // triangles (the larger part of the encoding) are built. The topology it is given is not
+  // finished, but its vertices and tetrahedra are: their ids, sorted tuples and both
+  // permutations, so what else a caller needs of the input tetrahedra (e.g. InputCorners) can be
+  // taken there. A caller may then free them (Build reads the mesh's tetrahedra, nothing else),
+  // so they and the whole encoding are never resident together: wavelet128, 156 MiB off the
+  // peak of a critical points job, and of a server's load.
+  std::function<void(const Topology&)> tetrahedra_read;
   // Whether to build the edges and triangles (the "faces" step: on wavelet128 about 70% of the
   // encoding's time and half its bytes). Without them the topology holds vertices, tetrahedra and
   // blocks: enough for the relations VV, VT, TV and VB and for critical points

@@ -90,10 +90,17 @@ TEST(Topology, TetrahedraFreedWhenReadGiveTheSameEncoding) {
   auto kept = *Topology::Build(m, blocks, {.threads = 2});
   Mesh freed = m;
   int calls = 0;
-  auto built = Topology::Build(freed, blocks, {.threads = 2, .tetrahedra_read = [&] {
-                                                 ++calls;
-                                                 std::vector<SimplexId>().swap(freed.tetrahedra);
-                                               }});
+  auto built = Topology::Build(
+      freed, blocks,
+      {.threads = 2, .tetrahedra_read = [&](const Topology& partial) {
+         ++calls;
+         // Its tetrahedra are final by then.
+         for (SimplexId x = 0; x < partial.num_tetrahedra(); ++x) {
+           ASSERT_TRUE(std::ranges::equal(partial.tetrahedron(x), kept->tetrahedron(x)));
+           ASSERT_EQ(partial.tetrahedron_input_id(x), kept->tetrahedron_input_id(x));
+         }
+         std::vector<SimplexId>().swap(freed.tetrahedra);
+       }});
   ASSERT_TRUE(built.ok()) << built.status();
   EXPECT_EQ(calls, 1);
   EXPECT_TRUE(freed.tetrahedra.empty());

@@ -5,6 +5,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_replace.h"
+#include "server/algorithms/morse_smale.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
 #include "server/io/isolated_reader.h"
@@ -29,6 +30,7 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 int64_t LoadedMesh::bytes() const {
   int64_t b = int64_t(mesh.points.capacity() * sizeof(double) +
                       mesh.tetrahedra.capacity() * sizeof(SimplexId));
+  if (input_corners) b += int64_t(input_corners->capacity());
   for (const PointField& f : mesh.point_fields) b += int64_t(f.values.capacity() * sizeof(double));
   return b + (topology ? topology->bytes().total() : 0);
 }
@@ -39,8 +41,10 @@ MeshRegistry::MeshRegistry(MeshRegistryOptions options, MemoryBudget* budget)
 int64_t MeshRegistry::EstimateBytes(int64_t vertices, int64_t tetrahedra, int point_fields) {
   // Measured: the static encoding is about 49 bytes per tetrahedron (wavelet128, jittered:256),
   // the mesh itself 24 + 8 per field per vertex and 16 per tetrahedron; faces are appended into
-  // their final arrays, never copied. jittered:256 (99.5M tetrahedra) peaks at 67 bytes per
-  // tetrahedron besides its vertices; 80 covers it with a margin.
+  // their final arrays, never copied. jittered:256 (99.5M tetrahedra) peaked at 67 bytes per
+  // tetrahedron besides its vertices when the mesh's tetrahedra were kept; 80 covers it with a
+  // margin. Now they are freed before the faces (a byte per tetrahedron stays): once loaded, a
+  // mesh's reservation shrinks to what it holds (Add).
   return vertices * (48 + 8 * std::max(point_fields - 3, 0)) + tetrahedra * 80;
 }
 
@@ -147,7 +151,21 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Add(
   RETURN_IF_ERROR(progress.Update("partition", 0));
   ASSIGN_OR_RETURN(std::vector<int32_t> blocks, ComputeBlocks(mesh, effective));
   RETURN_IF_ERROR(progress.Update("partition", 1));
-  ASSIGN_OR_RETURN(loaded->topology, Topology::Build(mesh, blocks, {}, progress));
+  // Of the input tetrahedra the topology keeps all but their corners' order: take that once
+  // they are encoded and free them before the faces, the encoding's larger part.
+  absl::Status corners = absl::OkStatus();
+  const auto tetrahedra_read = [&](const Topology& encoded) {
+    absl::StatusOr<std::vector<uint8_t>> taken = InputCorners(encoded, mesh.tetrahedra);
+    if (!taken.ok()) {
+      corners = taken.status();
+      return;
+    }
+    loaded->input_corners = std::make_shared<const std::vector<uint8_t>>(*std::move(taken));
+    std::vector<SimplexId>().swap(mesh.tetrahedra);
+  };
+  ASSIGN_OR_RETURN(loaded->topology,
+                   Topology::Build(mesh, blocks, {.tetrahedra_read = tetrahedra_read}, progress));
+  RETURN_IF_ERROR(corners);
   loaded->partition_seconds = SecondsSince(start);
   loaded->id = NewId("mesh");
   loaded->name = std::move(name);
@@ -156,6 +174,11 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Add(
   loaded->block_size = effective.block_label_field.empty() ? effective.bucket_capacity : 0;
   loaded->created = absl::Now();
   loaded->load_seconds = load_seconds;
+  // The estimate covered the load's peak; what stays is what the mesh holds (wavelet128: 606
+  // of 916 MB), so other loads and sessions get the rest. Shrinking never fails.
+  if (const int64_t held = loaded->bytes(); held < loaded->reservation.bytes()) {
+    loaded->reservation.Resize(held, "").IgnoreError();
+  }
   return Insert(std::move(loaded));
 }
 

@@ -27,8 +27,14 @@ struct LoadedMesh {
   std::string id;
   std::string name;
   std::string source;  // "file:PATH", "sample:NAME" or "upload"
-  Mesh mesh;           // input ids, as loaded
+  // Input ids, as loaded: the points and point fields. Its tetrahedra are freed once encoded
+  // (the topology holds them, sorted, with their input ids; wavelet128: 156 MiB less per mesh).
+  Mesh mesh;
   std::shared_ptr<const Topology> topology;
+  // The one thing of the input tetrahedra the topology does not keep: the order each one's
+  // vertices came in (InputCorners, a byte per tetrahedron), which Morse-Smale needs for TTK's
+  // triangle order. Computed once per mesh and shared by its sessions.
+  std::shared_ptr<const std::vector<uint8_t>> input_corners;
   int32_t block_size = 0;  // 0 when partitioned by labels
   absl::Time created;
   double load_seconds = 0;

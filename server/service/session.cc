@@ -37,8 +37,8 @@ int64_t Session::EstimateBytes(const LoadedMesh& mesh, const SessionOptions& opt
   const StructureOptions& o = options.structure;
   const int64_t tets = mesh.topology->num_tetrahedra();
   const int64_t blocks = mesh.topology->num_blocks();
-  // The vertex order, and Morse-Smale's InputCorners (a byte per tetrahedron).
-  const int64_t order = int64_t(mesh.topology->num_vertices()) * 4 + tets;
+  // The vertex order (the mesh holds Morse-Smale's InputCorners for all its sessions).
+  const int64_t order = int64_t(mesh.topology->num_vertices()) * 4;
   if (o.kind == StructureKind::kExplicit) return order + tets * kAllRelationsBytesPerTet;
   // Buffers hold about buffer_ratio of all relations, plus one state cell per (block,
   // relation) per consumer (16 bytes each).
@@ -84,8 +84,7 @@ absl::StatusOr<std::unique_ptr<Session>> Session::Open(std::shared_ptr<const Loa
   const auto start = Clock::now();
   RETURN_IF_ERROR(progress.Update("precompute", 0));
   s->base_.order = VertexOrder(*mesh->topology, m.point_fields[field].values);
-  ASSIGN_OR_RETURN(std::vector<uint8_t> corners, InputCorners(*mesh->topology, m.tetrahedra));
-  s->base_.input_corners = std::make_shared<const std::vector<uint8_t>>(std::move(corners));
+  s->base_.input_corners = mesh->input_corners;
   s->base_.scalars = m.point_fields[field].values;
   const StructureOptions& structure = options.structure;
   switch (structure.kind) {

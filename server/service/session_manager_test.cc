@@ -5,11 +5,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <thread>
 #include <vector>
 
 #include "absl/strings/match.h"
+#include "server/algorithms/morse_smale.h"
+#include "server/io/samples.h"
 
 namespace actopo::service {
 namespace {
@@ -34,6 +37,34 @@ class SessionManagerTest : public ::testing::Test {
   MeshRegistry meshes_;
   SessionManager sessions_;
 };
+
+// A loaded mesh keeps its points and fields but not its tetrahedra (the topology holds them):
+// of those only the order of each one's vertices, which Morse-Smale needs, equal to InputCorners
+// of the tetrahedra as given, and shared by the mesh's sessions. Its share of the memory budget
+// is what it holds.
+TEST_F(SessionManagerTest, ALoadedMeshKeepsItsTetrahedraCornersNotTheTetrahedra) {
+  const Mesh given = *io::MakeSample("jittered:6");
+  auto mesh = meshes_.LoadSample("jittered:6", {});
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  const LoadedMesh& loaded = **mesh;
+  EXPECT_TRUE(loaded.mesh.tetrahedra.empty());
+  EXPECT_EQ(loaded.mesh.points, given.points);
+  EXPECT_EQ(loaded.topology->num_tetrahedra(), given.num_tetrahedra());
+  ASSERT_NE(loaded.input_corners, nullptr);
+  EXPECT_EQ(*loaded.input_corners, *InputCorners(*loaded.topology, given.tetrahedra));
+  // Not every tetrahedron came sorted: the corners carry information.
+  EXPECT_TRUE(std::any_of(loaded.input_corners->begin(), loaded.input_corners->end(),
+                          [](uint8_t c) { return c != 0b11100100; }));
+  EXPECT_GE(loaded.bytes(), loaded.topology->bytes().total() + given.num_tetrahedra());
+  EXPECT_LT(loaded.bytes(), loaded.topology->bytes().total() + int64_t(given.points.size() * 8) +
+                                int64_t(given.point_fields.size() * given.num_vertices() * 8) +
+                                2 * given.num_tetrahedra());
+  // The load reserved its estimated peak; the mesh keeps a reservation of what it holds.
+  EXPECT_LT(loaded.bytes(),
+            MeshRegistry::EstimateBytes(given.num_vertices(), given.num_tetrahedra(),
+                                        int(given.point_fields.size())));
+  EXPECT_EQ(budget_.used(), loaded.bytes());
+}
 
 TEST_F(SessionManagerTest, ExactlyOneOfManyConcurrentStartsWins) {
   const std::string id = OpenSession()->id();
