@@ -6,6 +6,7 @@
 
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <numeric>
 #include <thread>
 
@@ -577,6 +578,46 @@ TEST_F(ServiceTest, CancelJobStopsTheRun) {
   EXPECT_EQ(stub_->CancelJob(Context().get(), cancel, &cancelled).error_code(),
             grpc::StatusCode::NOT_FOUND);
   // The session is usable again.
+  request.set_algorithm(v1::ALGORITHM_CRITICAL_POINTS);
+  auto again = Context();
+  EXPECT_TRUE(RunJob(*stub_, again.get(), request).status.ok());
+}
+
+// A result larger than the stream's window (8 pieces of 1 MiB queued at most) goes out as the
+// client reads it: whole, each array's pieces in order; a client that cancels mid-result gets
+// CANCELLED, and the server's job thread stops sending (the fixture's server stops at the end).
+TEST_F(ServiceTest, ALargeResultStreamsWholeAndStopsWhenItsClientGoes) {
+  const std::string session = Open(LoadSample("wavelet:48", 1000), v1::STRUCTURE_COMPACT);
+  v1::RunJobRequest request;
+  request.set_session_id(session);
+  request.set_algorithm(v1::ALGORITHM_MORSE_SMALE);
+  request.set_include_arrays(true);
+  auto context = Context();
+  const JobRun run = RunJob(*stub_, context.get(), request);
+  ASSERT_TRUE(run.status.ok()) << run.status.error_message();
+  std::map<std::string, int64_t> received, total;
+  int pieces = 0;
+  for (const v1::RunJobResponse& m : run.messages) {
+    if (!m.has_chunk()) continue;
+    const std::string& name = m.chunk().array().name();
+    EXPECT_EQ(m.chunk().offset(), received[name]) << name;
+    received[name] += int64_t(m.chunk().array().data().size());
+    total[name] = m.chunk().total_bytes();
+    ++pieces;
+  }
+  EXPECT_EQ(received, total);
+  EXPECT_GT(pieces, 8);
+  EXPECT_GT(total["separatrices/Points"] + total["segmentation/MorseSmaleManifold"], 2 << 20);
+
+  auto gone = Context();
+  auto reader = stub_->RunJob(gone.get(), request);
+  v1::RunJobResponse message;
+  while (reader->Read(&message) && !message.has_chunk()) {
+  }
+  gone->TryCancel();
+  while (reader->Read(&message)) {
+  }
+  EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
   request.set_algorithm(v1::ALGORITHM_CRITICAL_POINTS);
   auto again = Context();
   EXPECT_TRUE(RunJob(*stub_, again.get(), request).status.ok());

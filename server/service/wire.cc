@@ -245,35 +245,52 @@ void FillSummary(const AlgorithmResult& result, const Topology& topology,
   for (const auto& [key, value] : summary.items()) ToValue(value, &(*out->mutable_fields())[key]);
 }
 
-void Pack(const std::string& name, std::span<const int64_t> values, pb::Array* out) {
+std::string_view Describe(const std::string& name, std::span<const int64_t> values,
+                          pb::Array* out) {
   out->set_name(name);
   out->set_dtype(pb::DATA_TYPE_INT64);
   out->add_shape(int64_t(values.size()));
-  out->set_data(reinterpret_cast<const char*>(values.data()), values.size_bytes());
+  return {reinterpret_cast<const char*>(values.data()), values.size_bytes()};
 }
 
-void Pack(const std::string& name, const io::NamedArray& array, pb::Array* out) {
+std::string_view Describe(const std::string& name, const io::NamedArray& array, pb::Array* out) {
   out->set_name(name);
   out->add_shape(int64_t(array.size()));
   if (array.components > 1) out->add_shape(array.components);
-  std::visit(
+  return std::visit(
       [&](const auto& v) {
         using T = typename std::decay_t<decltype(v)>::value_type;
         if constexpr (std::is_same_v<T, int32_t>) out->set_dtype(pb::DATA_TYPE_INT32);
         if constexpr (std::is_same_v<T, int8_t>) out->set_dtype(pb::DATA_TYPE_INT8);
         if constexpr (std::is_same_v<T, double>) out->set_dtype(pb::DATA_TYPE_FLOAT64);
         if constexpr (std::is_same_v<T, float>) out->set_dtype(pb::DATA_TYPE_FLOAT32);
-        out->set_data(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+        return std::string_view(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
       },
       array.values);
 }
 
-void PackPoints(const std::string& name, std::span<const double> xyz, pb::Array* out) {
+std::string_view DescribePoints(const std::string& name, std::span<const double> xyz,
+                                pb::Array* out) {
   out->set_name(name);
   out->set_dtype(pb::DATA_TYPE_FLOAT64);
   out->add_shape(int64_t(xyz.size() / 3));
   out->add_shape(3);
-  out->set_data(reinterpret_cast<const char*>(xyz.data()), xyz.size_bytes());
+  return {reinterpret_cast<const char*>(xyz.data()), xyz.size_bytes()};
+}
+
+void Pack(const std::string& name, std::span<const int64_t> values, pb::Array* out) {
+  const std::string_view bytes = Describe(name, values, out);
+  out->set_data(bytes.data(), bytes.size());
+}
+
+void Pack(const std::string& name, const io::NamedArray& array, pb::Array* out) {
+  const std::string_view bytes = Describe(name, array, out);
+  out->set_data(bytes.data(), bytes.size());
+}
+
+void PackPoints(const std::string& name, std::span<const double> xyz, pb::Array* out) {
+  const std::string_view bytes = DescribePoints(name, xyz, out);
+  out->set_data(bytes.data(), bytes.size());
 }
 
 size_t DataTypeSize(pb::DataType t) {

@@ -8,6 +8,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "absl/status/statusor.h"
@@ -112,7 +113,13 @@ void Fill(const MemoryStats& memory, pb::MemoryStats* out);
 void FillSummary(const AlgorithmResult& result, const Topology& topology,
                  const SummaryOptions& options, google::protobuf::Struct* out);
 
-// Raw little-endian arrays.
+// Raw little-endian arrays. Describe* fill `out`'s name, type and shape and return the array's
+// bytes where they lie, for a caller that sends them in pieces (a job's result: no second copy
+// of a large array); Pack* also copy the bytes into `out`.
+std::string_view Describe(const std::string& name, std::span<const int64_t> values, pb::Array* out);
+std::string_view Describe(const std::string& name, const io::NamedArray& values, pb::Array* out);
+std::string_view DescribePoints(const std::string& name, std::span<const double> xyz,
+                                pb::Array* out);
 void Pack(const std::string& name, std::span<const int64_t> values, pb::Array* out);
 void Pack(const std::string& name, const io::NamedArray& values, pb::Array* out);
 void PackPoints(const std::string& name, std::span<const double> xyz, pb::Array* out);
