@@ -473,9 +473,9 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   }
 
   // Queues a piece of the result once fewer than kMaxQueuedPieces messages wait, so a result is
-  // held about once while it goes out (its packed array), not a second time in the queue: the
-  // job's thread keeps pace with the client. CANCELLED once the client is gone or the call
-  // cancelled: the rest is not sent.
+  // held once while it goes out (in its outputs), not a second time in the queue: the job's
+  // thread keeps pace with the client. CANCELLED once the client is gone or the call cancelled
+  // (or the server drains): the rest is not sent.
   absl::Status PushPiece(v1::RunJobResponse message) {
     MutexLock lock(mu_);
     while (queue_.size() >= kMaxQueuedPieces && !client_gone_ && !job_->cancel) {
