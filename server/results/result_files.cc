@@ -110,7 +110,14 @@ void AddMorseSmaleOutputs(const ResultContext& c, const MorseSmaleResult& r, Res
   for (size_t k = 0; k < maxima.size(); ++k) manifold_size[maxima[k].second] = r.maximum_sizes[k];
   out.poly_data.push_back({"critical_points", CriticalCellPoints(c, cells, &manifold_size)});
 
+  // Sized up front: grown by doubling, part_5M's 4.96M points (119 MB) held up to three times
+  // that while the last growth copied them.
+  size_t num_points = 0;
+  for (const Separatrix& s : r.separatrices) num_points += s.cells.size();
   PolyData seps;
+  seps.points.reserve(3 * num_points);
+  seps.line_connectivity.reserve(num_points);
+  seps.line_offsets.reserve(r.separatrices.size() + 1);
   seps.line_offsets.push_back(0);
   std::vector<int32_t> source, destination, separatrix_id;
   std::vector<int8_t> type;
