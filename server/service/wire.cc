@@ -283,16 +283,6 @@ void Pack(const std::string& name, std::span<const int64_t> values, pb::Array* o
   out->set_data(bytes.data(), bytes.size());
 }
 
-void Pack(const std::string& name, const io::NamedArray& array, pb::Array* out) {
-  const std::string_view bytes = Describe(name, array, out);
-  out->set_data(bytes.data(), bytes.size());
-}
-
-void PackPoints(const std::string& name, std::span<const double> xyz, pb::Array* out) {
-  const std::string_view bytes = DescribePoints(name, xyz, out);
-  out->set_data(bytes.data(), bytes.size());
-}
-
 size_t DataTypeSize(pb::DataType t) {
   switch (t) {
     case pb::DATA_TYPE_FLOAT32: return 4;

@@ -115,14 +115,12 @@ void FillSummary(const AlgorithmResult& result, const Topology& topology,
 
 // Raw little-endian arrays. Describe* fill `out`'s name, type and shape and return the array's
 // bytes where they lie, for a caller that sends them in pieces (a job's result: no second copy
-// of a large array); Pack* also copy the bytes into `out`.
+// of a large array); Pack also copies the bytes into `out` (a relation answer's CSR arrays).
 std::string_view Describe(const std::string& name, std::span<const int64_t> values, pb::Array* out);
 std::string_view Describe(const std::string& name, const io::NamedArray& values, pb::Array* out);
 std::string_view DescribePoints(const std::string& name, std::span<const double> xyz,
                                 pb::Array* out);
 void Pack(const std::string& name, std::span<const int64_t> values, pb::Array* out);
-void Pack(const std::string& name, const io::NamedArray& values, pb::Array* out);
-void PackPoints(const std::string& name, std::span<const double> xyz, pb::Array* out);
 size_t DataTypeSize(pb::DataType t);
 // Reads an integer array (INT32 or INT64) of any shape; `field` names it in errors.
 absl::StatusOr<std::vector<int64_t>> UnpackIntegers(const pb::Array& array, std::string_view field);
