@@ -403,6 +403,7 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,
               pairing.Process(reader, v, order);
             }
             if (neighbors != nullptr) neighbors->FillBlock(b, reader);
+            reader.Finished(b);  // a star reads its own block only, and no block comes twice
           }
           if (!tracker.Done(end - begin)) break;
         }
@@ -449,7 +450,8 @@ std::vector<std::pair<int32_t, size_t>> BlockRuns(const Topology& topo,
 }
 
 // Per consumer, each block of `vertices` (ascending) in turn, whole blocks to whichever consumer
-// is free: visit(consumer, reader, v) for each vertex.
+// is free: visit(consumer, reader, v) for each vertex. Visits read their vertex's block only:
+// the reader is done with a block once its vertices are visited.
 template <class Structure, class Visit>
 absl::Status ForEachVertexByBlock(Structure& structure, std::span<const SimplexId> vertices,
                                   const RunContext& context, Visit&& visit) {
@@ -459,8 +461,11 @@ absl::Status ForEachVertexByBlock(Structure& structure, std::span<const SimplexI
                                 auto reader = structure.NewReader();
                                 int64_t begin, end;
                                 while (queue.Next(begin, end)) {
-                                  for (size_t i = runs[begin].second; i < runs[end].second; ++i) {
-                                    visit(consumer, reader, vertices[i]);
+                                  for (int64_t r = begin; r < end; ++r) {
+                                    for (size_t i = runs[r].second; i < runs[r + 1].second; ++i) {
+                                      visit(consumer, reader, vertices[i]);
+                                    }
+                                    reader.Finished(runs[r].first);
                                   }
                                   if (!tracker.Done(end - begin)) return;
                                 }

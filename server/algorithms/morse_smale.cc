@@ -527,6 +527,7 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
             const auto star = builder.TriangleStar(*i);
             std::copy(star.begin(), star.end(), saddle_tets.begin() + 2 * (i - saddles.begin()));
           }
+          reader.Finished(b);  // both read the stars of b's own vertices
           if (!tracker.Done()) return;
         }
       });

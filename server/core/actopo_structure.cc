@@ -156,6 +156,9 @@ class ActopoStructure::Consumer {
     return bytes;
   }
 
+  // Consumer thread: evicts and frees `block`'s relations that nothing pins or computes.
+  void Evict(int32_t block) { buffer_.Evict(block); }
+
   // Consumer thread: (block, r) pinned for the caller, or null when the engine is stopping.
   // A computation on the consumer's thread uses the reader's `scratch`.
   const RelationBlock* Acquire(int32_t block, Relation r, int32_t previous_block,
@@ -606,6 +609,16 @@ void ActopoStructure::Reader::Release(Relation r) {
   Slot& slot = slots_[Index(r)];
   if (slot.pinned) consumer_->Unpin(slot.block, r);
   slot = Slot();
+}
+
+void ActopoStructure::Reader::Finished(int32_t block) {
+  for (Relation r : AllRelations()) {
+    if (slots_[Index(r)].block != block) continue;
+    const bool own = !slots_[Index(r)].pinned;
+    Release(r);
+    if (own) own_[Index(r)].reset();
+  }
+  consumer_->Evict(block);
 }
 
 void ActopoStructure::Reader::MoveSlot(Relation r, int32_t block) {

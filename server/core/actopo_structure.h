@@ -208,6 +208,10 @@ class ActopoStructure {
       return slot.template Row<R>(s);
     }
 
+    // ReaderBase::Finished: drops this reader's pins on `block` and evicts its relations from
+    // the consumer's buffer (those no other pin or computation holds).
+    void Finished(int32_t block);
+
    private:
     friend class ActopoStructure;
     struct Slot : RelationSlot {

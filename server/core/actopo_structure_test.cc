@@ -452,6 +452,31 @@ TEST(ActopoStructure, DropBufferedRelationsKeepsWhatAReaderPins) {
   EXPECT_EQ(testing::CompareWithOracle(reader, oracle, "after the drop"), 0);
 }
 
+TEST(ActopoStructure, AFinishedBlockLeavesTheBufferAtOnce) {
+  auto topo = Build(testing::Lattice(8, 8, 8, 2), 16);
+  testing::RelationOracle oracle(*topo);
+  auto structure = Create(topo, {.consumers = 1, .producers = 2, .buffer_ratio = 1.0});
+  structure->SetPrefetching(false);  // the reader's misses only: nothing comes in meanwhile
+  auto reader = structure->NewReader();
+  for (int32_t b = 0; b < topo->num_blocks(); ++b) {
+    for (SimplexId v = topo->block_vertex_begin(b); v < topo->block_vertex_begin(b + 1); ++v) {
+      const auto star = reader.vertex_star(v);
+      const auto edges = reader.vertex_edges(v);
+      ASSERT_EQ(std::vector<SimplexId>(star.begin(), star.end()), oracle.rows(Relation::kVT)[v]);
+      ASSERT_EQ(std::vector<SimplexId>(edges.begin(), edges.end()), oracle.rows(Relation::kVE)[v]);
+    }
+    reader.Finished(b);  // its pins go, then the block
+    const EngineStats s = structure->stats();
+    EXPECT_EQ(s.buffer_blocks, 0) << "block " << b;
+    EXPECT_EQ(s.buffer_bytes, 0) << "block " << b;
+  }
+  const EngineStats s = structure->stats();
+  EXPECT_EQ(s.buffer_peak_blocks, 1) << "a sweep holds the block it reads, none behind it";
+  EXPECT_EQ(s.access.evictions, topo->num_blocks());
+  // Read again, a finished block is computed again, and correct.
+  EXPECT_EQ(testing::CompareWithOracle(reader, oracle, "after the sweep"), 0);
+}
+
 TEST(ActopoStructure, RejectsBadOptions) {
   struct Case {
     ActopoStructure::Options options;

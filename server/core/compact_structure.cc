@@ -92,15 +92,39 @@ int CompactStructure::Reader::FindOrInsert(int32_t block) {
       rel.reset();
     }
     AddBytes(-freed);
-    entry_of_block_[old.block] = -1;
-    ++stats_.evictions;
-    if (trace_) trace_->Instant("evict", "buffer", {.block = old.block, .count = 1});
+    if (old.block >= 0) {  // else emptied by Finished
+      entry_of_block_[old.block] = -1;
+      ++stats_.evictions;
+      if (trace_) trace_->Instant("evict", "buffer", {.block = old.block, .count = 1});
+    }
   }
   Entry& e = entries_[victim];
   e.block = block;
   e.inserted = next_insert_++;
   entry_of_block_[block] = victim;
   return victim;
+}
+
+void CompactStructure::Reader::Finished(int32_t block) {
+  const int index = entry_of_block_[block];
+  if (index < 0) return;
+  Entry& e = entries_[index];
+  for (Slot& slot : slots_) {
+    if (slot.entry != index) continue;
+    --e.pins;
+    slot = Slot();
+  }
+  if (e.pins > 0) return;
+  int64_t freed = 0;
+  for (auto& rel : e.relations) {
+    if (rel) freed += rel->bytes();
+    rel.reset();
+  }
+  AddBytes(-freed);
+  entry_of_block_[block] = -1;
+  e.block = -1;
+  e.inserted = 0;  // the first to be reused
+  ++stats_.evictions;
 }
 
 void CompactStructure::Reader::MoveSlot(Relation r, int32_t block) {

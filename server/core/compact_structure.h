@@ -54,6 +54,9 @@ class CompactStructure {
     // This reader's counters so far (also added to the structure's totals on destruction).
     const AccessStats& stats() const { return stats_; }
 
+    // ReaderBase::Finished: frees `block`'s cache entry now (its slots on it let go).
+    void Finished(int32_t block);
+
    private:
     friend class CompactStructure;
     struct Entry {

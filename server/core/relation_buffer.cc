@@ -66,6 +66,19 @@ RelationBuffer::Evicted RelationBuffer::EvictAll() {
   return evicted;
 }
 
+RelationBuffer::Evicted RelationBuffer::Evict(int32_t block) {
+  Evicted evicted;
+  MutexLock lock(mu_);
+  if (!is_resident_[block] || !TryEvictBlock(block, evicted)) return evicted;
+  is_resident_[block] = 0;
+  // A finished block is among the oldest: the scan from the front is short.
+  resident_.erase(std::find(resident_.begin(), resident_.end(), block));
+  evicted.blocks = 1;
+  evictions_.fetch_add(1, std::memory_order_relaxed);
+  blocks_.store(int64_t(resident_.size()), std::memory_order_relaxed);
+  return evicted;
+}
+
 void RelationBuffer::EvictOldest(size_t to_evict, int32_t keep, Evicted& out) {
   std::vector<int32_t> still;
   still.reserve(resident_.size());

@@ -86,6 +86,9 @@ class RelationBuffer {
   // Evicts every resident block whose relations no one pins or computes (between an
   // algorithm's phases, when what the last phase kept is not what the next reads).
   Evicted EvictAll();
+  // Evicts `block`'s relations that no one pins or computes, at once (its reader is done with
+  // it); the block stays resident while any of them is left.
+  Evicted Evict(int32_t block);
 
   Stats stats() const;
   int capacity_blocks() const { return capacity_; }

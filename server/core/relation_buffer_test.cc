@@ -121,6 +121,45 @@ TEST(RelationBuffer, EvictAllSparesOnlyPinnedAndComputingBlocks) {
   EXPECT_EQ(buffer.state(0, Relation::kVT), State::kReady);
 }
 
+TEST(RelationBuffer, EvictsOneFinishedBlockAtOnce) {
+  RelationBuffer buffer(8, 8);
+  for (int32_t b = 0; b < 4; ++b) Put(buffer, b);
+  Put(buffer, 2, Relation::kVE);
+  // Block 2 goes whole, now, though the buffer is far from full; the others stay.
+  RelationBuffer::Evicted evicted = buffer.Evict(2);
+  EXPECT_EQ(evicted.blocks, 1);
+  EXPECT_EQ(evicted.data.size(), 2u);
+  for (Relation r : {Relation::kVT, Relation::kVE}) {
+    EXPECT_EQ(buffer.state(2, r), State::kAbsent) << RelationCode(r);
+  }
+  for (int32_t b : {0, 1, 3}) EXPECT_EQ(buffer.state(b, Relation::kVT), State::kReady) << b;
+  EXPECT_EQ(buffer.stats().blocks, 3);
+  EXPECT_EQ(buffer.stats().evictions, 1);
+  EXPECT_EQ(buffer.stats().bytes, 3 * BytesOf(0, Relation::kVT));
+  // Absent, or never there: nothing happens.
+  EXPECT_EQ(buffer.Evict(2).blocks, 0);
+  EXPECT_EQ(buffer.Evict(6).blocks, 0);
+  // A pinned relation stays, and its block with it; the block's other relations go.
+  Put(buffer, 1, Relation::kVE);
+  ASSERT_NE(buffer.TryPin(1, Relation::kVT), nullptr);
+  evicted = buffer.Evict(1);
+  EXPECT_EQ(evicted.blocks, 0);
+  ASSERT_EQ(evicted.data.size(), 1u);
+  EXPECT_EQ(evicted.data[0]->relation, Relation::kVE);
+  EXPECT_EQ(buffer.state(1, Relation::kVT), State::kReady);
+  buffer.Unpin(1, Relation::kVT);
+  EXPECT_EQ(buffer.Evict(1).blocks, 1);
+  // A block with a relation being computed is spared whole.
+  ASSERT_TRUE(buffer.StartComputing(3, Relation::kVE));
+  EXPECT_TRUE(buffer.Evict(3).data.empty());
+  EXPECT_EQ(buffer.state(3, Relation::kVT), State::kReady);
+  buffer.Publish(3, Relation::kVE, Block(3, Relation::kVE), /*pin=*/false);
+  EXPECT_EQ(buffer.Evict(3).blocks, 1);
+  EXPECT_EQ(buffer.stats().blocks, 1);  // block 0
+  Put(buffer, 2);                       // an evicted block comes back as any other
+  EXPECT_EQ(buffer.stats().blocks, 2);
+}
+
 TEST(RelationBuffer, KeepsPinnedRelationsAndTheirBlocks) {
   RelationBuffer buffer(8, 2);
   Put(buffer, 0);

@@ -155,6 +155,34 @@ TEST(CompactStructure, CacheIsBoundedAndCounted) {
   EXPECT_GT(structure.memory().relation_peak_bytes, 0);
 }
 
+TEST(CompactStructure, AFinishedBlockLeavesTheCacheAtOnce) {
+  const Mesh m = testing::Lattice(8, 8, 8, 3);
+  auto topo = *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 16}));
+  testing::RelationOracle oracle(*topo);
+  CompactStructure structure(topo, {.cache_ratio = 1.0, .consumers = 1});
+  auto reader = structure.NewReader();
+  // A sweep that says when it leaves a block holds one block at a time, though the cache could
+  // hold them all.
+  int64_t largest = 0;
+  for (int32_t b = 0; b < topo->num_blocks(); ++b) {
+    for (SimplexId v = topo->block_vertex_begin(b); v < topo->block_vertex_begin(b + 1); ++v) {
+      const auto star = reader.vertex_star(v);
+      const auto edges = reader.vertex_edges(v);
+      ASSERT_EQ(std::vector<SimplexId>(star.begin(), star.end()), oracle.rows(Relation::kVT)[v]);
+      ASSERT_EQ(std::vector<SimplexId>(edges.begin(), edges.end()), oracle.rows(Relation::kVE)[v]);
+    }
+    largest = std::max(largest, structure.memory().relation_bytes);
+    reader.Finished(b);
+    EXPECT_EQ(structure.memory().relation_bytes, 0) << "block " << b;
+  }
+  EXPECT_GT(largest, 0);
+  EXPECT_EQ(structure.memory().relation_peak_bytes, largest);
+  EXPECT_EQ(reader.stats().evictions, topo->num_blocks());
+  // A finished block read again is computed again, and correct; a block not cached is a no-op.
+  reader.Finished(0);
+  EXPECT_EQ(testing::CompareWithOracle(reader, oracle, "after the sweep"), 0);
+}
+
 TEST(CompactStructure, ConcurrentReadersAgree) {
   const Mesh m = testing::Lattice(7, 6, 6, 5);
   auto topo = *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 7}));

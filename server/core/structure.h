@@ -112,6 +112,13 @@ class ReaderBase {
   std::span<const SimplexId, 4> tetrahedron_vertices(SimplexId t) const {
     return topology_->tetrahedron(t);
   }
+
+  // The algorithm is done with block b's relations on this reader (a sweep in block order has
+  // passed it). A structure that buffers blocks frees them now rather than when its buffer fills,
+  // so a sweep holds the blocks ahead of it, not the capacity's worth behind it. A hint: reading
+  // them again afterwards is correct, they are computed again. Explicit keeps everything (this
+  // default does nothing); compact and actopo hide it with their own.
+  void Finished(int32_t /*block*/) {}
   std::span<const SimplexId> tetrahedron_edges(SimplexId t) { return get<Relation::kTE>(t); }
   std::span<const SimplexId> tetrahedron_triangles(SimplexId t) { return get<Relation::kTF>(t); }
   std::span<const SimplexId> tetrahedron_neighbors(SimplexId t) { return get<Relation::kTT>(t); }
