@@ -123,6 +123,8 @@ TEST(PersistenceDiagramOutputs, EmbeddedInTheDomainAndWritten) {
   std::string header;
   std::getline(csv, header);
   EXPECT_EQ(header, "PairType,Persistence,NumberOfPairs");
+  csv.close();
+  std::filesystem::remove_all(dir);
 }
 
 TEST(SimplificationOutputs, FieldAndOrderStreamedAndWritten) {
@@ -147,6 +149,7 @@ TEST(SimplificationOutputs, FieldAndOrderStreamedAndWritten) {
   ASSERT_TRUE(written.ok()) << written.status();
   EXPECT_THAT(*written, ElementsAre((dir / "run_simplified.vtu").string()));
   EXPECT_GT(std::filesystem::file_size(dir / "run_simplified.vtu"), 0u);
+  std::filesystem::remove_all(dir);
 }
 
 // The complex after a simplification reports the simplified field: its values at the critical
