@@ -496,10 +496,11 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
   GradientField& g = result.gradient.gradient;
   // What the paths do not follow (a caller's gradient may have every array), and the gradient's
   // buffered relations (the end of its sweep; VE and VF, which nothing below reads), freed
-  // before the arrays below are allocated. wavelet128.vtu, actopo: the peak was here, 100 MiB
-  // of buffer beside `up` and the labels.
+  // before the arrays below are allocated, and with them what the caller's phases freed (a
+  // simplification's kept neighbours). wavelet128.vtu, actopo: the peak was here, 100 MiB of
+  // buffer beside `up` and the labels.
   for (auto* unused : {&g.up[2], &g.down[1], &g.down[2]}) std::vector<SimplexId>().swap(*unused);
-  DropBufferedRelations(structure);
+  EndPhase(structure);
   const CriticalSaddles critical_saddles(topo, result.gradient.critical);
   DescendingSeparatrices(topo, g, result.gradient.critical[1], result.separatrices);
 

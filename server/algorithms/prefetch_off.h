@@ -2,7 +2,8 @@
 // prefetching off for a scope: for phases whose reads follow V-paths and walls across blocks, not
 // blocks in order, where speculative block computations only compete with the consumers.
 // DropBufferedRelations empties its buffers between phases (compact's caches belong to readers,
-// which end with their phase; explicit's relations are the structure).
+// which end with their phase; explicit's relations are the structure); EndPhase also returns
+// the memory freed to the system.
 //
 //   {
 //     PrefetchOff<Structure> off(structure);
@@ -15,6 +16,7 @@
 #include <type_traits>
 
 #include "server/core/actopo_structure.h"
+#include "server/core/process_memory.h"
 
 namespace actopo {
 
@@ -38,6 +40,19 @@ class PrefetchOff {
 template <class Structure>
 void DropBufferedRelations(Structure& structure) {
   if constexpr (std::is_same_v<Structure, ActopoStructure>) structure.DropBufferedRelations();
+}
+
+// Between two phases of an algorithm on any structure: drops actopo's buffered relations and,
+// on meshes of 1M tetrahedra or more, hands the allocator's free memory back to the system.
+// What the last phase's threads freed (its arrays, compact's caches, the kept neighbours) stays
+// in their arenas otherwise, beside the next phase's arrays, which other threads allocate.
+// malloc_trim walks every arena and stalls other sessions' allocations meanwhile: not worth it
+// on the small meshes a server may run many jobs a second on.
+template <class Structure>
+void EndPhase(Structure& structure) {
+  DropBufferedRelations(structure);
+  constexpr SimplexId kWorthReturning = 1 << 20;  // tetrahedra
+  if (structure.topology().num_tetrahedra() >= kWorthReturning) ReleaseFreeMemory();
 }
 
 }  // namespace actopo

@@ -1,10 +1,13 @@
 #include "server/algorithms/topological_simplification.h"
 
+#include <sys/mman.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
 #include <limits>
+#include <new>
 #include <optional>
 #include <queue>
 #include <tuple>
@@ -18,7 +21,6 @@
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
-#include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
 
 namespace actopo {
@@ -73,6 +75,52 @@ class NeighborRows {
   std::optional<Reader> reader_;  // explicit: read in place
 };
 
+// Per vertex, a value that is -1 until set, in memory of which only the pages written become
+// resident: anonymous zero pages, a value x stored as x + 1 (reading an unwritten page maps the
+// shared zero page). A removal pass reaches a few percent of the vertices (wavelet128.vtu at
+// 1%: 8,345 of 2.1M flattened), and its four arrays over all of them, filled with -1, were
+// 32 MB of the simplified complex's peak.
+class SparseVertexValues {
+ public:
+  class Ref {
+   public:
+    explicit Ref(uint32_t* p) : p_(p) {}
+    operator SimplexId() const { return SimplexId(*p_ - 1u); }
+    Ref& operator=(SimplexId x) {
+      *p_ = uint32_t(x) + 1u;
+      return *this;
+    }
+    Ref& operator=(const Ref& other) { return *this = SimplexId(other); }
+    Ref& operator-=(SimplexId x) { return *this = SimplexId(*this) - x; }
+
+   private:
+    uint32_t* p_;
+  };
+
+  SparseVertexValues() = default;
+  ~SparseVertexValues() { Free(); }
+  SparseVertexValues(const SparseVertexValues&) = delete;
+  SparseVertexValues& operator=(const SparseVertexValues&) = delete;
+
+  // n values, all -1.
+  void Reset(SimplexId n) {
+    Free();
+    bytes_ = std::max<size_t>(size_t(n), 1) * sizeof(uint32_t);
+    void* p = ::mmap(nullptr, bytes_, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (p == MAP_FAILED) throw std::bad_alloc();
+    data_ = static_cast<uint32_t*>(p);
+  }
+  Ref operator[](SimplexId v) { return Ref(data_ + v); }
+
+ private:
+  void Free() {
+    if (data_ != nullptr) ::munmap(data_, bytes_);
+    data_ = nullptr;
+  }
+  uint32_t* data_ = nullptr;
+  size_t bytes_ = 0;
+};
+
 // A superlevel-set component growing from one maximum (LTS's "propagation"): a max-heap of
 // (order, vertex) on its frontier; merged components share the heap of the dominant one.
 struct Propagation {
@@ -98,10 +146,10 @@ class MaximaRemoval {
         maxima_(std::move(maxima)) {}
 
   absl::Status Run() {
-    segmentation_.assign(n_, -1);
-    queue_mask_.assign(n_, -1);
-    local_order_.assign(n_, -1);
-    owner_.assign(n_, -1);
+    segmentation_.Reset(n_);
+    queue_mask_.Reset(n_);
+    local_order_.Reset(n_);
+    owner_.Reset(n_);
     InitializePropagations();
     for (size_t p = 0; p < props_.size(); ++p) RETURN_IF_ERROR(Propagate(int32_t(p)));
     for (size_t p = 0; p < props_.size(); ++p) {
@@ -373,8 +421,8 @@ class MaximaRemoval {
   std::vector<SimplexId>& order_;
   const SimplexId n_;
   std::vector<SimplexId> maxima_;
-  std::vector<SimplexId> segmentation_, queue_mask_, local_order_;
-  std::vector<int32_t> owner_;  // the propagation that reached a vertex (not its root)
+  SparseVertexValues segmentation_, queue_mask_, local_order_;
+  SparseVertexValues owner_;  // the propagation that reached a vertex (not its root)
   std::vector<Propagation> props_;
   std::vector<int32_t> parents_, neighbors_;
 };
@@ -576,12 +624,9 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
                                                          kept ? &*kept : nullptr));
   // The passes below read the kept neighbours and the gradient update a few stars: neither needs
   // the blocks the diagram left buffered, nor the memory its gradient and pairs freed, which the
-  // allocator keeps in the consumers' arenas while the passes allocate on this thread. Both go
-  // back to the system first (malloc_trim is worth its walk over the arenas on large meshes
-  // only). wavelet128.vtu, actopo: the simplified Morse-Smale job's peak 933 -> 868 MiB.
-  DropBufferedRelations(structure);
-  constexpr SimplexId kWorthReturning = 1 << 20;  // tetrahedra
-  if (topo.num_tetrahedra() >= kWorthReturning) ReleaseFreeMemory();
+  // allocator keeps in the consumers' arenas while the passes allocate on this thread.
+  // wavelet128.vtu, actopo: the simplified Morse-Smale job's peak 933 -> 868 MiB.
+  EndPhase(structure);
   const auto [lo, hi] = std::minmax_element(scalars.begin(), scalars.end());
   result.threshold = options.relative ? options.threshold * (*hi - *lo) : options.threshold;
   result.legacy = options.legacy;

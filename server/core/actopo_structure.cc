@@ -14,7 +14,6 @@
 
 #include "absl/base/thread_annotations.h"
 #include "absl/strings/str_cat.h"
-#include "server/core/process_memory.h"
 #include "server/core/relation_buffer.h"
 #include "server/core/sync.h"
 
@@ -149,12 +148,8 @@ class ActopoStructure::Consumer {
     if (!on) DropTasks();
   }
 
-  // Any thread: evicts and frees what no reader pins and no one computes; returns its bytes.
-  int64_t DropBuffered() {
-    int64_t bytes = 0;
-    for (const auto& data : buffer_.EvictAll().data) bytes += data->bytes();
-    return bytes;
-  }
+  // Any thread: evicts and frees what no reader pins and no one computes.
+  void DropBuffered() { buffer_.EvictAll(); }
 
   // Consumer thread: evicts and frees `block`'s relations that nothing pins or computes.
   void Evict(int32_t block) { buffer_.Evict(block); }
@@ -545,13 +540,7 @@ void ActopoStructure::SetPrefetching(bool on) {
 }
 
 void ActopoStructure::DropBufferedRelations() {
-  int64_t bytes = 0;
-  for (auto& c : consumers_) bytes += c->DropBuffered();
-  // malloc_trim walks every arena and stalls other sessions' allocations meanwhile: worth it
-  // for a large buffer (wavelet128.vtu's held 100 MiB), not for the small meshes a server may
-  // run many jobs a second on.
-  constexpr int64_t kWorthReturning = int64_t(32) << 20;
-  if (bytes >= kWorthReturning) ReleaseFreeMemory();
+  for (auto& c : consumers_) c->DropBuffered();
 }
 
 void ActopoStructure::SetTrace(std::shared_ptr<Trace> trace) {

@@ -175,10 +175,11 @@ class ActopoStructure {
   // consumers' cores, and evicts the ones they come back to. Safe to call while running.
   void SetPrefetching(bool on);
 
-  // Drops every buffered relation no reader pins (or producer computes) and, when that was
-  // tens of megabytes, hands the freed memory back to the system: between phases of an algorithm,
-  // when the blocks the last phase kept (the end of its sweep, and relations the next phase does
-  // not read) would only stand beside the next phase's own arrays. Safe to call while running.
+  // Drops every buffered relation no reader pins (or producer computes): between phases of an
+  // algorithm, when the blocks the last phase kept (the end of its sweep, and relations the next
+  // phase does not read) would only stand beside the next phase's own arrays (EndPhase in
+  // server/algorithms/prefetch_off.h also returns the memory to the system). Safe to call while
+  // running.
   void DropBufferedRelations();
 
   // Records into `trace` from now on (null: stop): per thread, spans for every (block,
