@@ -561,6 +561,8 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
       });
   prefetch_off.reset();
   if (!status.ok()) return status;
+  // Nothing below reads a relation: the walls' blocks go, and what the phases freed.
+  EndPhase(structure);
   size_t total = result.separatrices.size();
   for (auto* per_saddle : {&ascending, &connectors}) {
     for (const auto& list : *per_saddle) total += list.size();
@@ -577,6 +579,11 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
 
   result.descending =
       DescendingSegmentation(topo, g, result.gradient.critical[0], result.minimum_sizes);
+  // The last reader of the pairings: the result keeps the critical cells' lists, and the arrays
+  // (4 bytes per vertex, edge and tetrahedron; part_5M 48 MB) go before the last arrays come.
+  for (auto& pairings : {&g.up, &g.down}) {
+    for (std::vector<SimplexId>& a : *pairings) std::vector<SimplexId>().swap(a);
+  }
 
   // Ascending: maxima labelled 0.. in ascending input tetrahedron id; each tetrahedron follows
   // its path up (-1 if it leaves through the boundary); a vertex takes the label of the

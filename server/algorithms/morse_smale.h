@@ -43,7 +43,9 @@ struct Separatrix {
 };
 
 struct MorseSmaleResult {
-  DiscreteGradientResult gradient;       // its GradientArrays::kPersistence arrays, and every list
+  // The gradient's lists (critical cells, counts); its pairing arrays are freed once the complex
+  // no longer reads them.
+  DiscreteGradientResult gradient;
   std::vector<Separatrix> separatrices;  // descending, then ascending, then saddle connectors
   // Per input vertex: DescendingManifold, AscendingManifold, MorseSmaleManifold.
   std::vector<SimplexId> descending, ascending, morse_smale;
@@ -74,8 +76,8 @@ absl::StatusOr<std::vector<uint8_t>> InputCorners(const Topology& topology,
 
 // `input_corners`: InputCorners of the mesh. `gradient`: the gradient of `order`, either set of
 // arrays, when the caller has it already (a simplified field's, from UpdateDiscreteGradient);
-// computed otherwise. The result's gradient keeps the GradientArrays::kPersistence arrays and the
-// critical cells. Everything that reads relations runs on all consumers: the gradient and the
+// computed otherwise. The result's gradient keeps the critical cells, not the pairing arrays.
+// Everything that reads relations runs on all consumers: the gradient and the
 // ascending segmentation by blocks, the separatrices by 2-saddle.
 template <class Structure>
 absl::StatusOr<MorseSmaleResult> RunMorseSmale(
