@@ -459,12 +459,7 @@ TEST(ActopoStructure, AFinishedBlockLeavesTheBufferAtOnce) {
   structure->SetPrefetching(false);  // the reader's misses only: nothing comes in meanwhile
   auto reader = structure->NewReader();
   for (int32_t b = 0; b < topo->num_blocks(); ++b) {
-    for (SimplexId v = topo->block_vertex_begin(b); v < topo->block_vertex_begin(b + 1); ++v) {
-      const auto star = reader.vertex_star(v);
-      const auto edges = reader.vertex_edges(v);
-      ASSERT_EQ(std::vector<SimplexId>(star.begin(), star.end()), oracle.rows(Relation::kVT)[v]);
-      ASSERT_EQ(std::vector<SimplexId>(edges.begin(), edges.end()), oracle.rows(Relation::kVE)[v]);
-    }
+    ASSERT_EQ(testing::CompareBlockStarsAndEdges(reader, oracle, b), 0);
     reader.Finished(b);  // its pins go, then the block
     const EngineStats s = structure->stats();
     EXPECT_EQ(s.buffer_blocks, 0) << "block " << b;

@@ -165,12 +165,7 @@ TEST(CompactStructure, AFinishedBlockLeavesTheCacheAtOnce) {
   // hold them all.
   int64_t largest = 0;
   for (int32_t b = 0; b < topo->num_blocks(); ++b) {
-    for (SimplexId v = topo->block_vertex_begin(b); v < topo->block_vertex_begin(b + 1); ++v) {
-      const auto star = reader.vertex_star(v);
-      const auto edges = reader.vertex_edges(v);
-      ASSERT_EQ(std::vector<SimplexId>(star.begin(), star.end()), oracle.rows(Relation::kVT)[v]);
-      ASSERT_EQ(std::vector<SimplexId>(edges.begin(), edges.end()), oracle.rows(Relation::kVE)[v]);
-    }
+    ASSERT_EQ(testing::CompareBlockStarsAndEdges(reader, oracle, b), 0);
     largest = std::max(largest, structure.memory().relation_bytes);
     reader.Finished(b);
     EXPECT_EQ(structure.memory().relation_bytes, 0) << "block " << b;

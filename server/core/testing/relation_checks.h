@@ -2,6 +2,7 @@
 #ifndef ACTOPO_SERVER_CORE_TESTING_RELATION_CHECKS_H_
 #define ACTOPO_SERVER_CORE_TESTING_RELATION_CHECKS_H_
 
+#include <algorithm>
 #include <random>
 #include <vector>
 
@@ -28,6 +29,25 @@ int CompareWithOracle(Reader& reader, const RelationOracle& oracle, const std::s
           ADD_FAILURE() << label << ": " << RelationName(r) << " of " << s << " differs";
         }
       }
+    }
+  }
+  return mismatches;
+}
+
+// A sweep's reads of block b: each of its vertices' star and edges (both held at once), as the
+// oracle has them. Returns the number of vertices whose rows differ (reports the first few).
+template <class Reader>
+int CompareBlockStarsAndEdges(Reader& reader, const RelationOracle& oracle, int32_t b) {
+  const Topology& topo = reader.topology();
+  int mismatches = 0;
+  for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
+    const auto star = reader.vertex_star(v);
+    const auto edges = reader.vertex_edges(v);
+    const auto& vt = oracle.rows(Relation::kVT)[v];
+    const auto& ve = oracle.rows(Relation::kVE)[v];
+    if (!std::equal(star.begin(), star.end(), vt.begin(), vt.end()) ||
+        !std::equal(edges.begin(), edges.end(), ve.begin(), ve.end())) {
+      if (++mismatches <= 5) ADD_FAILURE() << "block " << b << ": VT or VE of " << v << " differs";
     }
   }
   return mismatches;
