@@ -170,6 +170,7 @@ class LowerStarPairing {
     star_[0].push_back({0, x, {-1, -1, -1}, {}, false});
     below_.clear();
     pairs_below_.clear();
+    const auto before = [&](SimplexId a, SimplexId b) { return order[a] > order[b]; };
     for (SimplexId t : reader.vertex_star(x)) {
       std::array<SimplexId, 3> lower;  // the vertices below x, descending by order
       int n = 0;
@@ -177,7 +178,6 @@ class LowerStarPairing {
         if (w != x && order[w] < ox) lower[n++] = w;
       }
       if (n == 0) continue;
-      const auto before = [&](SimplexId a, SimplexId b) { return order[a] > order[b]; };
       if (n >= 2 && before(lower[1], lower[0])) std::swap(lower[0], lower[1]);
       if (n == 3) {
         if (before(lower[2], lower[1])) std::swap(lower[1], lower[2]);
