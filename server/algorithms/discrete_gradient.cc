@@ -1,8 +1,8 @@
 #include "server/algorithms/discrete_gradient.h"
 
 #include <algorithm>
+#include <bit>
 #include <optional>
-#include <queue>
 #include <type_traits>
 #include <utility>
 
@@ -17,6 +17,8 @@
 namespace actopo {
 namespace {
 
+using Uint128 = unsigned __int128;
+
 // A cell of a vertex x's lower star. `key` holds the orders of its vertices other than x,
 // descending, padded with -1: cells compare by key, across dimensions too.
 struct StarCell {
@@ -25,6 +27,38 @@ struct StarCell {
   std::array<SimplexId, 3> key;
   std::array<int32_t, 3> faces;  // indices in the lower star of its faces that contain x
   bool paired;
+  int32_t rank = 0;  // position among the star's edges, triangles and tetrahedra by key
+};
+
+// A set of a lower star's cell ranks, taken out smallest first: one bit per rank. It stands for
+// the two priority queues of the pairing (Robins et al.'s PQzero and PQone), whose elements are
+// few (tens) and compared by key; ranks compare as their keys do. A rank already in the set is
+// not added twice, which changes nothing: a cell taken out a second time would have no unpaired
+// face left (it was paired, or went to PQzero, the first time), and one in PQzero twice would be
+// skipped as paired the second time.
+class RankSet {
+ public:
+  void Reset(size_t ranks) {
+    words_.assign((ranks + 63) / 64, 0);
+    first_ = words_.size();
+  }
+  bool empty() const { return first_ == words_.size(); }
+  void Insert(int32_t rank) {
+    const size_t w = size_t(rank) >> 6;
+    words_[w] |= uint64_t(1) << (rank & 63);
+    first_ = std::min(first_, w);
+  }
+  int32_t Min() const { return int32_t(first_ * 64 + std::countr_zero(words_[first_])); }
+  int32_t PopMin() {
+    const int32_t rank = Min();
+    words_[first_] &= words_[first_] - 1;
+    while (first_ < words_.size() && words_[first_] == 0) ++first_;
+    return rank;
+  }
+
+ private:
+  std::vector<uint64_t> words_;
+  size_t first_ = 0;  // the first nonzero word; words_.size() when empty
 };
 
 class LowerStarPairing {
@@ -63,57 +97,64 @@ class LowerStarPairing {
 
  private:
   void PairStar(SimplexId x) {
-    IndexCofacets();
     auto& edges = star_[1];
     if (edges.empty()) {  // a minimum
       critical_[0].push_back(x);
       return;
     }
-    size_t delta = 0;
-    for (size_t i = 1; i < edges.size(); ++i) {
-      if (edges[i].key[0] < edges[delta].key[0]) delta = i;
+    IndexCofacets();
+    RankCells();
+    zero_.Reset(ranked_.size());
+    one_.Reset(ranked_.size());
+    // The lowest cell is an edge: a cell's key is above its faces'.
+    StarCell& delta = Ranked(0);
+    Pair(star_[0][0], delta);
+    for (const StarCell& e : edges) {
+      if (!e.paired) zero_.Insert(e.rank);
     }
-    Pair(star_[0][0], edges[delta]);
-    for (size_t i = 0; i < edges.size(); ++i) {
-      if (i != delta) zero_.push({1, int(i), edges[i].key});
-    }
-    PushCofacets(1, int(delta));
+    PushCofacets(delta);
     while (!one_.empty() || !zero_.empty()) {
       while (!one_.empty()) {
-        const Ref alpha = one_.top();
-        one_.pop();
+        StarCell& alpha = Ranked(one_.PopMin());
         int face = -1;
-        const int unpaired = UnpairedFaces(alpha, face);
-        if (unpaired == 0) {
-          zero_.push(alpha);
+        if (UnpairedFaces(alpha, face) == 0) {
+          zero_.Insert(alpha.rank);
         } else {
-          Pair(star_[alpha.dim - 1][face], Get(alpha));
-          PushCofacets(alpha.dim, alpha.index);
-          PushCofacets(alpha.dim - 1, face);
+          StarCell& beta = star_[alpha.dim - 1][face];
+          Pair(beta, alpha);
+          PushCofacets(alpha);
+          PushCofacets(beta);
         }
       }
-      while (!zero_.empty() && Get(zero_.top()).paired) zero_.pop();
+      while (!zero_.empty() && Ranked(zero_.Min()).paired) zero_.PopMin();
       if (!zero_.empty()) {
-        const Ref gamma = zero_.top();
-        zero_.pop();
-        Get(gamma).paired = true;  // critical
-        critical_[gamma.dim].push_back(Get(gamma).id);
-        PushCofacets(gamma.dim, gamma.index);
+        StarCell& gamma = Ranked(zero_.PopMin());
+        gamma.paired = true;  // critical
+        critical_[gamma.dim].push_back(gamma.id);
+        PushCofacets(gamma);
       }
     }
   }
 
-  struct Ref {
-    int dim;
-    int index;
-    std::array<SimplexId, 3> key;
-  };
-  struct Greater {
-    bool operator()(const Ref& a, const Ref& b) const { return a.key > b.key; }
-  };
-  using MinQueue = std::priority_queue<Ref, std::vector<Ref>, Greater>;
-
-  StarCell& Get(const Ref& r) { return star_[r.dim][r.index]; }
+  // Ranks the edges, triangles and tetrahedra of the star by key: each key (orders + 1, so the
+  // padding -1 is 0) and the cell's place in 128 bits, sorted as integers.
+  void RankCells() {
+    ranked_.clear();
+    for (int d = 1; d <= 3; ++d) {
+      for (size_t i = 0; i < star_[d].size(); ++i) {
+        const auto& k = star_[d][i].key;
+        ranked_.push_back(Uint128(uint32_t(k[0] + 1)) << 96 | Uint128(uint32_t(k[1] + 1)) << 64 |
+                          Uint128(uint32_t(k[2] + 1)) << 32 | uint32_t(i << 2 | d));
+      }
+    }
+    std::sort(ranked_.begin(), ranked_.end());
+    for (size_t r = 0; r < ranked_.size(); ++r) Ranked(int32_t(r)).rank = int32_t(r);
+  }
+  // The cell of a rank (once RankCells ran).
+  StarCell& Ranked(int32_t rank) {
+    const uint32_t place = uint32_t(ranked_[rank]);
+    return star_[place & 3][place >> 2];
+  }
 
   template <class Reader>
   void Build(Reader& reader, SimplexId x, std::span<const SimplexId> order) {
@@ -121,39 +162,35 @@ class LowerStarPairing {
     const SimplexId ox = order[x];
     star_[0].push_back({0, x, {-1, -1, -1}, {}, false});
     for (SimplexId e : reader.vertex_edges(x)) {
-      const auto ev = reader.edge_vertices(e);
-      const SimplexId y = ev[0] == x ? ev[1] : ev[0];
-      if (order[y] < ox) star_[1].push_back({1, e, {order[y], -1, -1}, {}, false});
+      const auto [a, b] = reader.edge_vertices(e);
+      const SimplexId oy = order[a == x ? b : a];
+      if (oy < ox) star_[1].push_back({1, e, {oy, -1, -1}, {}, false});
     }
     if (star_[1].size() < 2) return;
+    // The other vertices of a face are selected, not gathered in a loop: the orders stay in
+    // registers (through an array on the stack they cost a stalled reload per face).
     for (SimplexId f : reader.vertex_triangles(x)) {
-      std::array<SimplexId, 3> key{-1, -1, -1};
-      int n = 0;
-      for (SimplexId w : reader.triangle_vertices(f)) {
-        if (w != x) key[n++] = order[w];
-      }
-      if (key[0] < key[1]) std::swap(key[0], key[1]);
-      if (key[0] > ox) continue;
-      StarCell cell{2, f, key, {}, false};
+      const auto [a, b, c] = reader.triangle_vertices(f);
+      const SimplexId op = order[a == x ? b : a], oq = order[c == x ? b : c];
+      const SimplexId high = std::max(op, oq);
+      if (high > ox) continue;
+      StarCell cell{2, f, {high, std::min(op, oq), -1}, {}, false};
       IndexTriangleFaces(cell);
       star_[2].push_back(cell);
     }
     if (star_[2].size() < 3) return;
     for (SimplexId t : reader.vertex_star(x)) {
-      std::array<SimplexId, 3> key{};
-      int n = 0;
-      bool lower = true;
-      for (SimplexId w : reader.tetrahedron_vertices(t)) {
-        if (w == x) continue;
-        key[n] = order[w];
-        lower &= key[n++] < ox;
-      }
-      if (!lower) continue;  // most of the star: decided before sorting
-      // Descending, by three compare-exchanges.
-      if (key[0] < key[1]) std::swap(key[0], key[1]);
-      if (key[1] < key[2]) std::swap(key[1], key[2]);
-      if (key[0] < key[1]) std::swap(key[0], key[1]);
-      StarCell cell{3, t, key, {}, false};
+      const auto v = reader.tetrahedron_vertices(t);
+      // Descending by a sorting network; x's order comes first exactly when the rest are lower.
+      SimplexId o0 = order[v[0]], o1 = order[v[1]], o2 = order[v[2]], o3 = order[v[3]];
+      const auto descend = [](SimplexId& p, SimplexId& q) {
+        const SimplexId high = std::max(p, q);
+        q = std::min(p, q);
+        p = high;
+      };
+      descend(o0, o1), descend(o2, o3), descend(o0, o2), descend(o1, o3), descend(o1, o2);
+      if (o0 != ox) continue;  // most of the star
+      StarCell cell{3, t, {o1, o2, o3}, {}, false};
       IndexTetrahedronFaces(cell);
       star_[3].push_back(cell);
     }
@@ -233,8 +270,7 @@ class LowerStarPairing {
   }
 
   // Unpaired faces of a 2- or 3-cell inside the lower star; `face` gets the last one found.
-  int UnpairedFaces(const Ref& r, int& face) {
-    const StarCell& c = Get(r);
+  int UnpairedFaces(const StarCell& c, int& face) const {
     const int n = c.dim == 2 ? 2 : 3;
     int count = 0;
     for (int i = 0; i < n; ++i) {
@@ -265,15 +301,16 @@ class LowerStarPairing {
     }
   }
 
-  // Pushes the cofacets of cell (dim, index) with exactly one unpaired face.
-  void PushCofacets(int dim, int index) {
+  // Queues (PQone) the cofacets of a cell that have exactly one unpaired face.
+  void PushCofacets(const StarCell& cell) {
+    const int dim = cell.dim;
     if (dim != 1 && dim != 2) return;
+    const int32_t index = int32_t(&cell - star_[dim].data());
     const std::vector<int32_t>& begin = cofacet_begin_[dim];
     for (int32_t k = begin[index]; k < begin[index + 1]; ++k) {
-      const int32_t j = cofacets_[dim][k];
+      const StarCell& cofacet = star_[dim + 1][cofacets_[dim][k]];
       int face;
-      const Ref ref{dim + 1, j, star_[dim + 1][j].key};
-      if (UnpairedFaces(ref, face) == 1) one_.push(ref);
+      if (UnpairedFaces(cofacet, face) == 1) one_.Insert(cofacet.rank);
     }
   }
 
@@ -304,7 +341,8 @@ class LowerStarPairing {
   std::array<std::vector<StarCell>, 4> star_;
   std::array<std::vector<int32_t>, 3> cofacet_begin_, cofacets_;  // [1] and [2] used
   std::vector<int32_t> cursor_;
-  MinQueue zero_, one_;
+  std::vector<Uint128> ranked_;  // by rank: key and place (RankCells)
+  RankSet zero_, one_;
   // BuildFromTetrahedra's scratch: the vertices below x, and the pairs of them in a tetrahedron.
   std::vector<SimplexId> below_;
   std::vector<std::pair<SimplexId, SimplexId>> pairs_below_;
