@@ -463,7 +463,8 @@ void Topology::Encoder::CollectStars(int32_t b, Scratch& sc) const {
 void Topology::Encoder::CollectUpperFaces(SimplexId v, SimplexId star_from, SimplexId star_to,
                                           Scratch& sc) const {
   // Each upper vertex and pair comes once per tetrahedron around it: inserted into short sorted
-  // lists (tens of entries), not sorted with their repeats.
+  // lists (tens of entries), not sorted with their repeats. A new entry's place is found from
+  // the end and the tail shifted by hand: a library insert is a call to memmove per entry.
   sc.upper.clear();
   sc.pairs.clear();
   sc.pair_count.clear();
@@ -472,17 +473,29 @@ void Topology::Encoder::CollectUpperFaces(SimplexId v, SimplexId star_from, Simp
     int p = 0;
     while (s[p] != v) ++p;
     for (int j = p + 1; j < 4; ++j) {
-      const auto at = std::lower_bound(sc.upper.begin(), sc.upper.end(), s[j]);
-      if (at == sc.upper.end() || *at != s[j]) sc.upper.insert(at, s[j]);
+      size_t at = sc.upper.size();
+      while (at > 0 && sc.upper[at - 1] > s[j]) --at;
+      if (at == 0 || sc.upper[at - 1] != s[j]) {
+        sc.upper.push_back(s[j]);
+        for (size_t m = sc.upper.size() - 1; m > at; --m) sc.upper[m] = sc.upper[m - 1];
+        sc.upper[at] = s[j];
+      }
       for (int k = j + 1; k < 4; ++k) {
         const uint64_t pair = uint64_t(uint32_t(s[j])) << 32 | uint32_t(s[k]);
-        const auto where = std::lower_bound(sc.pairs.begin(), sc.pairs.end(), pair);
-        const size_t index = size_t(where - sc.pairs.begin());
-        if (where == sc.pairs.end() || *where != pair) {
-          sc.pairs.insert(where, pair);
-          sc.pair_count.insert(sc.pair_count.begin() + index, 0);
+        size_t where = sc.pairs.size();
+        while (where > 0 && sc.pairs[where - 1] > pair) --where;
+        if (where > 0 && sc.pairs[where - 1] == pair) {
+          ++sc.pair_count[where - 1];
+          continue;
         }
-        ++sc.pair_count[index];
+        sc.pairs.push_back(pair);
+        sc.pair_count.push_back(1);
+        for (size_t m = sc.pairs.size() - 1; m > where; --m) {
+          sc.pairs[m] = sc.pairs[m - 1];
+          sc.pair_count[m] = sc.pair_count[m - 1];
+        }
+        sc.pairs[where] = pair;
+        sc.pair_count[where] = 1;
       }
     }
   }
