@@ -411,23 +411,41 @@ void Topology::Encoder::ComputeBlockFaces(int32_t b, Scratch& sc, BlockFaces& ou
 
 // Each block's neighbours (the other blocks of its vertices' stars), sorted, in neighbors[b].
 void Topology::Encoder::FindBlockNeighbors() {
+  // Two blocks are neighbours when a tetrahedron holds a vertex of each, and a tetrahedron is
+  // external to every block of its vertices but its lowest's. So each block's external
+  // tetrahedra name all its neighbours but the later blocks it reaches only through its own
+  // tetrahedra, and those blocks find it among theirs: the external lists (about a tenth of
+  // the tetrahedra) and their transpose give every pair.
   neighbors.resize(num_blocks);
-  ParallelFor(num_blocks, threads, [&](int64_t b, int) {
+  std::vector<std::vector<int32_t>> met(std::max(threads, 1));  // per thread, the last b per block
+  ParallelFor(num_blocks, threads, [&](int64_t b, int thread) {
     std::vector<int32_t>& adjacent = neighbors[b];
-    const auto add_blocks_of = [&](SimplexId tet) {
+    std::vector<int32_t>& mark = met[thread];
+    if (mark.empty()) mark.assign(num_blocks, -1);
+    mark[b] = int32_t(b);
+    for (SimplexId tet : t.external_tetrahedra(int32_t(b))) {
       for (int k = 0; k < 4; ++k) {
-        // Neighbours are few (tens) and met thousands of times: keep them unique.
         const int32_t nb = t.vertex_block_[t.tet_vertices_[4 * size_t(tet) + k]];
-        if (nb != b && std::find(adjacent.begin(), adjacent.end(), nb) == adjacent.end()) {
+        if (mark[nb] != b) {
+          mark[nb] = int32_t(b);
           adjacent.push_back(nb);
         }
       }
-    };
-    for (SimplexId tet : t.external_tetrahedra(int32_t(b))) add_blocks_of(tet);
-    for (SimplexId tet = t.block_tet_begin_[b]; tet < t.block_tet_begin_[b + 1]; ++tet) {
-      add_blocks_of(tet);
     }
+  });
+  // The transpose: c, a neighbour of b found by b, has b as a neighbour. Blocks later than c
+  // are the ones c may not have found; earlier ones it did.
+  for (int32_t b = 0; b < num_blocks; ++b) {
+    const size_t found = neighbors[b].size();
+    for (size_t i = 0; i < found; ++i) {
+      const int32_t c = neighbors[b][i];
+      if (c < b) neighbors[c].push_back(b);
+    }
+  }
+  ParallelFor(num_blocks, threads, [&](int64_t b, int) {
+    std::vector<int32_t>& adjacent = neighbors[b];
     std::sort(adjacent.begin(), adjacent.end());
+    adjacent.erase(std::unique(adjacent.begin(), adjacent.end()), adjacent.end());
     adjacent.shrink_to_fit();
   });
 }
