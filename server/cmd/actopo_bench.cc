@@ -202,9 +202,9 @@ absl::StatusOr<Loaded> Load(const BenchOptions& o, Algorithm algorithm,
 }
 
 // partition: the blocks and the static encoding.
-// `input_corners` gets InputCorners of the mesh when the algorithm needs the order of each
-// tetrahedron's vertices as given (morse-smale, for TTK's triangle order). With no --output the
-// mesh's tetrahedra are freed as soon as the encoding (and InputCorners) have read them.
+// `input_corners` gets the order each tetrahedron's vertices came in (TopologyOptions::
+// input_corners) when the algorithm needs it (morse-smale, for TTK's triangle order). With no
+// --output the mesh's tetrahedra leave memory as the encoding reads them.
 absl::StatusOr<std::shared_ptr<const Topology>> Partition(
     const BenchOptions& o, Algorithm algorithm, Mesh& mesh,
     std::shared_ptr<const std::vector<uint8_t>>& input_corners, const std::shared_ptr<Trace>& trace,
@@ -219,25 +219,26 @@ absl::StatusOr<std::shared_ptr<const Topology>> Partition(
   // Without --output the points have done their part once the blocks are known: free them
   // before the encoding's peak (wavelet128: 48 MiB).
   if (o.output.empty()) std::vector<double>().swap(mesh.points);
-  absl::Status corners = absl::OkStatus();
-  const auto tetrahedra_read = [&](const Topology& encoded) {
-    if (algorithm == Algorithm::kMorseSmale) {
-      absl::StatusOr<std::vector<uint8_t>> taken = InputCorners(encoded, mesh.tetrahedra);
-      if (!taken.ok()) {
-        corners = taken.status();
-        return;
-      }
-      input_corners = std::make_shared<const std::vector<uint8_t>>(*std::move(taken));
-    }
-    if (o.output.empty()) std::vector<SimplexId>().swap(mesh.tetrahedra);
-  };
-  ASSIGN_OR_RETURN(std::shared_ptr<const Topology> topology,
-                   Topology::Build(mesh, blocks,
-                                   {.threads = o.threads,
-                                    .tetrahedra_read = tetrahedra_read,
-                                    .faces = NeedsFaces(algorithm),
-                                    .trace = trace.get()}));
-  RETURN_IF_ERROR(corners);
+  // Morse-Smale's corners are taken while the tetrahedra are encoded. Without --output the
+  // encoding may give the mesh's tetrahedra back page by page as it reads them, and they are
+  // freed once read.
+  std::vector<uint8_t> corners;
+  const bool keep_tetrahedra = !o.output.empty();
+  ASSIGN_OR_RETURN(
+      std::shared_ptr<const Topology> topology,
+      Topology::Build(mesh, blocks,
+                      {.threads = o.threads,
+                       .tetrahedra_read =
+                           [&](const Topology&) {
+                             if (!keep_tetrahedra) std::vector<SimplexId>().swap(mesh.tetrahedra);
+                           },
+                       .input_corners = algorithm == Algorithm::kMorseSmale ? &corners : nullptr,
+                       .release_tetrahedra = !keep_tetrahedra,
+                       .faces = NeedsFaces(algorithm),
+                       .trace = trace.get()}));
+  if (algorithm == Algorithm::kMorseSmale) {
+    input_corners = std::make_shared<const std::vector<uint8_t>>(std::move(corners));
+  }
   seconds = Seconds(start);
   Phase(trace, "partition", start);
   return topology;

@@ -1,9 +1,11 @@
 #include "server/core/process_memory.h"
 
+#include <sys/mman.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #if defined(__GLIBC__)
@@ -63,6 +65,13 @@ void LimitAllocatorArenas(int cores) {
 #else
   (void)cores;
 #endif
+}
+
+void ReleasePages(const void* begin, const void* end) {
+  static const uintptr_t page = uintptr_t(sysconf(_SC_PAGESIZE));
+  const uintptr_t from = (reinterpret_cast<uintptr_t>(begin) + page - 1) & ~(page - 1);
+  const uintptr_t to = reinterpret_cast<uintptr_t>(end) & ~(page - 1);
+  if (to > from) madvise(reinterpret_cast<void*>(from), to - from, MADV_DONTNEED);
 }
 
 }  // namespace actopo

@@ -19,6 +19,10 @@ int64_t HeapInUseBytes();
 // Freed blocks otherwise stay resident in the allocator's arenas: after a large mesh or session
 // is gone, or a load stopped half way, the process would keep its peak.
 void ReleaseFreeMemory();
+// Gives the whole pages inside [begin, end) of a live allocation back to the system at once
+// (madvise MADV_DONTNEED): they stop counting in the resident size and read as zeros after. For
+// an array read for the last time while it is still allocated; a no-op where unsupported.
+void ReleasePages(const void* begin, const void* end);
 // Caps the allocator's arenas at `cores` (glibc's M_ARENA_MAX; a no-op elsewhere, or when the
 // MALLOC_ARENA_MAX environment variable already sets it). Call first thing in main. glibc gives
 // threads up to 8 arenas per core, and a relation block freed by a consumer stays in the arena of

@@ -6,6 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "server/core/parallel.h"
+#include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
 
 namespace actopo {
@@ -38,10 +39,13 @@ std::vector<T> PrefixSum(const std::vector<T>& counts) {
 // Stable bucket sort of the items 0 .. n-1 over `threads` contiguous chunks in parallel:
 // for_each_bucket(i, emit) calls emit(bucket) once per bucket item i goes to. Fills `offsets`
 // (buckets + 1) and `items` (per bucket, its items ascending), and calls placed(i, slot) as item
-// i is written to items[slot], on the thread that writes it.
-template <class ForEachBucket, class Items, class Placed>
+// i is written to items[slot], on the thread that writes it. As the placing goes on, done(from,
+// to) says that items [from, to) of a chunk will not be looked at again (cumulative: `from` is
+// the chunk's first item).
+template <class ForEachBucket, class Items, class Placed, class Done>
 void BucketItems(int64_t n, int32_t buckets, int threads, ForEachBucket&& for_each_bucket,
-                 std::vector<SimplexId>& offsets, Items& items, Placed&& placed) {
+                 std::vector<SimplexId>& offsets, Items& items, Placed&& placed, Done&& done) {
+  constexpr int64_t kDoneStride = int64_t(1) << 16;
   const int chunks = int(std::clamp<int64_t>(threads, 1, std::max<int64_t>(n, 1)));
   const auto chunk_begin = [&](int64_t c) { return n * c / chunks; };
   // Per chunk: its count per bucket, then where its items of that bucket go.
@@ -66,13 +70,16 @@ void BucketItems(int64_t n, int32_t buckets, int threads, ForEachBucket&& for_ea
   items.resize(total);
   ParallelFor(chunks, chunks, [&](int64_t c, int) {
     std::vector<SimplexId>& at = cursor[c];
-    for (int64_t i = chunk_begin(c); i < chunk_begin(c + 1); ++i) {
+    const int64_t first = chunk_begin(c), end = chunk_begin(c + 1);
+    for (int64_t i = first; i < end; ++i) {
       for_each_bucket(i, [&](int32_t b) {
         const SimplexId slot = at[b]++;
         items[slot] = SimplexId(i);
         placed(i, slot);
       });
+      if ((i - first + 1) % kDoneStride == 0) done(first, i + 1);
     }
+    done(first, end);
   });
 }
 
@@ -255,6 +262,7 @@ struct Topology::Encoder {
   // Per thread, reused from block to block while sorting tetrahedra.
   struct BlockTets {
     std::vector<SimplexId> at, tuples, inputs;
+    std::vector<uint8_t> corners;
   };
 
   const Mesh& mesh;
@@ -263,6 +271,8 @@ struct Topology::Encoder {
   int32_t num_blocks;
   int threads;
   Topology& t;
+  std::vector<uint8_t>* corners;  // TopologyOptions::input_corners
+  bool release_tetrahedra;
   // Allocated by ReserveFaces for the window loop.
   std::vector<BlockFaces> faces;                // per block of the current window
   std::vector<std::vector<int32_t>> neighbors;  // per block, until ListBlockNeighbors
@@ -317,8 +327,11 @@ absl::Status Topology::Encoder::SortVertices() {
 // and each tetrahedron's sorted internal tuple at its place in tet_vertices_.
 void Topology::Encoder::BucketTetrahedra() {
   // The tuples are written as the tetrahedra are placed, while the mesh is read in order: the
-  // sort within each block then reads its own tuples, not the mesh's at scattered places.
+  // sort within each block then reads its own tuples, not the mesh's at scattered places. Each
+  // corner goes with its input position through the sorting network (4 * vertex + position), so
+  // the corners' order comes for free.
   t.tet_vertices_.resize(4 * size_t(nt));
+  if (corners != nullptr) corners->resize(size_t(nt));
   BucketItems(
       nt, num_blocks, threads,
       [&](int64_t i, auto&& emit) {
@@ -328,8 +341,27 @@ void Topology::Encoder::BucketTetrahedra() {
       t.block_tet_begin_, t.tet_input_id_,
       [&](int64_t i, SimplexId slot) {
         SimplexId* s = &t.tet_vertices_[4 * size_t(slot)];
-        for (int k = 0; k < 4; ++k) s[k] = InternalVertex(i, k);
-        SortVertexIds(s, 4);
+        if (corners == nullptr) {
+          for (int k = 0; k < 4; ++k) s[k] = InternalVertex(i, k);
+          SortVertexIds(s, 4);
+          return;
+        }
+        int64_t c[4];
+        for (int k = 0; k < 4; ++k) c[k] = int64_t(InternalVertex(i, k)) << 2 | k;
+        const auto order = [&c](int a, int b) {
+          if (c[b] < c[a]) std::swap(c[a], c[b]);
+        };
+        order(0, 1), order(2, 3), order(0, 2), order(1, 3), order(1, 2);
+        uint8_t byte = 0;
+        for (int k = 0; k < 4; ++k) {
+          s[k] = SimplexId(c[k] >> 2);
+          byte |= uint8_t((c[k] & 3) << (2 * k));
+        }
+        (*corners)[size_t(slot)] = byte;
+      },
+      [&](int64_t from, int64_t to) {
+        if (!release_tetrahedra) return;
+        ReleasePages(&mesh.tetrahedra[4 * size_t(from)], mesh.tetrahedra.data() + 4 * size_t(to));
       });
 }
 
@@ -345,6 +377,7 @@ void Topology::Encoder::SortBlockTetrahedra() {
     sc.tuples.assign(t.tet_vertices_.begin() + 4 * size_t(begin),
                      t.tet_vertices_.begin() + 4 * size_t(end));
     sc.inputs.assign(t.tet_input_id_.begin() + begin, t.tet_input_id_.begin() + end);
+    if (corners != nullptr) sc.corners.assign(corners->begin() + begin, corners->begin() + end);
     for (SimplexId i = 0; i < end - begin; ++i) ++sc.at[sc.tuples[4 * size_t(i)] - vbegin + 1];
     for (size_t i = 1; i < sc.at.size(); ++i) sc.at[i] += sc.at[i - 1];
     for (SimplexId i = 0; i < end - begin; ++i) {
@@ -352,6 +385,7 @@ void Topology::Encoder::SortBlockTetrahedra() {
       const SimplexId to = begin + sc.at[s[0] - vbegin]++;
       std::copy_n(s, 4, &t.tet_vertices_[4 * size_t(to)]);
       t.tet_input_id_[to] = sc.inputs[i];
+      if (corners != nullptr) (*corners)[to] = sc.corners[i];
     }
   });
 }
@@ -372,7 +406,7 @@ void Topology::Encoder::FindExternalTetrahedra() {
     }
   };
   BucketItems(nt, num_blocks, threads, for_each_external_block, t.external_offsets_,
-              t.external_tets_, [](int64_t, SimplexId) {});
+              t.external_tets_, [](int64_t, SimplexId) {}, [](int64_t, int64_t) {});
 }
 
 // Allocates the window buffers and reserves the face arrays; leaves them empty for the windows.
@@ -639,7 +673,8 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   Topology& t = *topo;
   t.num_vertices_ = nv;
   t.num_blocks_ = num_blocks;
-  Encoder encoder{mesh, vertex_block, nv, nt, num_blocks, threads, t};
+  Encoder encoder{mesh,    vertex_block, nv, nt, num_blocks, threads, t, options.input_corners,
+                  options.release_tetrahedra};
   const auto step = [&](const char* name) { return Trace::Scope(options.trace, name, "encode"); };
   {
     auto span = step("sort vertices");

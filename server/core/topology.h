@@ -87,6 +87,16 @@ struct TopologyOptions {
   // so they and the whole encoding are never resident together: wavelet128, 156 MiB off the
   // peak of a critical points job, and of a server's load.
   std::function<void(const Topology&)> tetrahedra_read;
+  // Per internal tetrahedron, the order its corners came in, when set: bits 2k..2k+1 of its byte
+  // are the position in the input tetrahedron of corner k of its sorted tuple (what Morse-Smale
+  // needs to number triangles as TTK does; InputCorners in morse_smale.h computes the same from a
+  // mesh's tetrahedra). Taken while the tetrahedra are encoded, so no caller needs to keep them.
+  std::vector<uint8_t>* input_corners = nullptr;
+  // Lets Build hand the pages of mesh.tetrahedra back to the system as it reads them for the last
+  // time (ReleasePages in process_memory.h). The caller must then not read them again, only free
+  // them (in tetrahedra_read, say): the input tetrahedra and their encoded copy are then never
+  // resident together, which was the peak of a critical points run (wavelet128: 164 MB).
+  bool release_tetrahedra = false;
   // Whether to build the edges and triangles (the "faces" step: on wavelet128 about 70% of the
   // encoding's time and half its bytes). Without them the topology holds vertices, tetrahedra and
   // blocks: enough for the relations VV, VT, TV and VB and for critical points

@@ -119,6 +119,41 @@ TEST(Topology, TetrahedraFreedWhenReadGiveTheSameEncoding) {
   for (SimplexId e = 0; e < t.num_edges(); ++e) ASSERT_EQ(t.edge(e), kept->edge(e));
 }
 
+// The corners' order is taken while encoding, and releasing the input tetrahedra's pages as they
+// are read changes nothing in the encoding; the released pages read as zeros.
+TEST(Topology, CornersTakenWhileTetrahedraAreReleased) {
+  Mesh m = testing::Lattice(40, 40, 40, 3);  // 365k tetrahedra: several release strides
+  std::mt19937 rng(11);
+  for (size_t t = 0; t < m.tetrahedra.size(); t += 4) {
+    std::shuffle(m.tetrahedra.begin() + t, m.tetrahedra.begin() + t + 4, rng);
+  }
+  const std::vector<int32_t> blocks = OctreeBlocks(m.points, {.bucket_capacity = 500});
+  auto kept = *Topology::Build(m, blocks, {.threads = 2});
+  Mesh released = m;
+  std::vector<uint8_t> corners;
+  auto built = Topology::Build(
+      released, blocks,
+      {.threads = 2, .input_corners = &corners, .release_tetrahedra = true});
+  ASSERT_TRUE(built.ok()) << built.status();
+  const Topology& t = **built;
+  const auto zeros = std::count(released.tetrahedra.begin(), released.tetrahedra.end(), 0);
+  EXPECT_GT(zeros, int64_t(released.tetrahedra.size()) / 2);
+  ASSERT_EQ(corners.size(), size_t(t.num_tetrahedra()));
+  for (SimplexId x = 0; x < t.num_tetrahedra(); ++x) {
+    ASSERT_TRUE(std::ranges::equal(t.tetrahedron(x), kept->tetrahedron(x)));
+    ASSERT_EQ(t.tetrahedron_input_id(x), kept->tetrahedron_input_id(x));
+    const SimplexId* given = &m.tetrahedra[4 * size_t(t.tetrahedron_input_id(x))];
+    int positions = 0;
+    for (int k = 0; k < 4; ++k) {
+      const int p = (corners[x] >> (2 * k)) & 3;
+      positions |= 1 << p;
+      ASSERT_EQ(t.vertex_internal_id(given[p]), t.tetrahedron(x)[k]) << "tet " << x;
+    }
+    ASSERT_EQ(positions, 0xF) << "tet " << x;
+  }
+  for (SimplexId f = 0; f < t.num_triangles(); ++f) ASSERT_EQ(t.triangle(f), kept->triangle(f));
+}
+
 // Without faces (and with the points freed first) everything but edges and triangles is the same.
 TEST(Topology, WithoutFacesTheRestIsTheSame) {
   const Mesh m = testing::Lattice(9, 8, 7, 5);

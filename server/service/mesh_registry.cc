@@ -5,7 +5,6 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_replace.h"
-#include "server/algorithms/morse_smale.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
 #include "server/io/isolated_reader.h"
@@ -151,21 +150,19 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Add(
   RETURN_IF_ERROR(progress.Update("partition", 0));
   ASSIGN_OR_RETURN(std::vector<int32_t> blocks, ComputeBlocks(mesh, effective));
   RETURN_IF_ERROR(progress.Update("partition", 1));
-  // Of the input tetrahedra the topology keeps all but their corners' order: take that once
-  // they are encoded and free them before the faces, the encoding's larger part.
-  absl::Status corners = absl::OkStatus();
-  const auto tetrahedra_read = [&](const Topology& encoded) {
-    absl::StatusOr<std::vector<uint8_t>> taken = InputCorners(encoded, mesh.tetrahedra);
-    if (!taken.ok()) {
-      corners = taken.status();
-      return;
-    }
-    loaded->input_corners = std::make_shared<const std::vector<uint8_t>>(*std::move(taken));
-    std::vector<SimplexId>().swap(mesh.tetrahedra);
-  };
-  ASSIGN_OR_RETURN(loaded->topology,
-                   Topology::Build(mesh, blocks, {.tetrahedra_read = tetrahedra_read}, progress));
-  RETURN_IF_ERROR(corners);
+  // Of the input tetrahedra the topology keeps all but their corners' order, which it takes as
+  // it encodes them, handing their pages back as it goes; they are freed before the faces, the
+  // encoding's larger part.
+  std::vector<uint8_t> corners;
+  ASSIGN_OR_RETURN(
+      loaded->topology,
+      Topology::Build(mesh, blocks,
+                      {.tetrahedra_read =
+                           [&](const Topology&) { std::vector<SimplexId>().swap(mesh.tetrahedra); },
+                       .input_corners = &corners,
+                       .release_tetrahedra = true},
+                      progress));
+  loaded->input_corners = std::make_shared<const std::vector<uint8_t>>(std::move(corners));
   loaded->partition_seconds = SecondsSince(start);
   loaded->id = NewId("mesh");
   loaded->name = std::move(name);
