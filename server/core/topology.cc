@@ -271,8 +271,7 @@ struct Topology::Encoder {
   int32_t num_blocks;
   int threads;
   Topology& t;
-  std::vector<uint8_t>* corners;  // TopologyOptions::input_corners
-  bool release_tetrahedra;
+  const TopologyOptions& options;  // input_corners and release_tetrahedra
   // Allocated by ReserveFaces for the window loop.
   std::vector<BlockFaces> faces;                // per block of the current window
   std::vector<std::vector<int32_t>> neighbors;  // per block, until ListBlockNeighbors
@@ -331,6 +330,7 @@ void Topology::Encoder::BucketTetrahedra() {
   // corner goes with its input position through the sorting network (4 * vertex + position), so
   // the corners' order comes for free.
   t.tet_vertices_.resize(4 * size_t(nt));
+  std::vector<uint8_t>* corners = options.input_corners;
   if (corners != nullptr) corners->resize(size_t(nt));
   BucketItems(
       nt, num_blocks, threads,
@@ -360,7 +360,7 @@ void Topology::Encoder::BucketTetrahedra() {
         (*corners)[size_t(slot)] = byte;
       },
       [&](int64_t from, int64_t to) {
-        if (!release_tetrahedra) return;
+        if (!options.release_tetrahedra) return;
         ReleasePages(&mesh.tetrahedra[4 * size_t(from)], mesh.tetrahedra.data() + 4 * size_t(to));
       });
 }
@@ -369,6 +369,7 @@ void Topology::Encoder::BucketTetrahedra() {
 // tuples), so a vertex's star is a few nearby runs, however the file ordered its cells.
 void Topology::Encoder::SortBlockTetrahedra() {
   std::vector<BlockTets> block_tets(std::max(threads, 1));
+  std::vector<uint8_t>* corners = options.input_corners;
   ParallelFor(num_blocks, threads, [&](int64_t b, int thread) {
     const SimplexId begin = t.block_tet_begin_[b], end = t.block_tet_begin_[b + 1];
     const SimplexId vbegin = t.block_vertex_begin_[b];
@@ -405,8 +406,9 @@ void Topology::Encoder::FindExternalTetrahedra() {
       }
     }
   };
-  BucketItems(nt, num_blocks, threads, for_each_external_block, t.external_offsets_,
-              t.external_tets_, [](int64_t, SimplexId) {}, [](int64_t, int64_t) {});
+  BucketItems(
+      nt, num_blocks, threads, for_each_external_block, t.external_offsets_, t.external_tets_,
+      [](int64_t, SimplexId) {}, [](int64_t, int64_t) {});
 }
 
 // Allocates the window buffers and reserves the face arrays; leaves them empty for the windows.
@@ -673,8 +675,7 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   Topology& t = *topo;
   t.num_vertices_ = nv;
   t.num_blocks_ = num_blocks;
-  Encoder encoder{mesh,    vertex_block, nv, nt, num_blocks, threads, t, options.input_corners,
-                  options.release_tetrahedra};
+  Encoder encoder{mesh, vertex_block, nv, nt, num_blocks, threads, t, options};
   const auto step = [&](const char* name) { return Trace::Scope(options.trace, name, "encode"); };
   {
     auto span = step("sort vertices");

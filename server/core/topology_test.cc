@@ -132,8 +132,7 @@ TEST(Topology, CornersTakenWhileTetrahedraAreReleased) {
   Mesh released = m;
   std::vector<uint8_t> corners;
   auto built = Topology::Build(
-      released, blocks,
-      {.threads = 2, .input_corners = &corners, .release_tetrahedra = true});
+      released, blocks, {.threads = 2, .input_corners = &corners, .release_tetrahedra = true});
   ASSERT_TRUE(built.ok()) << built.status();
   const Topology& t = **built;
   const auto zeros = std::count(released.tetrahedra.begin(), released.tetrahedra.end(), 0);
