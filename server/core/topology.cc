@@ -361,7 +361,8 @@ void Topology::Encoder::BucketTetrahedra() {
       },
       [&](int64_t from, int64_t to) {
         if (!options.release_tetrahedra) return;
-        ReleasePages(&mesh.tetrahedra[4 * size_t(from)], mesh.tetrahedra.data() + 4 * size_t(to));
+        ReleasePages(mesh.tetrahedra.data() + 4 * size_t(from),
+                     mesh.tetrahedra.data() + 4 * size_t(to));
       });
 }
 
