@@ -1,6 +1,8 @@
 #include "server/algorithms/critical_points.h"
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <mutex>
 
 #include "absl/strings/str_cat.h"
@@ -31,26 +33,86 @@ class LinkComponents {
 };
 
 // Per consumer, reused across vertices.
-struct ClassifyScratch {
-  LinkComponents components;
-  std::vector<SimplexId> neighbors;
-  LinkEdgeCounter link;
-};
 
 struct Classified {
   CriticalType type = CriticalType::kRegular;
   bool on_boundary = false;
 };
 
+// A vertex's link vertices numbered as its star meets them: a small open-addressing table from
+// vertex to local index, emptied after each vertex.
+class LinkIndex {
+ public:
+  // For a star of `tetrahedra`; forgets the previous vertex's link.
+  void Reset(size_t tetrahedra) {
+    for (uint32_t slot : used_) slot_vertex_[slot] = -1;
+    used_.clear();
+    vertices_.clear();
+    bits_ = std::max(4, int(std::bit_width(6 * tetrahedra)));  // at most 3 per tetrahedron
+    if (slot_vertex_.size() < (size_t(1) << bits_)) {
+      slot_vertex_.assign(size_t(1) << bits_, -1);
+      slot_local_.resize(size_t(1) << bits_);
+    }
+  }
+  int Local(SimplexId w) {
+    const uint64_t mask = (uint64_t(1) << bits_) - 1;
+    uint64_t h = (uint64_t(uint32_t(w)) * 0x9e3779b97f4a7c15u) >> (64 - bits_);
+    while (slot_vertex_[h] != w) {
+      if (slot_vertex_[h] == -1) {
+        slot_vertex_[h] = w;
+        slot_local_[h] = int(vertices_.size());
+        used_.push_back(uint32_t(h));
+        vertices_.push_back(w);
+        break;
+      }
+      h = (h + 1) & mask;
+    }
+    return slot_local_[h];
+  }
+  // The link's vertices by local index.
+  std::span<const SimplexId> vertices() const { return vertices_; }
+
+ private:
+  int bits_ = 4;
+  std::vector<SimplexId> slot_vertex_;
+  std::vector<int> slot_local_;
+  std::vector<uint32_t> used_;
+  std::vector<SimplexId> vertices_;
+};
+
+// Per consumer, reused across vertices.
+struct ClassifyScratch {
+  LinkComponents components;
+  LinkIndex index;
+  std::vector<std::array<int, 3>> triangles;  // per star tetrahedron, its link triangle
+  std::vector<uint8_t> below;                 // per link vertex: lower than the vertex
+  LinkEdgeCounter link;
+};
+
 template <class Reader>
 Classified Classify(Reader& reader, SimplexId v, std::span<const SimplexId> order,
                     const CriticalPointsOptions& options, ClassifyScratch& scratch) {
-  // Copy: the boundary rule below reads other vertices' VV-adjacent relations.
-  std::vector<SimplexId>& neighbors = scratch.neighbors;
-  const auto vv = reader.vertex_neighbors(v);
-  neighbors.assign(vv.begin(), vv.end());
+  // The link's vertices are numbered from the star itself, not looked up in VV, which then need
+  // not be computed at all: first each star tetrahedron's link triangle in local indices, then
+  // the link's components on each side of v and its edges, over the n link vertices.
+  const auto star = reader.vertex_star(v);
+  LinkIndex& index = scratch.index;
+  index.Reset(star.size());
+  std::vector<std::array<int, 3>>& triangles = scratch.triangles;
+  triangles.clear();
+  for (SimplexId t : star) {
+    std::array<int, 3>& local = triangles.emplace_back();
+    int m = 0;
+    for (SimplexId w : reader.tetrahedron_vertices(t)) {
+      if (w != v) local[m++] = index.Local(w);
+    }
+  }
+  const std::span<const SimplexId> neighbors = index.vertices();
   const size_t n = neighbors.size();
   const SimplexId ov = order[v];
+  std::vector<uint8_t>& below = scratch.below;
+  below.resize(n);
+  for (size_t i = 0; i < n; ++i) below[i] = order[neighbors[i]] < ov;
   LinkComponents& uf = scratch.components;
   uf.Reset(n);
   // v's own boundary flag from the link edges of the star scanned here anyway, not from VB:
@@ -58,18 +120,10 @@ Classified Classify(Reader& reader, SimplexId v, std::span<const SimplexId> orde
   // only for blocks near the boundary.
   LinkEdgeCounter& link = scratch.link;
   link.Reset(n);
-  for (SimplexId t : reader.vertex_star(v)) {
-    int local[3];
-    bool lower[3];
-    int m = 0;
-    for (SimplexId w : reader.tetrahedron_vertices(t)) {
-      if (w == v) continue;
-      local[m] = int(std::lower_bound(neighbors.begin(), neighbors.end(), w) - neighbors.begin());
-      lower[m++] = order[w] < ov;
-    }
+  for (const std::array<int, 3>& local : triangles) {
     for (int i = 0; i < 3; ++i) {
       for (int j = i + 1; j < 3; ++j) {
-        if (lower[i] == lower[j]) uf.Union(local[i], local[j]);
+        if (below[local[i]] == below[local[j]]) uf.Union(local[i], local[j]);
       }
     }
     link.AddTriangle(size_t(local[0]), size_t(local[1]), size_t(local[2]));
@@ -79,7 +133,7 @@ Classified Classify(Reader& reader, SimplexId v, std::span<const SimplexId> orde
   int lower = 0, upper = 0;
   for (size_t i = 0; i < n; ++i) {
     if (uf.Find(int(i)) != int(i)) continue;
-    (order[neighbors[i]] < ov ? lower : upper)++;
+    (below[i] ? lower : upper)++;
   }
   if (lower == 0 && upper == 1) {
     out.type = CriticalType::kMinimum;
@@ -114,8 +168,8 @@ std::string CriticalPointsResult::VerticesDigest() const {
   return text.HexDigest();
 }
 
-RelationSet CriticalPointsDeclared() { return {Relation::kVV, Relation::kVT, Relation::kVB}; }
-RelationSet CriticalPointsSwept() { return {Relation::kVV, Relation::kVT}; }
+RelationSet CriticalPointsDeclared() { return {Relation::kVT, Relation::kVB}; }
+RelationSet CriticalPointsSwept() { return {Relation::kVT}; }
 
 template <class Structure>
 absl::StatusOr<CriticalPointsResult> RunCriticalPoints(Structure& structure,

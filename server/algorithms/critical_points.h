@@ -59,10 +59,12 @@ struct CriticalPointsResult {
   std::string VerticesDigest() const;
 };
 
-// VV (link vertices), VT (link edges) and VB (the boundary rule).
+// VT (the star, whose other vertices are the link's, numbered as met) and VB (the boundary
+// rule). No VV: looking each star vertex up in it cost a search per tetrahedron corner, and
+// computing it a block scan of its own.
 RelationSet CriticalPointsDeclared();
-// What it reads for every vertex: VV and VT. A vertex's own boundary flag comes from the link
-// edges it counts anyway; VB is read only for the neighbours of boundary vertices.
+// What it reads for every vertex: VT. A vertex's own boundary flag comes from the link edges it
+// counts anyway; VB is read only for the neighbours of boundary vertices.
 RelationSet CriticalPointsSwept();
 
 // `order` is VertexOrder() of the scalar field (by internal id). Defined for the explicit,

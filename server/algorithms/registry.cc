@@ -72,9 +72,8 @@ RelationSet SweptRelations(Algorithm a) {
 }
 
 bool NeedsFaces(Algorithm a) {
-  // Critical points reads VV, VT and VB and no other part of the topology's faces.
-  static_assert(!NeedsFaces(Relation::kVV) && !NeedsFaces(Relation::kVT) &&
-                !NeedsFaces(Relation::kVB));
+  // Critical points reads VT and VB and no other part of the topology's faces.
+  static_assert(!NeedsFaces(Relation::kVT) && !NeedsFaces(Relation::kVB));
   return a != Algorithm::kCriticalPoints;
 }
 
