@@ -81,7 +81,7 @@ def test_persistence_diagram_equals_ttk_and_writes_the_diagram(tmp_path):
 
 @pytest.mark.parametrize("structure", ["explicit", "compact", "actopo"])
 def test_critical_points_build_no_faces_and_equal_ttk(structure):
-    """critical points reads VV, VT and VB, computed from the vertices' stars: the encoding
+    """critical points reads VT and VB, computed from the vertices' stars: the encoding
     builds no edges or triangles, and the result is still TTK's (fertility has a boundary)."""
     upstream = json.loads((DATA / "expected-ttk.json").read_text())["fertility_tet.vtu"]
     upstream = upstream["height"]["upstream"]
