@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <array>
-#include <bit>
 #include <mutex>
 
 #include "absl/strings/str_cat.h"
@@ -32,58 +31,15 @@ class LinkComponents {
   std::vector<int> parent_;
 };
 
-// Per consumer, reused across vertices.
-
 struct Classified {
   CriticalType type = CriticalType::kRegular;
   bool on_boundary = false;
 };
 
-// A vertex's link vertices numbered as its star meets them: a small open-addressing table from
-// vertex to local index, emptied after each vertex.
-class LinkIndex {
- public:
-  // For a star of `tetrahedra`; forgets the previous vertex's link.
-  void Reset(size_t tetrahedra) {
-    for (uint32_t slot : used_) slot_vertex_[slot] = -1;
-    used_.clear();
-    vertices_.clear();
-    bits_ = std::max(4, int(std::bit_width(6 * tetrahedra)));  // at most 3 per tetrahedron
-    if (slot_vertex_.size() < (size_t(1) << bits_)) {
-      slot_vertex_.assign(size_t(1) << bits_, -1);
-      slot_local_.resize(size_t(1) << bits_);
-    }
-  }
-  int Local(SimplexId w) {
-    const uint64_t mask = (uint64_t(1) << bits_) - 1;
-    uint64_t h = (uint64_t(uint32_t(w)) * 0x9e3779b97f4a7c15u) >> (64 - bits_);
-    while (slot_vertex_[h] != w) {
-      if (slot_vertex_[h] == -1) {
-        slot_vertex_[h] = w;
-        slot_local_[h] = int(vertices_.size());
-        used_.push_back(uint32_t(h));
-        vertices_.push_back(w);
-        break;
-      }
-      h = (h + 1) & mask;
-    }
-    return slot_local_[h];
-  }
-  // The link's vertices by local index.
-  std::span<const SimplexId> vertices() const { return vertices_; }
-
- private:
-  int bits_ = 4;
-  std::vector<SimplexId> slot_vertex_;
-  std::vector<int> slot_local_;
-  std::vector<uint32_t> used_;
-  std::vector<SimplexId> vertices_;
-};
-
 // Per consumer, reused across vertices.
 struct ClassifyScratch {
   LinkComponents components;
-  LinkIndex index;
+  LinkVertexIndex index;
   std::vector<std::array<int, 3>> triangles;  // per star tetrahedron, its link triangle
   std::vector<uint8_t> below;                 // per link vertex: lower than the vertex
   LinkEdgeCounter link;
@@ -96,7 +52,7 @@ Classified Classify(Reader& reader, SimplexId v, std::span<const SimplexId> orde
   // not be computed at all: first each star tetrahedron's link triangle in local indices, then
   // the link's components on each side of v and its edges, over the n link vertices.
   const auto star = reader.vertex_star(v);
-  LinkIndex& index = scratch.index;
+  LinkVertexIndex& index = scratch.index;
   index.Reset(star.size());
   std::vector<std::array<int, 3>>& triangles = scratch.triangles;
   triangles.clear();
@@ -104,7 +60,7 @@ Classified Classify(Reader& reader, SimplexId v, std::span<const SimplexId> orde
     std::array<int, 3>& local = triangles.emplace_back();
     int m = 0;
     for (SimplexId w : reader.tetrahedron_vertices(t)) {
-      if (w != v) local[m++] = index.Local(w);
+      if (w != v) local[m++] = index.IndexOf(w);
     }
   }
   const std::span<const SimplexId> neighbors = index.vertices();

@@ -220,51 +220,31 @@ class BlockComputer {
     VertexStar(star);
     return star;
   }
-  // The other vertices of v's star tetrahedra (the other ends of v's edges), in the order first
-  // met, into s_.tmp. Each comes once per tetrahedron around its edge (a few times): an
-  // open-addressing table (at most half full) keeps them unique and gives each its index in
-  // s_.tmp. With `boundary`, also whether a triangle of v's star lies in one tetrahedron only:
-  // v's link edges (the pairs of other vertices of each star tetrahedron) counted up to 2, v
-  // being on the boundary when one is seen once; a square table for the usual tens of
-  // neighbours, sorted keys beyond.
+  // The other vertices of v's star tetrahedra (the other ends of v's edges), numbered in the
+  // order first met, in s_.link_vertices. With `boundary`, also whether a triangle of v's star
+  // lies in one tetrahedron only: v's link edges (the pairs of other vertices of each star
+  // tetrahedron) counted up to 2, v being on the boundary when one is seen once; a square table
+  // for the usual tens of neighbours, sorted keys beyond.
   bool ScanStar(SimplexId v, std::span<const SimplexId> star, bool boundary) {
-    std::vector<SimplexId>& row = s_.tmp;
-    row.clear();
-    int bits = 4;
-    while ((size_t(1) << bits) < 6 * star.size()) ++bits;
-    const uint32_t mask = (uint32_t(1) << bits) - 1;
-    s_.slot_vertex.assign(size_t(mask) + 1, -1);
-    s_.slot_index.resize(size_t(mask) + 1);
-    const auto index_of = [&](SimplexId w) {
-      uint32_t h = (uint32_t(w) * 0x9e3779b1u) >> (32 - bits);
-      while (s_.slot_vertex[h] != w) {
-        if (s_.slot_vertex[h] < 0) {
-          s_.slot_vertex[h] = w;
-          s_.slot_index[h] = SimplexId(row.size());
-          row.push_back(w);
-          break;
-        }
-        h = (h + 1) & mask;
-      }
-      return size_t(s_.slot_index[h]);
-    };
+    LinkVertexIndex& index = s_.link_vertices;
+    index.Reset(star.size());
     if (!boundary) {
       for (SimplexId t : star) {
         for (SimplexId w : topo_.tetrahedron(t)) {
-          if (w != v) index_of(w);
+          if (w != v) index.IndexOf(w);
         }
       }
       return false;
     }
-    // Indices of the three other vertices of each star tetrahedron (the neighbours are
+    // Numbers of the three other vertices of each star tetrahedron (the neighbours are
     // numbered as they are met, so the count starts once all are), then the link edges.
     s_.keys.clear();
     for (SimplexId t : star) {
       for (SimplexId w : topo_.tetrahedron(t)) {
-        if (w != v) s_.keys.push_back(int64_t(index_of(w)));
+        if (w != v) s_.keys.push_back(int64_t(index.IndexOf(w)));
       }
     }
-    s_.link.Reset(row.size());
+    s_.link.Reset(index.vertices().size());
     for (size_t i = 0; i < s_.keys.size(); i += 3) {
       s_.link.AddTriangle(size_t(s_.keys[i]), size_t(s_.keys[i + 1]), size_t(s_.keys[i + 2]));
     }
@@ -277,8 +257,9 @@ class BlockComputer {
     out.values.clear();
     for (SimplexId i = 0; i < out.count; ++i) {
       ScanStar(vbegin_ + i, star.row(i), false);
-      std::sort(s_.tmp.begin(), s_.tmp.end());
-      out.values.insert(out.values.end(), s_.tmp.begin(), s_.tmp.end());
+      const auto row = s_.link_vertices.vertices();
+      out.values.insert(out.values.end(), row.begin(), row.end());
+      std::sort(out.values.begin() + out.offsets[i], out.values.end());
       out.offsets[i + 1] = SimplexId(out.values.size());
     }
   }

@@ -51,8 +51,8 @@ struct RelationBlock {
 struct BlockScratch {
   std::vector<SimplexId> rows, values, counts, mark, tmp, candidates;
   std::vector<int64_t> keys;
-  LinkEdgeCounter link;                            // VB
-  std::vector<SimplexId> slot_vertex, slot_index;  // a vertex's neighbours, hashed (VV, VB)
+  LinkEdgeCounter link;           // VB
+  LinkVertexIndex link_vertices;  // a vertex's neighbours (VV, VB)
 };
 
 // Computes R (not a static relation: EV, FV, TV, FB live in the topology) for block b.

@@ -11,11 +11,59 @@
 #define ACTOPO_SERVER_CORE_LINK_EDGES_H_
 
 #include <algorithm>
+#include <bit>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <vector>
 
+#include "server/core/mesh.h"
+
 namespace actopo {
+
+// A vertex's link vertices (the other vertices of its star tetrahedra) numbered in the order
+// first met, so the counter below and a union-find can work on small numbers. Each comes once per
+// tetrahedron around its edge (a few times): an open-addressing table, at most half full, keeps
+// them unique; Reset empties only the slots the last vertex used. VV, VB and critical points.
+class LinkVertexIndex {
+ public:
+  // For a star of `tetrahedra` (at most 3 link vertices each); forgets the previous vertex.
+  void Reset(size_t tetrahedra) {
+    for (uint32_t slot : used_) slot_vertex_[slot] = -1;
+    used_.clear();
+    vertices_.clear();
+    bits_ = std::max(4, int(std::bit_width(6 * tetrahedra)));
+    if (slot_vertex_.size() < (size_t(1) << bits_)) {
+      slot_vertex_.assign(size_t(1) << bits_, -1);
+      slot_index_.resize(size_t(1) << bits_);
+    }
+  }
+  // w's number, given on first sight.
+  int IndexOf(SimplexId w) {
+    const uint64_t mask = (uint64_t(1) << bits_) - 1;
+    uint64_t h = (uint64_t(uint32_t(w)) * 0x9e3779b97f4a7c15u) >> (64 - bits_);
+    while (slot_vertex_[h] != w) {
+      if (slot_vertex_[h] == -1) {
+        slot_vertex_[h] = w;
+        slot_index_[h] = int(vertices_.size());
+        used_.push_back(uint32_t(h));
+        vertices_.push_back(w);
+        break;
+      }
+      h = (h + 1) & mask;
+    }
+    return slot_index_[h];
+  }
+  // The link vertices by number.
+  std::span<const SimplexId> vertices() const { return vertices_; }
+
+ private:
+  int bits_ = 4;
+  std::vector<SimplexId> slot_vertex_;
+  std::vector<int> slot_index_;
+  std::vector<uint32_t> used_;
+  std::vector<SimplexId> vertices_;
+};
 
 class LinkEdgeCounter {
  public:
