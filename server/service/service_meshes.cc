@@ -173,7 +173,7 @@ class LoadProgressReactor final
       final_ = std::move(status);
       have_final_ = true;
       if (writing_) {
-        mu_.Unlock();  // OnWriteDone finishes
+        mu_.Unlock();  // OnWriteDone writes what waits, then finishes
       } else {
         FinishLocked();
       }
@@ -183,10 +183,10 @@ class LoadProgressReactor final
   void OnWriteDone(bool) override {
     mu_.Lock();
     writing_ = false;
-    if (have_final_) {
+    if (!waiting_.empty()) {
+      WriteWaitingLocked();  // the reports made before the load ended go out before its end
+    } else if (have_final_) {
       FinishLocked();
-    } else if (!waiting_.empty()) {
-      WriteWaitingLocked();
     } else {
       mu_.Unlock();
     }
@@ -236,8 +236,8 @@ class LoadProgressReactor final
     StartWrite(&last_);
   }
 
-  // Called once, after the last write completed; releases mu_. Nothing touches `this` after
-  // Finish, which may run OnDone (delete this) on another thread at once.
+  // Called once, after the last write completed and none waits; releases mu_. Nothing touches
+  // `this` after Finish, which may run OnDone (delete this) on another thread at once.
   void FinishLocked() ABSL_UNLOCK_FUNCTION(mu_) {
     const absl::Status status = final_;
     mu_.Unlock();
