@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cassert>
 #include <functional>
 #include <memory>
@@ -210,10 +211,10 @@ class BlockComputer {
     PairsToCsr(out, false);
   }
 
-  // VV and VB come from the vertices' stars, not from the edge and triangle runs, so that
-  // critical points need no faces (TopologyOptions::faces).
+  // VV and VB need no faces (TopologyOptions::faces), so that critical points can run without
+  // them: VV comes from the vertices' stars, VB from the block's tetrahedra.
 
-  // The block's vertex stars as CSR (VT), for the two relations below.
+  // The block's vertex stars as CSR (VT), for VV.
   RelationBlock BlockStars(const RelationBlock& out) {
     RelationBlock star;
     star.count = out.count;
@@ -221,42 +222,22 @@ class BlockComputer {
     return star;
   }
   // The other vertices of v's star tetrahedra (the other ends of v's edges), numbered in the
-  // order first met, in s_.link_vertices. With `boundary`, also whether a triangle of v's star
-  // lies in one tetrahedron only: v's link edges (the pairs of other vertices of each star
-  // tetrahedron) counted up to 2, v being on the boundary when one is seen once; a square table
-  // for the usual tens of neighbours, sorted keys beyond.
-  bool ScanStar(SimplexId v, std::span<const SimplexId> star, bool boundary) {
+  // order first met, in s_.link_vertices.
+  void ScanStar(SimplexId v, std::span<const SimplexId> star) {
     LinkVertexIndex& index = s_.link_vertices;
     index.Reset(star.size());
-    if (!boundary) {
-      for (SimplexId t : star) {
-        for (SimplexId w : topo_.tetrahedron(t)) {
-          if (w != v) index.IndexOf(w);
-        }
-      }
-      return false;
-    }
-    // Numbers of the three other vertices of each star tetrahedron (the neighbours are
-    // numbered as they are met, so the count starts once all are), then the link edges.
-    s_.keys.clear();
     for (SimplexId t : star) {
       for (SimplexId w : topo_.tetrahedron(t)) {
-        if (w != v) s_.keys.push_back(int64_t(index.IndexOf(w)));
+        if (w != v) index.IndexOf(w);
       }
     }
-    s_.link.Reset(index.vertices().size());
-    for (size_t i = 0; i < s_.keys.size(); i += 3) {
-      s_.link.AddTriangle(size_t(s_.keys[i]), size_t(s_.keys[i + 1]), size_t(s_.keys[i + 2]));
-    }
-    return s_.link.AnyOnce();
   }
-
   void VertexNeighbors(RelationBlock& out) {
     const RelationBlock star = BlockStars(out);
     out.offsets.assign(size_t(out.count) + 1, 0);
     out.values.clear();
     for (SimplexId i = 0; i < out.count; ++i) {
-      ScanStar(vbegin_ + i, star.row(i), false);
+      ScanStar(vbegin_ + i, star.row(i));
       const auto row = s_.link_vertices.vertices();
       out.values.insert(out.values.end(), row.begin(), row.end());
       std::sort(out.values.begin() + out.offsets[i], out.values.end());
@@ -580,18 +561,55 @@ class BlockComputer {
     });
   }
 
-  // A vertex or edge is on the boundary iff it is a face of a boundary triangle. A vertex: from
-  // its star (ScanStar). An edge: from the boundary bits of the triangles the block's vertices
-  // can be in, no triangle search.
+  // A vertex or edge is on the boundary iff it is a face of a boundary triangle, one that lies
+  // in one tetrahedron only.
+  // A vertex: the block's triangles with a vertex inside are counted over its tetrahedra. Every
+  // tetrahedron with such a triangle has that vertex, so is the block's: each tetrahedron is read
+  // once (scanning each vertex's star would read it once per vertex it has inside, mostly four
+  // times) and no faces are needed (TopologyOptions::faces).
   void VertexOnBoundary(RelationBlock& out) {
-    const RelationBlock star = BlockStars(out);
     out.stride = 1;
     out.values.assign(out.count, 0);
-    for (SimplexId i = 0; i < out.count; ++i) {
-      out.values[i] = ScanStar(vbegin_ + i, star.row(i), true);
+    const size_t tets =
+        topo_.external_tetrahedra(b_).size() +
+        size_t(topo_.block_tetrahedron_begin(b_ + 1) - topo_.block_tetrahedron_begin(b_));
+    // About two distinct triangles per tetrahedron (each inner one is shared by two): the table
+    // stays at most half full.
+    const size_t capacity = std::bit_ceil(std::max<size_t>(16, 4 * tets));
+    const size_t mask = capacity - 1;
+    std::vector<TriangleCount>& table = s_.triangles;
+    table.assign(capacity, TriangleCount{});
+    ForEachTet(b_, [&](SimplexId, const SimplexId* s) {
+      for (const auto& face : kTetFaces) {
+        const SimplexId a = s[face[0]], b = s[face[1]], c = s[face[2]];
+        if (!Inside(a) && !Inside(b) && !Inside(c)) continue;
+        size_t slot = ((uint64_t(uint32_t(a)) * 0x9E3779B97F4A7C15ULL ^
+                        uint64_t(uint32_t(b)) * 0xC2B2AE3D27D4EB4FULL ^
+                        uint64_t(uint32_t(c)) * 0x165667B19E3779F9ULL) >>
+                       32) &
+                      mask;
+        for (;; slot = (slot + 1) & mask) {
+          TriangleCount& entry = table[slot];
+          if (entry.a < 0) {
+            entry = {a, b, c, 1};
+            break;
+          }
+          if (entry.a == a && entry.b == b && entry.c == c) {
+            entry.count = 2;  // two or more: not on the boundary
+            break;
+          }
+        }
+      }
+    });
+    for (const TriangleCount& entry : table) {
+      if (entry.count != 1) continue;
+      for (SimplexId v : {entry.a, entry.b, entry.c}) {
+        if (Inside(v)) out.values[v - vbegin_] = 1;
+      }
     }
   }
 
+  // An edge: from the boundary bits of the triangles the block's vertices can be in.
   void EdgeOnBoundary(RelationBlock& out) {
     out.stride = 1;
     out.values.assign(out.count, 0);

@@ -47,12 +47,18 @@ struct RelationBlock {
   }
 };
 
+// A triangle (sorted vertices) and the number of tetrahedra seen with it, up to 2 (VB).
+struct TriangleCount {
+  SimplexId a = -1, b = -1, c = -1;  // a == -1: an empty slot
+  int32_t count = 0;
+};
+
 // Reusable per-thread buffers.
 struct BlockScratch {
   std::vector<SimplexId> rows, values, counts, mark, tmp, candidates;
   std::vector<int64_t> keys;
-  LinkEdgeCounter link;           // VB
-  LinkVertexIndex link_vertices;  // a vertex's neighbours (VV, VB)
+  std::vector<TriangleCount> triangles;  // VB: an open-addressing table
+  LinkVertexIndex link_vertices;         // a vertex's neighbours (VV)
 };
 
 // Computes R (not a static relation: EV, FV, TV, FB live in the topology) for block b.
