@@ -162,7 +162,9 @@ class ActopoStructure::Consumer {
     if (options_.prefetch == Prefetch::kAdaptive) model_.Learn(previous_block, block);
     if (const RelationBlock* data = buffer_.TryPin(block, r)) {
       hits_.Add(1);
-      if (block == trigger_block_.load(std::memory_order_relaxed)) Hint(block, r);
+      if (block == trigger_block_.load(std::memory_order_relaxed) && planner_.Follows(r)) {
+        Hint(block, r);
+      }
       return data;
     }
     misses_.Add(1);
@@ -239,7 +241,7 @@ class ActopoStructure::Consumer {
         buffer_.StartComputing(block, r)) {
       // Compute it here: waking the leader to compute exactly this would only add a hand-off.
       // The leader still learns where the consumer is and re-plans.
-      PostHint(block, r);
+      if (planner_.Follows(r)) PostHint(block, r);
       const RelationBlock* data =
           Compute({block, r}, ProducerRole::kConsumer, /*pin=*/true, scratch);
       wait_ns_.Add(NanosSince(start));
@@ -333,7 +335,7 @@ class ActopoStructure::Consumer {
         const std::vector<int32_t> prediction = request_prediction_;
         Serve(request, scratch);
         if (stop_) return;
-        Replan(request, prediction);
+        if (planner_.Follows(request.relation)) Replan(request, prediction);
       } else if (hint_seq_ != seen_hint) {
         seen_hint = hint_seq_;
         Replan(hint_, hint_prediction_);

@@ -40,8 +40,11 @@
 //   the consumer, by the leader (it was ready, or the leader computed it) or by the Publish of
 //   whoever computed it. The consumer waits until served_seq >= its request's number.
 // - hint_seq: the consumer tells the leader where it is without waiting (it reached the trigger
-//   block of the current plan, or computes a miss itself under kConsumer). The leader keeps the
-//   last request and hint numbers it has handled and re-plans once per new one.
+//   block of the current plan, or computes a miss itself under kConsumer), on the relations
+//   the plan follows (PrefetchPlanner::Follows: not critical points' VB, read wherever a
+//   boundary vertex's neighbours lie). A request on another relation is served, not planned from.
+//   The leader keeps the last request and hint numbers it has handled and re-plans once per new
+//   one.
 //
 // Locks, in the order they nest (a thread holding one takes only locks listed below it):
 //   lifecycle_mu  Start/Stop of the producer threads (Shutdown and the destructor may race).

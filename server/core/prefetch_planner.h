@@ -12,6 +12,7 @@
 #ifndef ACTOPO_SERVER_CORE_PREFETCH_PLANNER_H_
 #define ACTOPO_SERVER_CORE_PREFETCH_PLANNER_H_
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <span>
@@ -96,6 +97,15 @@ class PrefetchPlanner {
   // - trigger: the middle block of a linear window, the first block of a spatial or adaptive one.
   void Make(BlockTask from, std::span<const int32_t> predicted,
             absl::FunctionRef<bool(int32_t, Relation)> needed, Plan& out) const;
+
+  // Whether the consumer's reads of `r` say where its sweep goes, so that a miss or a trigger
+  // on `r` should re-plan: every relation under kRequested; under kDeclared the relations it
+  // plans. Critical points sweeps VT block by block and reads VB of boundary vertices'
+  // neighbours, in whatever blocks they lie: a plan from there computes blocks nobody reads.
+  bool Follows(Relation r) const {
+    return options_.precompute != Precompute::kDeclared ||
+           std::find(declared_.begin(), declared_.end(), r) != declared_.end();
+  }
 
   const Options& options() const { return options_; }
 

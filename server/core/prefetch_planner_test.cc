@@ -102,6 +102,20 @@ TEST_F(PrefetchPlannerTest, DeclaredPlansTheWholeSetOnTheMovedToBlockToo) {
                                std::pair(5, Relation::kVE), std::pair(5, Relation::kVT)));
 }
 
+TEST_F(PrefetchPlannerTest, OnlyThePlannedRelationsOfADeclaredSetSayWhereTheSweepGoes) {
+  // Critical points: VT swept block by block, VB read wherever a boundary vertex's neighbours
+  // lie. A miss on VB must not move the plan there.
+  PrefetchPlanner declared(
+      *topo_, {.precompute = Precompute::kDeclared, .declared = {Relation::kVT, Relation::kTV}});
+  EXPECT_TRUE(declared.Follows(Relation::kVT));
+  EXPECT_FALSE(declared.Follows(Relation::kVB));
+  EXPECT_FALSE(declared.Follows(Relation::kTV)) << "static: never planned";
+  // Under kRequested the plan is of whatever relation was read, so every read guides it.
+  PrefetchPlanner requested(*topo_,
+                            {.precompute = Precompute::kRequested, .declared = {Relation::kVT}});
+  EXPECT_TRUE(requested.Follows(Relation::kVB));
+}
+
 TEST_F(PrefetchPlannerTest, LeavesOutWhatIsNotNeeded) {
   PrefetchPlanner planner(*topo_, {.prefetch = Prefetch::kLinear, .window = 4});
   planner.Make(
