@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Runs every fuzz target for SECONDS each, starting from its seed corpus (fuzz/corpus/<target>)
-# plus what earlier runs found (BUILD/corpus/<target>), and prints executions and coverage.
+# Runs every fuzz target for SECONDS each, as many at once as there are cores, starting from its
+# seed corpus (fuzz/corpus/<target>) plus what earlier runs found (BUILD/corpus/<target>), and
+# prints executions and coverage.
 # A crash, a sanitizer report, a timeout or an out-of-memory leaves the input in
 # BUILD/artifacts/ and fails the run, except for mesh_file_fuzzer's findings inside VTK's readers
 # (memory a corrupt file claims, see fuzz/README.md): the server reads files in a child process
@@ -12,14 +13,14 @@ set -uo pipefail
 build=${1:?build directory}
 seconds=${2:-60}
 here=$(cd "$(dirname "$0")" && pwd)
-failed=0
 mkdir -p "$build/artifacts"
-for target in upload_fuzzer mesh_file_fuzzer partition_fuzzer request_fuzzer; do
-  name=${target%_fuzzer}
-  work="$build/corpus/$name"
+
+# Fuzzes one target; prints its verdict; returns 1 when the run should fail.
+fuzz_one() {
+  local target=$1 name=${1%_fuzzer}
+  local work="$build/corpus/$name" log="$build/$1.log"
   mkdir -p "$work"
-  log="$build/$target.log"
-  extra=()
+  local extra=()
   # VTK's XML parser is not exception-safe: on the corrupt files where it throws (which ReadMesh
   # turns into an error) it leaks the arrays it was filling, a few hundred bytes of VTK's own.
   # Corrupt sizes in a file make VTK allocate what they claim: mesh_file_fuzzer's operator new
@@ -30,20 +31,37 @@ for target in upload_fuzzer mesh_file_fuzzer partition_fuzzer request_fuzzer; do
     -max_total_time="$seconds" -timeout=20 \
     -rss_limit_mb=3072 -print_final_stats=1 -artifact_prefix="$build/artifacts/$name-" \
     >"$log" 2>&1
-  status=$?
+  local status=$?
+  local done_line runs
   done_line=$(grep -E "^#[0-9]+[[:space:]]+DONE" "$log" | tail -1)
   runs=$(grep -E "^stat::number_of_executed_units" "$log" | awk '{print $2}')
   echo "fuzz: $target: exit $status, ${runs:-?} executions in ${seconds} s; ${done_line:-no final line}"
-  if ((status != 0)); then
-    grep -E "ERROR|SUMMARY|Test unit written" "$log" | head -5
-    # A finding inside VTK's readers (its stack in libvtk, none of it in our parallel .vtu
-    # reader, which runs first) is VTK's, contained by the child-process reader; any other is
-    # ours and fails the run.
-    if [[ $target == mesh_file_fuzzer ]] && grep -q "libvtk" "$log" && ! grep -q "appended_vtu" "$log"; then
-      echo "fuzz: $target: a finding in VTK's reader, kept in $build/artifacts (known, not failing)"
-    else
-      failed=1
-    fi
+  ((status == 0)) && return 0
+  grep -E "ERROR|SUMMARY|Test unit written" "$log" | head -5
+  # A finding inside VTK's readers (its stack in libvtk, none of it in our parallel .vtu
+  # reader, which runs first) is VTK's, contained by the child-process reader; any other is
+  # ours and fails the run.
+  if [[ $target == mesh_file_fuzzer ]] && grep -q "libvtk" "$log" && ! grep -q "appended_vtu" "$log"; then
+    echo "fuzz: $target: a finding in VTK's reader, kept in $build/artifacts (known, not failing)"
+    return 0
   fi
+  return 1
+}
+
+# One libFuzzer process per core at a time (each is single-threaded); verdicts in target order.
+targets=(upload_fuzzer mesh_file_fuzzer partition_fuzzer request_fuzzer)
+parallel=$(nproc 2>/dev/null || echo 1)
+failed=0
+for ((i = 0; i < ${#targets[@]}; i += parallel)); do
+  batch=("${targets[@]:i:parallel}")
+  for target in "${batch[@]}"; do
+    fuzz_one "$target" >"$build/$target.verdict" 2>&1 &
+  done
+  for target in "${batch[@]}"; do
+    wait -n || failed=1
+  done
+  for target in "${batch[@]}"; do
+    cat "$build/$target.verdict"
+  done
 done
 exit $failed
