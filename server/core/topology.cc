@@ -204,9 +204,12 @@ TopologyBytes Topology::bytes() const {
   TopologyBytes b;
   b.vertices =
       VectorBytes(vertex_block_) + VectorBytes(vertex_input_id_) + VectorBytes(vertex_internal_id_);
-  b.edges = VectorBytes(edge_upper_) + VectorBytes(vertex_edge_begin_) + edge_lowest_.bytes();
-  b.triangles = VectorBytes(triangle_third_) + VectorBytes(edge_triangle_begin_) +
-                triangle_edge_.bytes() + VectorBytes(triangle_boundary_);
+  // Faces being built by EnsureFaces are not read (has_faces_); their memory is the caller's.
+  if (has_faces()) {
+    b.edges = VectorBytes(edge_upper_) + VectorBytes(vertex_edge_begin_) + edge_lowest_.bytes();
+    b.triangles = VectorBytes(triangle_third_) + VectorBytes(edge_triangle_begin_) +
+                  triangle_edge_.bytes() + VectorBytes(triangle_boundary_);
+  }
   // tet_internal_id_ is built on first use by the service; not part of what algorithms need.
   b.tetrahedra = VectorBytes(tet_vertices_) + VectorBytes(tet_input_id_);
   b.blocks = VectorBytes(block_vertex_begin_) + VectorBytes(block_tet_begin_) +
@@ -296,6 +299,9 @@ struct Topology::Encoder {
   absl::Status SumRunStarts();
   void BuildRunLookups();
   void ListBlockNeighbors();
+  // The edges and triangles: ReserveFaces to BuildRunLookups, progress `phase` going from
+  // `from` to `to`; sets has_faces_ when done. On a stop the caller clears what was built.
+  absl::Status BuildFaces(const Progress& progress, std::string_view phase, double from, double to);
 };
 
 // Renumbers the vertices block by block; leaves the permutations and vertex_block_ for the tets.
@@ -644,8 +650,9 @@ absl::Status Topology::Encoder::SumRunStarts() {
 
 // Builds the edge -> vertex and triangle -> edge lookups.
 void Topology::Encoder::BuildRunLookups() {
-  t.edge_lowest_.Build(t.vertex_edge_begin_, t.num_edges(), threads);
-  t.triangle_edge_.Build(t.edge_triangle_begin_, t.num_triangles(), threads);
+  // Not num_edges() and num_triangles(): they say 0 until has_faces_ is set.
+  t.edge_lowest_.Build(t.vertex_edge_begin_, SimplexId(t.edge_upper_.size()), threads);
+  t.triangle_edge_.Build(t.edge_triangle_begin_, SimplexId(t.triangle_third_.size()), threads);
 }
 
 // Concatenates the per-block neighbour lists into the block adjacency, the topology's last part.
@@ -706,26 +713,62 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     encoder.ListBlockNeighbors();
   }
   if (options.faces) {
-    {
-      auto span = step("faces");
-      encoder.ReserveFaces();
-      for (int32_t window = 0; window < num_blocks; window += kWindow) {
-        // Edges and triangles are about three quarters of the time.
-        RETURN_IF_ERROR(progress.Update(kPhase, 0.2 + 0.75 * window / num_blocks));
-        const int32_t window_size = std::min(kWindow, num_blocks - window);
-        encoder.ComputeWindowFaces(window, window_size);
-        encoder.AppendWindowFaces(window_size);
-      }
-      encoder.faces.clear();  // the last window's, now appended
-    }
-    RETURN_IF_ERROR(progress.Update(kPhase, 0.95));
-    auto span = step("run lookups");
-    RETURN_IF_ERROR(encoder.SumRunStarts());
-    encoder.BuildRunLookups();
-    t.has_faces_ = true;
+    auto span = step("faces");
+    // Edges and triangles are about three quarters of the time.
+    RETURN_IF_ERROR(encoder.BuildFaces(progress, kPhase, 0.2, 1));
   }
   RETURN_IF_ERROR(progress.Update(kPhase, 1));
   return topo;
+}
+
+absl::Status Topology::Encoder::BuildFaces(const Progress& progress, std::string_view phase,
+                                           double from, double to) {
+  ReserveFaces();
+  const double span = to - from;
+  for (int32_t window = 0; window < num_blocks; window += kWindow) {
+    RETURN_IF_ERROR(progress.Update(phase, from + 0.95 * span * window / num_blocks));
+    const int32_t window_size = std::min(kWindow, num_blocks - window);
+    ComputeWindowFaces(window, window_size);
+    AppendWindowFaces(window_size);
+  }
+  faces.clear();  // the last window's, now appended
+  RETURN_IF_ERROR(progress.Update(phase, from + 0.95 * span));
+  RETURN_IF_ERROR(SumRunStarts());
+  BuildRunLookups();
+  t.has_faces_.store(true, std::memory_order_release);
+  return absl::OkStatus();
+}
+
+absl::Status Topology::EnsureFaces(const Progress& progress, const FacesOptions& options) const {
+  if (has_faces()) return absl::OkStatus();
+  MutexLock lock(faces_mu_);
+  if (has_faces()) return absl::OkStatus();  // built while this call waited
+  auto span = Trace::Scope(options.trace, "faces", "encode");
+  // Every topology is made by Build (new Topology, never a const object), and what this writes
+  // no reader reads before has_faces_ says it is there (see has_faces_).
+  Topology& t = const_cast<Topology&>(*this);
+  static const Mesh kNoMesh{};  // the face steps read the topology's own tetrahedra only
+  const TopologyOptions encoding{.faces = true};
+  const int threads = options.threads > 0 ? options.threads : DefaultThreads();
+  Encoder encoder{kNoMesh, {}, num_vertices_, num_tetrahedra(), num_blocks_, threads, t, encoding};
+  RETURN_IF_ERROR(progress.Update("faces", 0));
+  if (absl::Status built = encoder.BuildFaces(progress, "faces", 0, 1); !built.ok()) {
+    t.ClearFaces();
+    return built;
+  }
+  // Built and kept: a stop asked for from now on is the caller's to notice.
+  progress.Update("faces", 1).IgnoreError();
+  return absl::OkStatus();
+}
+
+void Topology::ClearFaces() {
+  vertex_edge_begin_ = {};
+  edge_upper_ = {};
+  edge_lowest_ = {};
+  edge_triangle_begin_ = {};
+  triangle_third_ = {};
+  triangle_edge_ = {};
+  triangle_boundary_ = {};
 }
 
 }  // namespace actopo

@@ -4,6 +4,7 @@
 #include <map>
 #include <random>
 #include <set>
+#include <thread>
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
@@ -188,6 +189,67 @@ TEST(Topology, WithoutFacesTheRestIsTheSame) {
   const std::vector<int32_t> short_blocks(blocks.begin(), blocks.end() - 1);
   EXPECT_THAT(Topology::Build(m, short_blocks, {.faces = false}).status().message(),
               ::testing::HasSubstr("block ids for"));
+}
+
+// Every edge and triangle accessor of `t` agrees with `full`'s, which was built with its faces.
+void ExpectSameFaces(const Topology& t, const Topology& full) {
+  ASSERT_TRUE(t.has_faces());
+  ASSERT_EQ(t.num_edges(), full.num_edges());
+  ASSERT_EQ(t.num_triangles(), full.num_triangles());
+  for (SimplexId e = 0; e < t.num_edges(); ++e) {
+    ASSERT_EQ(t.edge(e), full.edge(e)) << "edge " << e;
+    ASSERT_EQ(t.edge_first_triangle(e), full.edge_first_triangle(e));
+  }
+  for (SimplexId f = 0; f < t.num_triangles(); ++f) {
+    ASSERT_EQ(t.triangle(f), full.triangle(f)) << "triangle " << f;
+    ASSERT_EQ(t.triangle_on_boundary(f), full.triangle_on_boundary(f)) << "triangle " << f;
+  }
+  for (SimplexId v = 0; v <= t.num_vertices(); ++v) {
+    ASSERT_EQ(t.vertex_first_edge(v), full.vertex_first_edge(v));
+  }
+  for (int32_t b = 0; b <= t.num_blocks(); ++b) {
+    ASSERT_EQ(t.block_begin(1, b), full.block_begin(1, b));
+    ASSERT_EQ(t.block_begin(2, b), full.block_begin(2, b));
+  }
+  EXPECT_EQ(t.bytes().total(), full.bytes().total());
+}
+
+// Faces built later, by several callers at once, are the faces Build makes.
+TEST(Topology, FacesEnsuredLaterAreTheSame) {
+  const Mesh m = testing::Lattice(9, 8, 7, 5);
+  const std::vector<int32_t> blocks = OctreeBlocks(m.points, {.bucket_capacity = 20});
+  auto full = *Topology::Build(m, blocks, {.threads = 2});
+  auto t = *Topology::Build(m, blocks, {.threads = 2, .faces = false});
+  ASSERT_FALSE(t->has_faces());
+  // Readers of the rest of the topology go on meanwhile (ThreadSanitizer checks they may).
+  std::vector<std::thread> threads;
+  std::vector<absl::Status> ensured(4);
+  std::atomic<int64_t> read{0};
+  for (int i = 0; i < 4; ++i) {
+    threads.emplace_back([&, i] {
+      int64_t sum = 0;
+      for (SimplexId x = 0; x < t->num_tetrahedra(); ++x) sum += t->tetrahedron(x)[3];
+      read += sum;
+      // Before the faces are there no edge is counted, after them every one.
+      const SimplexId edges = t->num_edges();
+      EXPECT_TRUE(edges == 0 || edges == full->num_edges()) << edges;
+      ensured[i] = t->EnsureFaces({}, {.threads = 2});
+    });
+  }
+  for (std::thread& thread : threads) thread.join();
+  for (const absl::Status& s : ensured) EXPECT_TRUE(s.ok()) << s;
+  EXPECT_GT(read.load(), 0);
+  ExpectSameFaces(*t, *full);
+  EXPECT_TRUE(t->EnsureFaces().ok());  // once built, a no-op
+  EXPECT_EQ(t->FindTriangle(full->triangle(3)[0], full->triangle(3)[1], full->triangle(3)[2]), 3);
+}
+
+TEST(Topology, EnsuringFacesTwiceOnAFullTopologyChangesNothing) {
+  const Mesh m = testing::Lattice(5, 5, 5, 2);
+  auto full = BuildOrDie(m, 9);
+  const int64_t bytes = full->bytes().total();
+  EXPECT_TRUE(full->EnsureFaces().ok());
+  EXPECT_EQ(full->bytes().total(), bytes);
 }
 
 TEST(Topology, EdgesTrianglesAndBoundaryMatchOracle) {
@@ -397,6 +459,37 @@ TEST(TopologyProgress, StopsAtEveryStepWhenCancelled) {
     EXPECT_EQ(int(recorder.fractions.size()), k);
     EXPECT_THAT(built.status().message(), ::testing::HasSubstr("'encode'"));
   }
+}
+
+// A stopped EnsureFaces keeps nothing; the next call builds them whole.
+TEST(TopologyProgress, AStoppedFaceBuildLeavesNothingAndTheNextOneFinishes) {
+  const Mesh m = testing::Lattice(12, 11, 10, 5);
+  const std::vector<int32_t> blocks = OctreeBlocks(m.points, {.bucket_capacity = 3});
+  auto full = *Topology::Build(m, blocks, {});
+  auto t = *Topology::Build(m, blocks, {.faces = false});
+  const int64_t faceless = t->bytes().total();
+  Recorder all;
+  {
+    auto probe = *Topology::Build(m, blocks, {.faces = false});
+    ASSERT_TRUE(probe->EnsureFaces(all.progress()).ok());
+  }
+  ASSERT_GE(all.fractions.size(), 4u);  // 0, a report per window of blocks, 0.95, 1
+  EXPECT_EQ(all.fractions.front(), 0);
+  EXPECT_EQ(all.fractions.back(), 1);
+  EXPECT_TRUE(std::is_sorted(all.fractions.begin(), all.fractions.end()));
+  // Stopped after each report but the last (which comes once they are built and kept).
+  for (int k = 1; k < int(all.fractions.size()); ++k) {
+    Recorder recorder;
+    recorder.stop_after = k;
+    const absl::Status s = t->EnsureFaces(recorder.progress());
+    EXPECT_EQ(s.code(), absl::StatusCode::kCancelled) << "after report " << k;
+    EXPECT_THAT(s.message(), ::testing::HasSubstr("'faces'"));
+    EXPECT_FALSE(t->has_faces());
+    EXPECT_EQ(t->num_edges(), 0);
+    EXPECT_EQ(t->bytes().total(), faceless);
+  }
+  ASSERT_TRUE(t->EnsureFaces().ok());
+  ExpectSameFaces(*t, *full);
 }
 
 TEST(TopologyProgress, APassedDeadlineStopsTheBuild) {

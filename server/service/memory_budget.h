@@ -48,6 +48,7 @@ class Reservation {
   }
   ~Reservation() { Reset(); }
   int64_t bytes() const { return budget_ ? bytes_ : 0; }
+  MemoryBudget* budget() const { return budget_; }
   // Grows (reserving the difference, or failing with nothing changed) or shrinks to `bytes`.
   absl::Status Resize(int64_t bytes, const std::string& what) {
     if (budget_ == nullptr) return absl::FailedPreconditionError("reservation without a budget");

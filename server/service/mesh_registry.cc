@@ -34,16 +34,42 @@ int64_t LoadedMesh::bytes() const {
   return b + (topology ? topology->bytes().total() : 0);
 }
 
+absl::Status LoadedMesh::EnsureFaces(const Progress& progress, Trace* trace) const {
+  if (topology->has_faces()) return absl::OkStatus();
+  MutexLock lock(faces_mu_);
+  if (topology->has_faces()) return absl::OkStatus();
+  // Measured: edges and triangles take 25.6 bytes per tetrahedron on wavelet128 (261 MB); the
+  // window being appended adds little. What they hold is what stays reserved.
+  if (MemoryBudget* budget = reservation.budget(); budget != nullptr) {
+    faces_reservation_ = Reservation(budget);
+    RETURN_IF_ERROR(
+        faces_reservation_.Resize(int64_t(topology->num_tetrahedra()) * 30,
+                                  absl::StrCat("the edges and triangles of mesh '", id, "'")));
+  }
+  absl::Status built = topology->EnsureFaces(progress, {.trace = trace});
+  if (!built.ok()) {
+    faces_reservation_ = Reservation();
+    return built;
+  }
+  if (faces_reservation_.budget() != nullptr) {
+    const TopologyBytes b = topology->bytes();
+    // Shrinking never fails; growing past the estimate might, and keeps the estimate then.
+    faces_reservation_.Resize(b.edges + b.triangles, "").IgnoreError();
+  }
+  return absl::OkStatus();
+}
+
 MeshRegistry::MeshRegistry(MeshRegistryOptions options, MemoryBudget* budget)
     : options_(std::move(options)), budget_(budget) {}
 
 int64_t MeshRegistry::EstimateBytes(int64_t vertices, int64_t tetrahedra, int point_fields) {
-  // Measured: the static encoding is about 49 bytes per tetrahedron (wavelet128, jittered:256),
-  // the mesh itself 24 + 8 per field per vertex and 16 per tetrahedron; faces are appended into
-  // their final arrays, never copied. jittered:256 (99.5M tetrahedra) peaked at 67 bytes per
-  // tetrahedron besides its vertices when the mesh's tetrahedra were kept; 80 covers it with a
-  // margin. Now they are freed before the faces (a byte per tetrahedron stays): once loaded, a
-  // mesh's reservation shrinks to what it holds (Add).
+  // Measured: the static encoding is about 49 bytes per tetrahedron with its faces (wavelet128,
+  // jittered:256), 24 without, the mesh itself 24 + 8 per field per vertex and 16 per
+  // tetrahedron. jittered:256 (99.5M tetrahedra) peaked at 67 bytes per tetrahedron besides its
+  // vertices when the mesh's tetrahedra were kept and its faces built in the load; 80 covers it
+  // with a margin. Now the tetrahedra are freed as they are encoded (a byte per tetrahedron
+  // stays) and the faces wait for a session that reads them (LoadedMesh::EnsureFaces, reserved
+  // then): once loaded, a mesh's reservation shrinks to what it holds (Add).
   return vertices * (48 + 8 * std::max(point_fields - 3, 0)) + tetrahedra * 80;
 }
 
@@ -160,7 +186,10 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Add(
                       {.tetrahedra_read =
                            [&](const Topology&) { std::vector<SimplexId>().swap(mesh.tetrahedra); },
                        .input_corners = &corners,
-                       .release_tetrahedra = true},
+                       .release_tetrahedra = true,
+                       // Built by the first session that reads them (LoadedMesh::EnsureFaces):
+                       // critical points never does.
+                       .faces = false},
                       progress));
   loaded->input_corners = std::make_shared<const std::vector<uint8_t>>(std::move(corners));
   loaded->partition_seconds = SecondsSince(start);

@@ -42,6 +42,16 @@ struct LoadedMesh {
   Reservation reservation;  // its share of the memory budget
 
   int64_t bytes() const;
+  // Builds the topology's edges and triangles on their first need (a job, relation query or
+  // explicit session that reads them; Topology::EnsureFaces), once for every session on the
+  // mesh. Their bytes come from the budget first: RESOURCE_EXHAUSTED naming the mesh when they
+  // do not fit. Stops, keeping nothing, when `progress` says so. The build is a span "faces" of
+  // `trace` when set.
+  absl::Status EnsureFaces(const Progress& progress = {}, Trace* trace = nullptr) const;
+
+ private:
+  mutable Mutex faces_mu_;
+  mutable Reservation faces_reservation_ ABSL_GUARDED_BY(faces_mu_);
 };
 
 struct MeshRegistryOptions {

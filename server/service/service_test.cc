@@ -55,6 +55,13 @@ TEST_F(ServiceTest, MeshLifecycle) {
   EXPECT_EQ(described.mesh().vertices(), 125);
   EXPECT_GT(described.mesh().blocks(), 1);
   EXPECT_EQ(described.mesh().fields_size(), 2);
+  // Edges and triangles wait for their first need, or a describe that asks for them.
+  EXPECT_FALSE(described.mesh().has_edges());
+  get.set_count_faces(true);
+  ASSERT_TRUE(stub_->GetMesh(Context().get(), get, &described).ok());
+  const v1::MeshInfo& m = described.mesh();
+  ASSERT_TRUE(m.has_edges() && m.has_triangles());
+  EXPECT_EQ(m.vertices() - m.edges() + m.triangles() - m.tetrahedra(), 1);  // a ball
   v1::DeleteMeshRequest del;
   del.set_mesh_id(sample);
   v1::DeleteMeshResponse deleted;
@@ -743,6 +750,60 @@ TEST_F(ServiceTest, ConcurrentSessionsOnOneMesh) {
   for (auto& t : threads) t.join();
   for (const std::string& s : summaries) EXPECT_EQ(s, summaries[0]);
   EXPECT_FALSE(summaries[0].empty());
+}
+
+// A mesh is loaded without its edges and triangles; critical points never builds them; the first
+// job and the first query that read them, at once on two sessions, build them once for both.
+TEST_F(ServiceTest, EdgesAndTrianglesAreBuiltOnTheirFirstNeedOnly) {
+  const Mesh mesh = *io::MakeSample("jittered:12");
+  const std::string mesh_id = LoadSample("jittered:12", 100);
+  auto reference = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 100}));
+  const auto describe = [&] {
+    v1::GetMeshRequest get;
+    get.set_mesh_id(mesh_id);
+    v1::GetMeshResponse described;
+    EXPECT_TRUE(stub_->GetMesh(Context().get(), get, &described).ok());
+    return described.mesh();
+  };
+  const auto run = [&](const std::string& session, v1::Algorithm algorithm) {
+    v1::RunJobRequest request;
+    request.set_session_id(session);
+    request.set_algorithm(algorithm);
+    auto context = Context();
+    const JobRun job = RunJob(*stub_, context.get(), request);
+    EXPECT_TRUE(job.status.ok()) << job.status.error_message();
+  };
+  const v1::MeshInfo loaded = describe();
+  EXPECT_FALSE(loaded.has_edges());
+  EXPECT_FALSE(loaded.has_triangles());
+  const std::string jobs = Open(mesh_id, v1::STRUCTURE_ACTOPO);
+  const std::string queries = Open(mesh_id, v1::STRUCTURE_COMPACT);
+  run(jobs, v1::ALGORITHM_CRITICAL_POINTS);
+  EXPECT_FALSE(describe().has_edges());
+  EXPECT_EQ(describe().bytes(), loaded.bytes());
+
+  // Edge 7's vertices, asked while a gradient job on the other session needs the faces too.
+  v1::GetRelationResponse edge;
+  std::thread job([&] { run(jobs, v1::ALGORITHM_DISCRETE_GRADIENT); });
+  {
+    v1::GetRelationRequest q;
+    q.set_session_id(queries);
+    q.set_relation(v1::RELATION_EDGE_VERTICES);
+    q.mutable_simplex()->set_id(7);
+    const grpc::Status s = stub_->GetRelation(Context().get(), q, &edge);
+    EXPECT_TRUE(s.ok()) << s.error_message();
+  }
+  job.join();
+  const v1::MeshInfo built = describe();
+  ASSERT_TRUE(built.has_edges());
+  EXPECT_EQ(built.edges(), reference->num_edges());
+  EXPECT_EQ(built.triangles(), reference->num_triangles());
+  const TopologyBytes faces = reference->bytes();
+  EXPECT_EQ(built.bytes() - loaded.bytes(), faces.edges + faces.triangles);
+  ASSERT_EQ(edge.ids_size(), 2);
+  const auto [a, b] = reference->edge(7);
+  EXPECT_EQ(edge.ids(0), reference->vertex_input_id(a));
+  EXPECT_EQ(edge.ids(1), reference->vertex_input_id(b));
 }
 
 TEST_F(ServiceTest, UploadRoundTrip) {

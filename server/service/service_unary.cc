@@ -132,11 +132,15 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::ListMeshes(grpc::CallbackServerCo
 grpc::ServerUnaryReactor* TopologyServiceImpl::GetMesh(grpc::CallbackServerContext* c,
                                                        const v1::GetMeshRequest* in,
                                                        v1::GetMeshResponse* out) {
-  return Unary(c, "GetMesh", [&]() -> absl::Status {
+  const auto describe = [this, in, out](const Progress& progress) -> absl::Status {
     ASSIGN_OR_RETURN(auto mesh, meshes_->Get(in->mesh_id()));
+    if (in->count_faces()) RETURN_IF_ERROR(mesh->EnsureFaces(progress));
     Fill(*mesh, sessions_->SessionsOnMesh(mesh->id), out->mutable_mesh());
     return absl::OkStatus();
-  });
+  };
+  // Building the faces takes about a second per 10M tetrahedra: not on gRPC's threads.
+  if (in->count_faces()) return Offload(background_, c, "GetMesh", describe);
+  return Unary(c, "GetMesh", [&] { return describe(Progress()); });
 }
 
 grpc::ServerUnaryReactor* TopologyServiceImpl::DeleteMesh(grpc::CallbackServerContext* c,
@@ -205,6 +209,8 @@ absl::Status TopologyServiceImpl::AnswerRelation(const std::string& session_id,
                                                  std::vector<int64_t>* vertices) {
   ASSIGN_OR_RETURN(auto session, sessions_->Get(session_id));
   ASSIGN_OR_RETURN(Relation r, FromProto(relation));
+  // The first query on the mesh that reads edges or triangles builds them, for every session.
+  if (NeedsFaces(r)) RETURN_IF_ERROR(session->mesh().EnsureFaces());
   const int dim = SourceDimension(r);
   SimplexId s = -1;
   switch (simplex.simplex_case()) {
@@ -244,6 +250,8 @@ absl::Status TopologyServiceImpl::AnswerBatch(const std::string& session_id, v1:
                                               std::vector<ItemFailure>* failures) {
   ASSIGN_OR_RETURN(auto session, sessions_->Get(session_id));
   ASSIGN_OR_RETURN(Relation r, FromProto(relation));
+  // The first query on the mesh that reads edges or triangles builds them, for every session.
+  if (NeedsFaces(r)) RETURN_IF_ERROR(session->mesh().EnsureFaces());
   const int dim = SourceDimension(r);
   const bool by_tuple = vertex_tuples != nullptr;
   if (by_tuple == (ids != nullptr)) {

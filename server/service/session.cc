@@ -82,6 +82,9 @@ absl::StatusOr<std::unique_ptr<Session>> Session::Open(std::shared_ptr<const Loa
   s->Touch();
 
   const auto start = Clock::now();
+  // Explicit stores every relation of the mesh, TTK's 20, most of them about edges or triangles.
+  if (options.structure.kind == StructureKind::kExplicit)
+    RETURN_IF_ERROR(mesh->EnsureFaces(progress));
   RETURN_IF_ERROR(progress.Update("precompute", 0));
   s->base_.order = VertexOrder(*mesh->topology, m.point_fields[field].values);
   s->base_.input_corners = mesh->input_corners;
@@ -339,6 +342,10 @@ absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input, const Ru
   const auto start = Clock::now();
   RunContext ctx = context;
   ctx.consumers = options_.structure.consumers;
+  if (NeedsFaces(input.algorithm)) {
+    // The first job on the mesh that reads edges or triangles builds them, for every session.
+    RETURN_IF_ERROR(mesh_->EnsureFaces(ctx.stop(), ctx.trace.get()));
+  }
   JobOutcome out;
   if (explicit_) {
     ASSIGN_OR_RETURN(out.outcome, RunAlgorithm(*explicit_, input, ctx));

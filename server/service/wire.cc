@@ -141,8 +141,10 @@ void Fill(const LoadedMesh& mesh, int sessions, pb::MeshInfo* out) {
   out->set_name(mesh.name);
   out->set_source(mesh.source);
   out->set_vertices(t.num_vertices());
-  out->set_edges(t.num_edges());
-  out->set_triangles(t.num_triangles());
+  if (t.has_faces()) {  // built on their first need (LoadedMesh::EnsureFaces)
+    out->set_edges(t.num_edges());
+    out->set_triangles(t.num_triangles());
+  }
   out->set_tetrahedra(t.num_tetrahedra());
   out->set_blocks(t.num_blocks());
   out->set_block_size(mesh.block_size);
