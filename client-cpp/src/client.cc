@@ -123,12 +123,13 @@ absl::StatusOr<std::vector<MeshInfo>> Client::ListMeshes() {
   return meshes;
 }
 
-absl::StatusOr<MeshInfo> Client::GetMesh(std::string_view mesh_id) {
+absl::StatusOr<MeshInfo> Client::GetMesh(std::string_view mesh_id, bool count_faces) {
   v1::GetMeshRequest request;
   request.set_mesh_id(std::string(mesh_id));
-  ACTOPO_ASSIGN_OR_RETURN(
-      v1::GetMeshResponse response,
-      core_->Unary(&v1::TopologyService::Stub::GetMesh, request, core_->QuickContext()));
+  request.set_count_faces(count_faces);
+  ACTOPO_ASSIGN_OR_RETURN(v1::GetMeshResponse response,
+                          core_->Unary(&v1::TopologyService::Stub::GetMesh, request,
+                                       count_faces ? core_->MeshContext() : core_->QuickContext()));
   return FromProto(response.mesh());
 }
 

@@ -173,9 +173,11 @@ class AsyncClient:
         response = await self._call(self._stub.ListMeshes, _messages.build_list_meshes())
         return _messages.decode_list_meshes(response)
 
-    async def get_mesh(self, mesh: MeshRef) -> MeshInfo:
+    async def get_mesh(self, mesh: MeshRef, *, count_faces: bool = False) -> MeshInfo:
         """See Client.get_mesh()."""
-        response = await self._call(self._stub.GetMesh, _messages.build_get_mesh(mesh))
+        response = await self._call(self._stub.GetMesh,
+                                    _messages.build_get_mesh(mesh, count_faces),
+                                    long=count_faces)
         return _messages.decode_get_mesh(response)
 
     async def delete_mesh(self, mesh: MeshRef) -> None:

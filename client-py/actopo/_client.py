@@ -197,8 +197,11 @@ class Client:
         >>> import numpy as np
         >>> points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
         >>> info = client.upload_mesh((points, [[0, 1, 2, 3]], {"h": points[:, 2]}))
-        >>> info.vertices, info.edges, info.triangles, info.tetrahedra
-        (4, 6, 4, 1)
+        >>> info.vertices, info.tetrahedra, info.edges  # edges and triangles: on first need
+        (4, 1, None)
+        >>> counted = client.get_mesh(info, count_faces=True)
+        >>> counted.edges, counted.triangles
+        (6, 4)
         >>> client.delete_mesh(info)
         """
         requests = _messages.build_upload_mesh(mesh, name, block_size, block_label_field)
@@ -212,9 +215,14 @@ class Client:
         response = self._call(self._stub.ListMeshes, _messages.build_list_meshes())
         return _messages.decode_list_meshes(response)
 
-    def get_mesh(self, mesh: MeshRef) -> MeshInfo:
-        """Describes one mesh (by MeshInfo or id)."""
-        response = self._call(self._stub.GetMesh, _messages.build_get_mesh(mesh))
+    def get_mesh(self, mesh: MeshRef, *, count_faces: bool = False) -> MeshInfo:
+        """Describes one mesh (by MeshInfo or id).
+
+        With count_faces the server first builds the mesh's edges and triangles if it has not
+        yet (about a second per 10M tetrahedra), so that ``edges`` and ``triangles`` are set.
+        """
+        response = self._call(self._stub.GetMesh, _messages.build_get_mesh(mesh, count_faces),
+                              long=count_faces)
         return _messages.decode_get_mesh(response)
 
     def delete_mesh(self, mesh: MeshRef) -> None:

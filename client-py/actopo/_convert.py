@@ -56,7 +56,9 @@ def mesh_info(m: pb.MeshInfo) -> MeshInfo:
     fields = [FieldInfo(name=f.name, dtype=dtype_name(f.dtype), min=f.min, max=f.max)
               for f in m.fields]
     return MeshInfo(mesh_id=m.mesh_id, name=m.name, source=m.source, vertices=m.vertices,
-                    edges=m.edges, triangles=m.triangles, tetrahedra=m.tetrahedra,
+                    edges=m.edges if m.HasField("edges") else None,
+                    triangles=m.triangles if m.HasField("triangles") else None,
+                    tetrahedra=m.tetrahedra,
                     blocks=m.blocks, block_size=m.block_size, fields=fields, bytes=m.bytes,
                     sessions=m.sessions, created=_time(m, "created"),
                     load_seconds=m.load_seconds, partition_seconds=m.partition_seconds)

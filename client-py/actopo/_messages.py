@@ -124,8 +124,8 @@ def decode_list_meshes(response: pb.ListMeshesResponse) -> list[MeshInfo]:
     return [_convert.mesh_info(m) for m in response.meshes]
 
 
-def build_get_mesh(mesh: MeshRef) -> pb.GetMeshRequest:
-    return pb.GetMeshRequest(mesh_id=mesh_id(mesh))
+def build_get_mesh(mesh: MeshRef, count_faces: bool = False) -> pb.GetMeshRequest:
+    return pb.GetMeshRequest(mesh_id=mesh_id(mesh), count_faces=count_faces)
 
 
 def decode_get_mesh(response: pb.GetMeshResponse) -> MeshInfo:

@@ -54,14 +54,19 @@ class FieldInfo:
 
 @dataclass(frozen=True)
 class MeshInfo:
-    """A mesh loaded on the server. Pass it (or its ``mesh_id``) to open_session()."""
+    """A mesh loaded on the server. Pass it (or its ``mesh_id``) to open_session().
+
+    ``edges`` and ``triangles`` are None until the server has built them: it loads a mesh
+    without them and builds them for the first job, relation query or explicit session that
+    reads them (critical points never does), or for ``get_mesh(mesh, count_faces=True)``.
+    """
 
     mesh_id: str
     name: str
     source: str
     vertices: int
-    edges: int
-    triangles: int
+    edges: int | None
+    triangles: int | None
     tetrahedra: int
     blocks: int
     block_size: int

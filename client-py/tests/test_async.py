@@ -144,7 +144,8 @@ def _sync_answers(client: actopo.Client, session: actopo.Session,
     fractions: list[float] = []
     answers = {
         "server_info": client.server_info(),
-        "mesh": client.get_mesh(session.info.mesh_id),
+        # Counted: the faces the first client's jobs build would otherwise tell the two apart.
+        "mesh": client.get_mesh(session.info.mesh_id, count_faces=True),
         "session": _stable(client.get_session(session.session_id)),
         "relation": session.relation("vertex_edges", ids[:1000]),
         "tuples": session.relation("edge_triangles", tuples),
@@ -170,7 +171,7 @@ async def _async_answers(aclient: actopo.AsyncClient, session: actopo.AsyncSessi
     fractions: list[float] = []
     answers = {
         "server_info": await aclient.server_info(),
-        "mesh": await aclient.get_mesh(session.info.mesh_id),
+        "mesh": await aclient.get_mesh(session.info.mesh_id, count_faces=True),
         "session": _stable(await aclient.get_session(session.session_id)),
         "relation": await session.relation("vertex_edges", ids[:1000]),
         "tuples": await session.relation("edge_triangles", tuples),

@@ -24,7 +24,7 @@ RELATIONS = [("vertex_star", "vertices"), ("edge_triangles", "edges"),
 @pytest.fixture(scope="module")
 def mesh(client):
     info = client.sample("jittered:8", block_size=50)
-    yield info
+    yield client.get_mesh(info, count_faces=True)  # the tests name every edge
     client.delete_mesh(info)
 
 

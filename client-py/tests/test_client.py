@@ -13,7 +13,8 @@ import actopo
 def cube(client):
     points, tets, fields = lattice(4)
     mesh = client.upload_mesh((points, tets, fields), name="cube", block_size=8)
-    yield mesh, Oracle(tets)
+    # Counted, so the tests can name every edge and triangle.
+    yield client.get_mesh(mesh, count_faces=True), Oracle(tets)
     client.delete_mesh(mesh)
 
 
@@ -45,7 +46,13 @@ def test_upload_numpy_arrays(cube):
 
 def test_mesh_lifecycle(client):
     mesh = client.load_mesh("manifoldCheck0_tet.vtu")
-    assert (mesh.vertices, mesh.edges, mesh.triangles, mesh.tetrahedra) == (29, 76, 72, 24)
+    # Edges and triangles are built on their first need, or when asked for.
+    assert (mesh.vertices, mesh.edges, mesh.triangles, mesh.tetrahedra) == (29, None, None, 24)
+    assert client.get_mesh(mesh).edges is None
+    counted = client.get_mesh(mesh, count_faces=True)
+    assert (counted.edges, counted.triangles) == (76, 72)
+    assert counted.bytes > mesh.bytes
+    mesh = counted
     assert mesh.fields[0].name == "height" and mesh.fields[0].max == pytest.approx(2.42)
     assert mesh.created is not None and mesh.load_seconds >= 0
     sample = client.sample("jittered:5", block_size=20)

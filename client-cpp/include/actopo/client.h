@@ -164,8 +164,11 @@ struct MeshInfo {
   std::string name;    // file or sample name
   std::string source;  // "file:PATH", "sample:NAME" or "upload"
   int64_t vertices = 0;
-  int64_t edges = 0;
-  int64_t triangles = 0;
+  // Unset until the server has built them: it loads a mesh without its edges and triangles and
+  // builds them for the first job, relation query or explicit session that reads them (critical
+  // points never does), or for GetMesh with count_faces.
+  std::optional<int64_t> edges;
+  std::optional<int64_t> triangles;
   int64_t tetrahedra = 0;
   int32_t blocks = 0;      // blocks of the partition
   int32_t block_size = 0;  // octree bucket capacity used, 0 when partitioned by labels
@@ -621,7 +624,10 @@ class Client {
                                       const std::vector<ScalarField>& fields = {},
                                       const UploadOptions& options = {});
   absl::StatusOr<std::vector<MeshInfo>> ListMeshes();
-  absl::StatusOr<MeshInfo> GetMesh(std::string_view mesh_id);
+  // With count_faces the server first builds the mesh's edges and triangles if it has not yet
+  // (about a second per 10M tetrahedra; the call then gets ClientOptions::mesh_timeout), so
+  // that MeshInfo::edges and triangles are set.
+  absl::StatusOr<MeshInfo> GetMesh(std::string_view mesh_id, bool count_faces = false);
   // Deletes a mesh; the server frees it once no session uses it.
   absl::Status DeleteMesh(std::string_view mesh_id);
 

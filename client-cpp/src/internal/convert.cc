@@ -50,8 +50,8 @@ MeshInfo FromProto(const v1::MeshInfo& mesh) {
   out.name = mesh.name();
   out.source = mesh.source();
   out.vertices = mesh.vertices();
-  out.edges = mesh.edges();
-  out.triangles = mesh.triangles();
+  if (mesh.has_edges()) out.edges = mesh.edges();
+  if (mesh.has_triangles()) out.triangles = mesh.triangles();
   out.tetrahedra = mesh.tetrahedra();
   out.blocks = mesh.blocks();
   out.block_size = mesh.block_size();
