@@ -293,7 +293,9 @@ def cmd_run(client: Client, args: argparse.Namespace) -> None:
                              trace=bool(args.trace), digests=args.digests,
                              progress=_progress(args))
         stats = session.stats()
-        report = _report(mesh.info, session, result, stats, parameters,
+        # Described again: edges and triangles are counted once a job has built them (as in
+        # actopo-bench's report, null when it needed none).
+        report = _report(client.get_mesh(mesh.info), session, result, stats, parameters,
                          time.perf_counter() - start)
         if args.trace:
             report["trace"] = result.save_trace(args.trace)

@@ -14,8 +14,10 @@
 
 namespace actopo {
 
-// scalars: one finite value per input vertex. Returns the rank of each internal vertex.
-std::vector<SimplexId> VertexOrder(const Topology& topology, std::span<const double> scalars);
+// scalars: one finite value per input vertex. Returns the rank of each internal vertex. Sorted
+// in `threads` runs (0: DefaultThreads()), the same order for any count.
+std::vector<SimplexId> VertexOrder(const Topology& topology, std::span<const double> scalars,
+                                   int threads = 0);
 
 }  // namespace actopo
 
