@@ -106,7 +106,7 @@ struct TopologyOptions {
   // be called until Topology::EnsureFaces has built them (has_faces() says which).
   bool faces = true;
   // Records each step of the encoding as a span (category "encode": sort vertices, bucket
-  // tetrahedra, sort tetrahedra, external tetrahedra, faces, run lookups), when set.
+  // tetrahedra, sort tetrahedra, external tetrahedra, block neighbors, faces), when set.
   Trace* trace = nullptr;
 };
 
