@@ -66,9 +66,17 @@ absl::Status Consume(const v1::RunJobResponse& response, const JobOptions& optio
       result.job_id = response.accepted().job_id();
       if (options.on_accepted) options.on_accepted(result.job_id);
       break;
-    case v1::RunJobResponse::kProgress:
-      if (options.progress) options.progress(response.progress().fraction());
+    case v1::RunJobResponse::kProgress: {
+      const v1::JobProgress& p = response.progress();
+      // A server that reports no phase runs the algorithm only.
+      const std::string phase = p.phase().empty() ? "run" : p.phase();
+      if (options.progress && phase == "run") options.progress(p.fraction());
+      if (options.phase_progress) {
+        options.phase_progress(
+            {.phase = phase, .fraction = p.fraction(), .elapsed_seconds = p.elapsed_seconds()});
+      }
       break;
+    }
     case v1::RunJobResponse::kChunk: return arrays.Add(response.chunk());
     case v1::RunJobResponse::kSummary: {
       have_summary = true;

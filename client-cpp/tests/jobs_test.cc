@@ -205,6 +205,41 @@ TEST_F(ServerTest, JobCallbackMayThrow) {
                std::runtime_error);
 }
 
+// The first job on a mesh that reads faces reports their build (phase "faces", 0 to 1) before
+// its run; `progress` gets the run's fractions only, `phase_progress` every report.
+TEST_F(ServerTest, AJobReportsItsPhases) {
+  const std::string session =
+      Open(LoadSample("jittered:10", 50), {.structure = Structure::kCompact});
+  std::vector<double> run;
+  std::vector<JobProgress> reports;
+  ASSERT_OK(
+      client().RunJob(session, "discrete-gradient", {},
+                      {.include_arrays = false,
+                       .progress = [&](double f) { run.push_back(f); },
+                       .phase_progress = [&](const JobProgress& p) { reports.push_back(p); }}));
+  ASSERT_GE(reports.size(), 3u);
+  EXPECT_EQ(reports.front().phase, "faces");
+  EXPECT_EQ(reports.front().fraction, 0.0);
+  const auto first_run = std::find_if(reports.begin(), reports.end(),
+                                      [](const JobProgress& p) { return p.phase != "faces"; });
+  ASSERT_NE(first_run, reports.begin());
+  EXPECT_EQ((first_run - 1)->fraction, 1.0);
+  std::vector<double> reported_run;
+  double elapsed = 0;
+  for (auto p = reports.begin(); p != reports.end(); ++p) {
+    EXPECT_GE(p->elapsed_seconds, elapsed);
+    elapsed = p->elapsed_seconds;
+    if (p >= first_run) {
+      EXPECT_EQ(p->phase, "run");
+      reported_run.push_back(p->fraction);
+    }
+  }
+  EXPECT_EQ(run, reported_run);
+  EXPECT_TRUE(std::is_sorted(run.begin(), run.end()));
+  ASSERT_FALSE(run.empty());
+  EXPECT_NEAR(run.back(), 1.0, 1e-9);
+}
+
 // Waits until the server says no job runs on `session`.
 void WaitIdle(Client& client, const std::string& session) {
   for (int i = 0; i < 200; ++i) {

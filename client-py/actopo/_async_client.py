@@ -47,6 +47,7 @@ from actopo._requests import MeshRef, SimplexArg, SimplexIds
 from actopo._results import Assembler, JobResult
 from actopo._stub import async_stub
 from actopo._types import (
+    JobProgress,
     LoadProgress,
     MeshInfo,
     RelationBatch,
@@ -412,14 +413,14 @@ class AsyncJob:
     def __repr__(self) -> str:
         return f"actopo.AsyncJob({self.job_id!r}, {self.algorithm!r})"
 
-    async def _read(self, on_progress: Callable[[float], Any] | None = None) -> bool:
+    async def _read(self, on_progress: Callable[[JobProgress], Any] | None = None) -> bool:
         """Reads one response; False at the end of the stream."""
         response = await anext(self._responses, None)
         if response is None:
             return False
-        fraction = self._assembler.feed(response)
-        if fraction is not None and on_progress is not None:
-            on_progress(fraction)
+        report = self._assembler.feed(response)
+        if report is not None and on_progress is not None:
+            on_progress(report)
         return True
 
     async def _accepted(self) -> None:

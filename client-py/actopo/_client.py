@@ -441,7 +441,9 @@ class Session:
         "0.05"}`` or ``{"persistence_threshold": "2.5"}`` (topological-simplification, and
         morse-smale on the simplified field), ``{"relations": "all"}`` (topo-relations: 22
         relations instead of TTK's 20).
-        `progress`: True for a progress bar on stderr, or a callable(fraction).
+        `progress`: True for progress bars on stderr, one per phase ("faces": the mesh's edges
+        and triangles, built by the first job or query on the mesh that reads them; then the
+        run), or a callable(fraction) of the run.
         `include_arrays`: False to receive only the summary and statistics.
         `trace`: True to record where the job's threads spent their time, as a Chrome trace
         (``result.trace``; ``result.save_trace("job.json")`` and open it in ui.perfetto.dev).
@@ -557,9 +559,9 @@ class Job:
             try:
                 with translated():
                     for response in self._call:
-                        fraction = self._assembler.feed(response)
-                        if fraction is not None:
-                            bar.update(fraction)
+                        report = self._assembler.feed(response)
+                        if report is not None:
+                            bar.update(report)
                     return self._assembler.result()
             except KeyboardInterrupt:
                 self._call.cancel()

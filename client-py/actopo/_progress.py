@@ -7,10 +7,11 @@ import sys
 from collections.abc import Callable
 from typing import Any, Generic, Protocol, TypeAlias, TypeVar
 
-from actopo._types import LOAD_PHASES, LoadProgress
+from actopo._types import LOAD_PHASES, JobProgress, LoadProgress
 
 ProgressArg: TypeAlias = bool | Callable[[float], Any] | None
-"""Of jobs: False/None for nothing, True for a bar, or a callable(fraction)."""
+"""Of jobs: False/None for nothing, True for a bar per phase, or a callable(fraction) of the
+algorithm's run (the phase "faces" before it, when there is one, reaches bars only)."""
 LoadProgressArg: TypeAlias = bool | Callable[[LoadProgress], Any] | None
 """Of loads: False/None for nothing, True for a bar per phase, or a callable(LoadProgress)."""
 
@@ -108,30 +109,52 @@ def _bar(description: str) -> Progress[float]:
 
 
 class _PhaseBars:
-    """A load's bars: one per phase, each replacing the previous one, named after the phase
-    ("load sample:wavelet:64 (partition 2/3)") and filled by the phase's fraction."""
+    """One bar per phase, each replacing the previous one, named by `label(phase)` and filled by
+    the phase's fraction."""
 
-    def __init__(self, description: str) -> None:
-        self._description = description
+    def __init__(self, label: Callable[[str], str]) -> None:
+        self._label = label
         self._phase: str | None = None
         self._bar: Progress[float] = _Silent()
 
-    def update(self, report: LoadProgress) -> None:
+    def update(self, report: LoadProgress | JobProgress) -> None:
         if report.phase != self._phase:
             self._bar.close()
             self._phase = report.phase
-            self._bar = _bar(f"{self._description} ({_step(report.phase)})")
+            self._bar = _bar(self._label(report.phase))
         self._bar.update(report.fraction)
 
     def close(self) -> None:
         self._bar.close()
 
 
-def _step(phase: str) -> str:
-    """"encode 3/3" for a phase the client knows, the phase's name for any other."""
+def _load_label(description: str, phase: str) -> str:
+    """"load sample:wavelet:64 (encode 3/3)" for a phase the client knows, the phase's name for
+    any other."""
     if phase not in LOAD_PHASES:
-        return phase
-    return f"{phase} {LOAD_PHASES.index(phase) + 1}/{len(LOAD_PHASES)}"
+        return f"{description} ({phase})"
+    return f"{description} ({phase} {LOAD_PHASES.index(phase) + 1}/{len(LOAD_PHASES)})"
+
+
+def _job_label(description: str, phase: str) -> str:
+    """The algorithm's name for its run; what a phase before it does, for that phase."""
+    if phase == "faces":
+        return f"{description} (the mesh's edges and triangles, once per mesh)"
+    return description if phase == "run" else f"{description} ({phase})"
+
+
+class _RunFraction:
+    """A job's callable(fraction): the run's reports only."""
+
+    def __init__(self, callback: Callable[[float], Any]) -> None:
+        self._callback = callback
+
+    def update(self, report: JobProgress) -> None:
+        if report.phase == "run":
+            self._callback(report.fraction)
+
+    def close(self) -> None:
+        pass
 
 
 def _choose(progress: bool | Callable[[_T], Any] | None,
@@ -143,11 +166,15 @@ def _choose(progress: bool | Callable[[_T], Any] | None,
     return bar()
 
 
-def make_progress(progress: ProgressArg, description: str) -> Progress[float]:
-    """Of a job: nothing, a bar named `description`, or the caller's callable(fraction)."""
-    return _choose(progress, lambda: _bar(description))
+def make_progress(progress: ProgressArg, description: str) -> Progress[JobProgress]:
+    """Of a job: nothing, a bar per phase named after `description`, or the caller's
+    callable(fraction) of the run."""
+    if callable(progress):
+        return _RunFraction(progress)
+    return _choose(progress, lambda: _PhaseBars(lambda phase: _job_label(description, phase)))
 
 
 def make_load_progress(progress: LoadProgressArg, description: str) -> Progress[LoadProgress]:
     """Of a load: nothing, a bar per phase, or the caller's callable(LoadProgress)."""
-    return _choose(progress, lambda: _PhaseBars(description))
+    return _choose(progress,
+                   lambda: _PhaseBars(lambda phase: _load_label(description, phase)))

@@ -17,7 +17,7 @@ from actopo._errors import ActopoError
 from actopo._literals import Algorithm
 from actopo._proto import pb
 from actopo._simplified import SimplifiedField
-from actopo._types import JobStats
+from actopo._types import JobProgress, JobStats
 
 
 @dataclass
@@ -149,13 +149,15 @@ class Assembler:
         self._buffers: dict[str, tuple[bytearray, np.dtype[Any], tuple[int, ...]]] = {}
         self._trace: bytearray | None = None
 
-    def feed(self, response: pb.RunJobResponse) -> float | None:
-        """Takes one response; returns the progress fraction when it is a progress message."""
+    def feed(self, response: pb.RunJobResponse) -> JobProgress | None:
+        """Takes one response; returns the progress report when it is a progress message."""
         event = response.WhichOneof("event")
         if event == "accepted":
             self.job_id = response.accepted.job_id
         elif event == "progress":
-            return response.progress.fraction
+            p = response.progress
+            return JobProgress(phase=p.phase or "run", fraction=p.fraction,
+                               elapsed_seconds=p.elapsed_seconds)
         elif event == "chunk":
             self._chunk(response.chunk)
         elif event == "summary":

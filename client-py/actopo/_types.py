@@ -81,6 +81,21 @@ class MeshInfo:
 LOAD_PHASES = ("read", "partition", "encode")
 """The phases of a load, in the order the server goes through them."""
 
+JOB_PHASES = ("faces", "run")
+"""The phases of a job: "faces" (the mesh's edges and triangles, built once per mesh by the first
+job or query that reads them) when the algorithm reads them, then "run"."""
+
+
+@dataclass(frozen=True)
+class JobProgress:
+    """How far a job has got: its phase (JOB_PHASES), the fraction of that phase done (0 to 1)
+    and the seconds since the job started. A server that reports no phase runs the algorithm
+    only: "run"."""
+
+    phase: str
+    fraction: float
+    elapsed_seconds: float
+
 
 @dataclass(frozen=True)
 class LoadProgress:

@@ -21,6 +21,7 @@ from harness import wait_for
 from references import CASE_IDS, CASES
 
 import actopo
+import actopo._progress
 from actopo._mesh import MeshArrays, mesh_arrays
 
 STRUCTURES = ["explicit", "compact", "actopo"]
@@ -180,6 +181,41 @@ def test_progress_callback_and_bar(fertility_session, capsys):
     fertility_session.run("critical-points", progress=fractions.append, include_arrays=False)
     assert fractions and fractions == sorted(fractions) and fractions[-1] == pytest.approx(1.0)
     fertility_session.run("critical-points", progress=True, include_arrays=False)
+
+
+def test_a_callable_gets_the_run_a_bar_shows_the_faces_first(client, monkeypatch):
+    """The first job on a mesh that reads faces reports their build (phase "faces") before its
+    run: a bar per phase shows it, a callable(fraction) sees only the run, so its fractions
+    still rise once from 0 to 1."""
+    bars: list[str] = []
+
+    class Recorder:
+        def __init__(self, description: str) -> None:
+            bars.append(description)
+
+        def update(self, fraction: float) -> None:
+            pass
+
+        def close(self) -> None:
+            pass
+
+    monkeypatch.setattr(actopo._progress, "_bar", Recorder)
+    for progress_of in ("bar", "callable"):
+        mesh = client.sample("jittered:10", block_size=50)  # blocks enough for several reports
+        assert mesh.edges is None
+        try:
+            with client.open_session(mesh, structure="compact") as session:
+                fractions: list[float] = []
+                session.run("discrete-gradient", include_arrays=False,
+                            progress=True if progress_of == "bar" else fractions.append)
+                if progress_of == "bar":
+                    assert bars == ["discrete-gradient (the mesh's edges and triangles, once "
+                                    "per mesh)", "discrete-gradient"]
+                else:
+                    assert fractions and fractions == sorted(fractions)
+                    assert fractions[0] < 1.0 and fractions[-1] == pytest.approx(1.0)
+        finally:
+            client.delete_mesh(mesh)
 
 
 def test_cancel_from_another_thread(client, big):

@@ -14,9 +14,10 @@ import pyvista as pv
 import actopo
 from actopo import _batches, _mesh, _messages, _names, _requests, _upload
 from actopo._errors import error_for, error_for_number, translate
-from actopo._progress import make_load_progress
+from actopo._progress import make_load_progress, make_progress
 from actopo._proto import pb
 from actopo._results import Assembler
+from actopo._types import JobProgress
 
 POINTS = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], dtype=np.float64)
 TETS = np.array([[0, 1, 2, 3], [1, 2, 3, 4]])
@@ -189,8 +190,8 @@ def test_assembler_joins_pieces_in_any_order():
     summary = pb.RunJobResponse()
     summary.summary.result.update({"critical_cells": [1, 2, 0, 0], "digest": "ab"})
     responses.append(summary)
-    fractions = [a.feed(r) for r in responses]
-    assert fractions == [None, 0.5, None, None, None]
+    reports = [a.feed(r) for r in responses]
+    assert reports == [None, JobProgress("run", 0.5, 0.0), None, None, None]
     result = a.result()
     assert result.job_id == "j1" and result.groups == ["segmentation"]
     np.testing.assert_array_equal(result.segmentation["AscendingManifold"], values)
@@ -230,6 +231,31 @@ def test_load_progress_choices(monkeypatch, capsys):
                  "load x (encode 3/3):  25%", "load x (stitch): 100%"):
         assert f"\r{line}" in err
     assert err.endswith(" \r")  # a bar clears its line when the next one starts, and at the end
+
+
+def test_job_progress_choices(monkeypatch, capsys):
+    """A callable gets the run's fractions; bars show each phase, the faces named for what they
+    are."""
+    fractions: list[float] = []
+    reports = [JobProgress("faces", 0.0, 0.1), JobProgress("faces", 1.0, 0.9),
+               JobProgress("run", 0.5, 1.0), JobProgress("run", 1.0, 1.5)]
+    for progress in (None, False, fractions.append):
+        sink = make_progress(progress, "discrete-gradient")
+        for report in reports:
+            sink.update(report)
+        sink.close()
+    assert fractions == [0.5, 1.0]
+    assert capsys.readouterr().err == ""
+    monkeypatch.setitem(sys.modules, "tqdm.auto", None)  # neither tqdm nor rich: plain lines
+    monkeypatch.setitem(sys.modules, "rich.progress", None)
+    bars = make_progress(True, "discrete-gradient")
+    for report in reports:
+        bars.update(report)
+    bars.close()
+    err = capsys.readouterr().err
+    for line in ("discrete-gradient (the mesh's edges and triangles, once per mesh): 100%",
+                 "discrete-gradient:  50%", "discrete-gradient: 100%"):
+        assert f"\r{line}" in err
 
 
 def test_client_needs_a_target(monkeypatch):

@@ -68,6 +68,17 @@ class Progress {
     return status(phase);
   }
 
+  // The same stops, with `also` called after this one's report on every report.
+  Progress AlsoReporting(Report also) const {
+    Options options = options_;
+    options.report = [first = options_.report, also = std::move(also)](std::string_view phase,
+                                                                       double fraction) {
+      if (first) first(phase, fraction);
+      also(phase, fraction);
+    };
+    return Progress(std::move(options));
+  }
+
  private:
   Options options_;
 };

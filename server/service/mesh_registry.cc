@@ -36,17 +36,41 @@ int64_t LoadedMesh::bytes() const {
 
 absl::Status LoadedMesh::EnsureFaces(const Progress& progress, Trace* trace) const {
   if (topology->has_faces()) return absl::OkStatus();
-  MutexLock lock(faces_mu_);
-  if (topology->has_faces()) return absl::OkStatus();
-  // Measured: edges and triangles take 25.6 bytes per tetrahedron on wavelet128 (261 MB); the
-  // window being appended adds little. What they hold is what stays reserved.
-  if (MemoryBudget* budget = reservation.budget(); budget != nullptr) {
-    faces_reservation_ = Reservation(budget);
-    RETURN_IF_ERROR(
-        faces_reservation_.Resize(int64_t(topology->num_tetrahedra()) * 30,
-                                  absl::StrCat("the edges and triangles of mesh '", id, "'")));
+  {
+    MutexLock lock(faces_mu_);
+    // Another caller's build: wait for its end, but no longer than this caller wants to.
+    auto waiting = Trace::Scope(faces_building_ ? trace : nullptr, "wait for faces", "encode");
+    double reported = -1;
+    while (faces_building_) {
+      const double fraction = faces_fraction_.load(std::memory_order_relaxed);
+      if (fraction != reported) {
+        RETURN_IF_ERROR(progress.Update("faces", fraction));
+        reported = fraction;
+      }
+      RETURN_IF_ERROR(progress.status("faces"));
+      faces_done_.WaitFor(faces_mu_, std::chrono::milliseconds(20));
+    }
+    if (topology->has_faces()) return absl::OkStatus();
+    // Measured: edges and triangles take 25.6 bytes per tetrahedron on wavelet128 (261 MB); the
+    // window being appended adds little. What they hold is what stays reserved.
+    if (MemoryBudget* budget = reservation.budget(); budget != nullptr) {
+      faces_reservation_ = Reservation(budget);
+      RETURN_IF_ERROR(
+          faces_reservation_.Resize(int64_t(topology->num_tetrahedra()) * 30,
+                                    absl::StrCat("the edges and triangles of mesh '", id, "'")));
+    }
+    faces_building_ = true;
+    faces_fraction_.store(0, std::memory_order_relaxed);
   }
-  absl::Status built = topology->EnsureFaces(progress, {.trace = trace});
+  // Not under faces_mu_, so that waiters can give up (Topology::EnsureFaces has its own lock).
+  const absl::Status built =
+      topology->EnsureFaces(progress.AlsoReporting([this](std::string_view, double fraction) {
+        faces_fraction_.store(fraction, std::memory_order_relaxed);
+      }),
+                            {.trace = trace});
+  MutexLock lock(faces_mu_);
+  faces_building_ = false;
+  faces_done_.SignalAll();
   if (!built.ok()) {
     faces_reservation_ = Reservation();
     return built;

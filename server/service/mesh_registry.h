@@ -7,6 +7,7 @@
 #ifndef ACTOPO_SERVER_SERVICE_MESH_REGISTRY_H_
 #define ACTOPO_SERVER_SERVICE_MESH_REGISTRY_H_
 
+#include <atomic>
 #include <map>
 #include <memory>
 #include <string>
@@ -45,12 +46,19 @@ struct LoadedMesh {
   // Builds the topology's edges and triangles on their first need (a job, relation query or
   // explicit session that reads them; Topology::EnsureFaces), once for every session on the
   // mesh. Their bytes come from the budget first: RESOURCE_EXHAUSTED naming the mesh when they
-  // do not fit. Stops, keeping nothing, when `progress` says so. The build is a span "faces" of
-  // `trace` when set.
+  // do not fit. Reports phase "faces" to `progress`, and stops, keeping nothing, when it says
+  // so. A caller that finds another's build running waits for it, reporting that build's
+  // fraction, until it ends or its own `progress` says stop (then CANCELLED or
+  // DEADLINE_EXCEEDED, and the build goes on for the caller that started it); when that build
+  // stopped, the next waiter starts one. The build is a span "faces" of `trace` when set, the
+  // wait a span "wait for faces".
   absl::Status EnsureFaces(const Progress& progress = {}, Trace* trace = nullptr) const;
 
  private:
   mutable Mutex faces_mu_;
+  mutable CondVar faces_done_;  // signalled when a build ends, built or not
+  mutable bool faces_building_ ABSL_GUARDED_BY(faces_mu_) = false;
+  mutable std::atomic<double> faces_fraction_{0};  // of the running build, for its waiters
   mutable Reservation faces_reservation_ ABSL_GUARDED_BY(faces_mu_);
 };
 

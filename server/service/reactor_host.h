@@ -48,11 +48,12 @@ class ReactorHost {
 
   // Relations: one simplex; a batch by ids or vertex_tuples (exactly one non-null) as CSR
   // arrays. With `failures`, an item that fails gets an empty row and an entry there; without,
-  // the first failure fails the call.
+  // the first failure fails the call. The first call on a mesh that reads edges or triangles
+  // builds them (LoadedMesh::EnsureFaces), or waits for their build, until `stop` says so.
   virtual absl::Status AnswerRelation(const std::string& session_id, v1::Relation relation,
                                       const v1::Simplex& simplex, bool include_vertices,
-                                      std::vector<int64_t>& ids,
-                                      std::vector<int64_t>* vertices) = 0;
+                                      std::vector<int64_t>& ids, std::vector<int64_t>* vertices,
+                                      const Progress& stop) = 0;
   struct ItemFailure {
     int64_t index;
     absl::Status status;
@@ -60,7 +61,7 @@ class ReactorHost {
   virtual absl::Status AnswerBatch(const std::string& session_id, v1::Relation relation,
                                    const v1::Array* ids, const v1::Array* vertex_tuples,
                                    v1::Array* offsets, v1::Array* values,
-                                   std::vector<ItemFailure>* failures) = 0;
+                                   std::vector<ItemFailure>* failures, const Progress& stop) = 0;
 
   // Meshes: the mesh a LoadMesh request names, loaded, partitioned and registered; the registry
   // and the memory budget, for uploads.

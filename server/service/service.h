@@ -106,10 +106,12 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService, p
   void BeforeWork(std::string_view rpc) override;
   absl::Status AnswerRelation(const std::string& session_id, v1::Relation relation,
                               const v1::Simplex& simplex, bool include_vertices,
-                              std::vector<int64_t>& ids, std::vector<int64_t>* vertices) override;
+                              std::vector<int64_t>& ids, std::vector<int64_t>* vertices,
+                              const Progress& stop) override;
   absl::Status AnswerBatch(const std::string& session_id, v1::Relation relation,
                            const v1::Array* ids, const v1::Array* vertex_tuples, v1::Array* offsets,
-                           v1::Array* values, std::vector<ItemFailure>* failures) override;
+                           v1::Array* values, std::vector<ItemFailure>* failures,
+                           const Progress& stop) override;
   absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadRequested(
       const v1::LoadMeshRequest& request, const Progress& progress) override;
   MeshRegistry& meshes() override { return *meshes_; }

@@ -47,7 +47,9 @@ class StreamRelationsReactor final
     : public grpc::ServerBidiReactor<v1::StreamRelationsRequest, v1::StreamRelationsResponse> {
  public:
   StreamRelationsReactor(ReactorHost* host, grpc::CallbackServerContext* context)
-      : host_(host), max_answering_(std::max(1, host->relations().threads())) {
+      : host_(host),
+        max_answering_(std::max(1, host->relations().threads())),
+        deadline_(SteadyDeadline(*context)) {
     const absl::Status admitted = host_->Admit(context);
     if (!admitted.ok()) {
       host_->Count("StreamRelations", admitted);
@@ -109,6 +111,10 @@ class StreamRelationsReactor final
     error->set_message(std::string(s.message()));
   }
 
+  // What ends an answer's wait for the mesh's faces: the call cancelled, the client gone, the
+  // call's deadline.
+  Progress Stop() const { return Progress({.cancel = cancel_.get(), .deadline = deadline_}); }
+
   v1::StreamRelationsResponse Answer(const v1::StreamRelationsRequest& request) {
     v1::StreamRelationsResponse response;
     response.set_request_id(request.request_id());
@@ -126,7 +132,7 @@ class StreamRelationsReactor final
     if (request.has_simplex()) {
       std::vector<int64_t> ids;
       const absl::Status s = host_->AnswerRelation(request.session_id(), request.relation(),
-                                                   request.simplex(), false, ids, nullptr);
+                                                   request.simplex(), false, ids, nullptr, Stop());
       if (s.ok()) {
         response.mutable_ids()->Add(ids.begin(), ids.end());
       } else {
@@ -138,7 +144,7 @@ class StreamRelationsReactor final
     const absl::Status s = host_->AnswerBatch(
         request.session_id(), request.relation(), request.has_ids() ? &request.ids() : nullptr,
         request.has_vertex_tuples() ? &request.vertex_tuples() : nullptr,
-        response.mutable_offsets(), response.mutable_values(), &failures);
+        response.mutable_offsets(), response.mutable_values(), &failures, Stop());
     if (!s.ok()) {
       response.clear_offsets();
       response.clear_values();
@@ -220,7 +226,8 @@ class StreamRelationsReactor final
   ReactorHost* host_;
   const int max_answering_;  // answers of this stream computing at once
   const Executor::CancelFlag cancel_ = std::make_shared<std::atomic<bool>>(false);
-  v1::StreamRelationsRequest request_;  // the read's target; moved into the answer task
+  const Progress::Clock::time_point deadline_;  // the call's
+  v1::StreamRelationsRequest request_;          // the read's target; moved into the answer task
   Mutex mu_;
   int64_t next_sequence_ ABSL_GUARDED_BY(mu_) = 0;       // of the next request read
   int64_t next_to_queue_ ABSL_GUARDED_BY(mu_) = 0;       // the answer the queue waits for
@@ -341,17 +348,22 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
       SetThreadRole("job");
       context.trace = std::make_shared<Trace>(kMaxJobTraceEvents);
     }
-    context.progress = [this](double fraction) {
+    const auto start = std::chrono::steady_clock::now();
+    const auto report = [this, start](std::string_view phase, double fraction) {
       v1::RunJobResponse progress;
-      progress.mutable_progress()->set_fraction(fraction);
+      v1::JobProgress* p = progress.mutable_progress();
+      p->set_phase(std::string(phase));
+      p->set_fraction(fraction);
+      p->set_elapsed_seconds(
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
       Push(std::move(progress));
     };
+    context.progress = [report](double fraction) { report("run", fraction); };
     const std::string what = absl::StrCat(
         "job ", job_id_, " (", std::string(AlgorithmName(input_.algorithm)), ", ",
         std::string(StructureName(session_->options().structure.kind)), ", ", session_->id(), ")");
     LogLine(absl::StrCat(what, " started"));
-    const auto start = std::chrono::steady_clock::now();
-    absl::StatusOr<JobOutcome> outcome = session_->RunJob(input_, context);
+    absl::StatusOr<JobOutcome> outcome = session_->RunJob(input_, context, report);
     lease_.Release();  // before the client can see the end of the stream
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

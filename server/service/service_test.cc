@@ -4,6 +4,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstring>
 #include <fstream>
 #include <map>
@@ -804,6 +805,46 @@ TEST_F(ServiceTest, EdgesAndTrianglesAreBuiltOnTheirFirstNeedOnly) {
   const auto [a, b] = reference->edge(7);
   EXPECT_EQ(edge.ids(0), reference->vertex_input_id(a));
   EXPECT_EQ(edge.ids(1), reference->vertex_input_id(b));
+}
+
+// A job's progress says its phase: the first job on a mesh that reads faces reports "faces"
+// (0 to 1) before the algorithm's "run"; the next job, and one that needs no faces, "run" only.
+TEST_F(ServiceTest, AJobReportsTheFacesItBuildsBeforeItsRun) {
+  const std::string mesh_id = LoadSample("jittered:12", 100);
+  const std::string session = Open(mesh_id, v1::STRUCTURE_ACTOPO);
+  const auto phases = [&](v1::Algorithm algorithm) {
+    v1::RunJobRequest request;
+    request.set_session_id(session);
+    request.set_algorithm(algorithm);
+    auto context = Context();
+    const JobRun job = RunJob(*stub_, context.get(), request);
+    EXPECT_TRUE(job.status.ok()) << job.status.error_message();
+    std::vector<std::pair<std::string, double>> reports;
+    double elapsed = 0;
+    for (const v1::RunJobResponse& m : job.messages) {
+      if (!m.has_progress()) continue;
+      reports.emplace_back(m.progress().phase(), m.progress().fraction());
+      EXPECT_GE(m.progress().elapsed_seconds(), elapsed);
+      elapsed = m.progress().elapsed_seconds();
+    }
+    return reports;
+  };
+  const auto only_run = [](const std::vector<std::pair<std::string, double>>& reports) {
+    return !reports.empty() && std::all_of(reports.begin(), reports.end(),
+                                           [](const auto& r) { return r.first == "run"; });
+  };
+  EXPECT_TRUE(only_run(phases(v1::ALGORITHM_CRITICAL_POINTS)));
+
+  const auto first = phases(v1::ALGORITHM_DISCRETE_GRADIENT);
+  const auto run =
+      std::find_if(first.begin(), first.end(), [](const auto& r) { return r.first != "faces"; });
+  ASSERT_GE(run - first.begin(), 2);
+  EXPECT_EQ(first.front().second, 0.0);
+  EXPECT_EQ((run - 1)->second, 1.0);
+  EXPECT_TRUE(std::is_sorted(first.begin(), run));
+  EXPECT_TRUE(only_run({run, first.end()}));
+
+  EXPECT_TRUE(only_run(phases(v1::ALGORITHM_DISCRETE_GRADIENT)));
 }
 
 TEST_F(ServiceTest, UploadRoundTrip) {

@@ -206,11 +206,12 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::GetSessionStats(grpc::CallbackSer
 absl::Status TopologyServiceImpl::AnswerRelation(const std::string& session_id,
                                                  v1::Relation relation, const v1::Simplex& simplex,
                                                  bool include_vertices, std::vector<int64_t>& ids,
-                                                 std::vector<int64_t>* vertices) {
+                                                 std::vector<int64_t>* vertices,
+                                                 const Progress& stop) {
   ASSIGN_OR_RETURN(auto session, sessions_->Get(session_id));
   ASSIGN_OR_RETURN(Relation r, FromProto(relation));
   // The first query on the mesh that reads edges or triangles builds them, for every session.
-  if (NeedsFaces(r)) RETURN_IF_ERROR(session->mesh().EnsureFaces());
+  if (NeedsFaces(r)) RETURN_IF_ERROR(session->mesh().EnsureFaces(stop));
   const int dim = SourceDimension(r);
   SimplexId s = -1;
   switch (simplex.simplex_case()) {
@@ -234,24 +235,26 @@ absl::Status TopologyServiceImpl::AnswerRelation(const std::string& session_id,
 grpc::ServerUnaryReactor* TopologyServiceImpl::GetRelation(grpc::CallbackServerContext* c,
                                                            const v1::GetRelationRequest* in,
                                                            v1::GetRelationResponse* out) {
-  return Offload(relations_, c, "GetRelation", [this, in, out](const Progress&) -> absl::Status {
-    std::vector<int64_t> ids, vertices;
-    RETURN_IF_ERROR(AnswerRelation(in->session_id(), in->relation(), in->simplex(),
-                                   in->include_vertices(), ids, &vertices));
-    out->mutable_ids()->Add(ids.begin(), ids.end());
-    out->mutable_vertices()->Add(vertices.begin(), vertices.end());
-    return absl::OkStatus();
-  });
+  return Offload(relations_, c, "GetRelation",
+                 [this, in, out](const Progress& stop) -> absl::Status {
+                   std::vector<int64_t> ids, vertices;
+                   RETURN_IF_ERROR(AnswerRelation(in->session_id(), in->relation(), in->simplex(),
+                                                  in->include_vertices(), ids, &vertices, stop));
+                   out->mutable_ids()->Add(ids.begin(), ids.end());
+                   out->mutable_vertices()->Add(vertices.begin(), vertices.end());
+                   return absl::OkStatus();
+                 });
 }
 
 absl::Status TopologyServiceImpl::AnswerBatch(const std::string& session_id, v1::Relation relation,
                                               const v1::Array* ids, const v1::Array* vertex_tuples,
                                               v1::Array* offsets_out, v1::Array* values_out,
-                                              std::vector<ItemFailure>* failures) {
+                                              std::vector<ItemFailure>* failures,
+                                              const Progress& stop) {
   ASSIGN_OR_RETURN(auto session, sessions_->Get(session_id));
   ASSIGN_OR_RETURN(Relation r, FromProto(relation));
   // The first query on the mesh that reads edges or triangles builds them, for every session.
-  if (NeedsFaces(r)) RETURN_IF_ERROR(session->mesh().EnsureFaces());
+  if (NeedsFaces(r)) RETURN_IF_ERROR(session->mesh().EnsureFaces(stop));
   const int dim = SourceDimension(r);
   const bool by_tuple = vertex_tuples != nullptr;
   if (by_tuple == (ids != nullptr)) {
@@ -311,10 +314,10 @@ absl::Status TopologyServiceImpl::AnswerBatch(const std::string& session_id, v1:
 grpc::ServerUnaryReactor* TopologyServiceImpl::GetRelationBatch(
     grpc::CallbackServerContext* c, const v1::GetRelationBatchRequest* in,
     v1::GetRelationBatchResponse* out) {
-  return Offload(relations_, c, "GetRelationBatch", [this, in, out](const Progress&) {
+  return Offload(relations_, c, "GetRelationBatch", [this, in, out](const Progress& stop) {
     return AnswerBatch(in->session_id(), in->relation(), in->has_ids() ? &in->ids() : nullptr,
                        in->has_vertex_tuples() ? &in->vertex_tuples() : nullptr,
-                       out->mutable_offsets(), out->mutable_values(), nullptr);
+                       out->mutable_offsets(), out->mutable_values(), nullptr, stop);
   });
 }
 

@@ -337,14 +337,16 @@ const ResultContext& Session::result_context() {
   return *result_context_;
 }
 
-absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input, const RunContext& context) {
+absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input, const RunContext& context,
+                                           const Progress::Report& prepare) {
   Touch();
   const auto start = Clock::now();
   RunContext ctx = context;
   ctx.consumers = options_.structure.consumers;
   if (NeedsFaces(input.algorithm)) {
     // The first job on the mesh that reads edges or triangles builds them, for every session.
-    RETURN_IF_ERROR(mesh_->EnsureFaces(ctx.stop(), ctx.trace.get()));
+    const Progress faces({.cancel = ctx.cancel, .deadline = ctx.deadline, .report = prepare});
+    RETURN_IF_ERROR(mesh_->EnsureFaces(faces, ctx.trace.get()));
   }
   JobOutcome out;
   if (explicit_) {

@@ -116,7 +116,10 @@ class Session {
   }
 
   // Runs an algorithm. The caller holds the session's JobLease (SessionManager::StartJob).
-  absl::StatusOr<JobOutcome> RunJob(const AlgorithmInput& input, const RunContext& context);
+  // What comes before the run reports to `prepare` (phase "faces": the mesh's edges and
+  // triangles, built or waited for when the algorithm reads them); the run to context.progress.
+  absl::StatusOr<JobOutcome> RunJob(const AlgorithmInput& input, const RunContext& context,
+                                    const Progress::Report& prepare = {});
   const AlgorithmInput& base_input() const { return base_; }
   // For result arrays and files.
   const ResultContext& result_context();

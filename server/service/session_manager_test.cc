@@ -7,7 +7,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
+#include <latch>
+#include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "absl/strings/match.h"
@@ -64,6 +68,88 @@ TEST_F(SessionManagerTest, ALoadedMeshKeepsItsTetrahedraCornersNotTheTetrahedra)
             MeshRegistry::EstimateBytes(given.num_vertices(), given.num_tetrahedra(),
                                         int(given.point_fields.size())));
   EXPECT_EQ(budget_.used(), loaded.bytes());
+}
+
+// A caller that finds the mesh's faces being built waits for that build, but only as long as it
+// wants to: its cancel ends its wait, the build goes on for the caller that started it, and
+// the faces are then there for everyone.
+TEST_F(SessionManagerTest, AWaitForTheMeshsFacesEndsWhenItsCallerStops) {
+  auto mesh = meshes_.LoadSample("jittered:6", {});
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  const LoadedMesh& loaded = **mesh;
+  ASSERT_FALSE(loaded.topology->has_faces());
+  std::latch building(1), release(1), waiting(1);
+  absl::Status built;
+  std::thread builder([&] {
+    bool first = true;
+    built = loaded.EnsureFaces(Progress({.report = [&](std::string_view, double) {
+      if (!std::exchange(first, false)) return;
+      building.count_down();
+      release.wait();
+    }}));
+  });
+  building.wait();
+  std::atomic<bool> cancel{false};
+  absl::Status waited;
+  std::thread waiter([&] {
+    bool first = true;
+    waited = loaded.EnsureFaces(
+        Progress({.cancel = &cancel, .report = [&](std::string_view phase, double fraction) {
+                    EXPECT_EQ(phase, "faces");
+                    EXPECT_EQ(fraction, 0.0);  // the builder's first report, where it is held
+                    if (std::exchange(first, false)) waiting.count_down();
+                  }}));
+  });
+  waiting.wait();
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // well into its wait
+  cancel = true;
+  waiter.join();
+  EXPECT_EQ(waited.code(), absl::StatusCode::kCancelled) << waited;
+  EXPECT_TRUE(absl::StrContains(waited.message(), "faces")) << waited;
+  EXPECT_FALSE(loaded.topology->has_faces());
+  release.count_down();
+  builder.join();
+  EXPECT_TRUE(built.ok()) << built;
+  EXPECT_TRUE(loaded.topology->has_faces());
+  EXPECT_TRUE(loaded.EnsureFaces().ok());
+}
+
+// When the build a caller waits for stops (its own caller cancelled it), the waiter builds the
+// faces itself, and what the stopped build reserved goes back to the budget.
+TEST_F(SessionManagerTest, AWaiterBuildsTheFacesWhenTheBuildItWaitedForStops) {
+  auto mesh = meshes_.LoadSample("jittered:6", {});
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  const LoadedMesh& loaded = **mesh;
+  const int64_t before = budget_.used();
+  std::latch building(1), waiting(1);
+  std::atomic<bool> stop_builder{false};
+  absl::Status stopped;
+  std::thread builder([&] {
+    bool first = true;
+    stopped = loaded.EnsureFaces(
+        Progress({.cancel = &stop_builder, .report = [&](std::string_view, double) {
+                    if (!std::exchange(first, false)) return;
+                    building.count_down();
+                    waiting.wait();  // until the other caller waits for this build
+                    stop_builder = true;
+                  }}));
+  });
+  building.wait();
+  bool first = true;
+  std::vector<std::string> phases;
+  const absl::Status waited =
+      loaded.EnsureFaces(Progress({.report = [&](std::string_view phase, double) {
+        phases.emplace_back(phase);
+        if (std::exchange(first, false)) waiting.count_down();
+      }}));
+  builder.join();
+  EXPECT_EQ(stopped.code(), absl::StatusCode::kCancelled) << stopped;
+  EXPECT_TRUE(waited.ok()) << waited;
+  EXPECT_TRUE(loaded.topology->has_faces());
+  EXPECT_GE(phases.size(), 3u);  // the wait's report, then its own build's from 0 to 1
+  EXPECT_TRUE(std::all_of(phases.begin(), phases.end(), [](auto& p) { return p == "faces"; }));
+  const TopologyBytes bytes = loaded.topology->bytes();
+  EXPECT_EQ(budget_.used() - before, bytes.edges + bytes.triangles);
 }
 
 TEST_F(SessionManagerTest, ExactlyOneOfManyConcurrentStartsWins) {

@@ -430,6 +430,15 @@ class CancelToken {
   std::shared_ptr<State> state_;
 };
 
+// How far a job has got (JobOptions::phase_progress).
+struct JobProgress {
+  // "faces": the mesh's edges and triangles, built (or waited for) when the job is the first
+  // on the mesh to read them, once per mesh; then "run": the algorithm.
+  std::string phase;
+  double fraction = 0;  // of the phase, 0 to 1
+  double elapsed_seconds = 0;
+};
+
 // Options of Client::RunJob.
 struct JobOptions {
   // Send the result arrays (otherwise only the summary and statistics).
@@ -441,8 +450,11 @@ struct JobOptions {
   // Add the result's SHA-256 digests to the summary (its "*_sha256" keys, comparable with
   // TTK's). Off by default: on large meshes they cost a good part of the job.
   bool digests = false;
-  // Called with the fraction done (0 to 1) as progress arrives, on RunJob's thread.
+  // Called with the fraction of the algorithm's run done (0 to 1) as progress arrives, on
+  // RunJob's thread.
   std::function<void(double fraction)> progress;
+  // Called with every progress report, its phase included (JobProgress), on RunJob's thread.
+  std::function<void(const JobProgress& report)> phase_progress;
   // Called with the job id once the server accepted the job (e.g. to CancelJob it).
   std::function<void(const std::string& job_id)> on_accepted;
   // Cancel() on (a copy of) this token cancels the job.
