@@ -206,17 +206,24 @@ TEST_F(ServerTest, JobCallbackMayThrow) {
 }
 
 // The first job on a mesh that reads faces reports their build (phase "faces", 0 to 1) before
-// its run; `progress` gets the run's fractions only, `phase_progress` every report.
+// its run, and their time in its stats; `progress` gets the run's fractions only,
+// `phase_progress` every report. The next job finds the faces built.
 TEST_F(ServerTest, AJobReportsItsPhases) {
   const std::string session =
       Open(LoadSample("jittered:10", 50), {.structure = Structure::kCompact});
   std::vector<double> run;
   std::vector<JobProgress> reports;
-  ASSERT_OK(
+  absl::StatusOr<JobResult> first =
       client().RunJob(session, "discrete-gradient", {},
                       {.include_arrays = false,
                        .progress = [&](double f) { run.push_back(f); },
-                       .phase_progress = [&](const JobProgress& p) { reports.push_back(p); }}));
+                       .phase_progress = [&](const JobProgress& p) { reports.push_back(p); }});
+  ASSERT_OK(first);
+  EXPECT_GT(first->stats.faces_seconds, 0.0);
+  absl::StatusOr<JobResult> again =
+      client().RunJob(session, "discrete-gradient", {}, {.include_arrays = false});
+  ASSERT_OK(again);
+  EXPECT_EQ(again->stats.faces_seconds, 0.0);
   ASSERT_GE(reports.size(), 3u);
   EXPECT_EQ(reports.front().phase, "faces");
   EXPECT_EQ(reports.front().fraction, 0.0);

@@ -218,6 +218,7 @@ def _report(mesh: MeshInfo, session: Session, result: JobResult, stats: SessionS
                    "parameters": parameters},
         "times_s": {"load": mesh.load_seconds, "partition": mesh.partition_seconds,
                     "preprocess": stats.preprocess_seconds,
+                    "faces": job.faces_seconds if job else None,
                     "run": job.run_seconds if job else None, "total": wall},
         "engine": {"wait_s": engine.wait_seconds, "requests": engine.requests,
                    "hits": engine.hits, "misses": engine.misses, "evictions": engine.evictions,
@@ -315,6 +316,9 @@ def cmd_run(client: Client, args: argparse.Namespace) -> None:
         return _print_json(report)
     print(f"{report['algorithm']} on {mesh.info.name} ({mesh.info.tetrahedra} tetrahedra, "
           f"{mesh.info.blocks} blocks), structure {report['structure']}, job {result.job_id}")
+    faces = report["times_s"]["faces"]
+    if faces:
+        print(f"  faces {faces:.3f} s (the mesh's edges and triangles, built once per mesh)")
     print(f"  run {report['times_s']['run']:.3f} s, wait {report['engine']['wait_s']:.3f} s, "
           f"requests {report['engine']['requests']}, misses {report['engine']['misses']}, "
           f"relations peak {_mib(report['memory']['relation_peak_bytes'])}, "

@@ -99,7 +99,7 @@ def session_stats(r: pb.GetSessionStatsResponse) -> SessionStats:
 
 def job_stats(s: pb.JobStats) -> JobStats:
     return JobStats(run_seconds=s.run_seconds, engine=engine_stats(s.engine),
-                    memory=memory_stats(s.memory))
+                    memory=memory_stats(s.memory), faces_seconds=s.faces_seconds)
 
 
 def struct_to_dict(struct: Any) -> dict[str, Any]:

@@ -236,6 +236,9 @@ class JobStats:
     run_seconds: float
     engine: EngineStats
     memory: MemoryStats
+    faces_seconds: float = 0.0
+    """Before the run: building the mesh's edges and triangles, or waiting for their build (the
+    first job on a mesh that reads them); 0 when they were there or the algorithm reads none."""
 
 
 @dataclass(frozen=True)

@@ -206,8 +206,11 @@ def test_a_callable_gets_the_run_a_bar_shows_the_faces_first(client, monkeypatch
         try:
             with client.open_session(mesh, structure="compact") as session:
                 fractions: list[float] = []
-                session.run("discrete-gradient", include_arrays=False,
-                            progress=True if progress_of == "bar" else fractions.append)
+                result = session.run("discrete-gradient", include_arrays=False,
+                                     progress=True if progress_of == "bar" else fractions.append)
+                assert result.stats is not None and result.stats.faces_seconds > 0
+                again = session.run("discrete-gradient", include_arrays=False)
+                assert again.stats is not None and again.stats.faces_seconds == 0
                 if progress_of == "bar":
                     assert bars == ["discrete-gradient (the mesh's edges and triangles, once "
                                     "per mesh)", "discrete-gradient"]

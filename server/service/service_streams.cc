@@ -442,6 +442,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     Push(std::move(summary));
     v1::RunJobResponse stats;
     stats.mutable_stats()->set_run_seconds(job.outcome.run_s);
+    stats.mutable_stats()->set_faces_seconds(job.faces_s);
     Fill(job.engine, stats.mutable_stats()->mutable_engine());
     Fill(job.memory, stats.mutable_stats()->mutable_memory());
     stats.mutable_stats()->mutable_memory()->set_process_rss_bytes(CurrentRssBytes());

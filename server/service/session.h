@@ -52,6 +52,7 @@ struct FieldRef {
 // What a finished job hands back.
 struct JobOutcome {
   AlgorithmOutcome outcome;
+  double faces_s = 0;  // building (or waiting for) the mesh's faces, before the run
   EngineStats engine;  // of this job
   MemoryStats memory;
 };

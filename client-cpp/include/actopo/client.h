@@ -488,6 +488,9 @@ struct JobStats {
   double run_seconds = 0;
   EngineStats engine;
   MemoryStats memory;
+  // Before the run: building the mesh's edges and triangles, or waiting for their build (the
+  // first job on a mesh that reads them); 0 when they were there or the algorithm reads none.
+  double faces_seconds = 0;
 };
 
 // A pair of a persistence diagram (TTK's PersistenceDiagram, JobResult::PersistencePairs). A

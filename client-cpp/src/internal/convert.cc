@@ -125,7 +125,8 @@ SessionStats FromProto(const v1::GetSessionStatsResponse& stats) {
 JobStats FromProto(const v1::JobStats& stats) {
   return JobStats{.run_seconds = stats.run_seconds(),
                   .engine = FromProto(stats.engine()),
-                  .memory = FromProto(stats.memory())};
+                  .memory = FromProto(stats.memory()),
+                  .faces_seconds = stats.faces_seconds()};
 }
 
 v1::PartitionOptions ToProto(const PartitionOptions& partition) {
