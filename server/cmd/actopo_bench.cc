@@ -107,15 +107,6 @@ struct RunOutput {
   Json result;
 };
 
-// Boundary flags of every vertex, for the files' IsOnBoundary arrays.
-std::vector<uint8_t> VertexBoundary(std::shared_ptr<const Topology> topology) {
-  CompactStructure structure(std::move(topology), {});
-  auto reader = structure.NewReader();
-  std::vector<uint8_t> out(reader.topology().num_vertices());
-  for (SimplexId v = 0; v < SimplexId(out.size()); ++v) out[v] = reader.vertex_on_boundary(v);
-  return out;
-}
-
 // Runs the algorithm; with `files` set (--output), also writes its result files.
 template <class Structure>
 absl::StatusOr<RunOutput> RunAndSummarize(Structure& structure, const AlgorithmInput& input,
@@ -443,7 +434,7 @@ absl::StatusOr<Json> Run(BenchOptions o) {
     loaded.mesh = Mesh();
   } else {
     files.emplace(ResultContext{loaded.mesh, *topology, loaded.scalar_name, loaded.scalars,
-                                VertexBoundary(topology)});
+                                std::make_shared<VertexBoundary>(*topology)});
   }
   ASSIGN_OR_RETURN(const AlgorithmInput input,
                    PrepareInput(o, algorithm, *topology, loaded.scalars, std::move(input_corners),

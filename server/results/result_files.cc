@@ -57,7 +57,7 @@ PolyData CriticalCellPoints(const ResultContext& c, const std::vector<Cell>& cel
     ids.push_back(ReportedId(c, cell.dim, cell.id));
     highest.push_back(top);
     scalar.push_back(c.scalars[top]);
-    boundary.push_back(c.vertex_on_boundary[c.topology.vertex_internal_id(top)]);
+    boundary.push_back((*c.vertex_on_boundary)(c.topology.vertex_internal_id(top)));
   }
   out.point_arrays = {{"CellDimension", std::move(dims)},
                       {"CellId", std::move(ids)},

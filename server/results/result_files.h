@@ -10,6 +10,7 @@
 #ifndef ACTOPO_SERVER_RESULTS_RESULT_FILES_H_
 #define ACTOPO_SERVER_RESULTS_RESULT_FILES_H_
 
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -20,17 +21,18 @@
 #include "server/core/topology.h"
 #include "server/io/vtk_writer.h"
 #include "server/results/run_algorithm.h"
+#include "server/results/vertex_boundary.h"
 
 namespace actopo {
 
 // What every writer needs: the mesh as loaded (points, tetrahedra), the scalar field used and
-// a per-internal-vertex boundary flag.
+// the vertices' boundary flags.
 struct ResultContext {
   const Mesh& mesh;
   const Topology& topology;
   std::string scalar_name;
-  std::span<const double> scalars;          // by input vertex id
-  std::vector<uint8_t> vertex_on_boundary;  // by internal vertex id
+  std::span<const double> scalars;  // by input vertex id
+  std::shared_ptr<const VertexBoundary> vertex_on_boundary;
   // The vertex order by input id when it is not (scalar, id): a simplified field's, whose
   // flattened plateaus are ordered by LTS. Empty: (scalar, id).
   std::span<const SimplexId> order = {};

@@ -12,6 +12,7 @@
 #include "server/algorithms/vertex_order.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
+#include "server/core/testing/oracle.h"
 #include "server/core/testing/test_meshes.h"
 
 namespace actopo {
@@ -44,9 +45,37 @@ Diagram MakeDiagram() {
   return d;
 }
 
+// The boundary flags results report are the oracle's, asked in any order, and a block is
+// computed only when one of its vertices is asked about, once.
+TEST(VertexBoundary, EqualsTheOracleBlockByBlockOnDemand) {
+  const Mesh mesh = testing::Lattice(7, 6, 5, 3);
+  const auto topology = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 20}));
+  ASSERT_GT(topology->num_blocks(), 4);
+  const testing::RelationOracle oracle(*topology);
+  const VertexBoundary boundary(*topology);
+  EXPECT_EQ(boundary.blocks_computed(), 0);
+  const int32_t b = topology->num_blocks() / 2;
+  for (SimplexId v = topology->block_vertex_begin(b); v < topology->block_vertex_begin(b + 1);
+       ++v) {
+    EXPECT_EQ(boundary(v), oracle.rows(Relation::kVB)[v][0] == 1) << v;
+  }
+  EXPECT_EQ(boundary.blocks_computed(), 1);
+  int boundary_vertices = 0;
+  const SimplexId n = topology->num_vertices();
+  for (SimplexId i = 0; i < n; ++i) {
+    const SimplexId v = SimplexId((int64_t(i) * 7919) % n);  // 7919 is prime, n is not a multiple
+    boundary_vertices += boundary(v);
+    EXPECT_EQ(boundary(v), oracle.rows(Relation::kVB)[v][0] == 1) << v;
+  }
+  EXPECT_EQ(boundary.blocks_computed(), topology->num_blocks());
+  EXPECT_GT(boundary_vertices, 0);
+  EXPECT_LT(boundary_vertices, n);
+}
+
 TEST(PersistenceDiagramOutputs, TtkDiagramGridWithItsDiagonal) {
   Diagram d = MakeDiagram();
-  const ResultContext context{d.mesh, *d.topology, "height", d.mesh.point_fields[0].values, {}};
+  const ResultContext context{d.mesh, *d.topology, "height", d.mesh.point_fields[0].values,
+                              std::make_shared<VertexBoundary>(*d.topology)};
   const ResultOutputs out = BuildOutputs(context, d.result);
   ASSERT_EQ(out.poly_data.size(), 1u);
   EXPECT_EQ(out.poly_data[0].first, "diagram");
@@ -102,7 +131,8 @@ TEST(PersistenceDiagramOutputs, TtkDiagramGridWithItsDiagonal) {
 TEST(PersistenceDiagramOutputs, EmbeddedInTheDomainAndWritten) {
   Diagram d = MakeDiagram();
   d.result.embed_in_domain = true;
-  const ResultContext context{d.mesh, *d.topology, "height", d.mesh.point_fields[0].values, {}};
+  const ResultContext context{d.mesh, *d.topology, "height", d.mesh.point_fields[0].values,
+                              std::make_shared<VertexBoundary>(*d.topology)};
   const ResultOutputs out = BuildOutputs(context, d.result);
   const io::PolyData& grid = out.poly_data[0].second;
   const size_t n = d.result.pairs.size();
@@ -136,7 +166,8 @@ TEST(SimplificationOutputs, FieldAndOrderStreamedAndWritten) {
       *RunTopologicalSimplification(*structure, VertexOrder(*topology, scalars), scalars,
                                     {.threshold = 0.2, .relative = true}, {});
   ASSERT_GT(r.stats.changed_values, 0);
-  const ResultContext context{mesh, *topology, "height", scalars, {}};
+  const ResultContext context{mesh, *topology, "height", scalars,
+                              std::make_shared<VertexBoundary>(*topology)};
   const ResultOutputs out = BuildOutputs(context, r);
   ASSERT_EQ(out.simplified.size(), 2u);
   EXPECT_EQ(out.simplified[0].name, "height");
@@ -166,7 +197,7 @@ TEST(SimplificationOutputs, SimplifiedMorseSmaleReportsTheSimplifiedField) {
   r.morse_smale = *RunMorseSmale(*structure, r.simplification.internal_order,
                                  *InputCorners(*topology, mesh.tetrahedra), {});
   const ResultContext context{mesh, *topology, "height", scalars,
-                              std::vector<uint8_t>(mesh.num_vertices(), 0)};
+                              std::make_shared<VertexBoundary>(*topology)};
   const ResultOutputs out = BuildOutputs(context, r);
   const io::PolyData& points = out.poly_data[0].second;
   ASSERT_EQ(out.poly_data[0].first, "critical_points");

@@ -216,6 +216,7 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Add(
                        .faces = false},
                       progress));
   loaded->input_corners = std::make_shared<const std::vector<uint8_t>>(std::move(corners));
+  loaded->vertex_boundary = std::make_shared<const VertexBoundary>(*loaded->topology);
   loaded->partition_seconds = SecondsSince(start);
   loaded->id = NewId("mesh");
   loaded->name = std::move(name);

@@ -20,6 +20,7 @@
 #include "server/core/progress.h"
 #include "server/core/sync.h"
 #include "server/core/topology.h"
+#include "server/results/vertex_boundary.h"
 #include "server/service/memory_budget.h"
 
 namespace actopo::service {
@@ -37,6 +38,8 @@ struct LoadedMesh {
   // triangle order. Computed once per mesh and shared by its sessions.
   std::shared_ptr<const std::vector<uint8_t>> input_corners;
   int32_t block_size = 0;  // 0 when partitioned by labels
+  // IsOnBoundary of the vertices that job results ask about, shared by the mesh's sessions.
+  std::shared_ptr<const VertexBoundary> vertex_boundary;
   absl::Time created;
   double load_seconds = 0;
   double partition_seconds = 0;

@@ -326,14 +326,8 @@ const ResultContext& Session::result_context() {
   if (!result_context_) {
     const Mesh& m = mesh_->mesh;
     const PointField* field = m.FindField(scalar_name_);
-    CompactStructure boundary(mesh_->topology, {});
-    auto reader = boundary.NewReader();
-    std::vector<uint8_t> on_boundary(mesh_->topology->num_vertices());
-    for (SimplexId v = 0; v < SimplexId(on_boundary.size()); ++v) {
-      on_boundary[v] = reader.vertex_on_boundary(v);
-    }
     result_context_.emplace(
-        ResultContext{m, *mesh_->topology, scalar_name_, field->values, std::move(on_boundary)});
+        ResultContext{m, *mesh_->topology, scalar_name_, field->values, mesh_->vertex_boundary});
   }
   return *result_context_;
 }
