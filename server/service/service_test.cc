@@ -485,6 +485,17 @@ JobRun RunJob(v1::TopologyService::Stub& stub, grpc::ClientContext* context,
   return run;
 }
 
+// A job with the request's defaults (arrays, no trace), its call ended and checked OK.
+JobRun RunJob(v1::TopologyService::Stub& stub, grpc::ClientContext* context,
+              const std::string& session, v1::Algorithm algorithm) {
+  v1::RunJobRequest request;
+  request.set_session_id(session);
+  request.set_algorithm(algorithm);
+  JobRun run = RunJob(stub, context, request);
+  EXPECT_TRUE(run.status.ok()) << run.status.error_message();
+  return run;
+}
+
 TEST_F(ServiceTest, JobsStreamAcceptedProgressArraysSummaryStats) {
   const Mesh mesh = *io::MakeSample("jittered:8");
   const std::string mesh_id = LoadSample("jittered:8", 60);
@@ -737,12 +748,8 @@ TEST_F(ServiceTest, ConcurrentSessionsOnOneMesh) {
   std::vector<std::thread> threads;
   for (size_t i = 0; i < sessions.size(); ++i) {
     threads.emplace_back([&, i] {
-      v1::RunJobRequest request;
-      request.set_session_id(sessions[i]);
-      request.set_algorithm(v1::ALGORITHM_MORSE_SMALE);
       auto context = Context();
-      const JobRun run = RunJob(*stub_, context.get(), request);
-      EXPECT_TRUE(run.status.ok()) << run.status.error_message();
+      const JobRun run = RunJob(*stub_, context.get(), sessions[i], v1::ALGORITHM_MORSE_SMALE);
       for (const auto& m : run.messages) {
         if (m.has_summary()) summaries[i] = m.summary().result().DebugString();
       }
@@ -767,12 +774,8 @@ TEST_F(ServiceTest, EdgesAndTrianglesAreBuiltOnTheirFirstNeedOnly) {
     return described.mesh();
   };
   const auto run = [&](const std::string& session, v1::Algorithm algorithm) {
-    v1::RunJobRequest request;
-    request.set_session_id(session);
-    request.set_algorithm(algorithm);
     auto context = Context();
-    const JobRun job = RunJob(*stub_, context.get(), request);
-    EXPECT_TRUE(job.status.ok()) << job.status.error_message();
+    RunJob(*stub_, context.get(), session, algorithm);
   };
   const v1::MeshInfo loaded = describe();
   EXPECT_FALSE(loaded.has_edges());
@@ -814,12 +817,8 @@ TEST_F(ServiceTest, AJobReportsTheFacesItBuildsBeforeItsRun) {
   const std::string mesh_id = LoadSample("jittered:12", 100);
   const std::string session = Open(mesh_id, v1::STRUCTURE_ACTOPO);
   const auto phases = [&](v1::Algorithm algorithm) {
-    v1::RunJobRequest request;
-    request.set_session_id(session);
-    request.set_algorithm(algorithm);
     auto context = Context();
-    const JobRun job = RunJob(*stub_, context.get(), request);
-    EXPECT_TRUE(job.status.ok()) << job.status.error_message();
+    const JobRun job = RunJob(*stub_, context.get(), session, algorithm);
     std::vector<std::pair<std::string, double>> reports;
     double elapsed = 0;
     for (const v1::RunJobResponse& m : job.messages) {
