@@ -19,7 +19,10 @@ COPY CMakeLists.txt ./
 COPY proto proto
 COPY server server
 COPY tests tests
+# The code of `make build` (-O2 -DNDEBUG) without its debug information, which `install -s`
+# strips anyway: its compile took 69 s instead of 98 on 2 cores.
 RUN cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+      "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -DNDEBUG" \
  && cmake --build build -j "${JOBS}" --target actopo-server actopo-read-mesh \
  && install -d /out \
  && install -s -m 0755 build/server/cmd/actopo-server build/server/cmd/actopo-read-mesh /out/
