@@ -12,11 +12,14 @@ Each run starts every server in turn (A B A B ...) and, per mesh: loads it, runs
 algorithm once on a first session without arrays (so the mesh's faces are built and not timed
 below), then opens a new actopo session per algorithm and runs it with its arrays. `job_s`: the
 client's wait for that job; `run_s`: the server's run; `beyond_run_s`: the difference, the
-result arrays' building and sending.
+result arrays' building and sending. With --trace the jobs are traced (which slows their run)
+and `outputs_s` is the server's span `outputs`, the arrays built before the first is sent, and
+`results_s` its span `results`, which also covers sending them at the client's pace.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
 import time
 
@@ -25,6 +28,15 @@ from service_mesh_memory import start_server
 import actopo
 
 FIGURES = ["job_s", "run_s", "beyond_run_s"]
+TRACED = ["outputs_s", "results_s"]
+
+
+def span_seconds(trace: bytes, name: str) -> float | None:
+    """The duration of the job's span `name` (category phase) in seconds; None when the
+    server records no such span."""
+    spans = [e["dur"] for e in json.loads(trace)["traceEvents"]
+             if e.get("name") == name and e.get("cat") == "phase" and "dur" in e]
+    return sum(spans) / 1e6 if spans else None
 
 
 def measure(binary: str, args: argparse.Namespace) -> dict[tuple[str, str], dict[str, float]]:
@@ -40,11 +52,16 @@ def measure(binary: str, args: argparse.Namespace) -> dict[tuple[str, str], dict
                 for algorithm in args.algorithm:
                     with client.open_session(mesh, structure="actopo") as session:
                         start = time.perf_counter()
-                        result = session.run(algorithm)
+                        result = session.run(algorithm, trace=args.trace)
                         job_s = time.perf_counter() - start
                     assert result.stats is not None
                     out[name, algorithm] = {"job_s": job_s, "run_s": result.stats.run_seconds,
                                             "beyond_run_s": job_s - result.stats.run_seconds}
+                    if args.trace:
+                        assert result.trace is not None
+                        for k in TRACED:
+                            if (seconds := span_seconds(result.trace, k[:-2])) is not None:
+                                out[name, algorithm][k] = seconds
                 client.delete_mesh(mesh)
         return out
     finally:
@@ -59,7 +76,10 @@ def main() -> None:
     p.add_argument("--algorithm", action="append", required=True)
     p.add_argument("--runs", type=int, default=3)
     p.add_argument("--server", action="append", required=True, metavar="NAME=BINARY")
+    p.add_argument("--trace", action="store_true",
+                   help="trace the jobs; adds outputs_s and results_s (see above)")
     args = p.parse_args()
+    figures_shown = FIGURES + (TRACED if args.trace else [])
     servers = dict(s.split("=", 1) for s in args.server)
     runs: dict[str, list[dict[tuple[str, str], dict[str, float]]]] = {n: [] for n in servers}
     for run in range(args.runs):
@@ -68,13 +88,16 @@ def main() -> None:
             runs[name].append(figures)
             for (mesh, algorithm), f in figures.items():
                 print(f"run {run + 1} {name} {mesh} {algorithm}: " +
-                      ", ".join(f"{k} {f[k]:.3f}" for k in FIGURES), flush=True)
+                      ", ".join(f"{k} {f[k]:.3f}" for k in figures_shown if k in f),
+                      flush=True)
     print("\nmedians (min-max) over", args.runs, "runs")
     for mesh in args.mesh:
         for algorithm in args.algorithm:
             for name in servers:
                 cells = []
-                for k in FIGURES:
+                for k in figures_shown:
+                    if k not in runs[name][0][mesh, algorithm]:
+                        continue  # a server without the span
                     values = [r[mesh, algorithm][k] for r in runs[name]]
                     cells.append(f"{k} {statistics.median(values):.3f} "
                                  f"({min(values):.3f}-{max(values):.3f})")

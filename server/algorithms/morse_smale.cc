@@ -404,6 +404,19 @@ int64_t MorseSmaleResult::Segments() const {
 }
 
 int64_t MorseSmaleResult::Regions(std::span<const SimplexId> labels) {
+  if (labels.empty()) return 0;
+  const auto [low, high] = std::minmax_element(labels.begin(), labels.end());
+  const int64_t range = int64_t(*high) - *low + 1;
+  if (range <= 8 * int64_t(labels.size())) {  // labels are region ids from -1: a bit each
+    std::vector<bool> seen(size_t(range), false);
+    int64_t distinct = 0;
+    for (SimplexId l : labels) {
+      const size_t k = size_t(int64_t(l) - *low);
+      distinct += !seen[k];
+      seen[k] = true;
+    }
+    return distinct;
+  }
   std::vector<SimplexId> distinct(labels.begin(), labels.end());
   std::sort(distinct.begin(), distinct.end());
   return std::unique(distinct.begin(), distinct.end()) - distinct.begin();

@@ -1,6 +1,7 @@
 #include "server/algorithms/morse_smale.h"
 
 #include <algorithm>
+#include <random>
 #include <set>
 
 #include "gtest/gtest.h"
@@ -70,6 +71,22 @@ void ExpectInvariants(const MorseSmaleResult& r, const Topology& topo) {
     EXPECT_GE(l, 0);
     EXPECT_LT(l, regions);
   }
+}
+
+TEST(MorseSmaleResult, RegionsCountsDistinctLabelsDenseOrSparse) {
+  EXPECT_EQ(MorseSmaleResult::Regions({}), 0);
+  const std::vector<SimplexId> dense = {3, -1, 0, 3, 2, -1, 0};  // -1, 0, 2, 3
+  EXPECT_EQ(MorseSmaleResult::Regions(dense), 4);
+  // Labels spread far beyond 8 per element: counted by sorting, the same way.
+  const std::vector<SimplexId> sparse = {1 << 30, -1, 5, 1 << 30, 7, 5};
+  EXPECT_EQ(MorseSmaleResult::Regions(sparse), 4);
+  std::mt19937 random(11);
+  std::vector<SimplexId> labels(5000);
+  for (SimplexId& l : labels) l = SimplexId(random() % 900) - 1;
+  std::vector<SimplexId> sorted = labels;
+  std::sort(sorted.begin(), sorted.end());
+  EXPECT_EQ(MorseSmaleResult::Regions(labels),
+            std::unique(sorted.begin(), sorted.end()) - sorted.begin());
 }
 
 TEST(MorseSmale, InvariantsAndStructureIndependence) {

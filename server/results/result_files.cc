@@ -4,8 +4,10 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <numeric>
 
 #include "absl/strings/str_cat.h"
+#include "server/core/parallel.h"
 #include "server/core/status_macros.h"
 #include "server/io/vtk_writer.h"
 
@@ -15,20 +17,29 @@ namespace {
 using io::NamedArray;
 using io::PolyData;
 
-// Barycentre of a cell given by internal ids, appended to `points`.
-void AppendBarycentre(const ResultContext& c, int dim, SimplexId id, std::vector<double>& points) {
-  const std::vector<SimplexId> vertices = CellInputVertices(c.topology, dim, id);
+// Barycentre of a cell given by internal ids into xyz[0..2]: its vertices' points summed in
+// ascending input id. No allocation: a Morse-Smale result places millions of separatrix points.
+void Barycentre(const ResultContext& c, int dim, SimplexId id, double* xyz) {
+  SimplexId vertices[4];
+  CellTokens(c.topology, dim, id, vertices);
   double p[3] = {0, 0, 0};
-  for (SimplexId v : vertices) {
-    for (int k = 0; k < 3; ++k) p[k] += c.mesh.points[3 * size_t(v) + k];
+  for (int i = 0; i <= dim; ++i) {
+    for (int k = 0; k < 3; ++k) p[k] += c.mesh.points[3 * size_t(vertices[i]) + k];
   }
-  for (int k = 0; k < 3; ++k) points.push_back(p[k] / vertices.size());
+  for (int k = 0; k < 3; ++k) xyz[k] = p[k] / double(dim + 1);
+}
+
+void AppendBarycentre(const ResultContext& c, int dim, SimplexId id, std::vector<double>& points) {
+  double xyz[3];
+  Barycentre(c, dim, id, xyz);
+  points.insert(points.end(), xyz, xyz + 3);
 }
 
 // The cell's highest vertex in the vertex order (TTK's "greater vertex"), as an input id.
 SimplexId HighestVertex(const ResultContext& c, int dim, SimplexId id) {
-  const std::vector<SimplexId> vertices = CellInputVertices(c.topology, dim, id);
-  return *std::max_element(vertices.begin(), vertices.end(), [&](SimplexId a, SimplexId b) {
+  SimplexId vertices[4];
+  CellTokens(c.topology, dim, id, vertices);
+  return *std::max_element(vertices, vertices + dim + 1, [&](SimplexId a, SimplexId b) {
     if (!c.order.empty()) return c.order[a] < c.order[b];
     return c.scalars[a] < c.scalars[b] || (c.scalars[a] == c.scalars[b] && a < b);
   });
@@ -50,14 +61,19 @@ PolyData CriticalCellPoints(const ResultContext& c, const std::vector<Cell>& cel
   std::vector<int8_t> dims, boundary;
   std::vector<int32_t> ids, highest;
   std::vector<double> scalar;
+  std::vector<SimplexId> highest_internal;
   for (const Cell& cell : cells) {
+    highest.push_back(HighestVertex(c, cell.dim, cell.id));
+    highest_internal.push_back(c.topology.vertex_internal_id(highest.back()));
+  }
+  c.vertex_on_boundary->Prepare(highest_internal, DefaultThreads());
+  for (size_t i = 0; i < cells.size(); ++i) {
+    const Cell& cell = cells[i];
     AppendBarycentre(c, cell.dim, cell.id, out.points);
-    const SimplexId top = HighestVertex(c, cell.dim, cell.id);
     dims.push_back(cell.dim);
     ids.push_back(ReportedId(c, cell.dim, cell.id));
-    highest.push_back(top);
-    scalar.push_back(c.scalars[top]);
-    boundary.push_back((*c.vertex_on_boundary)(c.topology.vertex_internal_id(top)));
+    scalar.push_back(c.scalars[highest[i]]);
+    boundary.push_back((*c.vertex_on_boundary)(highest_internal[i]));
   }
   out.point_arrays = {{"CellDimension", std::move(dims)},
                       {"CellId", std::move(ids)},
@@ -110,24 +126,32 @@ void AddMorseSmaleOutputs(const ResultContext& c, const MorseSmaleResult& r, Res
   for (size_t k = 0; k < maxima.size(); ++k) manifold_size[maxima[k].second] = r.maximum_sizes[k];
   out.poly_data.push_back({"critical_points", CriticalCellPoints(c, cells, &manifold_size)});
 
-  // Sized up front: grown by doubling, part_5M's 4.96M points (119 MB) held up to three times
-  // that while the last growth copied them.
-  size_t num_points = 0;
-  for (const Separatrix& s : r.separatrices) num_points += s.cells.size();
+  // One polyline per separatrix through its cells' barycentres, in order: the points are sized
+  // up front (grown by doubling, part_5M's 4.96M points, 119 MB, were held up to three times
+  // while the last growth copied them) and placed by every core, each separatrix at its line's
+  // offset.
+  const size_t num_lines = r.separatrices.size();
   PolyData seps;
-  seps.points.reserve(3 * num_points);
-  seps.line_connectivity.reserve(num_points);
-  seps.line_offsets.reserve(r.separatrices.size() + 1);
-  seps.line_offsets.push_back(0);
+  seps.line_offsets.resize(num_lines + 1);
+  seps.line_offsets[0] = 0;
+  for (size_t i = 0; i < num_lines; ++i) {
+    seps.line_offsets[i + 1] = seps.line_offsets[i] + int32_t(r.separatrices[i].cells.size());
+  }
+  const size_t num_points = size_t(seps.line_offsets[num_lines]);
+  seps.line_connectivity.resize(num_points);
+  std::iota(seps.line_connectivity.begin(), seps.line_connectivity.end(), 0);
+  seps.points.resize(3 * num_points);
+  ParallelFor(int64_t(num_lines), DefaultThreads(), [&](int64_t i, int) {
+    double* xyz = &seps.points[3 * size_t(seps.line_offsets[i])];
+    for (const Cell& cell : r.separatrices[i].cells) {
+      Barycentre(c, cell.dim, cell.id, xyz);
+      xyz += 3;
+    }
+  });
   std::vector<int32_t> source, destination, separatrix_id;
   std::vector<int8_t> type;
-  for (size_t i = 0; i < r.separatrices.size(); ++i) {
+  for (size_t i = 0; i < num_lines; ++i) {
     const Separatrix& s = r.separatrices[i];
-    for (const Cell& cell : s.cells) {
-      seps.line_connectivity.push_back(int32_t(seps.points.size() / 3));
-      AppendBarycentre(c, cell.dim, cell.id, seps.points);
-    }
-    seps.line_offsets.push_back(int32_t(seps.line_connectivity.size()));
     source.push_back(ReportedId(c, s.source.dim, s.source.id));
     destination.push_back(ReportedId(c, s.destination.dim, s.destination.id));
     separatrix_id.push_back(int32_t(i));

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <numeric>
 #include <string>
 
 #include "gmock/gmock.h"
@@ -70,6 +71,31 @@ TEST(VertexBoundary, EqualsTheOracleBlockByBlockOnDemand) {
   EXPECT_EQ(boundary.blocks_computed(), topology->num_blocks());
   EXPECT_GT(boundary_vertices, 0);
   EXPECT_LT(boundary_vertices, n);
+}
+
+TEST(VertexBoundary, PrepareComputesTheBlocksOfTheVerticesGivenOnSeveralThreads) {
+  const Mesh mesh = testing::Lattice(7, 6, 5, 3);
+  const auto topology = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 20}));
+  ASSERT_GT(topology->num_blocks(), 4);
+  const testing::RelationOracle oracle(*topology);
+  const VertexBoundary boundary(*topology);
+  // Two vertices of the first block, one of the last: two blocks.
+  const int32_t last = topology->num_blocks() - 1;
+  const std::vector<SimplexId> some = {topology->block_vertex_begin(0),
+                                       topology->block_vertex_begin(1) - 1,
+                                       topology->block_vertex_begin(last)};
+  boundary.Prepare(some, 3);
+  EXPECT_EQ(boundary.blocks_computed(), 2);
+  boundary.Prepare(some, 3);  // nothing left to compute
+  EXPECT_EQ(boundary.blocks_computed(), 2);
+  std::vector<SimplexId> every(size_t(topology->num_vertices()));
+  std::iota(every.begin(), every.end(), 0);
+  boundary.Prepare(every, 3);
+  EXPECT_EQ(boundary.blocks_computed(), topology->num_blocks());
+  for (SimplexId v = 0; v < topology->num_vertices(); ++v) {
+    EXPECT_EQ(boundary(v), oracle.rows(Relation::kVB)[v][0] == 1) << v;
+  }
+  EXPECT_EQ(boundary.blocks_computed(), topology->num_blocks());  // the calls only read
 }
 
 TEST(PersistenceDiagramOutputs, TtkDiagramGridWithItsDiagonal) {
@@ -181,6 +207,55 @@ TEST(SimplificationOutputs, FieldAndOrderStreamedAndWritten) {
   EXPECT_THAT(*written, ElementsAre((dir / "run_simplified.vtu").string()));
   EXPECT_GT(std::filesystem::file_size(dir / "run_simplified.vtu"), 0u);
   std::filesystem::remove_all(dir);
+}
+
+// Separatrices: one polyline per separatrix through its cells' barycentres in order (points
+// placed on several threads), and the critical points' IsOnBoundary as the oracle's VB.
+TEST(MorseSmaleOutputs, SeparatrixPointsAreTheirCellsBarycentres) {
+  Mesh mesh = testing::Lattice(9, 8, 7, 9);
+  auto topology = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 30}));
+  auto structure = *ExplicitStructure::Build(topology, {});
+  const std::vector<double>& scalars = mesh.point_fields[0].values;
+  const MorseSmaleResult r = *RunMorseSmale(*structure, VertexOrder(*topology, scalars),
+                                            *InputCorners(*topology, mesh.tetrahedra), {});
+  ASSERT_GT(r.separatrices.size(), 10u);
+  const ResultContext context{mesh, *topology, "height", scalars,
+                              std::make_shared<VertexBoundary>(*topology)};
+  const ResultOutputs out = BuildOutputs(context, r);
+  ASSERT_EQ(out.poly_data.size(), 2u);
+  ASSERT_EQ(out.poly_data[1].first, "separatrices");
+  const io::PolyData& seps = out.poly_data[1].second;
+  ASSERT_EQ(seps.line_offsets.size(), r.separatrices.size() + 1);
+  size_t point = 0;
+  for (size_t i = 0; i < r.separatrices.size(); ++i) {
+    ASSERT_EQ(seps.line_offsets[i], int32_t(point)) << "separatrix " << i;
+    for (const Cell& cell : r.separatrices[i].cells) {
+      const std::vector<SimplexId> vertices = CellInputVertices(*topology, cell.dim, cell.id);
+      for (int k = 0; k < 3; ++k) {
+        double sum = 0;
+        for (SimplexId v : vertices) sum += mesh.points[3 * size_t(v) + k];
+        EXPECT_EQ(seps.points[3 * point + k], sum / double(vertices.size()))
+            << "separatrix " << i << ", point " << point;
+      }
+      EXPECT_EQ(seps.line_connectivity[point], int32_t(point));
+      ++point;
+    }
+  }
+  EXPECT_EQ(seps.points.size(), 3 * point);
+  EXPECT_EQ(seps.line_connectivity.size(), point);
+
+  const testing::RelationOracle oracle(*topology);
+  const io::PolyData& critical = out.poly_data[0].second;
+  const auto& highest = Get<int32_t>(critical.point_arrays, "ttkVertexScalarField");
+  const auto& on_boundary = Get<int8_t>(critical.point_arrays, "IsOnBoundary");
+  ASSERT_EQ(highest.size(), on_boundary.size());
+  int boundary_cells = 0;
+  for (size_t i = 0; i < highest.size(); ++i) {
+    const SimplexId v = topology->vertex_internal_id(highest[i]);
+    EXPECT_EQ(on_boundary[i], oracle.rows(Relation::kVB)[v][0]) << "vertex " << highest[i];
+    boundary_cells += on_boundary[i];
+  }
+  EXPECT_GT(boundary_cells, 0);  // else the flags would not be seen set
 }
 
 // The complex after a simplification reports the simplified field: its values at the critical

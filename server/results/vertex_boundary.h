@@ -6,6 +6,7 @@
 #define ACTOPO_SERVER_RESULTS_VERTEX_BOUNDARY_H_
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "server/core/block_relations.h"
@@ -22,6 +23,10 @@ class VertexBoundary {
  public:
   explicit VertexBoundary(const Topology& topology);
   bool operator()(SimplexId v) const;
+  // Computes the blocks of `vertices` (internal ids) not computed yet on `threads` threads, so
+  // that asking for those vertices then only reads. A Morse-Smale result's critical cells lie in
+  // most blocks of the mesh: part_5M, 83 ms of VB on one thread.
+  void Prepare(std::span<const SimplexId> vertices, int threads) const;
   int32_t blocks_computed() const;
 
  private:

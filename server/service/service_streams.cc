@@ -385,7 +385,10 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   absl::Status SendResult(const JobOutcome& job, Trace* trace) {
     const auto start = std::chrono::steady_clock::now();
     if (include_arrays_) {
-      const ResultOutputs outputs = BuildOutputs(session_->result_context(), job.outcome.result);
+      const ResultOutputs outputs = [&] {
+        Trace::Scope span(trace, "outputs", "phase");  // the arrays built, before any is sent
+        return BuildOutputs(session_->result_context(), job.outcome.result);
+      }();
       // Every array goes out in pieces straight from where it lies (SendArray).
       const auto send = [this](const std::string& name, const io::NamedArray& named) {
         v1::Array header;
