@@ -9,6 +9,7 @@ import re
 import signal
 import socket
 import subprocess
+import sys
 import threading
 import time
 import urllib.request
@@ -168,3 +169,20 @@ def wait_for(condition: Callable[[], T], seconds: float, interval: float = 0.1) 
         if value or time.monotonic() >= deadline:
             return value
         time.sleep(interval)
+
+
+# Runs the CLI as `python -m actopo` would, with Python's own SIGINT handler even when this
+# process ignores SIGINT (as pytest-xdist's workers do), so the tests' SIGINT reaches it as a
+# user's Ctrl-C. Set here, not in a preexec_fn: a preexec_fn makes subprocess fork() instead of
+# vfork(), the fork runs gRPC's fork handlers, and gRPC's event engine then restarts its poller
+# in the child, which can crash on the descriptors closed before exec (grpc/grpc#43055): the
+# CLI then never starts.
+_CLI_WITH_SIGINT = ("import runpy, signal, sys; "
+                    "signal.signal(signal.SIGINT, signal.default_int_handler); "
+                    "sys.argv[0] = 'actopo'; runpy.run_module('actopo', run_name='__main__')")
+
+
+def start_cli(*args: str) -> subprocess.Popen[str]:
+    """Starts `actopo ARGS...` in a new Python process, its output as text on pipes."""
+    return subprocess.Popen([sys.executable, "-c", _CLI_WITH_SIGINT, *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 import pyvista  # noqa: F401 (the CLI writes its .vtp files with it: a dependency of these tests)
-from harness import wait_for
+from harness import start_cli, wait_for
 from references import ENTRY, check_summary, ttk, ttk_simplification
 
 from actopo._cli import COMMANDS, main
@@ -264,11 +264,8 @@ def test_ctrl_c_cancels_the_cli_job(server, client):
     """SIGINT while `actopo run` waits for its job: the job stops, the session and mesh go."""
     before = {m.mesh_id for m in client.list_meshes()}
     sessions = {s.session_id for s in client.list_sessions()}
-    process = subprocess.Popen(
-        [sys.executable, "-m", "actopo", "--server", server, "run", "--mesh",
-         "sample:jittered:60", "--algorithm", "morse-smale", "--structure", "compact"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    process = start_cli("--server", server, "run", "--mesh", "sample:jittered:60",
+                        "--algorithm", "morse-smale", "--structure", "compact")
     try:
         # The job runs on the server, or the command ended early. The bound only stops a hang:
         # the CLI generates and partitions its mesh first, which under ASan, beside other tests,

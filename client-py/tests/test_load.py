@@ -6,14 +6,12 @@ from __future__ import annotations
 import asyncio
 import os
 import signal
-import subprocess
-import sys
 import threading
 from collections import Counter
 
 import grpc
 import pytest
-from harness import ServerProcess, wait_for
+from harness import ServerProcess, start_cli, wait_for
 
 import actopo
 from actopo._types import LOAD_PHASES
@@ -157,10 +155,7 @@ def test_ctrl_c_stops_the_cli_load(shared_server, client):
     """SIGINT while `actopo load --progress` shows the encoding: exit 130, no mesh."""
     server = shared_server.target
     before, loads = _ids(client.list_meshes()), _loads(shared_server)
-    process = subprocess.Popen(
-        [sys.executable, "-m", "actopo", "--server", server, "load", f"sample:{BIG}",
-         "--progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    process = start_cli("--server", server, "load", f"sample:{BIG}", "--progress")
     err = ""
     try:
         while "encode 3/3" not in err:  # the bar ends its lines with \r, not \n
