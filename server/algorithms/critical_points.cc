@@ -42,6 +42,7 @@ struct ClassifyScratch {
   LinkVertexIndex index;
   std::vector<std::array<int, 3>> triangles;  // per star tetrahedron, its link triangle
   std::vector<uint8_t> below;                 // per link vertex: lower than the vertex
+  std::vector<uint8_t> known_on_boundary;     // per link vertex: an end of a boundary triangle
   LinkEdgeCounter link;
 };
 
@@ -102,10 +103,22 @@ Classified Classify(Reader& reader, SimplexId v, std::span<const SimplexId> orde
   } else if (lower != 1 || upper != 1) {
     out.type = CriticalType::kDegenerate;
   } else if (options.boundary_rule == BoundaryRule::kTtk && out.on_boundary) {
+    // TTK's rule: on which sides of v its boundary neighbours lie. The ends of v's boundary
+    // triangles are boundary vertices without asking VB, and they usually lie on both sides
+    // already (v is not an extremum of the boundary surface): VB is read only for the other
+    // neighbours, and only until both sides are seen, so localized structures compute it for
+    // the few blocks around the boundary surface's extrema instead of every block the
+    // boundary crosses.
+    std::vector<uint8_t>& known = scratch.known_on_boundary;
+    known.assign(n, 0);
+    link.MarkOnceEnds(known);
     bool lower_on_boundary = false, upper_on_boundary = false;
-    for (SimplexId w : neighbors) {
-      if (!reader.vertex_on_boundary(w)) continue;
-      (order[w] < ov ? lower_on_boundary : upper_on_boundary) = true;
+    for (size_t i = 0; i < n; ++i) {
+      if (known[i]) (below[i] ? lower_on_boundary : upper_on_boundary) = true;
+    }
+    for (size_t i = 0; i < n && !(lower_on_boundary && upper_on_boundary); ++i) {
+      if (known[i] || !reader.vertex_on_boundary(neighbors[i])) continue;
+      (below[i] ? lower_on_boundary : upper_on_boundary) = true;
     }
     if (upper_on_boundary && !lower_on_boundary) out.type = CriticalType::kSaddle1;
     if (lower_on_boundary && !upper_on_boundary) out.type = CriticalType::kSaddle2;

@@ -1,6 +1,7 @@
 #include "server/algorithms/critical_points.h"
 
 #include <cmath>
+#include <map>
 
 #include "gtest/gtest.h"
 #include "server/algorithms/discrete_gradient.h"
@@ -107,6 +108,54 @@ TEST(CriticalPoints, BoundaryRuleOnlyAddsBoundarySaddles) {
     }
     EXPECT_EQ(j, none.points.size());
   }
+}
+
+// TTK's boundary rule by its definition: a regular boundary vertex whose boundary neighbours
+// (the oracle's VV and VB) all lie above it is a 1-saddle, all below a 2-saddle. Classify reads
+// VB only for neighbours that are not ends of the vertex's own boundary triangles, and only
+// until both sides are seen; the points must be the same on every structure.
+TEST(CriticalPoints, BoundaryRuleEqualsItsDefinitionOverTheOraclesVertexBoundary) {
+  std::vector<Fixture> fixtures = Fixtures();
+  for (bool closed : {true, false}) {  // a centre with 81 or 82 neighbours: the sorted keys
+    const Mesh m = testing::Bipyramid(80, closed);
+    auto topo = Build(m, 10);
+    fixtures.push_back({topo, VertexOrder(*topo, m.point_fields[0].values)});
+  }
+  int rule_saddles = 0;
+  for (const Fixture& f : fixtures) {
+    const testing::RelationOracle oracle(*f.topo);
+    const auto& vb = oracle.rows(Relation::kVB);
+    const auto& vv = oracle.rows(Relation::kVV);
+    auto explicit_structure =
+        *ExplicitStructure::Build(f.topo, {.relations = CriticalPointsDeclared()});
+    const auto none = *RunCriticalPoints(*explicit_structure, f.order,
+                                         {.boundary_rule = BoundaryRule::kNone}, {});
+    std::map<SimplexId, CriticalType> expected;  // by input id
+    for (const CriticalPoint& p : none.points) expected[p.vertex] = p.type;
+    for (SimplexId v = 0; v < f.topo->num_vertices(); ++v) {
+      const SimplexId input = f.topo->vertex_input_id(v);
+      if (expected.count(input) || vb[v][0] == 0) continue;  // critical anyway, or interior
+      bool lower = false, upper = false;
+      for (SimplexId w : vv[v]) {
+        if (vb[w][0] != 0) (f.order[w] < f.order[v] ? lower : upper) = true;
+      }
+      if (upper && !lower) expected[input] = CriticalType::kSaddle1;
+      if (lower && !upper) expected[input] = CriticalType::kSaddle2;
+      rule_saddles += upper != lower;
+    }
+    CompactStructure compact(f.topo, {.cache_ratio = 0.1});
+    auto actopo = *ActopoStructure::Create(
+        f.topo, {.precompute = Precompute::kDeclared, .declared = CriticalPointsSwept()});
+    const auto check = [&](const CriticalPointsResult& r, const char* structure) {
+      std::map<SimplexId, CriticalType> found;
+      for (const CriticalPoint& p : r.points) found[p.vertex] = p.type;
+      EXPECT_EQ(found, expected) << structure;
+    };
+    check(*RunCriticalPoints(*explicit_structure, f.order, {}, {}), "explicit");
+    check(*RunCriticalPoints(compact, f.order, {}, {}), "compact");
+    check(*RunCriticalPoints(*actopo, f.order, {}, {}), "actopo");
+  }
+  EXPECT_GT(rule_saddles, 0);  // else the rule would not be seen at work
 }
 
 // A vertex's own boundary flag comes from the link edges Classify counts (LinkEdgeCounter,

@@ -7,6 +7,7 @@
 //   link.Reset(neighbors.size());  // link vertices numbered 0 .. n-1
 //   for (each star tetrahedron) link.AddTriangle(a, b, c);  // the other three, as numbers
 //   bool on_boundary = link.AnyOnce();
+//   link.MarkOnceEnds(ends);       // which link vertices are on the boundary surely
 #ifndef ACTOPO_SERVER_CORE_LINK_EDGES_H_
 #define ACTOPO_SERVER_CORE_LINK_EDGES_H_
 
@@ -100,6 +101,26 @@ class LinkEdgeCounter {
       i = j;
     }
     return false;
+  }
+
+  // Sets ends[a] and ends[b] for every link edge (a, b) met once: the other two vertices of each
+  // boundary triangle around the vertex, all of them on the boundary. `ends` has n entries.
+  void MarkOnceEnds(std::span<uint8_t> ends) {
+    if (n_ <= kMaxTable) {
+      for (size_t a = 0; a < n_; ++a) {
+        for (size_t b = a + 1; b < n_; ++b) {
+          if (table_[a * n_ + b] == 1) ends[a] = ends[b] = 1;
+        }
+      }
+      return;
+    }
+    std::sort(keys_.begin(), keys_.end());
+    for (size_t i = 0; i < keys_.size();) {
+      size_t j = i + 1;
+      while (j < keys_.size() && keys_[j] == keys_[i]) ++j;
+      if (j - i == 1) ends[keys_[i] / n_] = ends[keys_[i] % n_] = 1;
+      i = j;
+    }
   }
 
  private:
