@@ -93,14 +93,7 @@ class LinkEdgeCounter {
 
   bool AnyOnce() {
     if (n_ <= kMaxTable) return std::find(table_.begin(), table_.end(), 1) != table_.end();
-    std::sort(keys_.begin(), keys_.end());
-    for (size_t i = 0; i < keys_.size();) {
-      size_t j = i + 1;
-      while (j < keys_.size() && keys_[j] == keys_[i]) ++j;
-      if (j - i == 1) return true;
-      i = j;
-    }
-    return false;
+    return ForEachKeyOnce([](size_t) { return true; });
   }
 
   // Sets ends[a] and ends[b] for every link edge (a, b) met once: the other two vertices of each
@@ -114,16 +107,27 @@ class LinkEdgeCounter {
       }
       return;
     }
+    ForEachKeyOnce([&](size_t key) {
+      ends[key / n_] = ends[key % n_] = 1;
+      return false;
+    });
+  }
+
+ private:
+  // Past kMaxTable: calls stop(key) for each key added exactly once, in ascending order, until
+  // it returns true; returns whether it did.
+  template <class Stop>
+  bool ForEachKeyOnce(Stop&& stop) {
     std::sort(keys_.begin(), keys_.end());
     for (size_t i = 0; i < keys_.size();) {
       size_t j = i + 1;
       while (j < keys_.size() && keys_[j] == keys_[i]) ++j;
-      if (j - i == 1) ends[keys_[i] / n_] = ends[keys_[i] % n_] = 1;
+      if (j - i == 1 && stop(keys_[i])) return true;
       i = j;
     }
+    return false;
   }
 
- private:
   void Add(size_t key) {
     if (n_ <= kMaxTable) {
       uint8_t& seen = table_[key];
