@@ -44,13 +44,28 @@ std::vector<SimplexId> VertexOrder(const Topology& topology, std::span<const dou
                          keys.begin() + end);
     }
   }
+  // The last merge: the lower half of the ranks from the fronts of both runs, the upper half
+  // from their backs, on two threads. Keys are distinct (ids), so both halves agree on the cut.
   std::vector<SimplexId> order(n);
-  const Key *a = keys.data(), *b = keys.data() + (runs > 1 ? bound[width] : n);
-  const Key *const a_end = b, *const b_end = keys.data() + n;
-  for (SimplexId rank = 0; rank < n; ++rank) {
-    const Key& k = (b == b_end || (a != a_end && *a < *b)) ? *a++ : *b++;
-    order[topology.vertex_internal_id(k.id)] = rank;
-  }
+  const Key* const a_begin = keys.data();
+  const Key* const b_begin = keys.data() + (runs > 1 ? bound[width] : n);
+  const Key* const b_end = keys.data() + n;
+  const SimplexId half = n / 2;
+  ParallelFor(2, runs > 1 ? 2 : 1, [&](int64_t side, int) {
+    if (side == 0) {
+      const Key *a = a_begin, *b = b_begin;
+      for (SimplexId rank = 0; rank < half; ++rank) {
+        const Key& k = (b == b_end || (a != b_begin && *a < *b)) ? *a++ : *b++;
+        order[topology.vertex_internal_id(k.id)] = rank;
+      }
+    } else {
+      const Key *a = b_begin, *b = b_end;  // one past the last unmerged key of each run
+      for (SimplexId rank = n - 1; rank >= half; --rank) {
+        const Key& k = (a == a_begin || (b != b_begin && *(a - 1) < *(b - 1))) ? *--b : *--a;
+        order[topology.vertex_internal_id(k.id)] = rank;
+      }
+    }
+  });
   return order;
 }
 

@@ -1,10 +1,13 @@
 #include "server/core/mesh.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <vector>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "server/core/parallel.h"
 
 namespace actopo {
 
@@ -33,28 +36,56 @@ absl::Status ValidateMesh(const Mesh& mesh) {
   const SimplexId nt = mesh.num_tetrahedra();
   if (nv == 0) return absl::InvalidArgumentError("points: the mesh has no vertices");
   if (nt == 0) return absl::InvalidArgumentError("tetrahedra: the mesh has no tetrahedra");
-  for (SimplexId v = 0; v < nv; ++v) {
-    for (int k = 0; k < 3; ++k) {
-      const double c = mesh.points[3 * size_t(v) + k];
-      if (!std::isfinite(c)) {
-        return absl::InvalidArgumentError(absl::StrCat("points: vertex ", v,
+  // Every vertex and tetrahedron is checked in parallel chunks without a branch per item; only
+  // a chunk found bad is walked again, item by item, for the message naming the first culprit
+  // (wavelet128, 2.1M vertices and 10.2M tetrahedra: 0.11 s on one thread before).
+  constexpr int64_t kChunk = 1 << 16;
+  const int64_t chunks = (std::max<int64_t>(3 * int64_t(nv), 4 * int64_t(nt)) + kChunk - 1) / kChunk;
+  std::vector<uint8_t> bad_points(chunks, 0), bad_tets(chunks, 0);
+  ParallelFor(chunks, DefaultThreads(), [&](int64_t c, int) {
+    const size_t coord_end = std::min(mesh.points.size(), size_t(c + 1) * kChunk);
+    bool bad = false;
+    for (size_t i = size_t(c) * kChunk; i < coord_end; ++i) bad |= !std::isfinite(mesh.points[i]);
+    bad_points[c] = bad;
+    bad = false;
+    const SimplexId t_end = SimplexId(std::min<int64_t>(nt, (c + 1) * kChunk / 4));
+    for (SimplexId t = SimplexId(c * kChunk / 4); t < t_end; ++t) {
+      const SimplexId* tv = &mesh.tetrahedra[4 * size_t(t)];
+      for (int k = 0; k < 4; ++k) bad |= uint32_t(tv[k]) >= uint32_t(nv);
+      bad |= (tv[0] == tv[1]) | (tv[0] == tv[2]) | (tv[0] == tv[3]) | (tv[1] == tv[2]) |
+             (tv[1] == tv[3]) | (tv[2] == tv[3]);
+    }
+    bad_tets[c] = bad;
+  });
+  for (int64_t c = 0; c < chunks; ++c) {
+    if (!bad_points[c]) continue;
+    for (size_t i = size_t(c) * kChunk; i < std::min(mesh.points.size(), size_t(c + 1) * kChunk);
+         ++i) {
+      const double x = mesh.points[i];
+      if (!std::isfinite(x)) {
+        return absl::InvalidArgumentError(absl::StrCat("points: vertex ", i / 3,
                                                        " has a non-finite coordinate ",
-                                                       std::string(1, "xyz"[k]), " = ", c));
+                                                       std::string(1, "xyz"[i % 3]), " = ", x));
       }
     }
   }
-  for (SimplexId t = 0; t < nt; ++t) {
-    const SimplexId* tv = &mesh.tetrahedra[4 * size_t(t)];
-    for (int k = 0; k < 4; ++k) {
-      if (tv[k] < 0 || tv[k] >= nv) {
-        return absl::OutOfRangeError(absl::StrCat("tetrahedra: tetrahedron ", t, " has vertex id ",
-                                                  tv[k], " outside [0, ", nv, ")"));
-      }
-      for (int j = 0; j < k; ++j) {
-        if (tv[j] == tv[k]) {
-          return absl::InvalidArgumentError(
-              absl::StrCat("tetrahedra: tetrahedron ", t, " repeats vertex ", tv[k], " (vertices ",
-                           absl::StrJoin(std::span<const SimplexId>(tv, 4), " "), ")"));
+  for (int64_t c = 0; c < chunks; ++c) {
+    if (!bad_tets[c]) continue;
+    for (SimplexId t = SimplexId(c * kChunk / 4); t < std::min<int64_t>(nt, (c + 1) * kChunk / 4);
+         ++t) {
+      const SimplexId* tv = &mesh.tetrahedra[4 * size_t(t)];
+      for (int k = 0; k < 4; ++k) {
+        if (tv[k] < 0 || tv[k] >= nv) {
+          return absl::OutOfRangeError(absl::StrCat("tetrahedra: tetrahedron ", t,
+                                                    " has vertex id ", tv[k], " outside [0, ", nv,
+                                                    ")"));
+        }
+        for (int j = 0; j < k; ++j) {
+          if (tv[j] == tv[k]) {
+            return absl::InvalidArgumentError(absl::StrCat(
+                "tetrahedra: tetrahedron ", t, " repeats vertex ", tv[k], " (vertices ",
+                absl::StrJoin(std::span<const SimplexId>(tv, 4), " "), ")"));
+          }
         }
       }
     }

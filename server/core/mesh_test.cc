@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 
+#include "absl/strings/str_cat.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "server/core/testing/test_meshes.h"
@@ -62,6 +63,26 @@ TEST(ValidateMesh, RejectsNonFiniteCoordinates) {
   m.points[3 * 2 + 1] = 0;
   m.points[3 * 3 + 2] = std::numeric_limits<double>::infinity();
   EXPECT_THAT(Check(m).message(), HasSubstr("vertex 3 has a non-finite coordinate z = inf"));
+}
+
+// Checked in parallel chunks: on a mesh of many chunks with several culprits, the message still
+// names the first of each kind, and a culprit in the last item is found.
+TEST(ValidateMesh, NamesTheFirstCulpritOfALargeMesh) {
+  Mesh m = testing::Lattice(40, 40, 40);  // 64,000 vertices, 6 * 39^3 tetrahedra
+  ASSERT_GT(m.points.size(), size_t(2) << 16);  // three chunks of coordinates or more
+  ASSERT_TRUE(Check(m).ok());
+  Mesh tets = m;
+  const size_t last = tets.tetrahedra.size() / 4 - 1;
+  tets.tetrahedra[4 * last + 3] = tets.tetrahedra[4 * last + 1];
+  EXPECT_THAT(Check(tets).message(), HasSubstr(absl::StrCat("tetrahedron ", last, " repeats")));
+  tets.tetrahedra[4 * 50000 + 1] = -5;
+  tets.tetrahedra[4 * 40000 + 3] = tets.tetrahedra[4 * 40000];
+  EXPECT_THAT(Check(tets).message(), HasSubstr("tetrahedron 40000 repeats vertex"));
+  m.points[3 * 63999 + 2] = std::numeric_limits<double>::infinity();
+  EXPECT_THAT(Check(m).message(), HasSubstr("vertex 63999 has a non-finite coordinate z = inf"));
+  m.points[3 * 30000] = std::numeric_limits<double>::quiet_NaN();
+  m.tetrahedra[0] = 64000;  // points are checked first
+  EXPECT_THAT(Check(m).message(), HasSubstr("vertex 30000 has a non-finite coordinate x = nan"));
 }
 
 TEST(ValidateMesh, RejectsFieldOfWrongLength) {

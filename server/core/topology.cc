@@ -295,8 +295,7 @@ struct Topology::Encoder {
   void CollectStars(int32_t b, Scratch& sc) const;
   void CollectUpperFaces(SimplexId v, SimplexId star_from, SimplexId star_to, Scratch& sc) const;
   static void EmitVertexFaces(SimplexId v, const Scratch& sc, BlockFaces& out);
-  void AppendWindowFaces(int32_t window_size);
-  absl::Status SumRunStarts();
+  absl::Status AppendWindowFaces(int32_t window, int32_t window_size);
   void BuildRunLookups();
   void ListBlockNeighbors();
   // The edges and triangles: ReserveFaces to BuildRunLookups, progress `phase` going from
@@ -427,10 +426,9 @@ void Topology::Encoder::ReserveFaces() {
   scratch.resize(std::max(threads, 1));
   t.edge_upper_.reserve(6 * size_t(nt));
   t.edge_triangle_begin_.reserve(6 * size_t(nt) + 1);
-  t.edge_triangle_begin_.push_back(0);
   t.triangle_third_.reserve(4 * size_t(nt));
   t.triangle_boundary_.reserve((4 * size_t(nt) + 63) / 64);
-  t.vertex_edge_begin_.assign(nv + 1, 0);
+  t.vertex_edge_begin_.resize(nv + 1);  // every entry is written by AppendWindowFaces
 }
 
 // Computes the faces of the window's blocks in parallel; leaves them in `faces` to be appended.
@@ -598,11 +596,11 @@ void Topology::Encoder::EmitVertexFaces(SimplexId v, const Scratch& sc, BlockFac
   }
 }
 
-// Appends the window's faces to the final arrays; leaves run starts as counts for SumRunStarts.
-void Topology::Encoder::AppendWindowFaces(int32_t window_size) {
-  // Offsets in block order, then every block copied in parallel. A block's edges start at its own
-  // vertices, so the per-vertex counts do not collide; the boundary bits share words across blocks
-  // and are set in one pass.
+// Appends the window's faces to the final arrays, run starts included.
+absl::Status Topology::Encoder::AppendWindowFaces(int32_t window, int32_t window_size) {
+  // Offsets in block order, then every block written in parallel: its edges, the run starts of
+  // its own vertices and edges (absolute, so no pass over all of them follows) and its boundary
+  // bits; only the words it shares with the blocks beside it are or-ed in atomically.
   std::vector<size_t> edge_at(window_size + 1), triangle_at(window_size + 1);
   edge_at[0] = t.edge_upper_.size();
   triangle_at[0] = t.triangle_third_.size();
@@ -610,41 +608,50 @@ void Topology::Encoder::AppendWindowFaces(int32_t window_size) {
     edge_at[index + 1] = edge_at[index] + faces[index].edges.size();
     triangle_at[index + 1] = triangle_at[index] + faces[index].triangle_third.size();
   }
+  // Ids are 32-bit (SimplexId), run starts included.
+  if (triangle_at[window_size] > size_t(INT32_MAX)) {
+    return absl::ResourceExhaustedError(absl::StrCat(
+        "mesh: more than ", triangle_at[window_size], " triangles exceed the 32-bit id range"));
+  }
   // Within the reservations of ReserveFaces: no reallocation.
   t.edge_upper_.resize(edge_at[window_size]);
-  t.edge_triangle_begin_.resize(edge_at[window_size] + 1);
+  t.edge_triangle_begin_.resize(edge_at[window_size]);
   t.triangle_third_.resize(triangle_at[window_size]);
   t.triangle_boundary_.resize((triangle_at[window_size] + 63) / 64, 0);
   ParallelFor(window_size, threads, [&](int64_t index, int) {
     const BlockFaces& bf = faces[index];
-    for (size_t i = 0; i < bf.edges.size(); ++i) {
-      ++t.vertex_edge_begin_[(bf.edges[i] >> 32) + 1];
-      t.edge_upper_[edge_at[index] + i] = SimplexId(bf.edges[i] & 0xffffffffu);
-      t.edge_triangle_begin_[edge_at[index] + i + 1] = bf.edge_triangles[i];
+    const int32_t b = window + int32_t(index);
+    size_t edge = edge_at[index];
+    SimplexId triangle = SimplexId(triangle_at[index]);
+    size_t i = 0;  // bf's edge
+    for (SimplexId v = t.block_vertex_begin_[b]; v < t.block_vertex_begin_[b + 1]; ++v) {
+      t.vertex_edge_begin_[v] = SimplexId(edge);
+      for (; i < bf.edges.size() && SimplexId(bf.edges[i] >> 32) == v; ++i, ++edge) {
+        t.edge_upper_[edge] = SimplexId(bf.edges[i] & 0xffffffffu);
+        t.edge_triangle_begin_[edge] = triangle;
+        triangle += bf.edge_triangles[i];
+      }
     }
     std::copy(bf.triangle_third.begin(), bf.triangle_third.end(),
               t.triangle_third_.begin() + triangle_at[index]);
-  });
-  for (int32_t index = 0; index < window_size; ++index) {
-    const std::vector<uint8_t>& boundary = faces[index].triangle_boundary;
-    for (size_t i = 0; i < boundary.size(); ++i) {
-      const size_t f = triangle_at[index] + i;
-      t.triangle_boundary_[f / 64] |= uint64_t(boundary[i]) << (f % 64);
+    // Boundary bits a word at a time; the first and last words may hold other blocks' bits.
+    const size_t first = triangle_at[index], end = triangle_at[index + 1];
+    uint64_t word = 0;
+    const auto flush = [&](size_t w) {
+      if (word == 0) return;
+      if (w * 64 >= first && w * 64 + 64 <= end) {
+        t.triangle_boundary_[w] = word;
+      } else {
+        std::atomic_ref<uint64_t>(t.triangle_boundary_[w]).fetch_or(word, std::memory_order_relaxed);
+      }
+      word = 0;
+    };
+    for (size_t f = first; f < end; ++f) {
+      if (f % 64 == 0 && f != first) flush(f / 64 - 1);
+      word |= uint64_t(bf.triangle_boundary[f - first]) << (f % 64);
     }
-  }
-}
-
-// Sums the per-vertex edge and per-edge triangle counts into run starts, for BuildRunLookups.
-absl::Status Topology::Encoder::SumRunStarts() {
-  // Ids are 32-bit (SimplexId); the sums below would overflow first.
-  if (t.triangle_third_.size() > size_t(INT32_MAX)) {
-    return absl::ResourceExhaustedError(
-        absl::StrCat("mesh: ", t.triangle_third_.size(), " triangles exceed the 32-bit id range"));
-  }
-  for (SimplexId v = 0; v < nv; ++v) t.vertex_edge_begin_[v + 1] += t.vertex_edge_begin_[v];
-  for (size_t e = 1; e < t.edge_triangle_begin_.size(); ++e) {
-    t.edge_triangle_begin_[e] += t.edge_triangle_begin_[e - 1];
-  }
+    if (end > first) flush((end - 1) / 64);
+  });
   return absl::OkStatus();
 }
 
@@ -729,11 +736,13 @@ absl::Status Topology::Encoder::BuildFaces(const Progress& progress, std::string
     RETURN_IF_ERROR(progress.Update(phase, from + 0.95 * span * window / num_blocks));
     const int32_t window_size = std::min(kWindow, num_blocks - window);
     ComputeWindowFaces(window, window_size);
-    AppendWindowFaces(window_size);
+    RETURN_IF_ERROR(AppendWindowFaces(window, window_size));
   }
   faces.clear();  // the last window's, now appended
+  // The ends of the last runs.
+  t.vertex_edge_begin_[nv] = SimplexId(t.edge_upper_.size());
+  t.edge_triangle_begin_.push_back(SimplexId(t.triangle_third_.size()));
   RETURN_IF_ERROR(progress.Update(phase, from + 0.95 * span));
-  RETURN_IF_ERROR(SumRunStarts());
   BuildRunLookups();
   t.has_faces_.store(true, std::memory_order_release);
   return absl::OkStatus();
