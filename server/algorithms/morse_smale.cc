@@ -306,16 +306,16 @@ class Builder {
 template <class Fn>
 void ForChunks(int64_t n, int threads, Fn&& fn) {
   constexpr int64_t kChunk = 1 << 15;
-  ParallelFor((n + kChunk - 1) / kChunk, threads, [&](int64_t chunk, int) {
-    fn(chunk * kChunk, std::min(n, (chunk + 1) * kChunk));
-  });
+  ParallelFor((n + kChunk - 1) / kChunk, threads,
+              [&](int64_t chunk, int) { fn(chunk * kChunk, std::min(n, (chunk + 1) * kChunk)); });
 }
 
 std::vector<SimplexId> ToInputOrder(const Topology& topo, const std::vector<SimplexId>& by_internal,
                                     int threads) {
   std::vector<SimplexId> out(by_internal.size());
   ForChunks(int64_t(by_internal.size()), threads, [&](int64_t begin, int64_t end) {
-    for (SimplexId v = SimplexId(begin); v < end; ++v) out[topo.vertex_input_id(v)] = by_internal[v];
+    for (SimplexId v = SimplexId(begin); v < end; ++v)
+      out[topo.vertex_input_id(v)] = by_internal[v];
   });
   return out;
 }
@@ -346,7 +346,8 @@ bool LabelChain(SimplexId start, std::vector<SimplexId>& label, std::vector<Simp
     cur = next(cur, at);
     at = std::atomic_ref<SimplexId>(label[cur]).load(std::memory_order_relaxed);
   }
-  for (SimplexId p : path) std::atomic_ref<SimplexId>(label[p]).store(at, std::memory_order_relaxed);
+  for (SimplexId p : path)
+    std::atomic_ref<SimplexId>(label[p]).store(at, std::memory_order_relaxed);
   return true;
 }
 

@@ -40,7 +40,8 @@ absl::Status ValidateMesh(const Mesh& mesh) {
   // a chunk found bad is walked again, item by item, for the message naming the first culprit
   // (wavelet128, 2.1M vertices and 10.2M tetrahedra: 0.11 s on one thread before).
   constexpr int64_t kChunk = 1 << 16;
-  const int64_t chunks = (std::max<int64_t>(3 * int64_t(nv), 4 * int64_t(nt)) + kChunk - 1) / kChunk;
+  const int64_t chunks =
+      (std::max<int64_t>(3 * int64_t(nv), 4 * int64_t(nt)) + kChunk - 1) / kChunk;
   std::vector<uint8_t> bad_points(chunks, 0), bad_tets(chunks, 0);
   ParallelFor(chunks, DefaultThreads(), [&](int64_t c, int) {
     const size_t coord_end = std::min(mesh.points.size(), size_t(c + 1) * kChunk);
@@ -76,9 +77,8 @@ absl::Status ValidateMesh(const Mesh& mesh) {
       const SimplexId* tv = &mesh.tetrahedra[4 * size_t(t)];
       for (int k = 0; k < 4; ++k) {
         if (tv[k] < 0 || tv[k] >= nv) {
-          return absl::OutOfRangeError(absl::StrCat("tetrahedra: tetrahedron ", t,
-                                                    " has vertex id ", tv[k], " outside [0, ", nv,
-                                                    ")"));
+          return absl::OutOfRangeError(absl::StrCat(
+              "tetrahedra: tetrahedron ", t, " has vertex id ", tv[k], " outside [0, ", nv, ")"));
         }
         for (int j = 0; j < k; ++j) {
           if (tv[j] == tv[k]) {

@@ -68,7 +68,7 @@ TEST(ValidateMesh, RejectsNonFiniteCoordinates) {
 // Checked in parallel chunks: on a mesh of many chunks with several culprits, the message still
 // names the first of each kind, and a culprit in the last item is found.
 TEST(ValidateMesh, NamesTheFirstCulpritOfALargeMesh) {
-  Mesh m = testing::Lattice(40, 40, 40);  // 64,000 vertices, 6 * 39^3 tetrahedra
+  Mesh m = testing::Lattice(40, 40, 40);        // 64,000 vertices, 6 * 39^3 tetrahedra
   ASSERT_GT(m.points.size(), size_t(2) << 16);  // three chunks of coordinates or more
   ASSERT_TRUE(Check(m).ok());
   Mesh tets = m;

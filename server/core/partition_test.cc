@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <array>
+#include <map>
 #include <span>
 #include <vector>
-#include <map>
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"

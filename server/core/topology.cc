@@ -610,8 +610,8 @@ absl::Status Topology::Encoder::AppendWindowFaces(int32_t window, int32_t window
   }
   // Ids are 32-bit (SimplexId), run starts included.
   if (triangle_at[window_size] > size_t(INT32_MAX)) {
-    return absl::ResourceExhaustedError(absl::StrCat(
-        "mesh: more than ", triangle_at[window_size], " triangles exceed the 32-bit id range"));
+    return absl::ResourceExhaustedError(absl::StrCat("mesh: more than ", triangle_at[window_size],
+                                                     " triangles exceed the 32-bit id range"));
   }
   // Within the reservations of ReserveFaces: no reallocation.
   t.edge_upper_.resize(edge_at[window_size]);
@@ -642,7 +642,8 @@ absl::Status Topology::Encoder::AppendWindowFaces(int32_t window, int32_t window
       if (w * 64 >= first && w * 64 + 64 <= end) {
         t.triangle_boundary_[w] = word;
       } else {
-        std::atomic_ref<uint64_t>(t.triangle_boundary_[w]).fetch_or(word, std::memory_order_relaxed);
+        std::atomic_ref<uint64_t>(t.triangle_boundary_[w])
+            .fetch_or(word, std::memory_order_relaxed);
       }
       word = 0;
     };
