@@ -86,7 +86,7 @@ absl::Status RunOnConsumers(const RunContext& context, const Topology& topology,
 absl::Status RunOnConsumersShared(const RunContext& context, int64_t items, int64_t chunk,
                                   const std::function<void(int, ItemQueue&, WorkTracker&)>& body) {
   WorkTracker tracker(context, items);
-  ItemQueue queue(items, chunk);
+  ItemQueue queue(items, chunk, std::max(context.consumers, 1));
   return RunThreads(std::max(context.consumers, 1), tracker, context,
                     [&](int c) { body(c, queue, tracker); });
 }

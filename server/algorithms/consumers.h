@@ -79,20 +79,28 @@ absl::Status RunOnConsumers(const RunContext& context, const Topology& topology,
                             const std::function<void(int, BlockRange, WorkTracker&)>& body);
 
 // Items 0 .. n-1 handed out in ascending chunks to whichever consumer asks first: for work whose
-// items vary in cost and do not follow blocks (a saddle's wall, a separatrix).
+// items vary in cost and do not follow blocks (a saddle's wall, a separatrix). Chunks are
+// `chunk` items until the items left are fewer than 2 * chunk per party, then shrink to that
+// share (at least 1), so the parties finish together: with fixed chunks of 1/32 of a gradient
+// sweep, one consumer of two ran 80 ms alone at its end (wavelet128).
 class ItemQueue {
  public:
-  ItemQueue(int64_t items, int64_t chunk) : items_(items), chunk_(std::max<int64_t>(chunk, 1)) {}
+  ItemQueue(int64_t items, int64_t chunk, int parties = 1)
+      : items_(items), chunk_(std::max<int64_t>(chunk, 1)), share_(2 * std::max(parties, 1)) {}
   // The next chunk [begin, end); false when every item has been handed out.
   bool Next(int64_t& begin, int64_t& end) {
-    begin = next_.fetch_add(chunk_, std::memory_order_relaxed);
-    if (begin >= items_) return false;
-    end = std::min(items_, begin + chunk_);
+    begin = next_.load(std::memory_order_relaxed);
+    int64_t size;
+    do {
+      if (begin >= items_) return false;
+      size = std::clamp<int64_t>((items_ - begin) / share_, 1, chunk_);
+    } while (!next_.compare_exchange_weak(begin, begin + size, std::memory_order_relaxed));
+    end = begin + size;
     return true;
   }
 
  private:
-  const int64_t items_, chunk_;
+  const int64_t items_, chunk_, share_;
   std::atomic<int64_t> next_{0};
 };
 
