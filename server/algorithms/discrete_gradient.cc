@@ -12,6 +12,7 @@
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
+#include "server/core/parallel.h"
 #include "server/core/status_macros.h"
 
 namespace actopo {
@@ -316,8 +317,8 @@ class LowerStarPairing {
 
   void Clear() {
     for (int d = 0; d < 4; ++d) {
-      std::vector<SimplexId>& up = gradient_.up[d];
-      std::vector<SimplexId>& down = gradient_.down[d];
+      Pairings& up = gradient_.up[d];
+      Pairings& down = gradient_.down[d];
       for (const StarCell& c : star_[d]) {
         if (!up.empty()) up[c.id] = -1;
         if (!down.empty()) down[c.id] = -1;
@@ -504,11 +505,20 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,
   DiscreteGradientResult result;
   GradientField& g = result.gradient;
   const bool all = arrays == GradientArrays::kAll;
+  const auto unpaired = [&](Pairings& a, int d) {
+    a.resize(size_t(topo.num_simplices(d)));
+    constexpr int64_t kChunk = 1 << 16;
+    ParallelFor((int64_t(a.size()) + kChunk - 1) / kChunk, std::max(context.consumers, 1),
+                [&](int64_t c, int) {
+                  std::fill(a.begin() + c * kChunk,
+                            a.begin() + std::min<int64_t>(int64_t(a.size()), (c + 1) * kChunk), -1);
+                });
+  };
   for (int d = 0; d < 3; ++d) {
-    if (all || d < 2) g.up[d].assign(topo.num_simplices(d), -1);
+    if (all || d < 2) unpaired(g.up[d], d);
   }
   for (int d = 1; d < 4; ++d) {
-    if (all || d == 3) g.down[d].assign(topo.num_simplices(d), -1);
+    if (all || d == 3) unpaired(g.down[d], d);
   }
   // Every cell lies in the lower star of exactly one vertex (its highest), so consumers on
   // different blocks write disjoint entries. Each counts what it pairs and lists what it leaves

@@ -24,10 +24,13 @@
 namespace actopo {
 
 // The gradient as pairings, in internal ids: up[d][c] is the (d+1)-cell paired with d-cell c,
-// down[d][c] the (d-1)-cell paired with d-cell c, -1 when none.
+// down[d][c] the (d-1)-cell paired with d-cell c, -1 when none. The arrays are filled in
+// parallel when allocated (the pages first touched on every thread: wavelet128's Morse-Smale
+// holds 100 MB of them), hence FilledVector.
+using Pairings = FilledVector<SimplexId>;
 struct GradientField {
-  std::array<std::vector<SimplexId>, 4> up;    // d = 0, 1, 2 used
-  std::array<std::vector<SimplexId>, 4> down;  // d = 1, 2, 3 used
+  std::array<Pairings, 4> up;    // d = 0, 1, 2 used
+  std::array<Pairings, 4> down;  // d = 1, 2, 3 used
 
   bool IsCritical(int d, SimplexId c) const {
     return (d == 3 || up[d][c] < 0) && (d == 0 || down[d][c] < 0);

@@ -567,7 +567,7 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
   // before the arrays below are allocated, and with them what the caller's phases freed (a
   // simplification's kept neighbours). wavelet128.vtu, actopo: the peak was here, 100 MiB of
   // buffer beside `up` and the labels.
-  for (auto* unused : {&g.up[2], &g.down[1], &g.down[2]}) std::vector<SimplexId>().swap(*unused);
+  for (auto* unused : {&g.up[2], &g.down[1], &g.down[2]}) Pairings().swap(*unused);
   EndPhase(structure);
   const CriticalSaddles critical_saddles(topo, result.gradient.critical);
   DescendingSeparatrices(topo, g, result.gradient.critical[1], result.separatrices);
@@ -651,7 +651,7 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
   // The last reader of the pairings: the result keeps the critical cells' lists, and the arrays
   // (4 bytes per vertex, edge and tetrahedron; part_5M 48 MB) go before the last arrays come.
   for (auto& pairings : {&g.up, &g.down}) {
-    for (std::vector<SimplexId>& a : *pairings) std::vector<SimplexId>().swap(a);
+    for (Pairings& a : *pairings) Pairings().swap(a);
   }
 
   // Ascending: maxima labelled 0.. in ascending input tetrahedron id; each tetrahedron follows
