@@ -305,8 +305,11 @@ def test_trace_of_a_job(client, fertility, tmp_path):
                    if e["ph"] == "M" and e["name"] == "thread_name"}
         events = [e for e in trace["traceEvents"] if e["ph"] != "M"]
         assert trace["otherData"]["events"] == len(events)
-        phases = [e["name"] for e in events if e["cat"] == "phase"]
-        assert phases == ["start engine", "morse-smale", "results"]
+        phases = {e["name"]: e for e in events if e["cat"] == "phase"}
+        # The job's phases, and the algorithm's own steps inside its span.
+        assert sorted(phases) == ["morse-smale", "results", "segmentations", "start engine"]
+        run, step = phases["morse-smale"], phases["segmentations"]
+        assert run["ts"] <= step["ts"] and step["ts"] + step["dur"] <= run["ts"] + run["dur"]
         assert {threads[e["tid"]] for e in events if e["cat"] == "phase"} == {"job"}
         assert {"consumer 0", "consumer 1"} <= set(threads.values())
         waits = [e for e in events if e["name"] == "wait"]

@@ -120,6 +120,17 @@ TEST(MorseSmale, InvariantsAndStructureIndependence) {
                 expected)
           << consumers << " consumers";
     }
+    // A gradient given (a simplification's): the stars are scanned in a pass of their own
+    // instead of during the gradient's sweep, to the same result.
+    for (int consumers : {1, 2}) {
+      CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = consumers});
+      auto gradient = *RunDiscreteGradient(*explicit_structure, in.order, {},
+                                           GradientArrays::kPersistence);
+      EXPECT_EQ(digests(*RunMorseSmale(compact, in.order, in.corners, {.consumers = consumers},
+                                       std::move(gradient))),
+                expected)
+          << consumers << " consumers, gradient given";
+    }
     for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
       auto actopo = *ActopoStructure::Create(in.topo, {.consumers = 3,
                                                        .producers = 2,
