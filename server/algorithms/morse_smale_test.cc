@@ -124,8 +124,8 @@ TEST(MorseSmale, InvariantsAndStructureIndependence) {
     // instead of during the gradient's sweep, to the same result.
     for (int consumers : {1, 2}) {
       CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = consumers});
-      auto gradient = *RunDiscreteGradient(*explicit_structure, in.order, {},
-                                           GradientArrays::kPersistence);
+      auto gradient =
+          *RunDiscreteGradient(*explicit_structure, in.order, {}, GradientArrays::kPersistence);
       EXPECT_EQ(digests(*RunMorseSmale(compact, in.order, in.corners, {.consumers = consumers},
                                        std::move(gradient))),
                 expected)
