@@ -257,7 +257,7 @@ class LowerStarPairing {
     for (size_t j = 0; j < star_[1].size(); ++j) {
       const SimplexId y = star_[1][j].key[0];
       found[k] = int32_t(j);
-      k += (y == cell.key[0]) | (y == cell.key[1]);
+      k += int(y == cell.key[0]) + int(y == cell.key[1]);  // the two orders differ
       k -= k == 3;  // never with a valid star: two edges match
     }
     cell.faces = {found[0], found[1], -1};
@@ -271,9 +271,9 @@ class LowerStarPairing {
     for (size_t j = 0; j < star_[2].size(); ++j) {
       const auto& fk = star_[2][j].key;
       found[k] = int32_t(j);
-      k += (fk[0] == key[0] && (fk[1] == key[1] || fk[1] == key[2])) |
-           (fk[0] == key[1] && fk[1] == key[2]);
-      k -= k == 4;  // never with a valid star: three faces match
+      k += int(fk[0] == key[0] && (fk[1] == key[1] || fk[1] == key[2])) +
+           int(fk[0] == key[1] && fk[1] == key[2]);  // key[0] != key[1]: one at most
+      k -= k == 4;                                   // never with a valid star: three faces match
     }
     cell.faces = {found[0], found[1], found[2]};
   }

@@ -52,9 +52,11 @@ absl::Status ValidateMesh(const Mesh& mesh) {
     const SimplexId t_end = SimplexId(std::min<int64_t>(nt, (c + 1) * kChunk / 4));
     for (SimplexId t = SimplexId(c * kChunk / 4); t < t_end; ++t) {
       const SimplexId* tv = &mesh.tetrahedra[4 * size_t(t)];
-      for (int k = 0; k < 4; ++k) bad |= uint32_t(tv[k]) >= uint32_t(nv);
-      bad |= (tv[0] == tv[1]) | (tv[0] == tv[2]) | (tv[0] == tv[3]) | (tv[1] == tv[2]) |
-             (tv[1] == tv[3]) | (tv[2] == tv[3]);
+      int culprits = 0;  // ints, not bools: summed without a branch
+      for (int k = 0; k < 4; ++k) culprits += int(uint32_t(tv[k]) >= uint32_t(nv));
+      culprits += int(tv[0] == tv[1]) + int(tv[0] == tv[2]) + int(tv[0] == tv[3]) +
+                  int(tv[1] == tv[2]) + int(tv[1] == tv[3]) + int(tv[2] == tv[3]);
+      bad |= culprits != 0;
     }
     bad_tets[c] = bad;
   });
