@@ -515,12 +515,9 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,
   const bool all = arrays == GradientArrays::kAll;
   const auto unpaired = [&](Pairings& a, int d) {
     a.resize(size_t(topo.num_simplices(d)));
-    constexpr int64_t kChunk = 1 << 16;
-    ParallelFor((int64_t(a.size()) + kChunk - 1) / kChunk, std::max(context.consumers, 1),
-                [&](int64_t c, int) {
-                  std::fill(a.begin() + c * kChunk,
-                            a.begin() + std::min<int64_t>(int64_t(a.size()), (c + 1) * kChunk), -1);
-                });
+    ParallelForRanges(
+        int64_t(a.size()), 1 << 16, std::max(context.consumers, 1),
+        [&](int64_t begin, int64_t end) { std::fill(a.begin() + begin, a.begin() + end, -1); });
   };
   for (int d = 0; d < 3; ++d) {
     if (all || d < 2) unpaired(g.up[d], d);

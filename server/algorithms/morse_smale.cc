@@ -301,19 +301,14 @@ class Builder {
   std::vector<SimplexId> wall_saddles_, candidates_, star_, triangle_star_;
 };
 
-// fn(begin, end) over [0, n) in chunks on `threads` threads: the segmentations' passes, each
-// cheap per item (wavelet128: 2.1M vertices, 10.2M tetrahedra; one thread took 0.19 s of them).
-template <class Fn>
-void ForChunks(int64_t n, int threads, Fn&& fn) {
-  constexpr int64_t kChunk = 1 << 15;
-  ParallelFor((n + kChunk - 1) / kChunk, threads,
-              [&](int64_t chunk, int) { fn(chunk * kChunk, std::min(n, (chunk + 1) * kChunk)); });
-}
+// The segmentations' passes cost little per item (wavelet128: 2.1M vertices, 10.2M
+// tetrahedra; one thread took 0.19 s of them): ranges of this many items on the run's threads.
+constexpr int64_t kRange = 1 << 15;
 
 std::vector<SimplexId> ToInputOrder(const Topology& topo, const std::vector<SimplexId>& by_internal,
                                     int threads) {
   std::vector<SimplexId> out(by_internal.size());
-  ForChunks(int64_t(by_internal.size()), threads, [&](int64_t begin, int64_t end) {
+  ParallelForRanges(int64_t(by_internal.size()), kRange, threads, [&](int64_t begin, int64_t end) {
     for (SimplexId v = SimplexId(begin); v < end; ++v)
       out[topo.vertex_input_id(v)] = by_internal[v];
   });
@@ -372,7 +367,7 @@ std::vector<SimplexId> DescendingSegmentation(const Topology& topo, const Gradie
       const auto ev = topo.edge(g.up[0][v]);
       return ev[0] == v ? ev[1] : ev[0];
     };
-    ForChunks(nv, threads, [&](int64_t begin, int64_t end) {
+    ParallelForRanges(nv, kRange, threads, [&](int64_t begin, int64_t end) {
       std::vector<SimplexId> path;
       for (SimplexId v = SimplexId(begin); v < end; ++v) {
         LabelChain(v, label, path, size_t(nv), across, [](SimplexId l) { return l >= 0; });
@@ -394,7 +389,7 @@ void ResolveAscendingLabels(std::vector<SimplexId>& next, int threads) {
   const int64_t n = int64_t(next.size());
   // An entry >= 0 is the next tetrahedron; a code (< 0) is final. LabelChain reads each entry
   // before following it, so an entry another thread has just resolved only ends the chain early.
-  ForChunks(n, threads, [&](int64_t begin, int64_t end) {
+  ParallelForRanges(n, kRange, threads, [&](int64_t begin, int64_t end) {
     std::vector<SimplexId> path;
     for (SimplexId t = SimplexId(begin); t < end; ++t) {
       const auto up = [](SimplexId, SimplexId at) { return at; };
@@ -406,7 +401,7 @@ void ResolveAscendingLabels(std::vector<SimplexId>& next, int threads) {
       }
     }
   });
-  ForChunks(n, threads, [&](int64_t begin, int64_t end) {
+  ParallelForRanges(n, kRange, threads, [&](int64_t begin, int64_t end) {
     for (int64_t t = begin; t < end; ++t) next[t] = LabelCode(next[t]);  // its own inverse
   });
 }
@@ -425,7 +420,7 @@ std::vector<SimplexId> FinalSegmentation(const std::vector<SimplexId>& descendin
   const int64_t n = int64_t(descending.size());
   Mutex mu;
   absl::flat_hash_set<int64_t> seen;
-  ForChunks(n, threads, [&](int64_t begin, int64_t end) {
+  ParallelForRanges(n, kRange, threads, [&](int64_t begin, int64_t end) {
     absl::flat_hash_set<int64_t> local;
     for (int64_t v = begin; v < end; ++v) local.insert(sparse(size_t(v)));
     MutexLock lock(mu);
@@ -434,7 +429,7 @@ std::vector<SimplexId> FinalSegmentation(const std::vector<SimplexId>& descendin
   std::vector<int64_t> distinct(seen.begin(), seen.end());
   std::sort(distinct.begin(), distinct.end());
   std::vector<SimplexId> out(descending.size());
-  ForChunks(n, threads, [&](int64_t begin, int64_t end) {
+  ParallelForRanges(n, kRange, threads, [&](int64_t begin, int64_t end) {
     for (int64_t v = begin; v < end; ++v) {
       out[v] = SimplexId(std::lower_bound(distinct.begin(), distinct.end(), sparse(size_t(v))) -
                          distinct.begin());
@@ -500,10 +495,8 @@ absl::StatusOr<std::vector<uint8_t>> InputCorners(const Topology& topology,
   std::vector<uint8_t> corners(size_t(num_tets), 0);
   std::atomic<SimplexId> mismatch{-1};
   const SimplexId num_vertices = topology.num_vertices();
-  constexpr int64_t kChunk = 1 << 16;
-  ParallelFor((int64_t(num_tets) + kChunk - 1) / kChunk, DefaultThreads(), [&](int64_t chunk, int) {
-    const SimplexId end = SimplexId(std::min<int64_t>(num_tets, (chunk + 1) * kChunk));
-    for (SimplexId t = SimplexId(chunk * kChunk); t < end; ++t) {
+  ParallelForRanges(num_tets, 1 << 16, DefaultThreads(), [&](int64_t begin, int64_t end) {
+    for (SimplexId t = SimplexId(begin); t < end; ++t) {
       const auto sorted = topology.tetrahedron(t);
       const SimplexId* given = &input_tetrahedra[4 * size_t(topology.tetrahedron_input_id(t))];
       uint8_t byte = 0;
@@ -663,7 +656,7 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
   });
   for (size_t i = 0; i < maxima.size(); ++i) up[maxima[i]] = LabelCode(SimplexId(i));
   ResolveAscendingLabels(up, threads);
-  ForChunks(int64_t(vertex_label.size()), threads, [&](int64_t begin, int64_t end) {
+  ParallelForRanges(int64_t(vertex_label.size()), kRange, threads, [&](int64_t begin, int64_t end) {
     for (int64_t v = begin; v < end; ++v) {
       if (vertex_label[v] >= 0) vertex_label[v] = up[vertex_label[v]];
     }
