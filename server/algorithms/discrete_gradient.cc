@@ -18,17 +18,14 @@
 namespace actopo {
 namespace {
 
-using Uint128 = unsigned __int128;
-
-// A cell of a vertex x's lower star. `key` holds the orders of its vertices other than x,
-// descending, padded with -1: cells compare by key, across dimensions too.
+// A cell of a vertex x's lower star. Cells compare by key: the orders of their vertices other
+// than x, descending, padded with a value below every order (so across dimensions too). A star
+// holds its edges, triangles and tetrahedra by key, so a cell's place is its rank.
 struct StarCell {
-  int dim;
   SimplexId id;
-  std::array<SimplexId, 3> key;
-  std::array<int32_t, 3> faces;  // indices in the lower star of its faces that contain x
+  std::array<int32_t, 3> faces;  // the ranks of its faces that contain x, `dim` of them
+  uint8_t dim;                   // 1, 2 or 3; an edge's face is x, which the star does not hold
   bool paired;
-  int32_t rank = 0;  // position among the star's edges, triangles and tetrahedra by key
 };
 
 // A set of a lower star's cell ranks, taken out smallest first: one bit per rank. It stands for
@@ -62,6 +59,14 @@ class RankSet {
   size_t first_ = 0;  // the first nonzero word; words_.size() when empty
 };
 
+// Pairs lower stars (Robins et al.'s ProcessLowerStars) into a GradientField. A star is built in
+// three lists, each sorted by a key of small integers before the next is read: its edges by the
+// order of their other vertex, which numbers them (an edge's index stands for that order in the
+// keys after it, comparing as the order does); its triangles by their two edges' indices, higher
+// first, which are also their faces; its tetrahedra by their highest triangle's index and their
+// lowest edge's, their three triangles found by search among the sorted ones. One merge of the
+// three lists then ranks every cell. (Keys of orders in 128 bits sorted together, and faces found
+// by scanning the star, took a third more of the gradient's samples, perf on wavelet128.)
 class LowerStarPairing {
  public:
   LowerStarPairing(GradientField& gradient, const Topology& topology)
@@ -92,122 +97,176 @@ class LowerStarPairing {
     } else {
       Build(reader, x, order);
     }
-    Clear();
+    Clear(x);
     PairStar(x);
   }
 
  private:
+  // An edge, triangle or tetrahedron of the star before ranking, with its key in 64 bits: an
+  // edge's is its other vertex's order; a triangle's its higher and lower edges' indices; a
+  // tetrahedron's the index of its triangle on its two highest vertices, then its lowest edge's.
+  struct Keyed {
+    uint64_t key;
+    SimplexId id;
+    std::array<int32_t, 2> faces;  // a tetrahedron's other two triangles, by index
+  };
+  static uint64_t Pack(int32_t high, int32_t low) { return uint64_t(high) << 32 | uint32_t(low); }
+  static void SortByKey(std::vector<Keyed>& list) {
+    std::sort(list.begin(), list.end(),
+              [](const Keyed& a, const Keyed& b) { return a.key < b.key; });
+  }
+  // The index of `key` in a list sorted by key that holds it; a search without branches.
+  static int32_t Find(const std::vector<Keyed>& list, uint64_t key) {
+    const Keyed* base = list.data();
+    size_t n = list.size();
+    while (n > 1) {
+      const size_t half = n / 2;
+      base = base[half].key <= key ? base + half : base;
+      n -= half;
+    }
+    return int32_t(base - list.data());
+  }
+
+  void Begin() {
+    edges_.clear();
+    triangles_.clear();
+    tetrahedra_.clear();
+  }
+  void AddEdge(SimplexId other_order, SimplexId e) {
+    edges_.push_back({uint64_t(other_order), e, {}});
+  }
+  // Its vertices other than x by order, descending. Edges must be sorted.
+  void AddTriangle(SimplexId o1, SimplexId o2, SimplexId f) {
+    triangles_.push_back({Pack(EdgeIndex(o1), EdgeIndex(o2)), f, {}});
+  }
+  // As above; triangles must be sorted.
+  void AddTetrahedron(SimplexId o1, SimplexId o2, SimplexId o3, SimplexId t) {
+    const int32_t i1 = EdgeIndex(o1), i2 = EdgeIndex(o2), i3 = EdgeIndex(o3);
+    tetrahedra_.push_back(
+        {Pack(TriangleIndex(i1, i2), i3), t, {TriangleIndex(i1, i3), TriangleIndex(i2, i3)}});
+  }
+  int32_t EdgeIndex(SimplexId other_order) const { return Find(edges_, uint64_t(other_order)); }
+  int32_t TriangleIndex(int32_t high, int32_t low) const {
+    return Find(triangles_, Pack(high, low));
+  }
+
+  // Merges the sorted lists into cells_ by key. Among the cells whose highest other vertex is
+  // edge i's, the edge comes first (padding is lowest); then each triangle (i, j) by ascending
+  // j, followed by its tetrahedra (i, j, l) by ascending l. Every face of a cell has a lower
+  // key, so its rank is known when the cell is placed.
+  void Rank() {
+    SortByKey(tetrahedra_);
+    cells_.resize(edges_.size() + triangles_.size() + tetrahedra_.size());
+    edge_rank_.resize(edges_.size());
+    triangle_rank_.resize(triangles_.size());
+    size_t t = 0, q = 0;
+    int32_t r = 0;
+    for (size_t i = 0; i < edges_.size(); ++i) {
+      edge_rank_[i] = r;
+      cells_[r++] = {edges_[i].id, {-1, -1, -1}, 1, false};
+      for (; t < triangles_.size() && triangles_[t].key >> 32 == i; ++t) {
+        triangle_rank_[t] = r;
+        const int32_t lower_edge = edge_rank_[uint32_t(triangles_[t].key)];
+        cells_[r++] = {triangles_[t].id, {edge_rank_[i], lower_edge, -1}, 2, false};
+        for (; q < tetrahedra_.size() && tetrahedra_[q].key >> 32 == t; ++q) {
+          const Keyed& c = tetrahedra_[q];
+          cells_[r++] = {
+              c.id,
+              {triangle_rank_[t], triangle_rank_[c.faces[0]], triangle_rank_[c.faces[1]]},
+              3,
+              false};
+        }
+      }
+    }
+  }
+
   void PairStar(SimplexId x) {
-    auto& edges = star_[1];
-    if (edges.empty()) {  // a minimum
+    if (edges_.empty()) {  // a minimum
       critical_[0].push_back(x);
       return;
     }
     IndexCofacets();
-    RankCells();
-    zero_.Reset(ranked_.size());
-    one_.Reset(ranked_.size());
+    const size_t n = cells_.size();
+    zero_.Reset(n);
+    one_.Reset(n);
     // The lowest cell is an edge: a cell's key is above its faces'.
-    StarCell& delta = Ranked(0);
-    Pair(star_[0][0], delta);
-    for (const StarCell& e : edges) {
-      if (!e.paired) zero_.Insert(e.rank);
-    }
-    PushCofacets(delta);
+    ++pairs_[0];
+    if (!gradient_.up[0].empty()) gradient_.up[0][x] = cells_[0].id;
+    if (!gradient_.down[1].empty()) gradient_.down[1][cells_[0].id] = x;
+    cells_[0].paired = true;
+    for (size_t i = 1; i < edges_.size(); ++i) zero_.Insert(edge_rank_[i]);
+    PushCofacets(0);
     while (!one_.empty() || !zero_.empty()) {
       while (!one_.empty()) {
-        StarCell& alpha = Ranked(one_.PopMin());
-        int face = -1;
+        const int32_t alpha = one_.PopMin();
+        int32_t face = -1;
         if (UnpairedFaces(alpha, face) == 0) {
-          zero_.Insert(alpha.rank);
+          zero_.Insert(alpha);
         } else {
-          StarCell& beta = star_[alpha.dim - 1][face];
-          Pair(beta, alpha);
+          Pair(face, alpha);
           PushCofacets(alpha);
-          PushCofacets(beta);
+          PushCofacets(face);
         }
       }
-      while (!zero_.empty() && Ranked(zero_.Min()).paired) zero_.PopMin();
+      while (!zero_.empty() && cells_[zero_.Min()].paired) zero_.PopMin();
       if (!zero_.empty()) {
-        StarCell& gamma = Ranked(zero_.PopMin());
+        StarCell& gamma = cells_[zero_.PopMin()];
         gamma.paired = true;  // critical
         critical_[gamma.dim].push_back(gamma.id);
-        PushCofacets(gamma);
+        PushCofacets(int32_t(&gamma - cells_.data()));
       }
     }
-  }
-
-  // Ranks the edges, triangles and tetrahedra of the star by key: each key (orders + 1, so the
-  // padding -1 is 0) and the cell's place in 128 bits, sorted as integers.
-  void RankCells() {
-    ranked_.clear();
-    for (int d = 1; d <= 3; ++d) {
-      for (size_t i = 0; i < star_[d].size(); ++i) {
-        const auto& k = star_[d][i].key;
-        ranked_.push_back(Uint128(uint32_t(k[0] + 1)) << 96 | Uint128(uint32_t(k[1] + 1)) << 64 |
-                          Uint128(uint32_t(k[2] + 1)) << 32 | uint32_t(i << 2 | d));
-      }
-    }
-    std::sort(ranked_.begin(), ranked_.end());
-    for (size_t r = 0; r < ranked_.size(); ++r) Ranked(int32_t(r)).rank = int32_t(r);
-  }
-  // The cell of a rank (once RankCells ran).
-  StarCell& Ranked(int32_t rank) {
-    const uint32_t place = uint32_t(ranked_[rank]);
-    return star_[place & 3][place >> 2];
   }
 
   template <class Reader>
   void Build(Reader& reader, SimplexId x, std::span<const SimplexId> order) {
-    for (auto& s : star_) s.clear();
+    Begin();
     const SimplexId ox = order[x];
-    star_[0].push_back({0, x, {-1, -1, -1}, {}, false});
     for (SimplexId e : reader.vertex_edges(x)) {
       const auto [a, b] = reader.edge_vertices(e);
       const SimplexId oy = order[a == x ? b : a];
-      if (oy < ox) star_[1].push_back({1, e, {oy, -1, -1}, {}, false});
+      if (oy < ox) AddEdge(oy, e);
     }
-    if (star_[1].size() < 2) return;
-    // The other vertices of a face are selected, not gathered in a loop: the orders stay in
-    // registers (through an array on the stack they cost a stalled reload per face).
-    for (SimplexId f : reader.vertex_triangles(x)) {
-      const auto [a, b, c] = reader.triangle_vertices(f);
-      const SimplexId op = order[a == x ? b : a], oq = order[c == x ? b : c];
-      const SimplexId high = std::max(op, oq);
-      if (high > ox) continue;
-      StarCell cell{2, f, {high, std::min(op, oq), -1}, {}, false};
-      IndexTriangleFaces(cell);
-      star_[2].push_back(cell);
+    SortByKey(edges_);
+    // Fewer than two lower edges bound no lower triangle, fewer than three no tetrahedron.
+    if (edges_.size() >= 2) {
+      // The other vertices of a face are selected, not gathered in a loop: the orders stay in
+      // registers (through an array on the stack they cost a stalled reload per face).
+      for (SimplexId f : reader.vertex_triangles(x)) {
+        const auto [a, b, c] = reader.triangle_vertices(f);
+        const SimplexId op = order[a == x ? b : a], oq = order[c == x ? b : c];
+        const SimplexId high = std::max(op, oq);
+        if (high < ox) AddTriangle(high, std::min(op, oq), f);
+      }
+      SortByKey(triangles_);
     }
-    if (star_[2].size() < 3) return;
-    for (SimplexId t : reader.vertex_star(x)) {
-      const auto v = reader.tetrahedron_vertices(t);
-      // Descending by a sorting network; x's order comes first exactly when the rest are lower.
-      SimplexId o0 = order[v[0]], o1 = order[v[1]], o2 = order[v[2]], o3 = order[v[3]];
-      const auto descend = [](SimplexId& p, SimplexId& q) {
-        const SimplexId high = std::max(p, q);
-        q = std::min(p, q);
-        p = high;
-      };
-      descend(o0, o1), descend(o2, o3), descend(o0, o2), descend(o1, o3), descend(o1, o2);
-      if (o0 != ox) continue;  // most of the star
-      StarCell cell{3, t, {o1, o2, o3}, {}, false};
-      IndexTetrahedronFaces(cell);
-      star_[3].push_back(cell);
+    if (triangles_.size() >= 3) {
+      for (SimplexId t : reader.vertex_star(x)) {
+        const auto v = reader.tetrahedron_vertices(t);
+        // Descending by a sorting network; x's order comes first exactly when the rest are lower.
+        SimplexId o0 = order[v[0]], o1 = order[v[1]], o2 = order[v[2]], o3 = order[v[3]];
+        const auto descend = [](SimplexId& p, SimplexId& q) {
+          const SimplexId high = std::max(p, q);
+          q = std::min(p, q);
+          p = high;
+        };
+        descend(o0, o1), descend(o2, o3), descend(o0, o2), descend(o1, o3), descend(o1, o2);
+        if (o0 == ox) AddTetrahedron(o1, o2, o3, t);  // a few of the star
+      }
     }
+    Rank();
   }
 
   // Build's star from x's tetrahedra alone. Its lower edges and triangles are the vertices and
   // vertex pairs below x of its lower tetrahedra and of the other tetrahedra of its star; their
-  // ids come from the static encoding. Cells come in another order than Build's, which changes
-  // nothing: keys are distinct, and the pairing picks cells by key.
+  // ids come from the static encoding.
   template <class Reader>
   void BuildFromTetrahedra(Reader& reader, SimplexId x, std::span<const SimplexId> order) {
-    for (auto& s : star_) s.clear();
+    Begin();
     const SimplexId ox = order[x];
-    star_[0].push_back({0, x, {-1, -1, -1}, {}, false});
     below_.clear();
     pairs_below_.clear();
+    lower_tetrahedra_.clear();
     const auto before = [&](SimplexId a, SimplexId b) { return order[a] > order[b]; };
     for (SimplexId t : reader.vertex_star(x)) {
       std::array<SimplexId, 3> lower;  // the vertices below x, descending by order
@@ -220,8 +279,7 @@ class LowerStarPairing {
       if (n == 3) {
         if (before(lower[2], lower[1])) std::swap(lower[1], lower[2]);
         if (before(lower[1], lower[0])) std::swap(lower[0], lower[1]);
-        std::array<SimplexId, 3> key{order[lower[0]], order[lower[1]], order[lower[2]]};
-        star_[3].push_back({3, t, key, {}, false});
+        lower_tetrahedra_.push_back({order[lower[0]], order[lower[1]], order[lower[2]], t});
       }
       for (int i = 0; i < n; ++i) {
         below_.push_back(lower[i]);
@@ -230,60 +288,27 @@ class LowerStarPairing {
     }
     std::sort(below_.begin(), below_.end());
     below_.erase(std::unique(below_.begin(), below_.end()), below_.end());
-    for (SimplexId y : below_) {
-      star_[1].push_back(
-          {1, topology_.FindEdge(std::min(x, y), std::max(x, y)), {order[y], -1, -1}, {}, false});
-    }
-    if (star_[1].size() < 2) return;  // then no lower triangle or tetrahedron either
+    for (SimplexId y : below_)
+      AddEdge(order[y], topology_.FindEdge(std::min(x, y), std::max(x, y)));
+    SortByKey(edges_);
     std::sort(pairs_below_.begin(), pairs_below_.end());
     pairs_below_.erase(std::unique(pairs_below_.begin(), pairs_below_.end()), pairs_below_.end());
-    for (const auto& [y, z] : pairs_below_) {
+    for (const auto& [y, z] : pairs_below_) {  // order[y] > order[z]
       SimplexId ids[3] = {x, y, z};
       SortVertexIds(ids, 3);
-      StarCell cell{
-          2, topology_.FindTriangle(ids[0], ids[1], ids[2]), {order[y], order[z], -1}, {}, false};
-      IndexTriangleFaces(cell);
-      star_[2].push_back(cell);
+      AddTriangle(order[y], order[z], topology_.FindTriangle(ids[0], ids[1], ids[2]));
     }
-    for (StarCell& cell : star_[3]) IndexTetrahedronFaces(cell);
+    SortByKey(triangles_);
+    for (const auto& [o1, o2, o3, t] : lower_tetrahedra_) AddTetrahedron(o1, o2, o3, t);
+    Rank();
   }
 
-  // A lower triangle's two edges that contain x, as indices in star_[1]. Without a branch per
-  // candidate: each index is written to the next slot, which only a match keeps (the match is
-  // unpredictable; as a branch it cost a fifth of Build, perf on wavelet128).
-  void IndexTriangleFaces(StarCell& cell) {
-    int32_t found[3] = {-1, -1, -1};  // the third slot takes the writes after both matches
-    int k = 0;
-    for (size_t j = 0; j < star_[1].size(); ++j) {
-      const SimplexId y = star_[1][j].key[0];
-      found[k] = int32_t(j);
-      k += int(y == cell.key[0]) + int(y == cell.key[1]);  // the two orders differ
-      k -= k == 3;  // never with a valid star: two edges match
-    }
-    cell.faces = {found[0], found[1], -1};
-  }
-
-  // A lower tetrahedron's three faces that contain x, as indices in star_[2]; as above.
-  void IndexTetrahedronFaces(StarCell& cell) {
-    const auto& key = cell.key;
-    int32_t found[4] = {-1, -1, -1, -1};
-    int k = 0;
-    for (size_t j = 0; j < star_[2].size(); ++j) {
-      const auto& fk = star_[2][j].key;
-      found[k] = int32_t(j);
-      k += int(fk[0] == key[0] && (fk[1] == key[1] || fk[1] == key[2])) +
-           int(fk[0] == key[1] && fk[1] == key[2]);  // key[0] != key[1]: one at most
-      k -= k == 4;                                   // never with a valid star: three faces match
-    }
-    cell.faces = {found[0], found[1], found[2]};
-  }
-
-  // Unpaired faces of a 2- or 3-cell inside the lower star; `face` gets the last one found.
-  int UnpairedFaces(const StarCell& c, int& face) const {
-    const int n = c.dim == 2 ? 2 : 3;
+  // Unpaired faces of a triangle or tetrahedron; `face` gets the last one found.
+  int UnpairedFaces(int32_t rank, int32_t& face) const {
+    const StarCell& c = cells_[rank];
     int count = 0;
-    for (int i = 0; i < n; ++i) {
-      if (!star_[c.dim - 1][c.faces[i]].paired) {
+    for (int i = 0; i < c.dim; ++i) {
+      if (!cells_[c.faces[i]].paired) {
         ++count;
         face = c.faces[i];
       }
@@ -291,50 +316,47 @@ class LowerStarPairing {
     return count;
   }
 
-  // For the edges and triangles of the lower star, their cofacets there (ascending index), as
-  // CSR: cofacets_[d][cofacet_begin_[d][i] ..] for cell i of dimension d.
+  // For the edges and triangles of the star, their cofacets there (ascending rank), as CSR:
+  // cofacets_[cofacet_begin_[r] ..] for the cell of rank r.
   void IndexCofacets() {
-    for (int d = 1; d <= 2; ++d) {
-      std::vector<int32_t>& begin = cofacet_begin_[d];
-      std::vector<int32_t>& list = cofacets_[d];
-      begin.assign(star_[d].size() + 1, 0);
-      for (const StarCell& c : star_[d + 1]) {
-        for (int i = 0; i <= d; ++i) ++begin[c.faces[i] + 1];
-      }
-      for (size_t i = 1; i < begin.size(); ++i) begin[i] += begin[i - 1];
-      list.resize(begin.back());
-      cursor_.assign(begin.begin(), begin.end() - 1);
-      for (size_t j = 0; j < star_[d + 1].size(); ++j) {
-        for (int i = 0; i <= d; ++i) list[cursor_[star_[d + 1][j].faces[i]]++] = int32_t(j);
-      }
+    const size_t n = cells_.size();
+    cofacet_begin_.assign(n + 1, 0);
+    for (const StarCell& c : cells_) {
+      if (c.dim == 1) continue;
+      for (int i = 0; i < c.dim; ++i) ++cofacet_begin_[c.faces[i] + 1];
+    }
+    for (size_t r = 1; r <= n; ++r) cofacet_begin_[r] += cofacet_begin_[r - 1];
+    cofacets_.resize(cofacet_begin_[n]);
+    cursor_.assign(cofacet_begin_.begin(), cofacet_begin_.end() - 1);
+    for (size_t r = 0; r < n; ++r) {
+      const StarCell& c = cells_[r];
+      if (c.dim == 1) continue;
+      for (int i = 0; i < c.dim; ++i) cofacets_[cursor_[c.faces[i]]++] = int32_t(r);
     }
   }
 
   // Queues (PQone) the cofacets of a cell that have exactly one unpaired face.
-  void PushCofacets(const StarCell& cell) {
-    const int dim = cell.dim;
-    if (dim != 1 && dim != 2) return;
-    const int32_t index = int32_t(&cell - star_[dim].data());
-    const std::vector<int32_t>& begin = cofacet_begin_[dim];
-    for (int32_t k = begin[index]; k < begin[index + 1]; ++k) {
-      const StarCell& cofacet = star_[dim + 1][cofacets_[dim][k]];
-      int face;
-      if (UnpairedFaces(cofacet, face) == 1) one_.Insert(cofacet.rank);
+  void PushCofacets(int32_t rank) {
+    for (int32_t k = cofacet_begin_[rank]; k < cofacet_begin_[rank + 1]; ++k) {
+      int32_t face;
+      if (UnpairedFaces(cofacets_[k], face) == 1) one_.Insert(cofacets_[k]);
     }
   }
 
-  void Clear() {
-    for (int d = 0; d < 4; ++d) {
-      Pairings& up = gradient_.up[d];
-      Pairings& down = gradient_.down[d];
-      for (const StarCell& c : star_[d]) {
-        if (!up.empty()) up[c.id] = -1;
-        if (!down.empty()) down[c.id] = -1;
-      }
+  // Forgets the pairings of x and of its star's cells.
+  void Clear(SimplexId x) {
+    if (!gradient_.up[0].empty()) gradient_.up[0][x] = -1;
+    for (const StarCell& c : cells_) {
+      Pairings& up = gradient_.up[c.dim];
+      Pairings& down = gradient_.down[c.dim];
+      if (!up.empty()) up[c.id] = -1;
+      if (!down.empty()) down[c.id] = -1;
     }
   }
 
-  void Pair(StarCell& alpha, StarCell& beta) {
+  void Pair(int32_t lower, int32_t higher) {
+    StarCell& alpha = cells_[lower];
+    StarCell& beta = cells_[higher];
     ++pairs_[alpha.dim];
     // An empty array is one the caller does not keep (GradientArrays).
     if (!gradient_.up[alpha.dim].empty()) gradient_.up[alpha.dim][alpha.id] = beta.id;
@@ -347,14 +369,16 @@ class LowerStarPairing {
   const Topology& topology_;
   std::array<std::vector<SimplexId>, 4> critical_;
   std::array<int64_t, 3> pairs_{};
-  std::array<std::vector<StarCell>, 4> star_;
-  std::array<std::vector<int32_t>, 3> cofacet_begin_, cofacets_;  // [1] and [2] used
-  std::vector<int32_t> cursor_;
-  std::vector<Uint128> ranked_;  // by rank: key and place (RankCells)
+  std::vector<Keyed> edges_, triangles_, tetrahedra_;  // the star being built, sorted by key
+  std::vector<int32_t> edge_rank_, triangle_rank_;     // by index in edges_, triangles_
+  std::vector<StarCell> cells_;                        // by rank
+  std::vector<int32_t> cofacet_begin_, cofacets_, cursor_;
   RankSet zero_, one_;
-  // BuildFromTetrahedra's scratch: the vertices below x, and the pairs of them in a tetrahedron.
+  // BuildFromTetrahedra's scratch: the vertices below x, the pairs of them in a tetrahedron, and
+  // the lower tetrahedra (their other vertices' orders, descending, then their id).
   std::vector<SimplexId> below_;
   std::vector<std::pair<SimplexId, SimplexId>> pairs_below_;
+  std::vector<std::array<SimplexId, 4>> lower_tetrahedra_;
 };
 
 }  // namespace
