@@ -111,43 +111,61 @@ class LowerStarPairing {
     std::array<int32_t, 2> faces;  // a tetrahedron's other two triangles, by index
   };
   static uint64_t Pack(int32_t high, int32_t low) { return uint64_t(high) << 32 | uint32_t(low); }
-  static void SortByKey(std::vector<Keyed>& list) {
-    std::sort(list.begin(), list.end(),
-              [](const Keyed& a, const Keyed& b) { return a.key < b.key; });
-  }
-  // The index of `key` in a list sorted by key that holds it; a search without branches.
-  static int32_t Find(const std::vector<Keyed>& list, uint64_t key) {
-    const Keyed* base = list.data();
-    size_t n = list.size();
-    while (n > 1) {
-      const size_t half = n / 2;
-      base = base[half].key <= key ? base + half : base;
-      n -= half;
-    }
-    return int32_t(base - list.data());
-  }
 
-  void Begin() {
-    edges_.clear();
-    triangles_.clear();
-    tetrahedra_.clear();
-  }
-  void AddEdge(SimplexId other_order, SimplexId e) {
-    edges_.push_back({uint64_t(other_order), e, {}});
-  }
+  // A list of Keyed whose storage stays from star to star. Each is written field by field into
+  // room made for a whole relation row (through push_back, a cell went through a temporary on
+  // the stack and a stalled reload: a sixth of Build's samples, perf on wavelet128).
+  class KeyedList {
+   public:
+    void Clear(size_t room) {
+      if (items_.size() < room) items_.resize(room);
+      size_ = 0;
+    }
+    void Add(uint64_t key, SimplexId id, int32_t face0 = -1, int32_t face1 = -1) {
+      Keyed& k = items_[size_++];
+      k.key = key;
+      k.id = id;
+      k.faces[0] = face0;
+      k.faces[1] = face1;
+    }
+    size_t size() const { return size_; }
+    bool empty() const { return size_ == 0; }
+    const Keyed& operator[](size_t i) const { return items_[i]; }
+    void SortByKey() {
+      std::sort(items_.begin(), items_.begin() + ptrdiff_t(size_),
+                [](const Keyed& a, const Keyed& b) { return a.key < b.key; });
+    }
+    // The index of `key`, which the list holds, once sorted; a search without branches.
+    int32_t Find(uint64_t key) const {
+      const Keyed* base = items_.data();
+      size_t n = size_;
+      while (n > 1) {
+        const size_t half = n / 2;
+        base = base[half].key <= key ? base + half : base;
+        n -= half;
+      }
+      return int32_t(base - items_.data());
+    }
+
+   private:
+    std::vector<Keyed> items_;
+    size_t size_ = 0;
+  };
+
+  void AddEdge(SimplexId other_order, SimplexId e) { edges_.Add(uint64_t(other_order), e); }
   // Its vertices other than x by order, descending. Edges must be sorted.
   void AddTriangle(SimplexId o1, SimplexId o2, SimplexId f) {
-    triangles_.push_back({Pack(EdgeIndex(o1), EdgeIndex(o2)), f, {}});
+    triangles_.Add(Pack(EdgeIndex(o1), EdgeIndex(o2)), f);
   }
   // As above; triangles must be sorted.
   void AddTetrahedron(SimplexId o1, SimplexId o2, SimplexId o3, SimplexId t) {
     const int32_t i1 = EdgeIndex(o1), i2 = EdgeIndex(o2), i3 = EdgeIndex(o3);
-    tetrahedra_.push_back(
-        {Pack(TriangleIndex(i1, i2), i3), t, {TriangleIndex(i1, i3), TriangleIndex(i2, i3)}});
+    tetrahedra_.Add(Pack(TriangleIndex(i1, i2), i3), t, TriangleIndex(i1, i3),
+                    TriangleIndex(i2, i3));
   }
-  int32_t EdgeIndex(SimplexId other_order) const { return Find(edges_, uint64_t(other_order)); }
+  int32_t EdgeIndex(SimplexId other_order) const { return edges_.Find(uint64_t(other_order)); }
   int32_t TriangleIndex(int32_t high, int32_t low) const {
-    return Find(triangles_, Pack(high, low));
+    return triangles_.Find(Pack(high, low));
   }
 
   // Merges the sorted lists into cells_ by key. Among the cells whose highest other vertex is
@@ -155,7 +173,7 @@ class LowerStarPairing {
   // j, followed by its tetrahedra (i, j, l) by ascending l. Every face of a cell has a lower
   // key, so its rank is known when the cell is placed.
   void Rank() {
-    SortByKey(tetrahedra_);
+    tetrahedra_.SortByKey();
     cells_.resize(edges_.size() + triangles_.size() + tetrahedra_.size());
     edge_rank_.resize(edges_.size());
     triangle_rank_.resize(triangles_.size());
@@ -220,28 +238,35 @@ class LowerStarPairing {
 
   template <class Reader>
   void Build(Reader& reader, SimplexId x, std::span<const SimplexId> order) {
-    Begin();
     const SimplexId ox = order[x];
-    for (SimplexId e : reader.vertex_edges(x)) {
+    const std::span<const SimplexId> star_edges = reader.vertex_edges(x);
+    edges_.Clear(star_edges.size());
+    triangles_.Clear(0);
+    tetrahedra_.Clear(0);
+    for (SimplexId e : star_edges) {
       const auto [a, b] = reader.edge_vertices(e);
       const SimplexId oy = order[a == x ? b : a];
       if (oy < ox) AddEdge(oy, e);
     }
-    SortByKey(edges_);
+    edges_.SortByKey();
     // Fewer than two lower edges bound no lower triangle, fewer than three no tetrahedron.
     if (edges_.size() >= 2) {
+      const std::span<const SimplexId> star_triangles = reader.vertex_triangles(x);
+      triangles_.Clear(star_triangles.size());
       // The other vertices of a face are selected, not gathered in a loop: the orders stay in
       // registers (through an array on the stack they cost a stalled reload per face).
-      for (SimplexId f : reader.vertex_triangles(x)) {
+      for (SimplexId f : star_triangles) {
         const auto [a, b, c] = reader.triangle_vertices(f);
         const SimplexId op = order[a == x ? b : a], oq = order[c == x ? b : c];
         const SimplexId high = std::max(op, oq);
         if (high < ox) AddTriangle(high, std::min(op, oq), f);
       }
-      SortByKey(triangles_);
+      triangles_.SortByKey();
     }
     if (triangles_.size() >= 3) {
-      for (SimplexId t : reader.vertex_star(x)) {
+      const std::span<const SimplexId> star = reader.vertex_star(x);
+      tetrahedra_.Clear(star.size());
+      for (SimplexId t : star) {
         const auto v = reader.tetrahedron_vertices(t);
         // Descending by a sorting network; x's order comes first exactly when the rest are lower.
         SimplexId o0 = order[v[0]], o1 = order[v[1]], o2 = order[v[2]], o3 = order[v[3]];
@@ -262,7 +287,6 @@ class LowerStarPairing {
   // ids come from the static encoding.
   template <class Reader>
   void BuildFromTetrahedra(Reader& reader, SimplexId x, std::span<const SimplexId> order) {
-    Begin();
     const SimplexId ox = order[x];
     below_.clear();
     pairs_below_.clear();
@@ -288,17 +312,23 @@ class LowerStarPairing {
     }
     std::sort(below_.begin(), below_.end());
     below_.erase(std::unique(below_.begin(), below_.end()), below_.end());
-    for (SimplexId y : below_)
+    edges_.Clear(below_.size());
+    triangles_.Clear(0);
+    tetrahedra_.Clear(0);
+    for (SimplexId y : below_) {
       AddEdge(order[y], topology_.FindEdge(std::min(x, y), std::max(x, y)));
-    SortByKey(edges_);
+    }
+    edges_.SortByKey();
     std::sort(pairs_below_.begin(), pairs_below_.end());
     pairs_below_.erase(std::unique(pairs_below_.begin(), pairs_below_.end()), pairs_below_.end());
+    triangles_.Clear(pairs_below_.size());
     for (const auto& [y, z] : pairs_below_) {  // order[y] > order[z]
       SimplexId ids[3] = {x, y, z};
       SortVertexIds(ids, 3);
       AddTriangle(order[y], order[z], topology_.FindTriangle(ids[0], ids[1], ids[2]));
     }
-    SortByKey(triangles_);
+    triangles_.SortByKey();
+    tetrahedra_.Clear(lower_tetrahedra_.size());
     for (const auto& [o1, o2, o3, t] : lower_tetrahedra_) AddTetrahedron(o1, o2, o3, t);
     Rank();
   }
@@ -369,9 +399,9 @@ class LowerStarPairing {
   const Topology& topology_;
   std::array<std::vector<SimplexId>, 4> critical_;
   std::array<int64_t, 3> pairs_{};
-  std::vector<Keyed> edges_, triangles_, tetrahedra_;  // the star being built, sorted by key
-  std::vector<int32_t> edge_rank_, triangle_rank_;     // by index in edges_, triangles_
-  std::vector<StarCell> cells_;                        // by rank
+  KeyedList edges_, triangles_, tetrahedra_;        // the star being built, sorted by key
+  std::vector<int32_t> edge_rank_, triangle_rank_;  // by index in edges_, triangles_
+  std::vector<StarCell> cells_;                     // by rank
   std::vector<int32_t> cofacet_begin_, cofacets_, cursor_;
   RankSet zero_, one_;
   // BuildFromTetrahedra's scratch: the vertices below x, the pairs of them in a tetrahedron, and
