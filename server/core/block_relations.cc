@@ -185,15 +185,18 @@ class BlockComputer {
   // order, with no search (edges (a, *) and triangles (a, b, *) are runs).
   template <class Fn>
   void ForEachLowestCandidate(Fn&& fn) {
-    s_.candidates.clear();
-    for (SimplexId t : topo_.external_tetrahedra(b_)) {
+    // Each such vertex is in several external tetrahedra: made unique through a table first,
+    // then sorted (sorting every occurrence took 3% of part_5M's Morse-Smale on actopo).
+    const auto external = topo_.external_tetrahedra(b_);
+    LinkVertexIndex& unique = s_.link_vertices;
+    unique.Reset(external.size());
+    for (SimplexId t : external) {
       for (SimplexId v : topo_.tetrahedron(t)) {
-        if (v < vbegin_) s_.candidates.push_back(v);
+        if (v < vbegin_) unique.IndexOf(v);
       }
     }
+    s_.candidates.assign(unique.vertices().begin(), unique.vertices().end());
     std::sort(s_.candidates.begin(), s_.candidates.end());
-    s_.candidates.erase(std::unique(s_.candidates.begin(), s_.candidates.end()),
-                        s_.candidates.end());
     for (SimplexId a : s_.candidates) fn(a);
     for (SimplexId a = vbegin_; a < vend_; ++a) fn(a);
   }

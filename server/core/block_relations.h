@@ -58,7 +58,7 @@ struct BlockScratch {
   std::vector<SimplexId> rows, values, counts, mark, tmp, candidates;
   std::vector<int64_t> keys;
   std::vector<TriangleCount> triangles;  // VB: an open-addressing table
-  LinkVertexIndex link_vertices;         // a vertex's neighbours (VV)
+  LinkVertexIndex link_vertices;         // a vertex's neighbours (VV), a block's candidates
 };
 
 // Computes R (not a static relation: EV, FV, TV, FB live in the topology) for block b.
