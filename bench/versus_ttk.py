@@ -70,13 +70,16 @@ def our_command(bench: str, workload: str, path: str, field: str, structure: str
 
 
 def timed(cmd: list[str], env: dict[str, str] | None = None) -> dict:
-    """Wall seconds and peak RSS (MiB) of one whole process; with actopo-bench's phases."""
-    proc = subprocess.run(["/usr/bin/time", "-f", "TIME %e %M", *cmd], capture_output=True,
+    """Wall, user and system seconds and peak RSS (MiB) of one whole process; with
+    actopo-bench's phases."""
+    proc = subprocess.run(["/usr/bin/time", "-f", "TIME %e %M %U %S", *cmd], capture_output=True,
                           text=True, env=env, check=False)
     if proc.returncode != 0:
         sys.exit(f"failed ({proc.returncode}): {' '.join(cmd)}\n{proc.stderr[-2000:]}")
-    wall, rss = re.search(r"TIME ([\d.]+) (\d+)", proc.stderr).groups()
-    run = {"wall_s": float(wall), "peak_mib": int(rss) / 1024}
+    wall, rss, user, system = re.search(r"TIME ([\d.]+) (\d+) ([\d.]+) ([\d.]+)",
+                                        proc.stderr).groups()
+    run = {"wall_s": float(wall), "peak_mib": int(rss) / 1024, "user_s": float(user),
+           "sys_s": float(system)}
     if proc.stdout.startswith("{"):
         report = json.loads(proc.stdout)
         run["phases_s"] = {k: v for k, v in report["times_s"].items() if k in PHASES}
@@ -147,6 +150,7 @@ def print_tables(cases: list[dict], structures: list[str]) -> None:
         if {"actopo", "explicit"} <= set(structures):
             row.append(f"{spread(ratio(c, 'actopo', 'explicit', 'wall_s'))}x")
         print("| " + " | ".join(row) + " |")
+    print_cpu_table(cases, structures)
     print("\nWhere our time went (actopo-bench's phases, medians, seconds):\n")
     print("| mesh | workload | structure | " + " | ".join(PHASES) + " |")
     print("|---|---|---|" + "---|" * len(PHASES))
@@ -158,6 +162,24 @@ def print_tables(cases: list[dict], structures: list[str]) -> None:
     checks = [f"{c['mesh']} {c['workload']}: {c['check']}" for c in cases if "check" in c]
     if checks:
         print("\n" + "\n".join(checks))
+
+
+def print_cpu_table(cases: list[dict], structures: list[str]) -> None:
+    """User and system seconds beside the wall time: the system part (first touch of memory,
+    page faults) drifts on a shared machine from hour to hour and weighs with the footprint, so
+    a TTK wall time that moved with its system time alone shows here. Runs recorded before these
+    were kept (no user_s) are left out."""
+    kept = [c for c in cases if all("user_s" in r for s in ["ttk", *structures] for r in c[s])]
+    if not kept:
+        return
+    print("\nCPU time (medians, seconds: user + system):\n")
+    print("| mesh | workload | TTK | " + " | ".join(f"ours {s}" for s in structures) + " |")
+    print("|---|---|---|" + "---|" * len(structures))
+    for c in kept:
+        cells = [f"{statistics.median(r['user_s'] for r in c[s]):.2f} + "
+                 f"{statistics.median(r['sys_s'] for r in c[s]):.2f}"
+                 for s in ["ttk", *structures]]
+        print(f"| {c['mesh']} | {c['workload']} | " + " | ".join(cells) + " |")
 
 
 def plot(cases: list[dict], structures: list[str], path: str) -> None:

@@ -1,7 +1,12 @@
 #include "server/algorithms/critical_points.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
+#include <numeric>
+#include <optional>
+#include <random>
+#include <set>
 
 #include "gtest/gtest.h"
 #include "server/algorithms/discrete_gradient.h"
@@ -204,6 +209,189 @@ TEST(CriticalPoints, MinimaAgreeWithTheGradient) {
     const auto points = *RunCriticalPoints(*s, f.order, {.boundary_rule = BoundaryRule::kNone}, {});
     const auto gradient = *RunDiscreteGradient(*s, f.order, {});
     EXPECT_EQ(points.counts[int(CriticalType::kMinimum)], gradient.critical_cells[0]);
+  }
+}
+
+// Robins et al.'s ProcessLowerStars as the paper states it, for the tests below: each cell of a
+// lower star keyed by its other vertices' orders (descending, padded with -1), both queues as
+// ordered sets of (key, cell), faces through the explicit structure's FE and TF. The production
+// pairing numbers edges, ranks small keys and finds faces by search; this has none of that.
+struct ReferenceGradient {
+  std::array<std::vector<SimplexId>, 4> up, down;  // as GradientField; -1 when none
+  std::array<std::vector<SimplexId>, 4> critical;  // ascending ids
+};
+
+ReferenceGradient PairLowerStarsByDefinition(ExplicitStructure& structure,
+                                             std::span<const SimplexId> order) {
+  const Topology& topo = structure.topology();
+  auto reader = structure.NewReader();
+  ReferenceGradient g;
+  for (int d = 0; d < 4; ++d) {
+    g.up[d].assign(size_t(topo.num_simplices(d)), -1);
+    g.down[d].assign(size_t(topo.num_simplices(d)), -1);
+  }
+  using Key = std::array<SimplexId, 3>;
+  using Cell = std::pair<int, SimplexId>;  // (dimension, id)
+  for (SimplexId x = 0; x < topo.num_vertices(); ++x) {
+    std::map<Cell, Key> star;  // x's lower star with the keys
+    const auto add_if_lower = [&](int d, SimplexId c) {
+      SimplexId ids[4];
+      CellVertices(topo, d, c, ids);
+      Key key{-1, -1, -1};
+      int n = 0;
+      for (int i = 0; i <= d; ++i) {
+        if (ids[i] == x) continue;
+        if (order[ids[i]] > order[x]) return;
+        key[n++] = order[ids[i]];
+      }
+      // Descending; the padding, below every order, goes last.
+      if (key[0] < key[1]) std::swap(key[0], key[1]);
+      if (key[1] < key[2]) std::swap(key[1], key[2]);
+      if (key[0] < key[1]) std::swap(key[0], key[1]);
+      star[{d, c}] = key;
+    };
+    for (SimplexId e : reader.vertex_edges(x)) add_if_lower(1, e);
+    for (SimplexId f : reader.vertex_triangles(x)) add_if_lower(2, f);
+    for (SimplexId t : reader.vertex_star(x)) add_if_lower(3, t);
+    if (star.empty()) {
+      g.critical[0].push_back(x);
+      continue;
+    }
+    const auto faces = [&](Cell c) {  // those in the star: the ones that contain x
+      std::vector<Cell> out;
+      const auto all =
+          c.first == 2 ? reader.triangle_edges(c.second) : reader.tetrahedron_triangles(c.second);
+      for (SimplexId f : all) {
+        if (star.count({c.first - 1, f})) out.push_back({c.first - 1, f});
+      }
+      return out;
+    };
+    std::map<Cell, std::vector<Cell>> cofacets;
+    for (const auto& [c, key] : star) {
+      if (c.first < 2) continue;
+      for (Cell f : faces(c)) cofacets[f].push_back(c);
+    }
+    std::set<Cell> paired;
+    const auto unpaired_faces = [&](Cell c) {
+      std::vector<Cell> out;
+      for (Cell f : faces(c)) {
+        if (!paired.count(f)) out.push_back(f);
+      }
+      return out;
+    };
+    std::set<std::pair<Key, Cell>> pq_zero, pq_one;
+    const auto push_cofacets = [&](Cell c) {
+      for (Cell q : cofacets[c]) {
+        if (unpaired_faces(q).size() == 1) pq_one.insert({star[q], q});
+      }
+    };
+    const auto pair = [&](Cell lower, Cell higher) {
+      g.up[lower.first][lower.second] = higher.second;
+      g.down[higher.first][higher.second] = lower.second;
+      paired.insert(lower);
+      paired.insert(higher);
+    };
+    std::optional<std::pair<Key, Cell>> delta;
+    for (const auto& [c, key] : star) {
+      if (c.first == 1 && (!delta || key < delta->first)) delta = {key, c};
+    }
+    pair({0, x}, delta->second);
+    for (const auto& [c, key] : star) {
+      if (c.first == 1 && c != delta->second) pq_zero.insert({key, c});
+    }
+    push_cofacets(delta->second);
+    while (!pq_one.empty() || !pq_zero.empty()) {
+      while (!pq_one.empty()) {
+        const Cell alpha = pq_one.begin()->second;
+        pq_one.erase(pq_one.begin());
+        const std::vector<Cell> unpaired = unpaired_faces(alpha);
+        EXPECT_LE(unpaired.size(), 1u);
+        if (unpaired.empty()) {
+          pq_zero.insert({star[alpha], alpha});
+        } else {
+          pair(unpaired[0], alpha);
+          push_cofacets(alpha);
+          push_cofacets(unpaired[0]);
+        }
+      }
+      while (!pq_zero.empty() && paired.count(pq_zero.begin()->second)) {
+        pq_zero.erase(pq_zero.begin());
+      }
+      if (!pq_zero.empty()) {
+        const Cell gamma = pq_zero.begin()->second;
+        pq_zero.erase(pq_zero.begin());
+        paired.insert(gamma);
+        g.critical[gamma.first].push_back(gamma.second);
+        push_cofacets(gamma);
+      }
+    }
+  }
+  for (auto& cells : g.critical) std::sort(cells.begin(), cells.end());
+  return g;
+}
+
+void ExpectEqualsReference(const DiscreteGradientResult& r, const ReferenceGradient& want,
+                           const std::string& label) {
+  for (int d = 0; d < 4; ++d) {
+    if (d < 3) {
+      EXPECT_TRUE(std::equal(r.gradient.up[d].begin(), r.gradient.up[d].end(), want.up[d].begin(),
+                             want.up[d].end()))
+          << label << ": up[" << d << "]";
+    }
+    if (d > 0) {
+      EXPECT_TRUE(std::equal(r.gradient.down[d].begin(), r.gradient.down[d].end(),
+                             want.down[d].begin(), want.down[d].end()))
+          << label << ": down[" << d << "]";
+    }
+    EXPECT_EQ(r.critical[d], want.critical[d]) << label << ": critical " << d;
+  }
+}
+
+// Both ways of reading a lower star (VE, VF and VT on explicit; VT alone and the static lookups
+// when an update pairs stars again on compact) against the pairing by definition. The orders
+// include a shuffled one, and the bipyramid's centre last, whose lower star holds 80 ring
+// vertices: hundreds of cells, over several words of the pairing's rank sets.
+TEST(DiscreteGradient, EqualsTheLowerStarPairingByDefinition) {
+  struct Case {
+    std::shared_ptr<const Topology> topo;
+    std::vector<SimplexId> order;
+    std::string label;
+  };
+  std::vector<Case> cases;
+  const auto reversed = [](std::vector<SimplexId> order) {
+    for (SimplexId& o : order) o = SimplexId(order.size()) - 1 - o;
+    return order;
+  };
+  int index = 0;
+  for (const Fixture& f : Fixtures()) {
+    const std::string name = "fixture " + std::to_string(index++);
+    cases.push_back({f.topo, f.order, name});
+    std::vector<SimplexId> shuffled(f.order.size());
+    std::iota(shuffled.begin(), shuffled.end(), 0);
+    std::shuffle(shuffled.begin(), shuffled.end(), std::mt19937(index));
+    cases.push_back({f.topo, shuffled, name + ", shuffled"});
+  }
+  for (bool closed : {true, false}) {
+    const Mesh m = testing::Bipyramid(80, closed);
+    auto topo = Build(m, 10);
+    const std::vector<SimplexId> order = VertexOrder(*topo, m.point_fields[0].values);
+    const std::string name = closed ? "closed bipyramid" : "open bipyramid";
+    cases.push_back({topo, order, name});
+    cases.push_back({topo, reversed(order), name + ", centre last"});
+  }
+  for (const Case& c : cases) {
+    auto explicit_structure = *ExplicitStructure::Build(c.topo, {});
+    const ReferenceGradient want = PairLowerStarsByDefinition(*explicit_structure, c.order);
+    ExpectEqualsReference(*RunDiscreteGradient(*explicit_structure, c.order, {}), want,
+                          c.label + ", explicit");
+    // Paired again from the gradient of another order, every vertex reordered.
+    CompactStructure compact(c.topo, {.cache_ratio = 0.1, .consumers = 2});
+    std::vector<SimplexId> every(c.order.size());
+    std::iota(every.begin(), every.end(), 0);
+    const std::vector<SimplexId> other = reversed(c.order);
+    ExpectEqualsReference(*UpdateDiscreteGradient(compact, *RunDiscreteGradient(compact, other, {}),
+                                                  c.order, every, {.consumers = 2}),
+                          want, c.label + ", compact update");
   }
 }
 
