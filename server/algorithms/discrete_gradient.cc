@@ -65,8 +65,8 @@ class RankSet {
 // keys after it, comparing as the order does); its triangles by their two edges' indices, higher
 // first, which are also their faces; its tetrahedra by their highest triangle's index and their
 // lowest edge's, their three triangles found by search among the sorted ones. One merge of the
-// three lists then ranks every cell. (Keys of orders in 128 bits sorted together, and faces found
-// by scanning the star, took a third more of the gradient's samples, perf on wavelet128.)
+// three lists then ranks every cell. (With keys of orders in 128 bits sorted together and faces
+// found by scanning the star, wavelet128's Morse-Smale ran 2.49 s against 2.07 on actopo.)
 class LowerStarPairing {
  public:
   LowerStarPairing(GradientField& gradient, const Topology& topology)
