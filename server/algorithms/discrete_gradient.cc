@@ -152,6 +152,12 @@ class LowerStarPairing {
     size_t size_ = 0;
   };
 
+  // Empties the lists for a new star of at most `edges` lower edges.
+  void Begin(size_t edges) {
+    edges_.Clear(edges);
+    triangles_.Clear(0);
+    tetrahedra_.Clear(0);
+  }
   void AddEdge(SimplexId other_order, SimplexId e) { edges_.Add(uint64_t(other_order), e); }
   // Its vertices other than x by order, descending. Edges must be sorted.
   void AddTriangle(SimplexId o1, SimplexId o2, SimplexId f) {
@@ -207,10 +213,8 @@ class LowerStarPairing {
     const size_t n = cells_.size();
     zero_.Reset(n);
     one_.Reset(n);
-    // The lowest cell is an edge: a cell's key is above its faces'.
-    ++pairs_[0];
-    if (!gradient_.up[0].empty()) gradient_.up[0][x] = cells_[0].id;
-    if (!gradient_.down[1].empty()) gradient_.down[1][cells_[0].id] = x;
+    // The lowest cell is an edge (a cell's key is above its faces'), paired with x.
+    Record(0, x, cells_[0].id);
     cells_[0].paired = true;
     for (size_t i = 1; i < edges_.size(); ++i) zero_.Insert(edge_rank_[i]);
     PushCofacets(0);
@@ -228,10 +232,10 @@ class LowerStarPairing {
       }
       while (!zero_.empty() && cells_[zero_.Min()].paired) zero_.PopMin();
       if (!zero_.empty()) {
-        StarCell& gamma = cells_[zero_.PopMin()];
-        gamma.paired = true;  // critical
-        critical_[gamma.dim].push_back(gamma.id);
-        PushCofacets(int32_t(&gamma - cells_.data()));
+        const int32_t gamma = zero_.PopMin();
+        cells_[gamma].paired = true;  // critical
+        critical_[cells_[gamma].dim].push_back(cells_[gamma].id);
+        PushCofacets(gamma);
       }
     }
   }
@@ -240,9 +244,7 @@ class LowerStarPairing {
   void Build(Reader& reader, SimplexId x, std::span<const SimplexId> order) {
     const SimplexId ox = order[x];
     const std::span<const SimplexId> star_edges = reader.vertex_edges(x);
-    edges_.Clear(star_edges.size());
-    triangles_.Clear(0);
-    tetrahedra_.Clear(0);
+    Begin(star_edges.size());
     for (SimplexId e : star_edges) {
       const auto [a, b] = reader.edge_vertices(e);
       const SimplexId oy = order[a == x ? b : a];
@@ -312,9 +314,7 @@ class LowerStarPairing {
     }
     std::sort(below_.begin(), below_.end());
     below_.erase(std::unique(below_.begin(), below_.end()), below_.end());
-    edges_.Clear(below_.size());
-    triangles_.Clear(0);
-    tetrahedra_.Clear(0);
+    Begin(below_.size());
     for (SimplexId y : below_) {
       AddEdge(order[y], topology_.FindEdge(std::min(x, y), std::max(x, y)));
     }
@@ -384,15 +384,20 @@ class LowerStarPairing {
     }
   }
 
+  // Pairs two cells of the star, by rank.
   void Pair(int32_t lower, int32_t higher) {
     StarCell& alpha = cells_[lower];
     StarCell& beta = cells_[higher];
-    ++pairs_[alpha.dim];
-    // An empty array is one the caller does not keep (GradientArrays).
-    if (!gradient_.up[alpha.dim].empty()) gradient_.up[alpha.dim][alpha.id] = beta.id;
-    if (!gradient_.down[beta.dim].empty()) gradient_.down[beta.dim][beta.id] = alpha.id;
+    Record(alpha.dim, alpha.id, beta.id);
     alpha.paired = true;
     beta.paired = true;
+  }
+  // Writes the pair (d-cell lower, (d + 1)-cell higher) into the gradient.
+  void Record(int d, SimplexId lower, SimplexId higher) {
+    ++pairs_[d];
+    // An empty array is one the caller does not keep (GradientArrays).
+    if (!gradient_.up[d].empty()) gradient_.up[d][lower] = higher;
+    if (!gradient_.down[d + 1].empty()) gradient_.down[d + 1][higher] = lower;
   }
 
   GradientField& gradient_;
