@@ -26,6 +26,12 @@ fuzz_one() {
   # Corrupt sizes in a file make VTK allocate what they claim: mesh_file_fuzzer's operator new
   # throws std::bad_alloc as the server's does (see there), given these limits.
   [[ $target == mesh_file_fuzzer ]] && extra=(-detect_leaks=0 -malloc_limit_mb=1000000)
+  # A streaming call's server side ends after the client's Finish returns: gRPC allocates the
+  # closure that runs the reactor's OnDone (ServerCallbackCall::ScheduleOnDone, 80 bytes) and
+  # frees it on its own thread a moment later. libFuzzer's check after each input sometimes
+  # caught it in between and called it a leak (CI, StreamRelations, 1 run in about 10). Leaks
+  # are still checked once, at exit, when every call has ended.
+  [[ $target == request_fuzzer ]] && extra=(-detect_leaks=0)
   ASAN_OPTIONS=allocator_may_return_null=1:alloc_dealloc_mismatch=0 \
   "$build/fuzz/$target" "$work" "$here/corpus/$name" "${extra[@]}" \
     -max_total_time="$seconds" -timeout=20 \
