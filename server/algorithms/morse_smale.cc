@@ -27,18 +27,18 @@ void DescendingSeparatrices(const Topology& topo, const GradientField& g,
                             std::span<const SimplexId> saddles, std::vector<Separatrix>& out) {
   for (SimplexId e : saddles) {
     for (SimplexId start : topo.edge(e)) {
-      Separatrix s{SeparatrixType::kDescending, {1, e}, {}, {{1, e}}};
+      Separatrix s{SeparatrixType::kDescending, {1, e}, {}, {e}};
       SimplexId v = start;
       while (true) {
-        s.cells.push_back({0, v});
+        s.path.push_back(v);  // a vertex, then its edge
         if (g.IsCritical(0, v)) break;
         const SimplexId edge = g.up[0][v];
-        s.cells.push_back({1, edge});
+        s.path.push_back(edge);
         const auto ev = topo.edge(edge);
         v = ev[0] == v ? ev[1] : ev[0];
       }
-      s.destination = s.cells.back();
-      s.cells.shrink_to_fit();  // as in SaddleConnectors
+      s.destination = s.cell(s.path.size() - 1);
+      s.path.shrink_to_fit();  // as in SaddleConnectors
       out.push_back(std::move(s));
     }
   }
@@ -94,10 +94,10 @@ class Builder {
       return topo_.tetrahedron_input_id(a) < topo_.tetrahedron_input_id(b);
     });
     for (SimplexId t : star_) {
-      Separatrix s{SeparatrixType::kAscending, {2, f}, {}, {{2, f}}};
-      if (AscendingPath(t, s.cells)) {
-        s.destination = s.cells.back();
-        s.cells.shrink_to_fit();  // as in SaddleConnectors
+      Separatrix s{SeparatrixType::kAscending, {2, f}, {}, {f}};
+      if (AscendingPath(t, s.path)) {
+        s.destination = s.cell(s.path.size() - 1);
+        s.path.shrink_to_fit();  // as in SaddleConnectors
         out.push_back(std::move(s));
       }
     }
@@ -109,10 +109,11 @@ class Builder {
     DescendingWall(s2);
     for (SimplexId s1 : wall_saddles_) {
       Separatrix s{SeparatrixType::kSaddleConnector, {1, s1}, {2, s2}, {}};
-      if (PathThroughWall(s1, s.cells) && s.cells.back().dim == 2 && s.cells.back().id == s2) {
+      // Ends at s2: a triangle (odd length: an edge first, then triangle and edge in turn).
+      if (PathThroughWall(s1, s.path) && s.path.size() % 2 == 0 && s.path.back() == s2) {
         // The result holds every path to the end: without the slack of their growth (part_5M,
-        // 4.9M cells of 8 bytes in 84k separatrices, most of them saddle connectors).
-        s.cells.shrink_to_fit();
+        // 4.9M cells in 84k separatrices, most of them saddle connectors).
+        s.path.shrink_to_fit();
         out.push_back(std::move(s));
       }
     }
@@ -148,12 +149,25 @@ class Builder {
     return first;
   }
 
-  // The tetrahedra of f (one or two), from the star of its lowest vertex. Ascending paths and
-  // TTK's triangle order wander across blocks; a vertex star costs a quarter of a triangle
-  // star to compute per block (part_5M, compact: the triangle stars were computed 13,500
-  // times over 880 blocks in this phase), and the gradient reads vertex stars anyway.
+  // The tetrahedra of f = (a, b, c) (one on the boundary, else two), ascending. Those whose
+  // fourth vertex is above a have a as their lowest vertex: the static encoding lists them
+  // together (lowest_vertex_tetrahedra), so no relation is read when they are all of f's (on a
+  // mesh where a triangle has at most two). Only when some are missing (their lowest vertex is
+  // below a) is a's star read. TTK's triangle
+  // order wanders across blocks, and a vertex star costs a quarter of a triangle star to compute
+  // per block (part_5M, compact: the triangle stars were computed 13,500 times over 880 blocks
+  // in the walls' phase); the run alone answers about half of the triangles.
   std::span<const SimplexId> TriangleStar(SimplexId f) {
     const auto [a, b, c] = topo_.triangle(f);
+    triangle_star_.clear();
+    const auto [first, end] = topo_.lowest_vertex_tetrahedra(a);
+    for (SimplexId t = first; t < end; ++t) {
+      if (Contains(topo_.tetrahedron(t), b, c)) triangle_star_.push_back(t);
+    }
+    if (!topo_.has_crowded_triangles() &&
+        triangle_star_.size() == (topo_.triangle_on_boundary(f) ? 1u : 2u)) {
+      return triangle_star_;
+    }
     triangle_star_.clear();
     for (SimplexId t : r_.vertex_star(a)) {
       if (Contains(topo_.tetrahedron(t), b, c)) triangle_star_.push_back(t);
@@ -164,13 +178,13 @@ class Builder {
  private:
   // tet -> its paired triangle -> the next tetrahedron ... until a critical tetrahedron. False
   // when the path ends elsewhere (through the boundary or at a critical triangle).
-  bool AscendingPath(SimplexId tet, std::vector<Cell>& cells) {
+  bool AscendingPath(SimplexId tet, std::vector<SimplexId>& path) {
     SimplexId cur = tet;
     while (true) {
-      cells.push_back({3, cur});
+      path.push_back(cur);  // a tetrahedron, then its triangle
       if (g_.IsCritical(3, cur)) return true;
       const SimplexId f = g_.down[3][cur];
-      cells.push_back({2, f});
+      path.push_back(f);
       if (saddles_.triangle(f)) return false;
       const SimplexId next = next_up_[cur];
       if (next < 0) return false;
@@ -219,13 +233,13 @@ class Builder {
   // triangle around that edge other than the previous one (the last in TTK's edge-triangle
   // order when several) ... until a critical cell or a dead end. False if s1 touches no wall
   // triangle.
-  bool PathThroughWall(SimplexId s1, std::vector<Cell>& cells) {
-    cells.push_back({1, s1});
+  bool PathThroughWall(SimplexId s1, std::vector<SimplexId>& path) {
+    path.push_back(s1);  // an edge, then triangle and edge in turn
     SimplexId cur = -1;
     candidates_.clear();
     for (const auto& [e, f] : WallTriangles(s1)) {
       if (saddles_.triangle(f)) {
-        cells.push_back({2, f});
+        path.push_back(f);
         return true;
       }
       candidates_.push_back(f);
@@ -235,10 +249,10 @@ class Builder {
     // A valid gradient has no cycle here; the bound only guards against looping forever.
     for (size_t steps = 0; steps <= wall_.size(); ++steps) {
       const SimplexId old = cur;
-      cells.push_back({2, cur});
+      path.push_back(cur);
       if (saddles_.triangle(cur)) return true;
       const SimplexId e = DownEdge(cur);
-      cells.push_back({1, e});
+      path.push_back(e);
       if (saddles_.edge(e)) return true;
       candidates_.clear();
       for (const auto& [edge, f] : WallTriangles(e)) {
@@ -447,7 +461,7 @@ int64_t MorseSmaleResult::CountSeparatrices(SeparatrixType type) const {
 
 int64_t MorseSmaleResult::Segments() const {
   int64_t n = 0;
-  for (const Separatrix& s : separatrices) n += int64_t(s.cells.size()) - 1;
+  for (const Separatrix& s : separatrices) n += int64_t(s.path.size()) - 1;
   return n;
 }
 

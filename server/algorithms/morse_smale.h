@@ -37,9 +37,19 @@ struct Cell {
 
 struct Separatrix {
   SeparatrixType type;
-  Cell source;              // the saddle (1-saddle for connectors)
-  Cell destination;         // the extremum (2-saddle for connectors)
-  std::vector<Cell> cells;  // the V-path, source first
+  Cell source;       // the saddle (1-saddle for connectors)
+  Cell destination;  // the extremum (2-saddle for connectors)
+  // The V-path's cell ids, source first. Its cells' dimensions alternate: the source's at even
+  // positions, one below it (descending) or above it (ascending, connectors) at odd ones, so
+  // only the ids are kept (part_5M.vtu: 4.9M cells, 4 bytes each instead of 8); cell(i) gives
+  // both.
+  std::vector<SimplexId> path;
+
+  int8_t dimension(size_t i) const {
+    if (i % 2 == 0) return source.dim;
+    return type == SeparatrixType::kDescending ? int8_t(source.dim - 1) : int8_t(source.dim + 1);
+  }
+  Cell cell(size_t i) const { return {dimension(i), path[i]}; }
 };
 
 struct MorseSmaleResult {

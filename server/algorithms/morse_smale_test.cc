@@ -29,6 +29,25 @@ Input Make(Mesh mesh, int block_size) {
   return {std::move(mesh), topo, std::move(order), std::move(corners)};
 }
 
+// A cell's sorted internal vertex ids.
+std::vector<SimplexId> CellVertices(const Topology& topo, Cell c) {
+  switch (c.dim) {
+    case 0: return {c.id};
+    case 1: {
+      const auto v = topo.edge(c.id);
+      return {v.begin(), v.end()};
+    }
+    case 2: {
+      const auto v = topo.triangle(c.id);
+      return {v.begin(), v.end()};
+    }
+    default: {
+      const auto v = topo.tetrahedron(c.id);
+      return {v.begin(), v.end()};
+    }
+  }
+}
+
 void ExpectInvariants(const MorseSmaleResult& r, const Topology& topo) {
   const SimplexId nv = topo.num_vertices();
   // Two descending separatrices per 1-saddle, each from the saddle to a minimum.
@@ -36,9 +55,10 @@ void ExpectInvariants(const MorseSmaleResult& r, const Topology& topo) {
   // At most two ascending separatrices per 2-saddle in a manifold mesh.
   EXPECT_LE(r.CountSeparatrices(SeparatrixType::kAscending), 2 * r.gradient.critical_cells[2]);
   for (const Separatrix& s : r.separatrices) {
-    ASSERT_FALSE(s.cells.empty());
-    EXPECT_EQ(s.cells.front().dim, s.source.dim);
-    EXPECT_EQ(s.cells.back().id, s.destination.id);
+    ASSERT_FALSE(s.path.empty());
+    EXPECT_EQ(s.path.front(), s.source.id);
+    EXPECT_EQ(s.cell(s.path.size() - 1).dim, s.destination.dim);
+    EXPECT_EQ(s.path.back(), s.destination.id);
     if (s.type == SeparatrixType::kDescending) {
       EXPECT_EQ(s.destination.dim, 0);
       EXPECT_TRUE(std::binary_search(r.gradient.critical[0].begin(), r.gradient.critical[0].end(),
@@ -49,8 +69,14 @@ void ExpectInvariants(const MorseSmaleResult& r, const Topology& topo) {
       EXPECT_TRUE(std::binary_search(r.gradient.critical[3].begin(), r.gradient.critical[3].end(),
                                      s.destination.id));
     }
-    for (size_t i = 1; i < s.cells.size(); ++i) {  // consecutive cells are faces of each other
-      EXPECT_EQ(std::abs(s.cells[i].dim - s.cells[i - 1].dim), 1);
+    for (size_t i = 1; i < s.path.size(); ++i) {  // consecutive cells are faces of each other
+      std::vector<SimplexId> lower = CellVertices(topo, s.cell(i - 1));
+      std::vector<SimplexId> upper = CellVertices(topo, s.cell(i));
+      if (lower.size() > upper.size()) std::swap(lower, upper);
+      EXPECT_EQ(lower.size() + 1, upper.size()) << "cell " << i;
+      EXPECT_TRUE(std::includes(upper.begin(), upper.end(), lower.begin(), lower.end()))
+          << "cell " << i << " of a separatrix from " << int(s.source.dim) << "-cell "
+          << s.source.id;
     }
   }
   // Every vertex in exactly one descending region; the minima's manifolds cover the mesh.
@@ -100,7 +126,8 @@ TEST(MorseSmale, InvariantsAndStructureIndependence) {
       std::string cells;  // every separatrix, cell by cell, in the result's order
       for (const Separatrix& s : r.separatrices) {
         cells += std::to_string(int(s.type)) + ":";
-        for (const Cell& c : s.cells) {
+        for (size_t i = 0; i < s.path.size(); ++i) {
+          const Cell c = s.cell(i);
           cells += std::to_string(c.dim) + "," + std::to_string(c.id) + " ";
         }
         cells += "\n";

@@ -26,6 +26,7 @@ struct BlockFaces {
   std::vector<SimplexId> edge_triangles;   // per edge: its triangles (a, b, *)
   std::vector<SimplexId> triangle_third;   // c of each triangle (a, b, c), in order
   std::vector<uint8_t> triangle_boundary;  // per triangle
+  bool crowded = false;                    // a triangle with three tetrahedra or more
 };
 
 // Offsets of per-item counts: out[0] = 0, out[i + 1] = out[i] + counts[i].
@@ -179,22 +180,30 @@ SimplexId Topology::FindTriangle(SimplexId a, SimplexId b, SimplexId c) const {
   return -1;
 }
 
-SimplexId Topology::FindTetrahedron(SimplexId a, SimplexId b, SimplexId c, SimplexId d) const {
-  // A tetrahedron sits among its block's internal ones, which are ordered by lowest vertex: a
-  // binary search finds a's run (tens of tetrahedra), then a linear scan.
-  const int32_t block = vertex_block_[a];
+std::pair<SimplexId, SimplexId> Topology::lowest_vertex_tetrahedra(SimplexId v) const {
+  // A block's internal tetrahedra are ordered by lowest vertex: a binary search finds where v's
+  // run (tens of tetrahedra) starts, a second where it ends.
+  const int32_t block = vertex_block_[v];
   const SimplexId* tets = tet_vertices_.data();
-  SimplexId lo = block_tet_begin_[block], hi = block_tet_begin_[block + 1];
-  while (lo < hi) {
-    const SimplexId mid = lo + (hi - lo) / 2;
-    if (tets[4 * size_t(mid)] < a) {
-      lo = mid + 1;
-    } else {
-      hi = mid;
+  const auto first_at_least = [&](SimplexId lo, SimplexId hi, SimplexId x) {
+    while (lo < hi) {
+      const SimplexId mid = lo + (hi - lo) / 2;
+      if (tets[4 * size_t(mid)] < x) {
+        lo = mid + 1;
+      } else {
+        hi = mid;
+      }
     }
-  }
-  for (SimplexId t = lo; t < block_tet_begin_[block + 1] && tets[4 * size_t(t)] == a; ++t) {
-    const SimplexId* s = &tets[4 * size_t(t)];
+    return lo;
+  };
+  const SimplexId begin = first_at_least(block_tet_begin_[block], block_tet_begin_[block + 1], v);
+  return {begin, first_at_least(begin, block_tet_begin_[block + 1], v + 1)};
+}
+
+SimplexId Topology::FindTetrahedron(SimplexId a, SimplexId b, SimplexId c, SimplexId d) const {
+  const auto [begin, end] = lowest_vertex_tetrahedra(a);
+  for (SimplexId t = begin; t < end; ++t) {
+    const SimplexId* s = &tet_vertices_[4 * size_t(t)];
     if (s[1] == b && s[2] == c && s[3] == d) return t;
   }
   return -1;
@@ -448,6 +457,7 @@ void Topology::Encoder::ComputeBlockFaces(int32_t b, Scratch& sc, BlockFaces& ou
   out.edge_triangles.clear();
   out.triangle_third.clear();
   out.triangle_boundary.clear();
+  out.crowded = false;
   CollectStars(b, sc);
   SimplexId star_from = 0;
   for (SimplexId v = vbegin; v < vend; ++v) {
@@ -593,6 +603,7 @@ void Topology::Encoder::EmitVertexFaces(SimplexId v, const Scratch& sc, BlockFac
     ++out.edge_triangles[edge];
     out.triangle_third.push_back(SimplexId(pair.key & 0xffffffffu));
     out.triangle_boundary.push_back(pair.count == 1);
+    out.crowded |= pair.count > 2;
   }
 }
 
@@ -607,6 +618,7 @@ absl::Status Topology::Encoder::AppendWindowFaces(int32_t window, int32_t window
   for (int32_t index = 0; index < window_size; ++index) {
     edge_at[index + 1] = edge_at[index] + faces[index].edges.size();
     triangle_at[index + 1] = triangle_at[index] + faces[index].triangle_third.size();
+    t.crowded_triangles_ |= faces[index].crowded;
   }
   // Ids are 32-bit (SimplexId), run starts included.
   if (triangle_at[window_size] > size_t(INT32_MAX)) {
@@ -779,6 +791,7 @@ void Topology::ClearFaces() {
   triangle_third_ = {};
   triangle_edge_ = {};
   triangle_boundary_ = {};
+  crowded_triangles_ = false;
 }
 
 }  // namespace actopo

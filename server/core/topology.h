@@ -197,6 +197,9 @@ class Topology {
   bool triangle_on_boundary(SimplexId f) const {
     return (triangle_boundary_[size_t(f) >> 6] >> (f & 63)) & 1;
   }
+  // Whether some triangle has three tetrahedra or more (a non-manifold mesh). When not, a
+  // triangle has one tetrahedron on the boundary and two elsewhere.
+  bool has_crowded_triangles() const { return crowded_triangles_; }
   // Edge (a, b): a (its lowest vertex) and b. Triangle (a, b, c): its edge (a, b) and c.
   SimplexId edge_lowest(SimplexId e) const { return edge_lowest_.Owner(vertex_edge_begin_, e); }
   SimplexId edge_upper(SimplexId e) const { return edge_upper_[e]; }
@@ -209,6 +212,9 @@ class Topology {
   SimplexId FindEdge(SimplexId a, SimplexId b) const;
   SimplexId FindTriangle(SimplexId a, SimplexId b, SimplexId c) const;
   SimplexId FindTetrahedron(SimplexId a, SimplexId b, SimplexId c, SimplexId d) const;
+  // The tetrahedra whose lowest vertex is v: ids [first, second), ascending (a run of v's
+  // block's internal tetrahedra). Every tetrahedron of v's star not in it has a lower id.
+  std::pair<SimplexId, SimplexId> lowest_vertex_tetrahedra(SimplexId v) const;
 
   // Block of a simplex: the block of its lowest vertex.
   int32_t vertex_block(SimplexId v) const { return vertex_block_[v]; }
@@ -283,6 +289,7 @@ class Topology {
   FilledVector<SimplexId> triangle_third_;       // 1 per triangle: c of (a, b, c)
   RunLookup triangle_edge_;                      // triangle -> edge (a, b)
   std::vector<uint64_t> triangle_boundary_;      // 1 bit per triangle
+  bool crowded_triangles_ = false;               // has_crowded_triangles()
   FilledVector<SimplexId> tet_vertices_;         // 4 per tetrahedron, sorted
   std::vector<SimplexId> external_offsets_;      // B + 1
   std::vector<SimplexId> external_tets_;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <map>
+#include <numeric>
 #include <random>
 #include <set>
 #include <thread>
@@ -258,6 +259,9 @@ TEST(Topology, EdgesTrianglesAndBoundaryMatchOracle) {
     for (int capacity : {1, 7, 1000}) {
       auto topo = BuildOrDie(m, capacity);
       testing::RelationOracle oracle(*topo);
+      bool crowded = false;  // a triangle with three tetrahedra or more
+      for (const auto& star : oracle.rows(Relation::kFT)) crowded |= star.size() > 2;
+      EXPECT_EQ(topo->has_crowded_triangles(), crowded);
       ASSERT_EQ(topo->num_edges(), SimplexId(oracle.edges().size()));
       ASSERT_EQ(topo->num_triangles(), SimplexId(oracle.triangles().size()));
       for (SimplexId e = 0; e < topo->num_edges(); ++e) {
@@ -351,6 +355,16 @@ TEST(Topology, FindTetrahedronMatchesBruteForce) {
       }
       for (const auto& [v, t] : tuples) {
         EXPECT_EQ(topo->FindTetrahedron(v[0], v[1], v[2], v[3]), t);
+      }
+      // Each vertex's run of tetrahedra it is the lowest vertex of: exactly those.
+      std::vector<std::vector<SimplexId>> lowest_of(size_t(topo->num_vertices()));
+      for (const auto& [v, t] : tuples) lowest_of[v[0]].push_back(t);
+      for (SimplexId v = 0; v < topo->num_vertices(); ++v) {
+        std::sort(lowest_of[v].begin(), lowest_of[v].end());
+        const auto [first, end] = topo->lowest_vertex_tetrahedra(v);
+        std::vector<SimplexId> run(size_t(end - first));
+        std::iota(run.begin(), run.end(), first);
+        EXPECT_EQ(run, lowest_of[v]) << "vertex " << v << ", capacity " << capacity;
       }
       std::mt19937 random(capacity);
       const SimplexId nv = topo->num_vertices();

@@ -135,7 +135,7 @@ void AddMorseSmaleOutputs(const ResultContext& c, const MorseSmaleResult& r, Res
   seps.line_offsets.resize(num_lines + 1);
   seps.line_offsets[0] = 0;
   for (size_t i = 0; i < num_lines; ++i) {
-    seps.line_offsets[i + 1] = seps.line_offsets[i] + int32_t(r.separatrices[i].cells.size());
+    seps.line_offsets[i + 1] = seps.line_offsets[i] + int32_t(r.separatrices[i].path.size());
   }
   const size_t num_points = size_t(seps.line_offsets[num_lines]);
   seps.line_connectivity.resize(num_points);
@@ -143,8 +143,9 @@ void AddMorseSmaleOutputs(const ResultContext& c, const MorseSmaleResult& r, Res
   seps.points.resize(3 * num_points);
   ParallelFor(int64_t(num_lines), DefaultThreads(), [&](int64_t i, int) {
     double* xyz = &seps.points[3 * size_t(seps.line_offsets[i])];
-    for (const Cell& cell : r.separatrices[i].cells) {
-      Barycentre(c, cell.dim, cell.id, xyz);
+    const Separatrix& s = r.separatrices[i];
+    for (size_t k = 0; k < s.path.size(); ++k) {
+      Barycentre(c, s.dimension(k), s.path[k], xyz);
       xyz += 3;
     }
   });

@@ -229,7 +229,9 @@ TEST(MorseSmaleOutputs, SeparatrixPointsAreTheirCellsBarycentres) {
   size_t point = 0;
   for (size_t i = 0; i < r.separatrices.size(); ++i) {
     ASSERT_EQ(seps.line_offsets[i], int32_t(point)) << "separatrix " << i;
-    for (const Cell& cell : r.separatrices[i].cells) {
+    const Separatrix& s = r.separatrices[i];
+    for (size_t j = 0; j < s.path.size(); ++j) {
+      const Cell cell = s.cell(j);
       const std::vector<SimplexId> vertices = CellInputVertices(*topology, cell.dim, cell.id);
       for (int k = 0; k < 3; ++k) {
         double sum = 0;
