@@ -44,6 +44,9 @@ void DescendingSeparatrices(const Topology& topo, const GradientField& g,
   }
 }
 
+// Labels as codes that cannot be tetrahedron ids: label L (>= -1) is -2 - L, so -1 stays -1.
+constexpr SimplexId LabelCode(SimplexId label) { return -2 - label; }
+
 // Whether tetrahedron tv has vertices b and c.
 bool Contains(std::span<const SimplexId, 4> tv, SimplexId b, SimplexId c) {
   int found = 0;
@@ -73,8 +76,8 @@ class CriticalSaddles {
 template <class Reader>
 class Builder {
  public:
-  // `next_up`: every non-critical tetrahedron's next one up (ScanStar), for
-  // AscendingSeparatrices.
+  // `next_up`, for AscendingSeparatrices: per tetrahedron, the next one up (ScanStar), -1 when
+  // its path leaves through the boundary, a maximum's LabelCode. Those paths read no pairing.
   Builder(Reader& reader, const GradientField& gradient, const CriticalSaddles& saddles,
           std::span<const uint8_t> input_corners, std::span<const SimplexId> next_up = {})
       : r_(reader),
@@ -176,20 +179,29 @@ class Builder {
   }
 
  private:
-  // tet -> its paired triangle -> the next tetrahedron ... until a critical tetrahedron. False
-  // when the path ends elsewhere (through the boundary or at a critical triangle).
+  // tet -> its paired triangle -> the next tetrahedron ... until a maximum. False when the path
+  // leaves through the boundary. The paired triangle is the one the two tetrahedra share, so
+  // the tetrahedron -> triangle pairing is not kept for these paths (4 bytes per tetrahedron).
   bool AscendingPath(SimplexId tet, std::vector<SimplexId>& path) {
     SimplexId cur = tet;
     while (true) {
       path.push_back(cur);  // a tetrahedron, then its triangle
-      if (g_.IsCritical(3, cur)) return true;
-      const SimplexId f = g_.down[3][cur];
-      path.push_back(f);
-      if (saddles_.triangle(f)) return false;
       const SimplexId next = next_up_[cur];
+      if (next <= LabelCode(0)) return true;  // a maximum
       if (next < 0) return false;
+      path.push_back(SharedTriangle(cur, next));
       cur = next;
     }
+  }
+
+  SimplexId SharedTriangle(SimplexId t, SimplexId u) const {
+    const auto tv = topo_.tetrahedron(t), uv = topo_.tetrahedron(u);
+    std::array<SimplexId, 3> shared;
+    int n = 0;
+    for (SimplexId v : tv) {
+      if (n < 3 && std::find(uv.begin(), uv.end(), v) != uv.end()) shared[n++] = v;
+    }
+    return topo_.FindTriangle(shared[0], shared[1], shared[2]);
   }
 
   // The wall of s2 and, for the paths through it, which wall triangles lie around each edge.
@@ -391,9 +403,6 @@ std::vector<SimplexId> DescendingSegmentation(const Topology& topo, const Gradie
   sizes = LabelSizes(label, minima.size());
   return ToInputOrder(topo, label, threads);
 }
-
-// Labels as codes that cannot be tetrahedron ids: label L (>= -1) is -2 - L, so -1 stays -1.
-constexpr SimplexId LabelCode(SimplexId label) { return -2 - label; }
 
 // `next` holds per tetrahedron the next one up (ScanStar), -1 at the boundary, or a maximum's
 // LabelCode. Follows every path to its end and leaves the labels: the maximum reached, -1 when
@@ -608,6 +617,15 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
         }
       });
   if (!status.ok()) return status;
+  // The maxima labelled 0.. in ascending input tetrahedron id, in `up` (LabelCode), where the
+  // ascending paths below find their ends. Nothing reads the tetrahedron -> triangle pairing
+  // from here on (4 bytes per tetrahedron: wavelet128 41 MB).
+  std::vector<SimplexId> maxima = result.gradient.critical[3];
+  std::sort(maxima.begin(), maxima.end(), [&](SimplexId a, SimplexId b) {
+    return topo.tetrahedron_input_id(a) < topo.tetrahedron_input_id(b);
+  });
+  for (size_t i = 0; i < maxima.size(); ++i) up[maxima[i]] = LabelCode(SimplexId(i));
+  Pairings().swap(g.down[3]);
 
   // Per 2-saddle, in ascending id: its ascending separatrices and its saddle connectors, on
   // every consumer. Walls differ in size, so saddles go to whichever consumer is free, in runs
@@ -661,14 +679,9 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
     for (Pairings& a : *pairings) Pairings().swap(a);
   }
 
-  // Ascending: maxima labelled 0.. in ascending input tetrahedron id; each tetrahedron follows
-  // its path up (-1 if it leaves through the boundary); a vertex takes the label of the
-  // tetrahedron of its star with the lowest input id.
-  std::vector<SimplexId> maxima = result.gradient.critical[3];
-  std::sort(maxima.begin(), maxima.end(), [&](SimplexId a, SimplexId b) {
-    return topo.tetrahedron_input_id(a) < topo.tetrahedron_input_id(b);
-  });
-  for (size_t i = 0; i < maxima.size(); ++i) up[maxima[i]] = LabelCode(SimplexId(i));
+  // Ascending: each tetrahedron follows its path up to a maximum's label (-1 if it leaves
+  // through the boundary); a vertex takes the label of the tetrahedron of its star with the
+  // lowest input id.
   ResolveAscendingLabels(up, threads);
   ParallelForRanges(int64_t(vertex_label.size()), kRange, threads, [&](int64_t begin, int64_t end) {
     for (int64_t v = begin; v < end; ++v) {
