@@ -51,7 +51,8 @@ class NeighborRows {
  public:
   static constexpr bool kInPlace = std::is_same_v<Structure, ExplicitStructure>;
 
-  // `kept`: filled for every block, unless kInPlace (then unused, may be null).
+  // `kept`: filled for every block, unless kInPlace (then unused, may be null). As a reader's,
+  // a row is valid until the next vertex_neighbors call.
   NeighborRows(Structure& structure, const VertexNeighbors* kept)
       : topo_(&structure.topology()), kept_(kept) {
     if constexpr (kInPlace) reader_.emplace(structure.NewReader());
@@ -63,7 +64,7 @@ class NeighborRows {
     if constexpr (kInPlace) {
       return reader_->vertex_neighbors(v);
     } else {
-      return kept_->vertex_neighbors(v);
+      return kept_->vertex_neighbors(v, row_);
     }
   }
 
@@ -72,6 +73,7 @@ class NeighborRows {
 
   const Topology* topo_;
   const VertexNeighbors* kept_;
+  std::vector<SimplexId> row_;    // the last row decoded from kept_
   std::optional<Reader> reader_;  // explicit: read in place
 };
 
@@ -545,8 +547,11 @@ std::vector<SimplexId> ChangedLowerStars(Reader& reader, std::span<const Simplex
     std::sort(out.begin(), out.end(),
               [&](SimplexId a, SimplexId b) { return order[a] < order[b]; });
   };
+  std::vector<SimplexId> around;  // x's row, kept while its neighbours' rows are read
   for (SimplexId x : moved) {
-    for (SimplexId y : reader.vertex_neighbors(x)) {
+    const auto row = reader.vertex_neighbors(x);
+    around.assign(row.begin(), row.end());
+    for (SimplexId y : around) {
       if (seen[y]) continue;
       seen[y] = true;
       lower_link(y, before, lower_before);

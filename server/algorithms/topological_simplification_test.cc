@@ -1,6 +1,7 @@
 #include "server/algorithms/topological_simplification.h"
 
 #include <algorithm>
+#include <cstdlib>
 #include <random>
 #include <set>
 
@@ -270,8 +271,9 @@ TEST(TopologicalSimplification, GradientPassKeepsEveryVertexsNeighbours) {
   auto explicit_structure = *ExplicitStructure::Build(in.topo, {});
   auto want = explicit_structure->NewReader();
   const auto expect_rows = [&](const VertexNeighbors& kept) {
+    std::vector<SimplexId> decoded;
     for (SimplexId v = 0; v < in.topo->num_vertices(); ++v) {
-      const auto row = kept.vertex_neighbors(v);
+      const auto row = kept.vertex_neighbors(v, decoded);
       const auto expected = want.vertex_neighbors(v);
       ASSERT_EQ(std::vector<SimplexId>(row.begin(), row.end()),
                 std::vector<SimplexId>(expected.begin(), expected.end()))
@@ -294,6 +296,40 @@ TEST(TopologicalSimplification, GradientPassKeepsEveryVertexsNeighbours) {
         RunDiscreteGradient(*actopo, in.order, context, GradientArrays::kAll, &from_actopo).ok());
     expect_rows(from_actopo);
   }
+}
+
+// Neighbours numbered far from their vertex (the lattice's x-slices alternate between two blocks,
+// so every x-neighbour is about half the mesh away) are kept whole, the others as differences.
+TEST(TopologicalSimplification, KeptNeighboursFarInIdDecodeWhole) {
+  Mesh mesh = testing::Lattice(41, 41, 41);  // 68,921 vertices: x-neighbours 34k apart
+  std::vector<double> xs;
+  for (size_t i = 0; i < mesh.points.size(); i += 3) xs.push_back(mesh.points[i]);
+  std::vector<double> slices = xs;
+  std::sort(slices.begin(), slices.end());
+  slices.erase(std::unique(slices.begin(), slices.end()), slices.end());
+  ASSERT_EQ(slices.size(), 41u);
+  std::vector<double> labels;
+  for (double x : xs) {
+    labels.push_back(
+        double((std::lower_bound(slices.begin(), slices.end(), x) - slices.begin()) % 2));
+  }
+  auto topo = *Topology::Build(mesh, *LabelBlocks(labels));
+  ASSERT_EQ(topo->num_blocks(), 2);
+  auto explicit_structure = *ExplicitStructure::Build(topo, {});
+  auto want = explicit_structure->NewReader();
+  VertexNeighbors kept(*topo);
+  for (int32_t b = 0; b < topo->num_blocks(); ++b) kept.FillBlock(b, want);
+  std::vector<SimplexId> decoded;
+  int64_t far = 0;
+  for (SimplexId v = 0; v < topo->num_vertices(); ++v) {
+    const auto row = kept.vertex_neighbors(v, decoded);
+    const auto expected = want.vertex_neighbors(v);
+    ASSERT_EQ(std::vector<SimplexId>(row.begin(), row.end()),
+              std::vector<SimplexId>(expected.begin(), expected.end()))
+        << "vertex " << v;
+    for (SimplexId u : expected) far += std::abs(u - v) > 32767;
+  }
+  EXPECT_GT(far, 100000);  // the far path is taken, not only the differences
 }
 
 // The update's contract holds for any set of moved vertices, not only LTS's (whose neighbours
