@@ -200,6 +200,19 @@ std::pair<SimplexId, SimplexId> Topology::lowest_vertex_tetrahedra(SimplexId v) 
   return {begin, first_at_least(begin, block_tet_begin_[block + 1], v + 1)};
 }
 
+int Topology::TriangleTetrahedraInRun(SimplexId f, std::array<SimplexId, 2>& out) const {
+  if (crowded_triangles_) return -1;
+  const auto [a, b, c] = triangle(f);
+  const int expected = triangle_on_boundary(f) ? 1 : 2;
+  const auto [first, end] = lowest_vertex_tetrahedra(a);
+  int n = 0;
+  for (SimplexId t = first; t < end && n < expected; ++t) {
+    const SimplexId* s = &tet_vertices_[4 * size_t(t)];  // s[0] == a
+    if ((s[1] == b && (s[2] == c || s[3] == c)) || (s[2] == b && s[3] == c)) out[n++] = t;
+  }
+  return n == expected ? n : -1;
+}
+
 SimplexId Topology::FindTetrahedron(SimplexId a, SimplexId b, SimplexId c, SimplexId d) const {
   const auto [begin, end] = lowest_vertex_tetrahedra(a);
   for (SimplexId t = begin; t < end; ++t) {

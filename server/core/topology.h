@@ -215,6 +215,11 @@ class Topology {
   // The tetrahedra whose lowest vertex is v: ids [first, second), ascending (a run of v's
   // block's internal tetrahedra). Every tetrahedron of v's star not in it has a lower id.
   std::pair<SimplexId, SimplexId> lowest_vertex_tetrahedra(SimplexId v) const;
+  // The tetrahedra of triangle f, ascending, when its lowest vertex's run above holds all of
+  // them (their fourth vertex is above f's lowest): their count, one on the boundary, two
+  // elsewhere. -1 when some have their lowest vertex below f's, or on a mesh with crowded
+  // triangles: the caller then reads the star of f's lowest vertex (VT). No relation is read.
+  int TriangleTetrahedraInRun(SimplexId f, std::array<SimplexId, 2>& out) const;
 
   // Block of a simplex: the block of its lowest vertex.
   int32_t vertex_block(SimplexId v) const { return vertex_block_[v]; }

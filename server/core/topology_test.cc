@@ -262,6 +262,7 @@ TEST(Topology, EdgesTrianglesAndBoundaryMatchOracle) {
       bool crowded = false;  // a triangle with three tetrahedra or more
       for (const auto& star : oracle.rows(Relation::kFT)) crowded |= star.size() > 2;
       EXPECT_EQ(topo->has_crowded_triangles(), crowded);
+      int64_t answered = 0;  // triangles TriangleTetrahedraInRun answers
       ASSERT_EQ(topo->num_edges(), SimplexId(oracle.edges().size()));
       ASSERT_EQ(topo->num_triangles(), SimplexId(oracle.triangles().size()));
       for (SimplexId e = 0; e < topo->num_edges(); ++e) {
@@ -282,6 +283,20 @@ TEST(Topology, EdgesTrianglesAndBoundaryMatchOracle) {
         EXPECT_EQ(topo->block_of(2, f), topo->vertex_block(tri[0]));
         EXPECT_EQ(topo->triangle_on_boundary(f), oracle.rows(Relation::kFB)[f][0] == 1)
             << "triangle " << f;
+        // When the lowest vertex's run answers, it gives the whole star.
+        std::array<SimplexId, 2> in_run;
+        const int n = topo->TriangleTetrahedraInRun(f, in_run);
+        if (n >= 0) {
+          ++answered;
+          EXPECT_EQ(std::vector<SimplexId>(in_run.begin(), in_run.begin() + n),
+                    oracle.rows(Relation::kFT)[f])
+              << "triangle " << f;
+        }
+      }
+      if (crowded) {
+        EXPECT_EQ(answered, 0);
+      } else {
+        EXPECT_GT(answered, 0);  // the run's path is taken, not only the star's
       }
       for (int32_t b = 0; b < topo->num_blocks(); ++b) {
         for (int dim = 0; dim < 4; ++dim) {
