@@ -444,9 +444,8 @@ char* WriteIds(char* p, const DecimalTable& decimal, const SimplexId* ids, int n
 }
 
 // The input vertex ids of `cofacet`, a (d + 1)-cell having the d-cell of input ids `ids` as a
-// face, ascending, into out[0..d + 1]. Only the vertex not in `ids` is looked for, reading as
-// little of the cofacet's encoding as it can: its stored (highest) vertex first, then its edge's
-// (a random read each, instead of decoding the whole tuple; pairs point all over the mesh).
+// face, ascending, into out[0..d + 1]. Only the vertex not in `ids` is looked for, highest first
+// (the stored vertex of a triangle or an edge, which is most often the one).
 void CofacetTokens(const Topology& topology, int d, const SimplexId* ids, SimplexId cofacet,
                    SimplexId* out) {
   const auto in_face = [&](SimplexId internal) {
@@ -455,16 +454,17 @@ void CofacetTokens(const Topology& topology, int d, const SimplexId* ids, Simple
   };
   SimplexId extra = -1;
   switch (d) {
-    case 0:
-      extra = in_face(topology.edge_upper(cofacet));
-      if (extra < 0) extra = in_face(topology.edge_lowest(cofacet));
+    case 0: {
+      const auto [a, b] = topology.edge(cofacet);
+      extra = in_face(b);
+      if (extra < 0) extra = in_face(a);
       break;
+    }
     case 1: {
-      extra = in_face(topology.triangle_third(cofacet));
-      if (extra >= 0) break;
-      const SimplexId e = topology.triangle_edge(cofacet);
-      extra = in_face(topology.edge_upper(e));
-      if (extra < 0) extra = in_face(topology.edge_lowest(e));
+      const auto [a, b, c] = topology.triangle(cofacet);
+      extra = in_face(c);
+      if (extra < 0) extra = in_face(b);
+      if (extra < 0) extra = in_face(a);
       break;
     }
     default:

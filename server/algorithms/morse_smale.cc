@@ -140,7 +140,8 @@ class Builder {
       if (g_.IsCritical(3, t)) continue;
       const SimplexId f = g_.down[3][t];
       if (f < first_triangle || f >= end_triangle) continue;  // another vertex's triangle
-      const SimplexId b = topo_.edge_upper(topo_.triangle_edge(f)), c = topo_.triangle_third(f);
+      const SimplexId b = topo_.edge_upper(topo_.triangle_edge(f), a);
+      const SimplexId c = topo_.triangle_third(f, a);
       up[t] = -1;
       for (SimplexId other : star) {
         if (other != t && Contains(topo_.tetrahedron(other), b, c)) {

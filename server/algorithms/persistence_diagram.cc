@@ -106,7 +106,8 @@ int TriangleStar(Reader& reader, SimplexId f, SimplexId skip, std::array<Simplex
 // among the few edges of their lowest vertex.
 std::array<SimplexId, 3> TriangleEdges(const Topology& topo, SimplexId f) {
   const SimplexId ab = topo.triangle_edge(f);
-  const SimplexId a = topo.edge_lowest(ab), b = topo.edge_upper(ab), c = topo.triangle_third(f);
+  const SimplexId a = topo.edge_lowest(ab), b = topo.edge_upper(ab, a);
+  const SimplexId c = topo.triangle_third(f, a);
   return {ab, topo.FindEdge(a, c), topo.FindEdge(b, c)};
 }
 

@@ -302,18 +302,7 @@ TEST(TopologicalSimplification, GradientPassKeepsEveryVertexsNeighbours) {
 // so every x-neighbour is about half the mesh away) are kept whole, the others as differences.
 TEST(TopologicalSimplification, KeptNeighboursFarInIdDecodeWhole) {
   Mesh mesh = testing::Lattice(41, 41, 41);  // 68,921 vertices: x-neighbours 34k apart
-  std::vector<double> xs;
-  for (size_t i = 0; i < mesh.points.size(); i += 3) xs.push_back(mesh.points[i]);
-  std::vector<double> slices = xs;
-  std::sort(slices.begin(), slices.end());
-  slices.erase(std::unique(slices.begin(), slices.end()), slices.end());
-  ASSERT_EQ(slices.size(), 41u);
-  std::vector<double> labels;
-  for (double x : xs) {
-    labels.push_back(
-        double((std::lower_bound(slices.begin(), slices.end(), x) - slices.begin()) % 2));
-  }
-  auto topo = *Topology::Build(mesh, *LabelBlocks(labels));
+  auto topo = *Topology::Build(mesh, *LabelBlocks(testing::SliceLabels(mesh, 2)));
   ASSERT_EQ(topo->num_blocks(), 2);
   auto explicit_structure = *ExplicitStructure::Build(topo, {});
   auto want = explicit_structure->NewReader();

@@ -70,27 +70,19 @@ class BlockComputer {
     for (SimplexId t = topo_.block_tetrahedron_begin(block); t < end; ++t) fn(t, Tet(t));
   }
 
-  // For each of `n` ascending targets, the first index from `first` on whose value(index) is
-  // the target, in one pass: runs are sorted, and each target is known to be in the run.
-  template <class Value>
-  static void FindInRun(SimplexId first, Value&& value, const SimplexId* targets, int n,
-                        SimplexId* out) {
-    for (int i = 0; i < n; ++i) {
-      while (value(first) < targets[i]) ++first;
-      assert(value(first) == targets[i]);
-      out[i] = first;
-    }
+  // For each of `n` ascending targets, known to be in the run of `ids` from `first` (ascending
+  // from base a), its index, in one pass.
+  static void FindInRun(const NarrowIds& ids, SimplexId first, SimplexId a,
+                        const SimplexId* targets, int n, SimplexId* out) {
+    for (int i = 0; i < n; ++i) out[i] = first = ids.Seek(first, a, targets[i]);
   }
   // Edge (a, w) for each of `n` ascending upper vertices w of a.
   void EdgesFrom(SimplexId a, const SimplexId* w, int n, SimplexId* out) const {
-    FindInRun(
-        topo_.vertex_first_edge(a), [&](SimplexId e) { return topo_.edge_upper(e); }, w, n, out);
+    FindInRun(topo_.edge_uppers(), topo_.vertex_first_edge(a), a, w, n, out);
   }
   // Triangle (a, b, c) for each of `n` ascending third vertices c of edge e = (a, b).
-  void TrianglesOn(SimplexId e, const SimplexId* c, int n, SimplexId* out) const {
-    FindInRun(
-        topo_.edge_first_triangle(e), [&](SimplexId f) { return topo_.triangle_third(f); }, c, n,
-        out);
+  void TrianglesOn(SimplexId a, SimplexId e, const SimplexId* c, int n, SimplexId* out) const {
+    FindInRun(topo_.triangle_thirds(), topo_.edge_first_triangle(e), a, c, n, out);
   }
   // The 6 edges of sorted tetrahedron s in kTetEdges order: three runs read once each.
   void TetEdges(const SimplexId* s, SimplexId* out) const {
@@ -103,9 +95,9 @@ class BlockComputer {
     SimplexId e[3];  // (s0, s1), (s0, s2), then (s1, s2)
     EdgesFrom(s[0], s + 1, 2, e);
     EdgesFrom(s[1], s + 2, 1, e + 2);
-    TrianglesOn(e[0], s + 2, 2, out);  // (s0 s1 s2), (s0 s1 s3)
-    TrianglesOn(e[1], s + 3, 1, out + 2);
-    TrianglesOn(e[2], s + 3, 1, out + 3);
+    TrianglesOn(s[0], e[0], s + 2, 2, out);  // (s0 s1 s2), (s0 s1 s3)
+    TrianglesOn(s[0], e[1], s + 3, 1, out + 2);
+    TrianglesOn(s[1], e[2], s + 3, 1, out + 3);
   }
 
   SimplexId Face(const SimplexId* s, int f) const {
@@ -207,7 +199,7 @@ class BlockComputer {
     BeginPairs();
     ForEachLowestCandidate([&](SimplexId a) {
       for (SimplexId e = topo_.vertex_first_edge(a); e < topo_.vertex_first_edge(a + 1); ++e) {
-        const SimplexId b = topo_.edge_upper(e);
+        const SimplexId b = topo_.edge_upper(e, a);
         if (Inside(b)) Pair(b - vbegin_, value(a, e));
       }
     });
@@ -262,11 +254,11 @@ class BlockComputer {
     BeginPairs();
     ForEachLowestCandidate([&](SimplexId a) {
       for (SimplexId e = topo_.vertex_first_edge(a); e < topo_.vertex_first_edge(a + 1); ++e) {
-        const SimplexId b = topo_.edge_upper(e);
+        const SimplexId b = topo_.edge_upper(e, a);
         const bool b_inside = Inside(b);
         for (SimplexId f = topo_.edge_first_triangle(e); f < topo_.edge_first_triangle(e + 1);
              ++f) {
-          const SimplexId c = topo_.triangle_third(f);
+          const SimplexId c = topo_.triangle_third(f, a);
           if (b_inside) Pair(b - vbegin_, f);
           if (Inside(c)) Pair(c - vbegin_, f);
         }
@@ -399,10 +391,10 @@ class BlockComputer {
     // The block's triangles (a, b, c) in id order: by a, then by edge (a, b), then by c.
     for (SimplexId a = vbegin_; a < vend_; ++a) {
       for (SimplexId e = topo_.vertex_first_edge(a); e < topo_.vertex_first_edge(a + 1); ++e) {
-        const SimplexId b = topo_.edge_upper(e);
+        const SimplexId b = topo_.edge_upper(e, a);
         for (SimplexId f = topo_.edge_first_triangle(e); f < topo_.edge_first_triangle(e + 1);
              ++f) {
-          const SimplexId c = topo_.triangle_third(f);
+          const SimplexId c = topo_.triangle_third(f, a);
           SimplexId* row = &out.values[3 * size_t(f - out.first)];
           row[0] = e;
           row[1] = topo_.FindEdge(a, c);
@@ -619,7 +611,7 @@ class BlockComputer {
     // Boundary triangles are few: their other two edges are searched for.
     ForEachCandidateTriangle([&](SimplexId a, SimplexId e, SimplexId f) {
       if (!topo_.triangle_on_boundary(f)) return;
-      const SimplexId b = topo_.edge_upper(e), c = topo_.triangle_third(f);
+      const SimplexId b = topo_.edge_upper(e, a), c = topo_.triangle_third(f, a);
       if (Inside(a)) {
         out.values[e - out.first] = 1;
         out.values[topo_.FindEdge(a, c) - out.first] = 1;

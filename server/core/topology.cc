@@ -27,6 +27,8 @@ struct BlockFaces {
   std::vector<SimplexId> triangle_third;   // c of each triangle (a, b, c), in order
   std::vector<uint8_t> triangle_boundary;  // per triangle
   bool crowded = false;                    // a triangle with three tetrahedra or more
+  // Upper and third vertices too far above their lowest vertex for 16 bits (NarrowIds).
+  size_t whole_uppers = 0, whole_thirds = 0;
 };
 
 // Offsets of per-item counts: out[0] = 0, out[i + 1] = out[i] + counts[i].
@@ -110,6 +112,34 @@ void RunLookup::Build(std::span<const SimplexId> begin, SimplexId items, int thr
   if (items > 0) sample_.back() = run_of(items - 1);
 }
 
+SimplexId NarrowIds::Whole(size_t i) const {
+  const Group& group = groups_[i >> 6];
+  const uint64_t below = (uint64_t(1) << (i & 63)) - 1;
+  return whole_[group.before + uint32_t(std::popcount(group.mask & below))];
+}
+
+void NarrowIds::Finish(int threads) {
+  // Each group's mask in parallel (stretches of groups), then the wholes before each group.
+  groups_.resize((difference_.size() + 63) / 64);
+  constexpr int64_t kGroupsPerTask = 1 << 12;
+  const int64_t tasks = (int64_t(groups_.size()) + kGroupsPerTask - 1) / kGroupsPerTask;
+  ParallelFor(tasks, threads, [&](int64_t task, int) {
+    const size_t end = std::min(groups_.size(), size_t(task + 1) * kGroupsPerTask);
+    for (size_t g = size_t(task) * kGroupsPerTask; g < end; ++g) {
+      const uint16_t* d = difference_.data() + g * 64;
+      const size_t n = std::min<size_t>(64, difference_.size() - g * 64);
+      uint64_t mask = 0;
+      for (size_t i = 0; i < n; ++i) mask |= uint64_t(d[i] == kWhole) << i;
+      groups_[g].mask = mask;
+    }
+  });
+  uint32_t wholes = 0;
+  for (Group& group : groups_) {
+    group.before = wholes;
+    wholes += uint32_t(std::popcount(group.mask));
+  }
+}
+
 SimplexId RunLookup::Search(std::span<const SimplexId> begin, SimplexId x) const {
   // The run lies between the runs of item 64 * (x / 64) and of the next sample (or last item).
   SimplexId lo = sample_[size_t(x) >> 6], hi = sample_[(size_t(x) >> 6) + 1];
@@ -163,21 +193,13 @@ SimplexId Topology::block_begin(int dimension, int32_t b) const {
 
 SimplexId Topology::FindEdge(SimplexId a, SimplexId b) const {
   // Edges starting at a are few (tens), sorted by their upper vertex: a short linear scan.
-  const SimplexId end = vertex_edge_begin_[a + 1];
-  for (SimplexId e = vertex_edge_begin_[a]; e < end; ++e) {
-    if (edge_upper_[e] >= b) return edge_upper_[e] == b ? e : -1;
-  }
-  return -1;
+  return edge_upper_.Find(vertex_edge_begin_[a], vertex_edge_begin_[a + 1], a, b);
 }
 
 SimplexId Topology::FindTriangle(SimplexId a, SimplexId b, SimplexId c) const {
   const SimplexId e = FindEdge(a, b);
   if (e < 0) return -1;
-  const SimplexId end = edge_triangle_begin_[e + 1];
-  for (SimplexId f = edge_triangle_begin_[e]; f < end; ++f) {
-    if (triangle_third_[f] >= c) return triangle_third_[f] == c ? f : -1;
-  }
-  return -1;
+  return triangle_third_.Find(edge_triangle_begin_[e], edge_triangle_begin_[e + 1], a, c);
 }
 
 std::pair<SimplexId, SimplexId> Topology::lowest_vertex_tetrahedra(SimplexId v) const {
@@ -228,8 +250,8 @@ TopologyBytes Topology::bytes() const {
       VectorBytes(vertex_block_) + VectorBytes(vertex_input_id_) + VectorBytes(vertex_internal_id_);
   // Faces being built by EnsureFaces are not read (has_faces_); their memory is the caller's.
   if (has_faces()) {
-    b.edges = VectorBytes(edge_upper_) + VectorBytes(vertex_edge_begin_) + edge_lowest_.bytes();
-    b.triangles = VectorBytes(triangle_third_) + VectorBytes(edge_triangle_begin_) +
+    b.edges = edge_upper_.bytes() + VectorBytes(vertex_edge_begin_) + edge_lowest_.bytes();
+    b.triangles = triangle_third_.bytes() + VectorBytes(edge_triangle_begin_) +
                   triangle_edge_.bytes() + VectorBytes(triangle_boundary_);
   }
   // tet_internal_id_ is built on first use by the service; not part of what algorithms need.
@@ -446,9 +468,9 @@ void Topology::Encoder::ReserveFaces() {
   // but untouched, so memory grows by what is written and no second copy of the faces exists.
   faces.resize(std::min(num_blocks, kWindow));
   scratch.resize(std::max(threads, 1));
-  t.edge_upper_.reserve(6 * size_t(nt));
+  t.edge_upper_.Reserve(6 * size_t(nt));
   t.edge_triangle_begin_.reserve(6 * size_t(nt) + 1);
-  t.triangle_third_.reserve(4 * size_t(nt));
+  t.triangle_third_.Reserve(4 * size_t(nt));
   t.triangle_boundary_.reserve((4 * size_t(nt) + 63) / 64);
   t.vertex_edge_begin_.resize(nv + 1);  // every entry is written by AppendWindowFaces
 }
@@ -471,6 +493,7 @@ void Topology::Encoder::ComputeBlockFaces(int32_t b, Scratch& sc, BlockFaces& ou
   out.triangle_third.clear();
   out.triangle_boundary.clear();
   out.crowded = false;
+  out.whole_uppers = out.whole_thirds = 0;
   CollectStars(b, sc);
   SimplexId star_from = 0;
   for (SimplexId v = vbegin; v < vend; ++v) {
@@ -606,7 +629,10 @@ void Topology::Encoder::CollectUpperFaces(SimplexId v, SimplexId star_from, Simp
 // Appends v's edges and triangles to the block's runs in `out`; the next vertex's follow them.
 void Topology::Encoder::EmitVertexFaces(SimplexId v, const Scratch& sc, BlockFaces& out) {
   const size_t first_edge = out.edges.size();
-  for (SimplexId w : sc.upper) out.edges.push_back(uint64_t(uint32_t(v)) << 32 | uint32_t(w));
+  for (SimplexId w : sc.upper) {
+    out.edges.push_back(uint64_t(uint32_t(v)) << 32 | uint32_t(w));
+    out.whole_uppers += !NarrowIds::Fits(w, v);
+  }
   out.edge_triangles.resize(out.edges.size(), 0);
   // Pairs (b, c) sorted by b; upper is sorted and holds every b: walk both.
   size_t edge = first_edge;
@@ -615,6 +641,7 @@ void Topology::Encoder::EmitVertexFaces(SimplexId v, const Scratch& sc, BlockFac
     while (uint32_t(out.edges[edge]) != b) ++edge;
     ++out.edge_triangles[edge];
     out.triangle_third.push_back(SimplexId(pair.key & 0xffffffffu));
+    out.whole_thirds += !NarrowIds::Fits(out.triangle_third.back(), v);
     out.triangle_boundary.push_back(pair.count == 1);
     out.crowded |= pair.count > 2;
   }
@@ -626,11 +653,16 @@ absl::Status Topology::Encoder::AppendWindowFaces(int32_t window, int32_t window
   // its own vertices and edges (absolute, so no pass over all of them follows) and its boundary
   // bits; only the words it shares with the blocks beside it are or-ed in atomically.
   std::vector<size_t> edge_at(window_size + 1), triangle_at(window_size + 1);
+  std::vector<size_t> upper_at(window_size + 1), third_at(window_size + 1);  // whole slots
   edge_at[0] = t.edge_upper_.size();
   triangle_at[0] = t.triangle_third_.size();
+  upper_at[0] = t.edge_upper_.wholes();
+  third_at[0] = t.triangle_third_.wholes();
   for (int32_t index = 0; index < window_size; ++index) {
     edge_at[index + 1] = edge_at[index] + faces[index].edges.size();
     triangle_at[index + 1] = triangle_at[index] + faces[index].triangle_third.size();
+    upper_at[index + 1] = upper_at[index] + faces[index].whole_uppers;
+    third_at[index + 1] = third_at[index] + faces[index].whole_thirds;
     t.crowded_triangles_ |= faces[index].crowded;
   }
   // Ids are 32-bit (SimplexId), run starts included.
@@ -639,26 +671,29 @@ absl::Status Topology::Encoder::AppendWindowFaces(int32_t window, int32_t window
                                                      " triangles exceed the 32-bit id range"));
   }
   // Within the reservations of ReserveFaces: no reallocation.
-  t.edge_upper_.resize(edge_at[window_size]);
+  t.edge_upper_.Resize(edge_at[window_size], upper_at[window_size]);
   t.edge_triangle_begin_.resize(edge_at[window_size]);
-  t.triangle_third_.resize(triangle_at[window_size]);
+  t.triangle_third_.Resize(triangle_at[window_size], third_at[window_size]);
   t.triangle_boundary_.resize((triangle_at[window_size] + 63) / 64, 0);
   ParallelFor(window_size, threads, [&](int64_t index, int) {
     const BlockFaces& bf = faces[index];
     const int32_t b = window + int32_t(index);
-    size_t edge = edge_at[index];
-    SimplexId triangle = SimplexId(triangle_at[index]);
+    size_t edge = edge_at[index], triangle = triangle_at[index];
+    size_t upper_slot = upper_at[index], third_slot = third_at[index];
     size_t i = 0;  // bf's edge
     for (SimplexId v = t.block_vertex_begin_[b]; v < t.block_vertex_begin_[b + 1]; ++v) {
       t.vertex_edge_begin_[v] = SimplexId(edge);
+      const size_t first_triangle = triangle;
       for (; i < bf.edges.size() && SimplexId(bf.edges[i] >> 32) == v; ++i, ++edge) {
-        t.edge_upper_[edge] = SimplexId(bf.edges[i] & 0xffffffffu);
-        t.edge_triangle_begin_[edge] = triangle;
+        t.edge_upper_.Set(edge, SimplexId(bf.edges[i] & 0xffffffffu), v, upper_slot);
+        t.edge_triangle_begin_[edge] = SimplexId(triangle);
         triangle += bf.edge_triangles[i];
       }
+      const SimplexId* third = bf.triangle_third.data() - triangle_at[index];
+      for (size_t f = first_triangle; f < triangle; ++f) {
+        t.triangle_third_.Set(f, third[f], v, third_slot);
+      }
     }
-    std::copy(bf.triangle_third.begin(), bf.triangle_third.end(),
-              t.triangle_third_.begin() + triangle_at[index]);
     // Boundary bits a word at a time; the first and last words may hold other blocks' bits.
     const size_t first = triangle_at[index], end = triangle_at[index + 1];
     uint64_t word = 0;
@@ -681,11 +716,13 @@ absl::Status Topology::Encoder::AppendWindowFaces(int32_t window, int32_t window
   return absl::OkStatus();
 }
 
-// Builds the edge -> vertex and triangle -> edge lookups.
+// Builds the edge -> vertex and triangle -> edge lookups and finishes the narrow runs.
 void Topology::Encoder::BuildRunLookups() {
   // Not num_edges() and num_triangles(): they say 0 until has_faces_ is set.
   t.edge_lowest_.Build(t.vertex_edge_begin_, SimplexId(t.edge_upper_.size()), threads);
   t.triangle_edge_.Build(t.edge_triangle_begin_, SimplexId(t.triangle_third_.size()), threads);
+  t.edge_upper_.Finish(threads);
+  t.triangle_third_.Finish(threads);
 }
 
 // Concatenates the per-block neighbour lists into the block adjacency, the topology's last part.

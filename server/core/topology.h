@@ -21,9 +21,10 @@
 //
 // Storage. Faces (when built, TopologyOptions::faces) are stored as runs, not as tuples: the edges
 // (a, *) of a vertex a are a run holding only their upper vertex, the triangles (a, b, *) of an
-// edge (a, b) a run holding only their third vertex; boundary flags are bits. An edge's lowest
-// vertex and a triangle's edge come from a RunLookup (2 bytes per face). About 49 bytes per
-// tetrahedron in all on the wavelet meshes, instead of 65 with explicit tuples.
+// edge (a, b) a run holding only their third vertex, both as 16-bit differences from a
+// (NarrowIds); boundary flags are bits. An edge's lowest vertex and a triangle's edge come from a
+// RunLookup (2 bytes per face). About 44 bytes per tetrahedron in all on wavelet128 (49 with
+// 32-bit runs, 65 with explicit tuples), 24 without faces.
 #ifndef ACTOPO_SERVER_CORE_TOPOLOGY_H_
 #define ACTOPO_SERVER_CORE_TOPOLOGY_H_
 
@@ -150,6 +151,89 @@ class RunLookup {
   FilledVector<uint16_t> offset_;  // per item: its run - sample_[x / 64], or kFar
 };
 
+// Ids stored as their difference from a base the reader knows (a face run's lowest vertex) in 16
+// bits, 2 bytes each instead of 4; the few that do not fit (another block far in vertex order:
+// 1-3% on the reference meshes) are kept whole beside them. Within a run the ids ascend from the
+// same base, so a run's whole ids come last in it.
+class NarrowIds {
+ public:
+  // The stored difference of an id kept whole.
+  static constexpr uint16_t kWhole = 0xffff;
+  static bool Fits(SimplexId id, SimplexId base) { return int64_t(id) - base < kWhole; }
+
+  size_t size() const { return difference_.size(); }
+  // The id at `i`, whose base is `base`.
+  SimplexId Get(size_t i, SimplexId base) const {
+    const uint16_t d = difference_[i];
+    return d != kWhole ? base + d : Whole(i);
+  }
+  // The stored difference (kWhole: the id is Whole(i)).
+  uint16_t difference(size_t i) const { return difference_[i]; }
+  // Where `id` (from `base`) is among entries [begin, end), which ascend from that base: -1 if
+  // absent. A scan over the differences, or over the whole ids at the end (runs are tens long).
+  SimplexId Find(SimplexId begin, SimplexId end, SimplexId base, SimplexId id) const {
+    const int64_t want = int64_t(id) - base;
+    if (want < kWhole) {
+      // The whole ids are above every difference: the first difference >= want decides.
+      for (SimplexId i = begin; i < end; ++i) {
+        if (difference_[i] >= want) return difference_[i] == want ? i : -1;
+      }
+      return -1;
+    }
+    for (SimplexId i = begin; i < end; ++i) {
+      if (difference_[i] != kWhole) continue;
+      const SimplexId whole = Whole(i);
+      if (whole >= id) return whole == id ? i : -1;
+    }
+    return -1;
+  }
+  // As Find, for an id known to be there, at `from` or after it.
+  SimplexId Seek(SimplexId from, SimplexId base, SimplexId id) const {
+    const int64_t want = int64_t(id) - base;
+    if (want < kWhole) {
+      while (difference_[from] < want) ++from;
+    } else {
+      while (difference_[from] != kWhole || Whole(from) != id) ++from;
+    }
+    return from;
+  }
+  // An id kept whole: its slot is the wholes before its group of 64 and those before it in the
+  // group. Out of line, so that Get stays small enough to inline everywhere.
+  SimplexId Whole(size_t i) const;
+  int64_t bytes() const {
+    return int64_t(difference_.size() * sizeof(uint16_t) + whole_.size() * sizeof(SimplexId) +
+                   groups_.size() * sizeof(Group));
+  }
+
+  // Building: Resize (new entries unwritten), Set every entry with the index of the whole slot
+  // it would take (wholes numbered in entry order), then Finish.
+  void Reserve(size_t n) { difference_.reserve(n); }
+  void Resize(size_t n, size_t wholes) {
+    difference_.resize(n);
+    whole_.resize(wholes);
+  }
+  size_t wholes() const { return whole_.size(); }
+  // Stores `id` at `i`; when it does not fit, in whole slot `whole`, which is then advanced.
+  void Set(size_t i, SimplexId id, SimplexId base, size_t& whole) {
+    if (Fits(id, base)) {
+      difference_[i] = uint16_t(id - base);
+    } else {
+      difference_[i] = kWhole;
+      whole_[whole++] = id;
+    }
+  }
+  void Finish(int threads);
+
+ private:
+  struct Group {      // per 64 entries
+    uint64_t mask;    // bit k: entry 64g + k is whole
+    uint32_t before;  // wholes in the groups before
+  };
+  FilledVector<uint16_t> difference_;
+  std::vector<SimplexId> whole_;  // the ids that do not fit, in entry order
+  std::vector<Group> groups_;
+};
+
 class Topology {
  public:
   // `vertex_block` gives the block of each input vertex (dense ids 0..B-1, e.g. OctreeBlocks).
@@ -184,12 +268,16 @@ class Topology {
   bool has_faces() const { return has_faces_.load(std::memory_order_acquire); }
   SimplexId num_simplices(int dimension) const;
 
-  // Sorted vertex tuples (internal ids). Edges and triangles are decoded (by value); when the
-  // lowest vertex or the edge is already known, edge_upper and triangle_third are one load.
-  std::array<SimplexId, 2> edge(SimplexId e) const { return {edge_lowest(e), edge_upper_[e]}; }
+  // Sorted vertex tuples (internal ids). Edges and triangles are decoded (by value); when their
+  // lowest vertex is already known, edge_upper and triangle_third are one load.
+  std::array<SimplexId, 2> edge(SimplexId e) const {
+    const SimplexId a = edge_lowest(e);
+    return {a, edge_upper(e, a)};
+  }
   std::array<SimplexId, 3> triangle(SimplexId f) const {
     const SimplexId e = triangle_edge(f);
-    return {edge_lowest(e), edge_upper_[e], triangle_third_[f]};
+    const SimplexId a = edge_lowest(e);
+    return {a, edge_upper(e, a), triangle_third(f, a)};
   }
   std::span<const SimplexId, 4> tetrahedron(SimplexId t) const {
     return std::span<const SimplexId, 4>(&tet_vertices_[4 * size_t(t)], 4);
@@ -200,13 +288,17 @@ class Topology {
   // Whether some triangle has three tetrahedra or more (a non-manifold mesh). When not, a
   // triangle has one tetrahedron on the boundary and two elsewhere.
   bool has_crowded_triangles() const { return crowded_triangles_; }
-  // Edge (a, b): a (its lowest vertex) and b. Triangle (a, b, c): its edge (a, b) and c.
+  // Edge (a, b): a (its lowest vertex) and b. Triangle (a, b, c): its edge (a, b) and c. The
+  // upper and third vertices are stored relative to a (NarrowIds), which the caller passes.
   SimplexId edge_lowest(SimplexId e) const { return edge_lowest_.Owner(vertex_edge_begin_, e); }
-  SimplexId edge_upper(SimplexId e) const { return edge_upper_[e]; }
+  SimplexId edge_upper(SimplexId e, SimplexId a) const { return edge_upper_.Get(e, a); }
   SimplexId triangle_edge(SimplexId f) const {
     return triangle_edge_.Owner(edge_triangle_begin_, f);
   }
-  SimplexId triangle_third(SimplexId f) const { return triangle_third_[f]; }
+  SimplexId triangle_third(SimplexId f, SimplexId a) const { return triangle_third_.Get(f, a); }
+  // The stored runs themselves, for scans that know the lowest vertex (block relations).
+  const NarrowIds& edge_uppers() const { return edge_upper_; }
+  const NarrowIds& triangle_thirds() const { return triangle_third_; }
 
   // Tuple -> id; the internal vertex ids must be sorted ascending. -1 if no such simplex.
   SimplexId FindEdge(SimplexId a, SimplexId b) const;
@@ -288,10 +380,10 @@ class Topology {
   std::vector<SimplexId> block_vertex_begin_;    // B + 1
   std::vector<SimplexId> block_tet_begin_;       // B + 1
   std::vector<SimplexId> vertex_edge_begin_;     // V + 1: run of edges (v, *)
-  FilledVector<SimplexId> edge_upper_;           // 1 per edge: b of (a, b)
+  NarrowIds edge_upper_;                         // 1 per edge: b of (a, b), from a
   RunLookup edge_lowest_;                        // edge -> a
   FilledVector<SimplexId> edge_triangle_begin_;  // E + 1: run of triangles (a, b, *)
-  FilledVector<SimplexId> triangle_third_;       // 1 per triangle: c of (a, b, c)
+  NarrowIds triangle_third_;                     // 1 per triangle: c of (a, b, c), from a
   RunLookup triangle_edge_;                      // triangle -> edge (a, b)
   std::vector<uint64_t> triangle_boundary_;      // 1 bit per triangle
   bool crowded_triangles_ = false;               // has_crowded_triangles()

@@ -309,6 +309,63 @@ TEST(Topology, EdgesTrianglesAndBoundaryMatchOracle) {
   }
 }
 
+// Two blocks of alternate x-slices, 70k vertices each: every edge along x joins vertices more than
+// 65,535 ids apart, whose upper (and third) vertices the runs keep whole (NarrowIds). Every edge
+// and triangle is decoded and found again, and tuples that are not there are not found.
+TEST(Topology, FacesFarInIdAreKeptWhole) {
+  const Mesh m = testing::Lattice(52, 52, 52);  // 140,608 vertices, 796k tetrahedra
+  auto built = Topology::Build(m, *LabelBlocks(testing::SliceLabels(m, 2)));
+  ASSERT_TRUE(built.ok()) << built.status();
+  const Topology& topo = **built;
+  ASSERT_EQ(topo.num_blocks(), 2);
+  // Every edge and triangle, as sorted internal tuples: their ids are their ranks.
+  std::vector<std::array<SimplexId, 2>> edges;
+  std::vector<std::array<SimplexId, 3>> triangles;
+  for (SimplexId t = 0; t < topo.num_tetrahedra(); ++t) {
+    const auto s = topo.tetrahedron(t);
+    for (int i = 0; i < 4; ++i) {
+      for (int j = i + 1; j < 4; ++j) {
+        edges.push_back({s[i], s[j]});
+        for (int k = j + 1; k < 4; ++k) triangles.push_back({s[i], s[j], s[k]});
+      }
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  std::sort(triangles.begin(), triangles.end());
+  triangles.erase(std::unique(triangles.begin(), triangles.end()), triangles.end());
+  ASSERT_EQ(topo.num_edges(), SimplexId(edges.size()));
+  ASSERT_EQ(topo.num_triangles(), SimplexId(triangles.size()));
+  const auto far = [](SimplexId a, SimplexId b) { return b - a >= 65535; };
+  int64_t far_edges = 0, far_triangles = 0;
+  for (SimplexId e = 0; e < topo.num_edges(); ++e) {
+    const auto [a, b] = edges[e];
+    ASSERT_EQ(topo.edge(e), edges[e]) << "edge " << e;
+    ASSERT_EQ(topo.FindEdge(a, b), e);
+    // The next vertex up is an edge's upper vertex only when the list says so.
+    const bool next_is_edge =
+        std::binary_search(edges.begin(), edges.end(), std::array<SimplexId, 2>{a, b + 1});
+    if (b + 1 < topo.num_vertices()) {
+      ASSERT_EQ(topo.FindEdge(a, b + 1) >= 0, next_is_edge) << a << " " << b + 1;
+    }
+    far_edges += far(a, b);
+  }
+  for (SimplexId f = 0; f < topo.num_triangles(); ++f) {
+    const auto [a, b, c] = triangles[f];
+    ASSERT_EQ(topo.triangle(f), triangles[f]) << "triangle " << f;
+    ASSERT_EQ(topo.FindTriangle(a, b, c), f);
+    const bool next_is_triangle = std::binary_search(triangles.begin(), triangles.end(),
+                                                     std::array<SimplexId, 3>{a, b, c + 1});
+    if (c + 1 < topo.num_vertices()) {
+      ASSERT_EQ(topo.FindTriangle(a, b, c + 1) >= 0, next_is_triangle) << a << " " << b;
+    }
+    far_triangles += far(a, c);
+  }
+  // The whole-id path is taken, and often: 51 x 52 x 52 edges along x.
+  EXPECT_GT(far_edges, 100000);
+  EXPECT_GT(far_triangles, 100000);
+}
+
 // Runs of items with long stretches of empty runs (unused vertices): offsets past 16 bits take
 // the binary-search path. Built on 1 and 3 threads: the items span several of Build's parallel
 // stretches (262,144 items each), with empty runs at their edges.

@@ -115,4 +115,17 @@ Mesh Bipyramid(int ring, bool closed) {
   return m;
 }
 
+std::vector<double> SliceLabels(const Mesh& mesh, int blocks) {
+  std::vector<double> slices;
+  for (size_t i = 0; i < mesh.points.size(); i += 3) slices.push_back(mesh.points[i]);
+  std::sort(slices.begin(), slices.end());
+  slices.erase(std::unique(slices.begin(), slices.end()), slices.end());
+  std::vector<double> labels;
+  for (size_t i = 0; i < mesh.points.size(); i += 3) {
+    const auto slice = std::lower_bound(slices.begin(), slices.end(), mesh.points[i]);
+    labels.push_back(double((slice - slices.begin()) % blocks));
+  }
+  return labels;
+}
+
 }  // namespace actopo::testing

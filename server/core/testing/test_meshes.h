@@ -28,6 +28,11 @@ Mesh NonManifold();
 // half, on the boundary. Field "distance" (from the centre, ties broken by id).
 Mesh Bipyramid(int ring, bool closed);
 
+// A block label per vertex for LabelBlocks: the vertex's x-slice (distinct x coordinates, in
+// order) modulo `blocks`. On a lattice, neighbours along x then lie in different blocks, about
+// V / blocks apart in vertex order: the far-in-id paths of the encodings that store differences.
+std::vector<double> SliceLabels(const Mesh& mesh, int blocks);
+
 }  // namespace actopo::testing
 
 #endif  // ACTOPO_SERVER_CORE_TESTING_TEST_MESHES_H_
