@@ -250,7 +250,7 @@ class Topology {
   // build and returns at once after it. Thread-safe beside readers of the rest of the topology,
   // which the build does not touch. Reports phase "faces" and stops when `progress` says so
   // (CANCELLED or DEADLINE_EXCEEDED, nothing kept: the next call starts over). wavelet128: about
-  // 0.9 s on 2 cores and 261 MB, which sessions that never read an edge or a triangle (critical
+  // 0.9 s on 2 cores and 207 MB, which sessions that never read an edge or a triangle (critical
   // points) then never pay.
   absl::Status EnsureFaces(const Progress& progress = {}, const FacesOptions& options = {}) const;
 
