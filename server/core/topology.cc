@@ -689,9 +689,8 @@ absl::Status Topology::Encoder::AppendWindowFaces(int32_t window, int32_t window
         t.edge_triangle_begin_[edge] = SimplexId(triangle);
         triangle += bf.edge_triangles[i];
       }
-      const SimplexId* third = bf.triangle_third.data() - triangle_at[index];
       for (size_t f = first_triangle; f < triangle; ++f) {
-        t.triangle_third_.Set(f, third[f], v, third_slot);
+        t.triangle_third_.Set(f, bf.triangle_third[f - triangle_at[index]], v, third_slot);
       }
     }
     // Boundary bits a word at a time; the first and last words may hold other blocks' bits.
