@@ -153,7 +153,7 @@ class RunLookup {
 
 // Ids stored as their difference from a base the reader knows (a face run's lowest vertex) in 16
 // bits, 2 bytes each instead of 4; the few that do not fit (another block far in vertex order:
-// 1-3% on the reference meshes) are kept whole beside them. Within a run the ids ascend from the
+// 2-4% on the reference meshes) are kept whole beside them. Within a run the ids ascend from the
 // same base, so a run's whole ids come last in it.
 class NarrowIds {
  public:
