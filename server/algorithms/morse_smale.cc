@@ -135,6 +135,9 @@ class Builder {
     const SimplexId first_triangle = topo_.vertex_first_triangle(a);
     const SimplexId end_triangle = topo_.vertex_first_triangle(a + 1);
     SimplexId first = star[0];
+    // The star's tuples, decoded once for the searches below (a few per star).
+    star_tuples_.resize(star.size());
+    for (size_t i = 0; i < star.size(); ++i) star_tuples_[i] = topo_.tetrahedron(star[i]);
     for (SimplexId t : star) {
       if (topo_.tetrahedron_input_id(t) < topo_.tetrahedron_input_id(first)) first = t;
       if (g_.IsCritical(3, t)) continue;
@@ -143,9 +146,9 @@ class Builder {
       const SimplexId b = topo_.edge_upper(topo_.triangle_edge(f), a);
       const SimplexId c = topo_.triangle_third(f, a);
       up[t] = -1;
-      for (SimplexId other : star) {
-        if (other != t && Contains(topo_.tetrahedron(other), b, c)) {
-          up[t] = other;
+      for (size_t i = 0; i < star.size(); ++i) {
+        if (star[i] != t && Contains(star_tuples_[i], b, c)) {
+          up[t] = star[i];
           break;
         }
       }
@@ -322,6 +325,7 @@ class Builder {
   absl::flat_hash_set<SimplexId> wall_;  // the current wall: a few triangles of many
   std::vector<std::pair<SimplexId, SimplexId>> wall_edges_;  // (edge, wall triangle), sorted
   std::vector<SimplexId> wall_saddles_, candidates_, star_, triangle_star_;
+  std::vector<std::array<SimplexId, 4>> star_tuples_;  // ScanStar's star, decoded
 };
 
 // The segmentations' passes cost little per item (wavelet128: 2.1M vertices, 10.2M

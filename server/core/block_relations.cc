@@ -60,14 +60,15 @@ class BlockComputer {
 
  private:
   bool Inside(SimplexId v) const { return v >= vbegin_ && v < vend_; }
-  const SimplexId* Tet(SimplexId t) const { return topo_.tetrahedron(t).data(); }
 
   // Visits the external then the internal tetrahedra of a block: ascending ids.
   template <class Fn>
   void ForEachTet(int32_t block, Fn&& fn) const {
-    for (SimplexId t : topo_.external_tetrahedra(block)) fn(t, Tet(t));
+    for (SimplexId t : topo_.external_tetrahedra(block)) fn(t, topo_.tetrahedron(t).data());
     const SimplexId end = topo_.block_tetrahedron_begin(block + 1);
-    for (SimplexId t = topo_.block_tetrahedron_begin(block); t < end; ++t) fn(t, Tet(t));
+    for (SimplexId t = topo_.block_tetrahedron_begin(block); t < end; ++t) {
+      fn(t, topo_.tetrahedron(t).data());
+    }
   }
 
   // For each of `n` ascending targets, known to be in the run of `ids` from `first` (ascending
@@ -426,7 +427,7 @@ class BlockComputer {
     out.stride = 6;
     out.values.resize(size_t(out.count) * 6);
     for (SimplexId i = 0; i < out.count; ++i) {
-      TetEdges(Tet(out.first + i), &out.values[6 * size_t(i)]);
+      TetEdges(topo_.tetrahedron(out.first + i).data(), &out.values[6 * size_t(i)]);
     }
   }
 
@@ -434,7 +435,7 @@ class BlockComputer {
     out.stride = 4;
     out.values.resize(size_t(out.count) * 4);
     for (SimplexId i = 0; i < out.count; ++i) {
-      TetFaces(Tet(out.first + i), &out.values[4 * size_t(i)]);
+      TetFaces(topo_.tetrahedron(out.first + i).data(), &out.values[4 * size_t(i)]);
     }
   }
 
@@ -454,7 +455,7 @@ class BlockComputer {
     for (SimplexId i = 0; i < out.count; ++i) {
       const SimplexId t = out.first + i;
       SimplexId faces[4];
-      TetFaces(Tet(t), faces);
+      TetFaces(topo_.tetrahedron(t).data(), faces);
       for (SimplexId id : faces) {
         if (id >= star.first && id < star.first + star.count) {
           for (SimplexId other : star.row(id - star.first)) {
@@ -506,9 +507,10 @@ class BlockComputer {
     for (SimplexId i = 0; i < out.count; ++i) {
       const SimplexId v = vbegin_ + i;
       for (SimplexId k = out.offsets[i]; k < out.offsets[i + 1]; ++k) {
-        const SimplexId* s = Tet(out.values[k]);
-        const int at = int(std::find(s, s + 4, v) - s);
-        out.values[k] = Face(s, kOppositeVertex[at]);  // face f omits vertex kOppositeVertex[f]
+        const auto s = topo_.tetrahedron(out.values[k]);
+        const int at = int(std::find(s.begin(), s.end(), v) - s.begin());
+        out.values[k] =
+            Face(s.data(), kOppositeVertex[at]);  // face f omits vertex kOppositeVertex[f]
       }
     }
   }
@@ -518,7 +520,7 @@ class BlockComputer {
     for (SimplexId i = 0; i < out.count; ++i) {
       const auto edge = topo_.edge(out.first + i);
       for (SimplexId k = out.offsets[i]; k < out.offsets[i + 1]; ++k) {
-        const SimplexId* s = Tet(out.values[k]);
+        const auto s = topo_.tetrahedron(out.values[k]);
         SimplexId other[2];
         int n = 0;
         for (int j = 0; j < 4; ++j) {
@@ -534,7 +536,7 @@ class BlockComputer {
     for (SimplexId i = 0; i < out.count; ++i) {
       const auto f = topo_.triangle(out.first + i);
       for (SimplexId k = out.offsets[i]; k < out.offsets[i + 1]; ++k) {
-        const SimplexId* s = Tet(out.values[k]);
+        const auto s = topo_.tetrahedron(out.values[k]);
         for (int j = 0; j < 4; ++j) {
           if (s[j] != f[0] && s[j] != f[1] && s[j] != f[2]) out.values[k] = s[j];
         }

@@ -78,7 +78,8 @@ class ReaderBase {
       triangle_row_ = topology_->triangle(s);
       return triangle_row_;
     } else if constexpr (R == Relation::kTV) {
-      return topology_->tetrahedron(s);
+      tetrahedron_row_ = topology_->tetrahedron(s);
+      return tetrahedron_row_;
     } else if constexpr (R == Relation::kFB) {
       return {&kFlags[topology_->triangle_on_boundary(s) ? 1 : 0], 1};
     } else {
@@ -109,7 +110,7 @@ class ReaderBase {
   bool triangle_on_boundary(SimplexId f) const { return topology_->triangle_on_boundary(f); }
   std::span<const SimplexId> triangle_neighbors(SimplexId f) { return get<Relation::kFF>(f); }
 
-  std::span<const SimplexId, 4> tetrahedron_vertices(SimplexId t) const {
+  std::array<SimplexId, 4> tetrahedron_vertices(SimplexId t) const {
     return topology_->tetrahedron(t);
   }
 
@@ -129,9 +130,10 @@ class ReaderBase {
 
  private:
   static constexpr SimplexId kFlags[2] = {0, 1};
-  // Where get<EV> and get<FV> decode their rows.
+  // Where get<EV>, get<FV> and get<TV> decode their rows.
   std::array<SimplexId, 2> edge_row_{};
   std::array<SimplexId, 3> triangle_row_{};
+  std::array<SimplexId, 4> tetrahedron_row_{};
 };
 
 template <class Derived>

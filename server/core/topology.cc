@@ -112,34 +112,6 @@ void RunLookup::Build(std::span<const SimplexId> begin, SimplexId items, int thr
   if (items > 0) sample_.back() = run_of(items - 1);
 }
 
-SimplexId NarrowIds::Whole(size_t i) const {
-  const Group& group = groups_[i >> 6];
-  const uint64_t below = (uint64_t(1) << (i & 63)) - 1;
-  return whole_[group.before + uint32_t(std::popcount(group.mask & below))];
-}
-
-void NarrowIds::Finish(int threads) {
-  // Each group's mask in parallel (stretches of groups), then the wholes before each group.
-  groups_.resize((difference_.size() + 63) / 64);
-  constexpr int64_t kGroupsPerTask = 1 << 12;
-  const int64_t tasks = (int64_t(groups_.size()) + kGroupsPerTask - 1) / kGroupsPerTask;
-  ParallelFor(tasks, threads, [&](int64_t task, int) {
-    const size_t end = std::min(groups_.size(), size_t(task + 1) * kGroupsPerTask);
-    for (size_t g = size_t(task) * kGroupsPerTask; g < end; ++g) {
-      const uint16_t* d = difference_.data() + g * 64;
-      const size_t n = std::min<size_t>(64, difference_.size() - g * 64);
-      uint64_t mask = 0;
-      for (size_t i = 0; i < n; ++i) mask |= uint64_t(d[i] == kWhole) << i;
-      groups_[g].mask = mask;
-    }
-  });
-  uint32_t wholes = 0;
-  for (Group& group : groups_) {
-    group.before = wholes;
-    wholes += uint32_t(std::popcount(group.mask));
-  }
-}
-
 SimplexId RunLookup::Search(std::span<const SimplexId> begin, SimplexId x) const {
   // The run lies between the runs of item 64 * (x / 64) and of the next sample (or last item).
   SimplexId lo = sample_[size_t(x) >> 6], hi = sample_[(size_t(x) >> 6) + 1];
@@ -178,7 +150,7 @@ int32_t Topology::block_of(int dimension, SimplexId s) const {
     case 0: return vertex_block_[s];
     case 1: return vertex_block_[edge_lowest(s)];
     case 2: return vertex_block_[edge_lowest(triangle_edge(s))];
-    default: return vertex_block_[tet_vertices_[4 * size_t(s)]];
+    default: return vertex_block_[tets_.lowest(s)];
   }
 }
 
@@ -203,23 +175,7 @@ SimplexId Topology::FindTriangle(SimplexId a, SimplexId b, SimplexId c) const {
 }
 
 std::pair<SimplexId, SimplexId> Topology::lowest_vertex_tetrahedra(SimplexId v) const {
-  // A block's internal tetrahedra are ordered by lowest vertex: a binary search finds where v's
-  // run (tens of tetrahedra) starts, a second where it ends.
-  const int32_t block = vertex_block_[v];
-  const SimplexId* tets = tet_vertices_.data();
-  const auto first_at_least = [&](SimplexId lo, SimplexId hi, SimplexId x) {
-    while (lo < hi) {
-      const SimplexId mid = lo + (hi - lo) / 2;
-      if (tets[4 * size_t(mid)] < x) {
-        lo = mid + 1;
-      } else {
-        hi = mid;
-      }
-    }
-    return lo;
-  };
-  const SimplexId begin = first_at_least(block_tet_begin_[block], block_tet_begin_[block + 1], v);
-  return {begin, first_at_least(begin, block_tet_begin_[block + 1], v + 1)};
+  return {vertex_tet_begin_[v], vertex_tet_begin_[v + 1]};
 }
 
 int Topology::TriangleTetrahedraInRun(SimplexId f, std::array<SimplexId, 2>& out) const {
@@ -229,7 +185,7 @@ int Topology::TriangleTetrahedraInRun(SimplexId f, std::array<SimplexId, 2>& out
   const auto [first, end] = lowest_vertex_tetrahedra(a);
   int n = 0;
   for (SimplexId t = first; t < end && n < expected; ++t) {
-    const SimplexId* s = &tet_vertices_[4 * size_t(t)];  // s[0] == a
+    const auto s = tets_.Get(t);  // s[0] == a
     if ((s[1] == b && (s[2] == c || s[3] == c)) || (s[2] == b && s[3] == c)) out[n++] = t;
   }
   return n == expected ? n : -1;
@@ -238,7 +194,7 @@ int Topology::TriangleTetrahedraInRun(SimplexId f, std::array<SimplexId, 2>& out
 SimplexId Topology::FindTetrahedron(SimplexId a, SimplexId b, SimplexId c, SimplexId d) const {
   const auto [begin, end] = lowest_vertex_tetrahedra(a);
   for (SimplexId t = begin; t < end; ++t) {
-    const SimplexId* s = &tet_vertices_[4 * size_t(t)];
+    const auto s = tets_.Get(t);
     if (s[1] == b && s[2] == c && s[3] == d) return t;
   }
   return -1;
@@ -255,7 +211,7 @@ TopologyBytes Topology::bytes() const {
                   triangle_edge_.bytes() + VectorBytes(triangle_boundary_);
   }
   // tet_internal_id_ is built on first use by the service; not part of what algorithms need.
-  b.tetrahedra = VectorBytes(tet_vertices_) + VectorBytes(tet_input_id_);
+  b.tetrahedra = tets_.bytes() + VectorBytes(vertex_tet_begin_) + VectorBytes(tet_input_id_);
   b.blocks = VectorBytes(block_vertex_begin_) + VectorBytes(block_tet_begin_) +
              VectorBytes(external_offsets_) + VectorBytes(external_tets_) +
              VectorBytes(block_neighbor_offsets_) + VectorBytes(block_neighbors_);
@@ -294,7 +250,8 @@ absl::StatusOr<int32_t> CountBlocks(std::span<const int32_t> vertex_block, Simpl
 struct Topology::Encoder {
   // Per thread, reused from block to block while computing faces.
   struct Scratch {
-    std::vector<SimplexId> star_begin, star;
+    std::vector<SimplexId> star_begin, star;       // star: positions in tuples
+    std::vector<std::array<SimplexId, 4>> tuples;  // the block's tetrahedra, decoded
     std::vector<SimplexId> upper;
     struct Pair {
       uint64_t key;    // (b << 32) | c
@@ -306,10 +263,12 @@ struct Topology::Encoder {
     std::vector<uint32_t> slot_count;
     std::vector<uint32_t> used;
   };
+  using Tuple = std::array<SimplexId, 4>;
   // Per thread, reused from block to block while sorting tetrahedra.
   struct BlockTets {
-    std::vector<SimplexId> at, tuples, inputs;
+    std::vector<SimplexId> at, inputs;
     std::vector<uint8_t> corners;
+    std::vector<std::pair<SimplexId, std::array<SimplexId, 4>>> wholes;  // (id, tuple)
   };
 
   const Mesh& mesh;
@@ -323,6 +282,9 @@ struct Topology::Encoder {
   std::vector<BlockFaces> faces;                // per block of the current window
   std::vector<std::vector<int32_t>> neighbors;  // per block, until ListBlockNeighbors
   std::vector<Scratch> scratch;                 // per thread
+  // The sorted tuples, 4 per tetrahedron, bucketed by block, until the sort within each block
+  // encodes them (NarrowTetrahedra).
+  FilledVector<SimplexId> tuples;
 
   SimplexId InternalVertex(int64_t tet, int k) const {
     return t.vertex_internal_id_[mesh.tetrahedra[4 * size_t(tet) + k]];
@@ -372,13 +334,13 @@ absl::Status Topology::Encoder::SortVertices() {
 }
 
 // Buckets the tetrahedra by their lowest vertex's block; leaves block_tet_begin_, tet_input_id_
-// and each tetrahedron's sorted internal tuple at its place in tet_vertices_.
+// and each tetrahedron's sorted internal tuple at its place in `tuples`.
 void Topology::Encoder::BucketTetrahedra() {
   // The tuples are written as the tetrahedra are placed, while the mesh is read in order: the
   // sort within each block then reads its own tuples, not the mesh's at scattered places. Each
   // corner goes with its input position through the sorting network (4 * vertex + position), so
   // the corners' order comes for free.
-  t.tet_vertices_.resize(4 * size_t(nt));
+  tuples.resize(4 * size_t(nt));
   std::vector<uint8_t>* corners = options.input_corners;
   if (corners != nullptr) corners->resize(size_t(nt));
   BucketItems(
@@ -389,7 +351,7 @@ void Topology::Encoder::BucketTetrahedra() {
       },
       t.block_tet_begin_, t.tet_input_id_,
       [&](int64_t i, SimplexId slot) {
-        SimplexId* s = &t.tet_vertices_[4 * size_t(slot)];
+        SimplexId* s = &tuples[4 * size_t(slot)];
         if (corners == nullptr) {
           for (int k = 0; k < 4; ++k) s[k] = InternalVertex(i, k);
           SortVertexIds(s, 4);
@@ -416,29 +378,82 @@ void Topology::Encoder::BucketTetrahedra() {
 }
 
 // Orders each block's tetrahedra by lowest vertex (a stable counting sort of the block's own
-// tuples), so a vertex's star is a few nearby runs, however the file ordered its cells.
+// tuples), so a vertex's star is a few nearby runs, however the file ordered its cells, and
+// encodes them (NarrowTetrahedra), handing the tuples' pages back a stretch of blocks at a time.
 void Topology::Encoder::SortBlockTetrahedra() {
-  std::vector<BlockTets> block_tets(std::max(threads, 1));
-  std::vector<uint8_t>* corners = options.input_corners;
-  ParallelFor(num_blocks, threads, [&](int64_t b, int thread) {
-    const SimplexId begin = t.block_tet_begin_[b], end = t.block_tet_begin_[b + 1];
-    const SimplexId vbegin = t.block_vertex_begin_[b];
-    BlockTets& sc = block_tets[thread];
-    sc.at.assign(size_t(t.block_vertex_begin_[b + 1] - vbegin) + 1, 0);
-    sc.tuples.assign(t.tet_vertices_.begin() + 4 * size_t(begin),
-                     t.tet_vertices_.begin() + 4 * size_t(end));
-    sc.inputs.assign(t.tet_input_id_.begin() + begin, t.tet_input_id_.begin() + end);
-    if (corners != nullptr) sc.corners.assign(corners->begin() + begin, corners->begin() + end);
-    for (SimplexId i = 0; i < end - begin; ++i) ++sc.at[sc.tuples[4 * size_t(i)] - vbegin + 1];
-    for (size_t i = 1; i < sc.at.size(); ++i) sc.at[i] += sc.at[i - 1];
-    for (SimplexId i = 0; i < end - begin; ++i) {
-      const SimplexId* s = &sc.tuples[4 * size_t(i)];
-      const SimplexId to = begin + sc.at[s[0] - vbegin]++;
-      std::copy_n(s, 4, &t.tet_vertices_[4 * size_t(to)]);
-      t.tet_input_id_[to] = sc.inputs[i];
-      if (corners != nullptr) (*corners)[to] = sc.corners[i];
+  // One task per stretch of consecutive blocks of about 64k tetrahedra, which hands the
+  // stretch's tuples back once sorted: one madvise per block cost more than the sort (TLB
+  // shootdowns; wavelet128: 0.05 s).
+  constexpr SimplexId kStretch = 1 << 16;
+  std::vector<int32_t> stretch_first = {0};
+  for (int32_t b = 1; b < num_blocks; ++b) {
+    if (t.block_tet_begin_[b] - t.block_tet_begin_[stretch_first.back()] >= kStretch) {
+      stretch_first.push_back(b);
+    }
+  }
+  stretch_first.push_back(num_blocks);
+  const int64_t stretches = int64_t(stretch_first.size()) - 1;
+  // First where each vertex's run starts (a count of lowest vertices per block), which gives the
+  // encoding its bases: the lowest vertex of each group's first tetrahedron.
+  t.vertex_tet_begin_.resize(size_t(nv) + 1);  // every entry is written below
+  t.vertex_tet_begin_[nv] = nt;
+  ParallelFor(stretches, threads, [&](int64_t k, int) {
+    for (int32_t b = stretch_first[k]; b < stretch_first[k + 1]; ++b) {
+      const SimplexId begin = t.block_tet_begin_[b], end = t.block_tet_begin_[b + 1];
+      const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
+      SimplexId* run = &t.vertex_tet_begin_[vbegin];
+      std::fill(run, run + (vend - vbegin), 0);
+      for (SimplexId i = begin; i < end; ++i) ++run[tuples[4 * size_t(i)] - vbegin];
+      SimplexId at = begin;
+      for (SimplexId v = 0; v < vend - vbegin; ++v) at += std::exchange(run[v], at);
     }
   });
+  t.tets_.Start(nt, [&](SimplexId first) {
+    const auto after =
+        std::upper_bound(t.vertex_tet_begin_.begin(), t.vertex_tet_begin_.end(), first);
+    return SimplexId(after - t.vertex_tet_begin_.begin() - 1);
+  });
+  // Then each block's tetrahedra placed and encoded, with their input ids and corners.
+  std::vector<BlockTets> block_tets(std::max(threads, 1));
+  std::vector<std::vector<Tuple>> stretch_wholes(static_cast<size_t>(stretches));
+  std::vector<uint8_t>* corners = options.input_corners;
+  ParallelFor(stretches, threads, [&](int64_t k, int thread) {
+    BlockTets& sc = block_tets[thread];
+    for (int32_t b = stretch_first[k]; b < stretch_first[k + 1]; ++b) {
+      const SimplexId begin = t.block_tet_begin_[b], end = t.block_tet_begin_[b + 1];
+      const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
+      const SimplexId* block_tuples = &tuples[4 * size_t(begin)];
+      sc.at.assign(t.vertex_tet_begin_.begin() + vbegin, t.vertex_tet_begin_.begin() + vend);
+      sc.inputs.assign(t.tet_input_id_.begin() + begin, t.tet_input_id_.begin() + end);
+      if (corners != nullptr) sc.corners.assign(corners->begin() + begin, corners->begin() + end);
+      sc.wholes.clear();
+      for (SimplexId i = 0; i < end - begin; ++i) {
+        const SimplexId* s = &block_tuples[4 * size_t(i)];
+        const SimplexId to = sc.at[s[0] - vbegin]++;
+        if (!t.tets_.Put(to, s)) sc.wholes.push_back({to, {s[0], s[1], s[2], s[3]}});
+        t.tet_input_id_[to] = sc.inputs[i];
+        if (corners != nullptr) (*corners)[to] = sc.corners[i];
+      }
+      std::sort(sc.wholes.begin(), sc.wholes.end(),
+                [](const auto& x, const auto& y) { return x.first < y.first; });
+      for (const auto& [id, tuple] : sc.wholes) stretch_wholes[k].push_back(tuple);
+    }
+    // Only this stretch reads its tuples (pages it shares with the next stay).
+    const SimplexId first = t.block_tet_begin_[stretch_first[k]];
+    const SimplexId last = t.block_tet_begin_[stretch_first[k + 1]];
+    ReleasePages(&tuples[4 * size_t(first)], tuples.data() + 4 * size_t(last));
+  });
+  tuples = {};
+  // The wholes in id order: the stretches' ids ascend with them.
+  std::vector<Tuple> wholes;
+  size_t total = 0;
+  for (const auto& w : stretch_wholes) total += w.size();
+  wholes.reserve(total);
+  for (auto& w : stretch_wholes) {
+    wholes.insert(wholes.end(), w.begin(), w.end());
+    w = {};
+  }
+  t.tets_.Finish(std::move(wholes), threads);
 }
 
 // Lists each block's external tetrahedra; with its internal ones they make its vertices' stars.
@@ -446,7 +461,7 @@ void Topology::Encoder::FindExternalTetrahedra() {
   // External tetrahedra: a tetrahedron is external to every later block holding one of its
   // vertices. Its sorted vertices have non-decreasing blocks, so distinct blocks are adjacent.
   auto for_each_external_block = [&](SimplexId tet, auto&& fn) {
-    const SimplexId* s = &t.tet_vertices_[4 * size_t(tet)];
+    const auto s = t.tetrahedron(tet);
     int32_t last = t.vertex_block_[s[0]];
     for (int k = 1; k < 4; ++k) {
       const int32_t b = t.vertex_block_[s[k]];
@@ -519,8 +534,9 @@ void Topology::Encoder::FindBlockNeighbors() {
     if (mark.empty()) mark.assign(num_blocks, -1);
     mark[b] = int32_t(b);
     for (SimplexId tet : t.external_tetrahedra(int32_t(b))) {
+      const auto s = t.tetrahedron(tet);
       for (int k = 0; k < 4; ++k) {
-        const int32_t nb = t.vertex_block_[t.tet_vertices_[4 * size_t(tet) + k]];
+        const int32_t nb = t.vertex_block_[s[k]];
         if (mark[nb] != b) {
           mark[nb] = int32_t(b);
           adjacent.push_back(nb);
@@ -545,31 +561,30 @@ void Topology::Encoder::FindBlockNeighbors() {
   });
 }
 
-// Block b's vertex stars (CSR); leaves star_begin[i] at the end of star i.
+// Block b's tetrahedra (external, then internal) decoded once into `tuples`, and its vertex stars
+// as CSR of positions in it; leaves star_begin[i] at the end of star i.
 void Topology::Encoder::CollectStars(int32_t b, Scratch& sc) const {
   const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
   const auto external = t.external_tetrahedra(b);
   const SimplexId tet_begin = t.block_tet_begin_[b], tet_end = t.block_tet_begin_[b + 1];
-  const auto for_each_tet = [&](auto&& fn) {
-    for (SimplexId tet : external) fn(tet, &t.tet_vertices_[4 * size_t(tet)]);
-    for (SimplexId tet = tet_begin; tet < tet_end; ++tet) {
-      fn(tet, &t.tet_vertices_[4 * size_t(tet)]);
-    }
-  };
+  sc.tuples.clear();
+  for (SimplexId tet : external) sc.tuples.push_back(t.tetrahedron(tet));
+  for (SimplexId tet = tet_begin; tet < tet_end; ++tet) sc.tuples.push_back(t.tetrahedron(tet));
   // Stars of the internal vertices (CSR, counting sort).
   sc.star_begin.assign(size_t(vend - vbegin) + 1, 0);
-  for_each_tet([&](SimplexId, const SimplexId* s) {
+  for (const Tuple& s : sc.tuples) {
     for (int k = 0; k < 4; ++k) {
       if (s[k] >= vbegin && s[k] < vend) ++sc.star_begin[s[k] - vbegin + 1];
     }
-  });
+  }
   for (size_t i = 1; i < sc.star_begin.size(); ++i) sc.star_begin[i] += sc.star_begin[i - 1];
   sc.star.resize(sc.star_begin.back());
-  for_each_tet([&](SimplexId tet, const SimplexId* s) {
+  for (size_t i = 0; i < sc.tuples.size(); ++i) {
+    const Tuple& s = sc.tuples[i];
     for (int k = 0; k < 4; ++k) {
-      if (s[k] >= vbegin && s[k] < vend) sc.star[sc.star_begin[s[k] - vbegin]++] = tet;
+      if (s[k] >= vbegin && s[k] < vend) sc.star[sc.star_begin[s[k] - vbegin]++] = SimplexId(i);
     }
-  });
+  }
 }
 
 // The vertices and pairs above v in its star, sorted, with pair counts, for EmitVertexFaces.
@@ -586,7 +601,7 @@ void Topology::Encoder::CollectUpperFaces(SimplexId v, SimplexId star_from, Simp
     sc.slot_key.assign(mask + 1, kNoKey);
     sc.slot_count.assign(mask + 1, 0);
   }
-  const auto count = [&](uint64_t key) {
+  const auto count = [&](uint64_t key) __attribute__((always_inline)) {
     uint64_t h = (key * 0x9e3779b97f4a7c15u) >> (64 - bits);
     while (sc.slot_key[h] != key) {
       if (sc.slot_key[h] == kNoKey) {
@@ -599,7 +614,7 @@ void Topology::Encoder::CollectUpperFaces(SimplexId v, SimplexId star_from, Simp
     ++sc.slot_count[h];
   };
   for (SimplexId i = star_from; i < star_to; ++i) {
-    const SimplexId* s = &t.tet_vertices_[4 * size_t(sc.star[i])];
+    const Tuple& s = sc.tuples[sc.star[i]];
     int p = 0;
     while (s[p] != v) ++p;
     for (int j = p + 1; j < 4; ++j) {
@@ -758,9 +773,10 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     auto span = step("sort vertices");
     RETURN_IF_ERROR(encoder.SortVertices());
   }
-  // Tetrahedra: stable bucket sort by the block of the lowest vertex, then within each block by
-  // the lowest vertex, each sorted internal tuple written straight to its place (no second copy
-  // of the tetrahedra at any time, only one block's per thread).
+  // Tetrahedra: stable bucket sort by the block of the lowest vertex, each sorted internal tuple
+  // written straight to its place, then within each block by the lowest vertex, encoded in 8
+  // bytes as they are placed. Each step hands back what it has read as it goes (the mesh's
+  // tetrahedra when release_tetrahedra, then the tuples), so no two copies are resident in full.
   {
     auto span = step("bucket tetrahedra");
     encoder.BucketTetrahedra();

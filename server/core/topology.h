@@ -23,13 +23,16 @@
 // (a, *) of a vertex a are a run holding only their upper vertex, the triangles (a, b, *) of an
 // edge (a, b) a run holding only their third vertex, both as 16-bit differences from a
 // (NarrowIds); boundary flags are bits. An edge's lowest vertex and a triangle's edge come from a
-// RunLookup (2 bytes per face). About 44 bytes per tetrahedron in all on wavelet128 (49 with
-// 32-bit runs, 65 with explicit tuples), 24 without faces.
+// RunLookup (2 bytes per face). Tetrahedra are sorted tuples of 16-bit differences, 8 bytes
+// each (NarrowTetrahedra). About 38 bytes per tetrahedron in all on wavelet128 (44 with 16-byte
+// tetrahedra, 49 with 32-bit runs as well, 65 with explicit tuples), 18 without faces.
 #ifndef ACTOPO_SERVER_CORE_TOPOLOGY_H_
 #define ACTOPO_SERVER_CORE_TOPOLOGY_H_
 
+#include <algorithm>
 #include <array>
 #include <atomic>
+#include <bit>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -40,6 +43,7 @@
 
 #include "absl/status/statusor.h"
 #include "server/core/mesh.h"
+#include "server/core/parallel.h"
 #include "server/core/progress.h"
 #include "server/core/sync.h"
 #include "server/core/trace.h"
@@ -151,6 +155,51 @@ class RunLookup {
   FilledVector<uint16_t> offset_;  // per item: its run - sample_[x / 64], or kFar
 };
 
+// Which entries of an array are kept whole (the few whose differences do not fit 16 bits), and
+// each one's slot among them: a 64-bit mask and a running count per 64 entries (0.25 bytes per
+// entry), so a slot is one popcount.
+class WholeRank {
+ public:
+  // Marks entries [0, n) for which whole(i) is true; ParallelFor over stretches of groups.
+  template <class IsWhole>
+  void Build(size_t n, int threads, IsWhole&& whole);
+  // The slot of a whole entry i: the whole entries before it.
+  uint32_t Rank(size_t i) const {
+    const Group& group = groups_[i >> 6];
+    const uint64_t below = (uint64_t(1) << (i & 63)) - 1;
+    return group.before + uint32_t(std::popcount(group.mask & below));
+  }
+  int64_t bytes() const { return int64_t(groups_.size() * sizeof(Group)); }
+
+ private:
+  struct Group {      // per 64 entries
+    uint64_t mask;    // bit k: entry 64g + k is whole
+    uint32_t before;  // whole entries in the groups before
+  };
+  std::vector<Group> groups_;
+};
+
+template <class IsWhole>
+void WholeRank::Build(size_t n, int threads, IsWhole&& whole) {
+  groups_.resize((n + 63) / 64);
+  constexpr int64_t kGroupsPerTask = 1 << 12;
+  const int64_t tasks = (int64_t(groups_.size()) + kGroupsPerTask - 1) / kGroupsPerTask;
+  ParallelFor(tasks, threads, [&](int64_t task, int) {
+    const size_t end = std::min(groups_.size(), size_t(task + 1) * kGroupsPerTask);
+    for (size_t g = size_t(task) * kGroupsPerTask; g < end; ++g) {
+      uint64_t mask = 0;
+      const size_t last = std::min(n, g * 64 + 64);
+      for (size_t i = g * 64; i < last; ++i) mask |= uint64_t(whole(i)) << (i & 63);
+      groups_[g].mask = mask;
+    }
+  });
+  uint32_t wholes = 0;
+  for (Group& group : groups_) {
+    group.before = wholes;
+    wholes += uint32_t(std::popcount(group.mask));
+  }
+}
+
 // Ids stored as their difference from a base the reader knows (a face run's lowest vertex) in 16
 // bits, 2 bytes each instead of 4; the few that do not fit (another block far in vertex order:
 // 2-4% on the reference meshes) are kept whole beside them. Within a run the ids ascend from the
@@ -197,12 +246,11 @@ class NarrowIds {
     }
     return from;
   }
-  // An id kept whole: its slot is the wholes before its group of 64 and those before it in the
-  // group. Out of line, so that Get stays small enough to inline everywhere.
-  SimplexId Whole(size_t i) const;
+  // An id kept whole.
+  SimplexId Whole(size_t i) const { return whole_[rank_.Rank(i)]; }
   int64_t bytes() const {
-    return int64_t(difference_.size() * sizeof(uint16_t) + whole_.size() * sizeof(SimplexId) +
-                   groups_.size() * sizeof(Group));
+    return int64_t(difference_.size() * sizeof(uint16_t) + whole_.size() * sizeof(SimplexId)) +
+           rank_.bytes();
   }
 
   // Building: Resize (new entries unwritten), Set every entry with the index of the whole slot
@@ -222,16 +270,84 @@ class NarrowIds {
       whole_[whole++] = id;
     }
   }
-  void Finish(int threads);
+  void Finish(int threads) {
+    rank_.Build(difference_.size(), threads, [&](size_t i) { return difference_[i] == kWhole; });
+  }
 
  private:
-  struct Group {      // per 64 entries
-    uint64_t mask;    // bit k: entry 64g + k is whole
-    uint32_t before;  // wholes in the groups before
-  };
   FilledVector<uint16_t> difference_;
   std::vector<SimplexId> whole_;  // the ids that do not fit, in entry order
-  std::vector<Group> groups_;
+  WholeRank rank_;
+};
+
+// Tetrahedra as sorted vertex tuples in 8 bytes each instead of 16. Tetrahedra are ordered by
+// lowest vertex, so a tetrahedron's lowest vertex is stored as its difference from a base per
+// group of 4096 (at or below every lowest vertex of the group), and its three others as their
+// differences from the lowest, 16 bits each. A tetrahedron with a difference that does not fit
+// (a vertex far in vertex order: another block) is kept whole beside them, found through a
+// WholeRank.
+class NarrowTetrahedra {
+ public:
+  using Tuple = std::array<SimplexId, 4>;
+  SimplexId size() const { return SimplexId(entries_.size()); }
+  [[gnu::always_inline]] Tuple Get(SimplexId t) const {
+    const Entry e = entries_[t];
+    if (e[0] == kWhole) [[unlikely]]
+      return Whole(t);
+    const SimplexId a = lowest_[size_t(t) >> kLowestShift] + e[0];
+    return {a, a + e[1], a + e[2], a + e[3]};
+  }
+  SimplexId lowest(SimplexId t) const {
+    const uint16_t d = entries_[t][0];
+    return d != kWhole ? lowest_[size_t(t) >> kLowestShift] + d : whole_[rank_.Rank(t)][0];
+  }
+  // A tetrahedron kept whole (out of line: Get stays small).
+  [[gnu::noinline]] Tuple Whole(SimplexId t) const { return whole_[rank_.Rank(t)]; }
+  // Building, in parallel over disjoint ids: Start sizes the entries (unwritten) and takes each
+  // group's base, `base(first id of the group)`: the lowest vertex of that tetrahedron, or any
+  // vertex at or below every lowest vertex of the group (a looser one keeps more whole). Put
+  // writes entry t from its sorted tuple and returns false when the tuple does not fit: the entry
+  // is then marked whole, and the caller hands such tuples to Finish, in id order.
+  template <class Base>
+  void Start(SimplexId n, Base&& base) {
+    entries_.resize(size_t(n));
+    lowest_.resize((size_t(n) >> kLowestShift) + 1);
+    for (size_t g = 0; g < lowest_.size(); ++g) {
+      lowest_[g] = (g << kLowestShift) < size_t(n) ? base(SimplexId(g << kLowestShift)) : 0;
+    }
+  }
+  bool Put(SimplexId t, const SimplexId* s) {
+    const SimplexId base = lowest_[size_t(t) >> kLowestShift];
+    // Unsigned: a lowest vertex below the base (a loose bound) does not fit either.
+    if (uint64_t(int64_t(s[0]) - base) >= kWhole || uint64_t(int64_t(s[3]) - s[0]) >= kWhole) {
+      entries_[t] = {kWhole, 0, 0, 0};
+      return false;
+    }
+    entries_[t] = {uint16_t(s[0] - base), uint16_t(s[1] - s[0]), uint16_t(s[2] - s[0]),
+                   uint16_t(s[3] - s[0])};
+    return true;
+  }
+  void Finish(std::vector<Tuple> wholes, int threads) {
+    whole_ = std::move(wholes);
+    rank_.Build(entries_.size(), threads, [&](size_t i) { return entries_[i][0] == kWhole; });
+  }
+  int64_t bytes() const {
+    return int64_t(entries_.size() * sizeof(Entry) + lowest_.size() * sizeof(SimplexId) +
+                   whole_.size() * sizeof(Tuple)) +
+           rank_.bytes();
+  }
+
+ private:
+  static constexpr uint16_t kWhole = 0xffff;
+  // A lowest vertex per 4096 tetrahedra: a few kB that stay in cache, where one per 64 was a
+  // second cache miss per random read (a 16-bit difference spans 4096 tetrahedra's lowest
+  // vertices, about 700 vertices, with room to spare).
+  static constexpr int kLowestShift = 12;
+  using Entry = std::array<uint16_t, 4>;
+  FilledVector<Entry> entries_;
+  std::vector<SimplexId> lowest_;  // per 4096: Start's base of the first
+  std::vector<Tuple> whole_;       // the tetrahedra kept whole, in id order
+  WholeRank rank_;
 };
 
 class Topology {
@@ -261,7 +377,7 @@ class Topology {
   SimplexId num_triangles() const {
     return has_faces() ? static_cast<SimplexId>(triangle_third_.size()) : 0;
   }
-  SimplexId num_tetrahedra() const { return static_cast<SimplexId>(tet_vertices_.size() / 4); }
+  SimplexId num_tetrahedra() const { return tets_.size(); }
   int32_t num_blocks() const { return num_blocks_; }
   // Whether edges and triangles were built (TopologyOptions::faces, EnsureFaces); without them
   // num_edges() and num_triangles() are 0. Once true, stays true.
@@ -270,17 +386,17 @@ class Topology {
 
   // Sorted vertex tuples (internal ids). Edges and triangles are decoded (by value); when their
   // lowest vertex is already known, edge_upper and triangle_third are one load.
-  std::array<SimplexId, 2> edge(SimplexId e) const {
+  [[gnu::always_inline]] std::array<SimplexId, 2> edge(SimplexId e) const {
     const SimplexId a = edge_lowest(e);
     return {a, edge_upper(e, a)};
   }
-  std::array<SimplexId, 3> triangle(SimplexId f) const {
+  [[gnu::always_inline]] std::array<SimplexId, 3> triangle(SimplexId f) const {
     const SimplexId e = triangle_edge(f);
     const SimplexId a = edge_lowest(e);
     return {a, edge_upper(e, a), triangle_third(f, a)};
   }
-  std::span<const SimplexId, 4> tetrahedron(SimplexId t) const {
-    return std::span<const SimplexId, 4>(&tet_vertices_[4 * size_t(t)], 4);
+  [[gnu::always_inline]] std::array<SimplexId, 4> tetrahedron(SimplexId t) const {
+    return tets_.Get(t);
   }
   bool triangle_on_boundary(SimplexId f) const {
     return (triangle_boundary_[size_t(f) >> 6] >> (f & 63)) & 1;
@@ -305,7 +421,8 @@ class Topology {
   SimplexId FindTriangle(SimplexId a, SimplexId b, SimplexId c) const;
   SimplexId FindTetrahedron(SimplexId a, SimplexId b, SimplexId c, SimplexId d) const;
   // The tetrahedra whose lowest vertex is v: ids [first, second), ascending (a run of v's
-  // block's internal tetrahedra). Every tetrahedron of v's star not in it has a lower id.
+  // block's internal tetrahedra; two loads). Every tetrahedron of v's star not in it has a lower
+  // id.
   std::pair<SimplexId, SimplexId> lowest_vertex_tetrahedra(SimplexId v) const;
   // The tetrahedra of triangle f, ascending, when its lowest vertex's run above holds all of
   // them (their fourth vertex is above f's lowest): their count, one on the boundary, two
@@ -387,7 +504,8 @@ class Topology {
   RunLookup triangle_edge_;                      // triangle -> edge (a, b)
   std::vector<uint64_t> triangle_boundary_;      // 1 bit per triangle
   bool crowded_triangles_ = false;               // has_crowded_triangles()
-  FilledVector<SimplexId> tet_vertices_;         // 4 per tetrahedron, sorted
+  NarrowTetrahedra tets_;                        // sorted tuples
+  FilledVector<SimplexId> vertex_tet_begin_;     // V + 1: run of tetrahedra (v, *)
   std::vector<SimplexId> external_offsets_;      // B + 1
   std::vector<SimplexId> external_tets_;
   std::vector<int32_t> block_neighbor_offsets_;  // B + 1

@@ -310,19 +310,32 @@ TEST(Topology, EdgesTrianglesAndBoundaryMatchOracle) {
 }
 
 // Two blocks of alternate x-slices, 70k vertices each: every edge along x joins vertices more than
-// 65,535 ids apart, whose upper (and third) vertices the runs keep whole (NarrowIds). Every edge
-// and triangle is decoded and found again, and tuples that are not there are not found.
-TEST(Topology, FacesFarInIdAreKeptWhole) {
+// 65,535 ids apart, whose upper (and third) vertices the runs keep whole (NarrowIds), as are the
+// tetrahedra across the blocks (NarrowTetrahedra). Every tetrahedron, edge and triangle is decoded
+// and found again, and tuples that are not there are not found.
+TEST(Topology, FacesAndTetrahedraFarInIdAreKeptWhole) {
   const Mesh m = testing::Lattice(52, 52, 52);  // 140,608 vertices, 796k tetrahedra
   auto built = Topology::Build(m, *LabelBlocks(testing::SliceLabels(m, 2)));
   ASSERT_TRUE(built.ok()) << built.status();
   const Topology& topo = **built;
   ASSERT_EQ(topo.num_blocks(), 2);
-  // Every edge and triangle, as sorted internal tuples: their ids are their ranks.
+  // Every tetrahedron against the mesh's, and every edge and triangle, as sorted internal tuples:
+  // their ids are their ranks.
   std::vector<std::array<SimplexId, 2>> edges;
   std::vector<std::array<SimplexId, 3>> triangles;
+  int64_t far_tetrahedra = 0;
   for (SimplexId t = 0; t < topo.num_tetrahedra(); ++t) {
     const auto s = topo.tetrahedron(t);
+    std::array<SimplexId, 4> given;
+    for (int k = 0; k < 4; ++k) {
+      given[k] =
+          topo.vertex_internal_id(m.tetrahedra[4 * size_t(topo.tetrahedron_input_id(t)) + k]);
+    }
+    std::sort(given.begin(), given.end());
+    ASSERT_EQ(s, given) << "tetrahedron " << t;
+    ASSERT_EQ(topo.FindTetrahedron(s[0], s[1], s[2], s[3]), t);
+    ASSERT_EQ(topo.block_of(3, t), topo.vertex_block(s[0]));
+    far_tetrahedra += s[3] - s[0] >= 65535;
     for (int i = 0; i < 4; ++i) {
       for (int j = i + 1; j < 4; ++j) {
         edges.push_back({s[i], s[j]});
@@ -362,6 +375,7 @@ TEST(Topology, FacesFarInIdAreKeptWhole) {
     far_triangles += far(a, c);
   }
   // The whole-id path is taken, and often: 51 x 52 x 52 edges along x.
+  EXPECT_GT(far_tetrahedra, 100000);
   EXPECT_GT(far_edges, 100000);
   EXPECT_GT(far_triangles, 100000);
 }
