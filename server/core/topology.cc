@@ -422,7 +422,7 @@ void Topology::Encoder::SortBlockTetrahedra() {
     for (int32_t b = stretch_first[k]; b < stretch_first[k + 1]; ++b) {
       const SimplexId begin = t.block_tet_begin_[b], end = t.block_tet_begin_[b + 1];
       const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
-      const SimplexId* block_tuples = &tuples[4 * size_t(begin)];
+      const SimplexId* block_tuples = tuples.data() + 4 * size_t(begin);
       sc.at.assign(t.vertex_tet_begin_.begin() + vbegin, t.vertex_tet_begin_.begin() + vend);
       sc.inputs.assign(t.tet_input_id_.begin() + begin, t.tet_input_id_.begin() + end);
       if (corners != nullptr) sc.corners.assign(corners->begin() + begin, corners->begin() + end);
@@ -441,7 +441,7 @@ void Topology::Encoder::SortBlockTetrahedra() {
     // Only this stretch reads its tuples (pages it shares with the next stay).
     const SimplexId first = t.block_tet_begin_[stretch_first[k]];
     const SimplexId last = t.block_tet_begin_[stretch_first[k + 1]];
-    ReleasePages(&tuples[4 * size_t(first)], tuples.data() + 4 * size_t(last));
+    ReleasePages(tuples.data() + 4 * size_t(first), tuples.data() + 4 * size_t(last));
   });
   tuples = {};
   // The wholes in id order: the stretches' ids ascend with them.
