@@ -106,24 +106,35 @@ void RunLookup::Build(std::span<const SimplexId> begin, SimplexId items, int thr
       while (begin[run + 1] <= x) ++run;
       if (x % 64 == 0) sample_[x / 64] = run;
       const SimplexId offset = run - sample_[x / 64];
-      offset_[x] = offset < kFar ? uint16_t(offset) : kFar;
+      offset_[x] = offset < kFar ? uint8_t(offset) : kFar;
     }
   });
   if (items > 0) sample_.back() = run_of(items - 1);
 }
 
-SimplexId RunLookup::Search(std::span<const SimplexId> begin, SimplexId x) const {
-  // The run lies between the runs of item 64 * (x / 64) and of the next sample (or last item).
-  SimplexId lo = sample_[size_t(x) >> 6], hi = sample_[(size_t(x) >> 6) + 1];
-  while (lo < hi) {
-    const SimplexId mid = lo + (hi - lo + 1) / 2;
-    if (begin[mid] <= x) {
-      lo = mid;
-    } else {
-      hi = mid - 1;
+void RunStarts::Assign(std::span<const SimplexId> starts, int threads) {
+  const size_t n = starts.size(), groups = (n + 63) / 64;
+  groups_.resize(groups);
+  distance_.resize(n);  // every entry of a narrow group is written below
+  const auto last = [n](size_t g) { return std::min(n, g * 64 + 64) - 1; };
+  constexpr int64_t kGroupsPerTask = 1 << 12;
+  const int64_t tasks = (int64_t(groups) + kGroupsPerTask - 1) / kGroupsPerTask;
+  ParallelFor(tasks, threads, [&](int64_t task, int) {
+    const size_t end = std::min(groups, size_t(task + 1) * kGroupsPerTask);
+    for (size_t g = size_t(task) * kGroupsPerTask; g < end; ++g) {
+      const SimplexId first = starts[g * 64];
+      const bool wide = int64_t(starts[last(g)]) - first > 0xffff;
+      groups_[g] = {first, wide ? 0 : -1};
+      if (wide) continue;
+      for (size_t i = g * 64; i <= last(g); ++i) distance_[i] = uint16_t(starts[i] - first);
     }
+  });
+  whole_.clear();
+  for (size_t g = 0; g < groups; ++g) {
+    if (groups_[g].whole < 0) continue;
+    groups_[g].whole = int32_t(whole_.size());
+    whole_.insert(whole_.end(), starts.begin() + g * 64, starts.begin() + last(g) + 1);
   }
-  return lo;
 }
 
 SimplexId Topology::tetrahedron_internal_id(SimplexId input) const {
@@ -165,17 +176,19 @@ SimplexId Topology::block_begin(int dimension, int32_t b) const {
 
 SimplexId Topology::FindEdge(SimplexId a, SimplexId b) const {
   // Edges starting at a are few (tens), sorted by their upper vertex: a short linear scan.
-  return edge_upper_.Find(vertex_edge_begin_[a], vertex_edge_begin_[a + 1], a, b);
+  const auto [begin, end] = vertex_edge_begin_.Run(a);
+  return edge_upper_.Find(begin, end, a, b);
 }
 
 SimplexId Topology::FindTriangle(SimplexId a, SimplexId b, SimplexId c) const {
   const SimplexId e = FindEdge(a, b);
   if (e < 0) return -1;
-  return triangle_third_.Find(edge_triangle_begin_[e], edge_triangle_begin_[e + 1], a, c);
+  const auto [begin, end] = edge_triangle_begin_.Run(e);
+  return triangle_third_.Find(begin, end, a, c);
 }
 
 std::pair<SimplexId, SimplexId> Topology::lowest_vertex_tetrahedra(SimplexId v) const {
-  return {vertex_tet_begin_[v], vertex_tet_begin_[v + 1]};
+  return vertex_tet_begin_.Run(v);
 }
 
 int Topology::TriangleTetrahedraInRun(SimplexId f, std::array<SimplexId, 2>& out) const {
@@ -206,12 +219,12 @@ TopologyBytes Topology::bytes() const {
       VectorBytes(vertex_block_) + VectorBytes(vertex_input_id_) + VectorBytes(vertex_internal_id_);
   // Faces being built by EnsureFaces are not read (has_faces_); their memory is the caller's.
   if (has_faces()) {
-    b.edges = edge_upper_.bytes() + VectorBytes(vertex_edge_begin_) + edge_lowest_.bytes();
-    b.triangles = triangle_third_.bytes() + VectorBytes(edge_triangle_begin_) +
-                  triangle_edge_.bytes() + VectorBytes(triangle_boundary_);
+    b.edges = edge_upper_.bytes() + vertex_edge_begin_.bytes() + edge_lowest_.bytes();
+    b.triangles = triangle_third_.bytes() + edge_triangle_begin_.bytes() + triangle_edge_.bytes() +
+                  VectorBytes(triangle_boundary_);
   }
   // tet_internal_id_ is built on first use by the service; not part of what algorithms need.
-  b.tetrahedra = tets_.bytes() + VectorBytes(vertex_tet_begin_) + VectorBytes(tet_input_id_);
+  b.tetrahedra = tets_.bytes() + vertex_tet_begin_.bytes() + VectorBytes(tet_input_id_);
   b.blocks = VectorBytes(block_vertex_begin_) + VectorBytes(block_tet_begin_) +
              VectorBytes(external_offsets_) + VectorBytes(external_tets_) +
              VectorBytes(block_neighbor_offsets_) + VectorBytes(block_neighbors_);
@@ -285,6 +298,9 @@ struct Topology::Encoder {
   // The sorted tuples, 4 per tetrahedron, bucketed by block, until the sort within each block
   // encodes them (NarrowTetrahedra).
   FilledVector<SimplexId> tuples;
+  // The run starts in 32 bits while they are written (V + 1, E + 1, V + 1), until they are
+  // narrowed into the topology's RunStarts.
+  FilledVector<SimplexId> edge_runs, triangle_runs, tet_runs;
 
   SimplexId InternalVertex(int64_t tet, int k) const {
     return t.vertex_internal_id_[mesh.tetrahedra[4 * size_t(tet) + k]];
@@ -395,13 +411,13 @@ void Topology::Encoder::SortBlockTetrahedra() {
   const int64_t stretches = int64_t(stretch_first.size()) - 1;
   // First where each vertex's run starts (a count of lowest vertices per block), which gives the
   // encoding its bases: the lowest vertex of each group's first tetrahedron.
-  t.vertex_tet_begin_.resize(size_t(nv) + 1);  // every entry is written below
-  t.vertex_tet_begin_[nv] = nt;
+  tet_runs.resize(size_t(nv) + 1);  // every entry is written below
+  tet_runs[nv] = nt;
   ParallelFor(stretches, threads, [&](int64_t k, int) {
     for (int32_t b = stretch_first[k]; b < stretch_first[k + 1]; ++b) {
       const SimplexId begin = t.block_tet_begin_[b], end = t.block_tet_begin_[b + 1];
       const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
-      SimplexId* run = &t.vertex_tet_begin_[vbegin];
+      SimplexId* run = &tet_runs[vbegin];
       std::fill(run, run + (vend - vbegin), 0);
       for (SimplexId i = begin; i < end; ++i) ++run[tuples[4 * size_t(i)] - vbegin];
       SimplexId at = begin;
@@ -409,9 +425,8 @@ void Topology::Encoder::SortBlockTetrahedra() {
     }
   });
   t.tets_.Start(nt, [&](SimplexId first) {
-    const auto after =
-        std::upper_bound(t.vertex_tet_begin_.begin(), t.vertex_tet_begin_.end(), first);
-    return SimplexId(after - t.vertex_tet_begin_.begin() - 1);
+    const auto after = std::upper_bound(tet_runs.begin(), tet_runs.end(), first);
+    return SimplexId(after - tet_runs.begin() - 1);
   });
   // Then each block's tetrahedra placed and encoded, with their input ids and corners.
   std::vector<BlockTets> block_tets(std::max(threads, 1));
@@ -423,7 +438,7 @@ void Topology::Encoder::SortBlockTetrahedra() {
       const SimplexId begin = t.block_tet_begin_[b], end = t.block_tet_begin_[b + 1];
       const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
       const SimplexId* block_tuples = tuples.data() + 4 * size_t(begin);
-      sc.at.assign(t.vertex_tet_begin_.begin() + vbegin, t.vertex_tet_begin_.begin() + vend);
+      sc.at.assign(tet_runs.begin() + vbegin, tet_runs.begin() + vend);
       sc.inputs.assign(t.tet_input_id_.begin() + begin, t.tet_input_id_.begin() + end);
       if (corners != nullptr) sc.corners.assign(corners->begin() + begin, corners->begin() + end);
       sc.wholes.clear();
@@ -454,6 +469,8 @@ void Topology::Encoder::SortBlockTetrahedra() {
     w = {};
   }
   t.tets_.Finish(std::move(wholes), threads);
+  t.vertex_tet_begin_.Assign(tet_runs, threads);
+  tet_runs = {};
 }
 
 // Lists each block's external tetrahedra; with its internal ones they make its vertices' stars.
@@ -484,10 +501,10 @@ void Topology::Encoder::ReserveFaces() {
   faces.resize(std::min(num_blocks, kWindow));
   scratch.resize(std::max(threads, 1));
   t.edge_upper_.Reserve(6 * size_t(nt));
-  t.edge_triangle_begin_.reserve(6 * size_t(nt) + 1);
+  triangle_runs.reserve(6 * size_t(nt) + 1);
   t.triangle_third_.Reserve(4 * size_t(nt));
   t.triangle_boundary_.reserve((4 * size_t(nt) + 63) / 64);
-  t.vertex_edge_begin_.resize(nv + 1);  // every entry is written by AppendWindowFaces
+  edge_runs.resize(nv + 1);  // every entry is written by AppendWindowFaces
 }
 
 // Computes the faces of the window's blocks in parallel; leaves them in `faces` to be appended.
@@ -687,7 +704,7 @@ absl::Status Topology::Encoder::AppendWindowFaces(int32_t window, int32_t window
   }
   // Within the reservations of ReserveFaces: no reallocation.
   t.edge_upper_.Resize(edge_at[window_size], upper_at[window_size]);
-  t.edge_triangle_begin_.resize(edge_at[window_size]);
+  triangle_runs.resize(edge_at[window_size]);
   t.triangle_third_.Resize(triangle_at[window_size], third_at[window_size]);
   t.triangle_boundary_.resize((triangle_at[window_size] + 63) / 64, 0);
   ParallelFor(window_size, threads, [&](int64_t index, int) {
@@ -697,11 +714,11 @@ absl::Status Topology::Encoder::AppendWindowFaces(int32_t window, int32_t window
     size_t upper_slot = upper_at[index], third_slot = third_at[index];
     size_t i = 0;  // bf's edge
     for (SimplexId v = t.block_vertex_begin_[b]; v < t.block_vertex_begin_[b + 1]; ++v) {
-      t.vertex_edge_begin_[v] = SimplexId(edge);
+      edge_runs[v] = SimplexId(edge);
       const size_t first_triangle = triangle;
       for (; i < bf.edges.size() && SimplexId(bf.edges[i] >> 32) == v; ++i, ++edge) {
         t.edge_upper_.Set(edge, SimplexId(bf.edges[i] & 0xffffffffu), v, upper_slot);
-        t.edge_triangle_begin_[edge] = SimplexId(triangle);
+        triangle_runs[edge] = SimplexId(triangle);
         triangle += bf.edge_triangles[i];
       }
       for (size_t f = first_triangle; f < triangle; ++f) {
@@ -730,13 +747,18 @@ absl::Status Topology::Encoder::AppendWindowFaces(int32_t window, int32_t window
   return absl::OkStatus();
 }
 
-// Builds the edge -> vertex and triangle -> edge lookups and finishes the narrow runs.
+// Builds the edge -> vertex and triangle -> edge lookups and finishes the narrow runs and their
+// starts.
 void Topology::Encoder::BuildRunLookups() {
   // Not num_edges() and num_triangles(): they say 0 until has_faces_ is set.
-  t.edge_lowest_.Build(t.vertex_edge_begin_, SimplexId(t.edge_upper_.size()), threads);
-  t.triangle_edge_.Build(t.edge_triangle_begin_, SimplexId(t.triangle_third_.size()), threads);
+  t.edge_lowest_.Build(edge_runs, SimplexId(t.edge_upper_.size()), threads);
+  t.triangle_edge_.Build(triangle_runs, SimplexId(t.triangle_third_.size()), threads);
   t.edge_upper_.Finish(threads);
   t.triangle_third_.Finish(threads);
+  t.vertex_edge_begin_.Assign(edge_runs, threads);
+  t.edge_triangle_begin_.Assign(triangle_runs, threads);
+  edge_runs = {};
+  triangle_runs = {};
 }
 
 // Concatenates the per-block neighbour lists into the block adjacency, the topology's last part.
@@ -818,8 +840,8 @@ absl::Status Topology::Encoder::BuildFaces(const Progress& progress, std::string
   }
   faces.clear();  // the last window's, now appended
   // The ends of the last runs.
-  t.vertex_edge_begin_[nv] = SimplexId(t.edge_upper_.size());
-  t.edge_triangle_begin_.push_back(SimplexId(t.triangle_third_.size()));
+  edge_runs[nv] = SimplexId(t.edge_upper_.size());
+  triangle_runs.push_back(SimplexId(t.triangle_third_.size()));
   RETURN_IF_ERROR(progress.Update(phase, from + 0.95 * span));
   BuildRunLookups();
   t.has_faces_.store(true, std::memory_order_release);

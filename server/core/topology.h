@@ -22,10 +22,11 @@
 // Storage. Faces (when built, TopologyOptions::faces) are stored as runs, not as tuples: the edges
 // (a, *) of a vertex a are a run holding only their upper vertex, the triangles (a, b, *) of an
 // edge (a, b) a run holding only their third vertex, both as 16-bit differences from a
-// (NarrowIds); boundary flags are bits. An edge's lowest vertex and a triangle's edge come from a
-// RunLookup (2 bytes per face). Tetrahedra are sorted tuples of 16-bit differences, 8 bytes
-// each (NarrowTetrahedra). About 38 bytes per tetrahedron in all on wavelet128 (44 with 16-byte
-// tetrahedra, 49 with 32-bit runs as well, 65 with explicit tuples), 18 without faces.
+// (NarrowIds); boundary flags are bits. The runs' starts are 16-bit distances within groups of 64
+// (RunStarts), and an edge's lowest vertex and a triangle's edge come from a RunLookup (1 byte per
+// face). Tetrahedra are sorted tuples of 16-bit differences, 8 bytes each (NarrowTetrahedra).
+// About 31.6 bytes per tetrahedron in all on wavelet128 (37.8 with 32-bit run starts and 16-bit
+// lookups, 44 with 16-byte tetrahedra as well, 65 with explicit tuples), 17.3 without faces.
 #ifndef ACTOPO_SERVER_CORE_TOPOLOGY_H_
 #define ACTOPO_SERVER_CORE_TOPOLOGY_H_
 
@@ -133,26 +134,79 @@ struct TopologyBytes {
 
 // The run holding an item when items are numbered run after run (edges by their lowest vertex,
 // triangles by their edge): the largest r with begin[r] <= x, in two loads. Each item keeps its
-// run's distance from the run of item 64 * (x / 64) in 16 bits; a distance that does not fit
-// (runs of tens of thousands of empty runs: unused vertices) falls back to a binary search
-// over that stretch of runs.
+// run's distance from the run of item 64 * (x / 64) in 8 bits (a distance is below 64 unless
+// runs are empty: every edge of a tetrahedral mesh has a triangle); a distance that does not fit
+// (stretches of empty runs: unused vertices) falls back to a binary search over that stretch.
 class RunLookup {
  public:
   void Build(std::span<const SimplexId> begin, SimplexId items, int threads);
-  SimplexId Owner(std::span<const SimplexId> begin, SimplexId x) const {
+  // `begin` as given to Build, or any array of the same values (RunStarts).
+  template <class Begin>
+  SimplexId Owner(const Begin& begin, SimplexId x) const {
     const SimplexId base = sample_[size_t(x) >> 6];
-    const uint16_t offset = offset_[x];
+    const uint8_t offset = offset_[x];
     return offset != kFar ? base + offset : Search(begin, x);
   }
   int64_t bytes() const {
-    return int64_t(sample_.size() * sizeof(SimplexId) + offset_.size() * sizeof(uint16_t));
+    return int64_t(sample_.size() * sizeof(SimplexId) + offset_.size() * sizeof(uint8_t));
   }
 
  private:
-  static constexpr uint16_t kFar = 0xffff;
-  SimplexId Search(std::span<const SimplexId> begin, SimplexId x) const;
+  static constexpr uint8_t kFar = 0xff;
+  // The run lies between the runs of item 64 * (x / 64) and of the next sample (or last item).
+  template <class Begin>
+  [[gnu::noinline]] SimplexId Search(const Begin& begin, SimplexId x) const {
+    SimplexId lo = sample_[size_t(x) >> 6], hi = sample_[(size_t(x) >> 6) + 1];
+    while (lo < hi) {
+      const SimplexId mid = lo + (hi - lo + 1) / 2;
+      if (begin[mid] <= x) {
+        lo = mid;
+      } else {
+        hi = mid - 1;
+      }
+    }
+    return lo;
+  }
   std::vector<SimplexId> sample_;  // run of item 64k; the last entry, run of the last item
-  FilledVector<uint16_t> offset_;  // per item: its run - sample_[x / 64], or kFar
+  FilledVector<uint8_t> offset_;   // per item: its run - sample_[x / 64], or kFar
+};
+
+// The starts of consecutive runs (a non-decreasing array: a vertex's edges, an edge's triangles,
+// a vertex's tetrahedra) in about 2 bytes each instead of 4: per 64 entries the first (32 bits),
+// and each entry's distance from it in 16 bits. A group of 64 runs holding 65,536 items or more
+// (a vertex in that many tetrahedra) keeps its 64 entries whole.
+class RunStarts {
+ public:
+  size_t size() const { return distance_.size(); }
+  SimplexId operator[](size_t i) const {
+    const Group& group = groups_[i >> 6];
+    if (group.whole >= 0) [[unlikely]]
+      return whole_[size_t(group.whole) + (i & 63)];
+    return group.first + distance_[i];
+  }
+  // Entries i and i + 1: a run's start and end.
+  std::pair<SimplexId, SimplexId> Run(size_t i) const {
+    if ((i & 63) == 63) return {(*this)[i], (*this)[i + 1]};
+    const Group& group = groups_[i >> 6];
+    if (group.whole >= 0) [[unlikely]]
+      return {whole_[size_t(group.whole) + (i & 63)], whole_[size_t(group.whole) + (i & 63) + 1]};
+    return {group.first + distance_[i], group.first + distance_[i + 1]};
+  }
+  // Takes the values of `starts` (non-decreasing); ParallelFor over stretches of groups.
+  void Assign(std::span<const SimplexId> starts, int threads);
+  int64_t bytes() const {
+    return int64_t(groups_.size() * sizeof(Group) + distance_.size() * sizeof(uint16_t) +
+                   whole_.size() * sizeof(SimplexId));
+  }
+
+ private:
+  struct Group {
+    SimplexId first;  // the group's first entry
+    int32_t whole;    // where its entries are in whole_, or -1 (stored as distances)
+  };
+  std::vector<Group> groups_;
+  FilledVector<uint16_t> distance_;
+  std::vector<SimplexId> whole_;  // the wide groups' entries, 64 per group (the last: fewer)
 };
 
 // Which entries of an array are kept whole (the few whose differences do not fit 16 bits), and
@@ -493,20 +547,20 @@ class Topology {
   // first, or were handed the topology after it was set.
   std::atomic<bool> has_faces_ = false;
   mutable Mutex faces_mu_;
-  std::vector<int32_t> vertex_block_;            // by internal vertex
-  std::vector<SimplexId> block_vertex_begin_;    // B + 1
-  std::vector<SimplexId> block_tet_begin_;       // B + 1
-  std::vector<SimplexId> vertex_edge_begin_;     // V + 1: run of edges (v, *)
-  NarrowIds edge_upper_;                         // 1 per edge: b of (a, b), from a
-  RunLookup edge_lowest_;                        // edge -> a
-  FilledVector<SimplexId> edge_triangle_begin_;  // E + 1: run of triangles (a, b, *)
-  NarrowIds triangle_third_;                     // 1 per triangle: c of (a, b, c), from a
-  RunLookup triangle_edge_;                      // triangle -> edge (a, b)
-  std::vector<uint64_t> triangle_boundary_;      // 1 bit per triangle
-  bool crowded_triangles_ = false;               // has_crowded_triangles()
-  NarrowTetrahedra tets_;                        // sorted tuples
-  FilledVector<SimplexId> vertex_tet_begin_;     // V + 1: run of tetrahedra (v, *)
-  std::vector<SimplexId> external_offsets_;      // B + 1
+  std::vector<int32_t> vertex_block_;          // by internal vertex
+  std::vector<SimplexId> block_vertex_begin_;  // B + 1
+  std::vector<SimplexId> block_tet_begin_;     // B + 1
+  RunStarts vertex_edge_begin_;                // V + 1: run of edges (v, *)
+  NarrowIds edge_upper_;                       // 1 per edge: b of (a, b), from a
+  RunLookup edge_lowest_;                      // edge -> a
+  RunStarts edge_triangle_begin_;              // E + 1: run of triangles (a, b, *)
+  NarrowIds triangle_third_;                   // 1 per triangle: c of (a, b, c), from a
+  RunLookup triangle_edge_;                    // triangle -> edge (a, b)
+  std::vector<uint64_t> triangle_boundary_;    // 1 bit per triangle
+  bool crowded_triangles_ = false;             // has_crowded_triangles()
+  NarrowTetrahedra tets_;                      // sorted tuples
+  RunStarts vertex_tet_begin_;                 // V + 1: run of tetrahedra (v, *)
+  std::vector<SimplexId> external_offsets_;    // B + 1
   std::vector<SimplexId> external_tets_;
   std::vector<int32_t> block_neighbor_offsets_;  // B + 1
   std::vector<int32_t> block_neighbors_;

@@ -380,7 +380,7 @@ TEST(Topology, FacesAndTetrahedraFarInIdAreKeptWhole) {
   EXPECT_GT(far_triangles, 100000);
 }
 
-// Runs of items with long stretches of empty runs (unused vertices): offsets past 16 bits take
+// Runs of items with long stretches of empty runs (unused vertices): offsets past 8 bits take
 // the binary-search path. Built on 1 and 3 threads: the items span several of Build's parallel
 // stretches (262,144 items each), with empty runs at their edges.
 TEST(RunLookup, MatchesLinearScanAcrossEmptyStretches) {
@@ -389,6 +389,8 @@ TEST(RunLookup, MatchesLinearScanAcrossEmptyStretches) {
     for (int i = 0; i < runs; ++i) begin.push_back(begin.back() + items_each);
   };
   add_runs(100, 3);
+  add_runs(300, 0);  // just past 8 bits
+  add_runs(2, 1);
   add_runs(70000, 0);  // one 64-item stretch will span these
   add_runs(5, 1);
   add_runs(200000, 0);
@@ -407,6 +409,35 @@ TEST(RunLookup, MatchesLinearScanAcrossEmptyStretches) {
       while (begin[run + 1] <= x) ++run;
       ASSERT_EQ(lookup.Owner(begin, x), run) << "item " << x << ", " << threads << " threads";
     }
+  }
+}
+
+// Run starts with runs of 0 to 70,000 items: the groups of 64 whose items do not fit 16-bit
+// distances keep their starts whole, the others are narrow, and a run's pair of starts may cross
+// from one kind of group to the other. Built on 1 and 3 threads.
+TEST(RunStarts, MatchesTheStartsGivenAcrossWideGroups) {
+  std::vector<SimplexId> starts = {0};
+  uint64_t state = 12345;
+  for (int i = 0; i < 20000; ++i) {
+    state = state * 6364136223846793005u + 1442695040888963407u;
+    const int kind = int(state >> 56);  // 0..255
+    // Mostly short runs, a quarter empty, one in 256 past 16 bits (a fifth of the groups).
+    const SimplexId items = kind == 0 ? 70000 : kind < 64 ? 0 : SimplexId((state >> 32) % 40);
+    starts.push_back(starts.back() + items);
+  }
+  for (int threads : {1, 3}) {
+    RunStarts narrow;
+    narrow.Assign(starts, threads);
+    ASSERT_EQ(narrow.size(), starts.size());
+    for (size_t i = 0; i < starts.size(); ++i) {
+      ASSERT_EQ(narrow[i], starts[i]) << "entry " << i << ", " << threads << " threads";
+      if (i + 1 < starts.size()) {
+        ASSERT_EQ(narrow.Run(i), std::make_pair(starts[i], starts[i + 1])) << "run " << i;
+      }
+    }
+    // Both kinds of group are there: whole starts take 4 bytes each, narrow ones 2.
+    EXPECT_GT(narrow.bytes(), int64_t(2 * starts.size() + 64 * 4));
+    EXPECT_LT(narrow.bytes(), int64_t(4 * starts.size()));
   }
 }
 
