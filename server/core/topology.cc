@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <limits>
 
 #include "absl/strings/str_cat.h"
 #include "server/core/parallel.h"
@@ -112,30 +113,35 @@ void RunLookup::Build(std::span<const SimplexId> begin, SimplexId items, int thr
   if (items > 0) sample_.back() = run_of(items - 1);
 }
 
-void RunStarts::Assign(std::span<const SimplexId> starts, int threads) {
-  const size_t n = starts.size(), groups = (n + 63) / 64;
+template <class Distance, int kShift>
+void RunStarts<Distance, kShift>::Assign(std::span<const SimplexId> starts, int threads) {
+  constexpr size_t kSize = size_t(1) << kShift;
+  const size_t n = starts.size(), groups = (n + kSize - 1) / kSize;
   groups_.resize(groups);
   distance_.resize(n);  // every entry of a narrow group is written below
-  const auto last = [n](size_t g) { return std::min(n, g * 64 + 64) - 1; };
+  const auto last = [n](size_t g) { return std::min(n, (g + 1) * kSize) - 1; };
   constexpr int64_t kGroupsPerTask = 1 << 12;
   const int64_t tasks = (int64_t(groups) + kGroupsPerTask - 1) / kGroupsPerTask;
   ParallelFor(tasks, threads, [&](int64_t task, int) {
     const size_t end = std::min(groups, size_t(task + 1) * kGroupsPerTask);
     for (size_t g = size_t(task) * kGroupsPerTask; g < end; ++g) {
-      const SimplexId first = starts[g * 64];
-      const bool wide = int64_t(starts[last(g)]) - first > 0xffff;
+      const SimplexId first = starts[g * kSize];
+      const bool wide = int64_t(starts[last(g)]) - first > std::numeric_limits<Distance>::max();
       groups_[g] = {first, wide ? 0 : -1};
       if (wide) continue;
-      for (size_t i = g * 64; i <= last(g); ++i) distance_[i] = uint16_t(starts[i] - first);
+      for (size_t i = g * kSize; i <= last(g); ++i) distance_[i] = Distance(starts[i] - first);
     }
   });
   whole_.clear();
   for (size_t g = 0; g < groups; ++g) {
     if (groups_[g].whole < 0) continue;
     groups_[g].whole = int32_t(whole_.size());
-    whole_.insert(whole_.end(), starts.begin() + g * 64, starts.begin() + last(g) + 1);
+    whole_.insert(whole_.end(), starts.begin() + g * kSize, starts.begin() + last(g) + 1);
   }
 }
+
+template class RunStarts<uint16_t, 6>;
+template class RunStarts<uint8_t, 4>;
 
 SimplexId Topology::tetrahedron_internal_id(SimplexId input) const {
   std::call_once(tet_internal_once_, [this] {

@@ -22,11 +22,12 @@
 // Storage. Faces (when built, TopologyOptions::faces) are stored as runs, not as tuples: the edges
 // (a, *) of a vertex a are a run holding only their upper vertex, the triangles (a, b, *) of an
 // edge (a, b) a run holding only their third vertex, both as 16-bit differences from a
-// (NarrowIds); boundary flags are bits. The runs' starts are 16-bit distances within groups of 64
-// (RunStarts), and an edge's lowest vertex and a triangle's edge come from a RunLookup (1 byte per
-// face). Tetrahedra are sorted tuples of 16-bit differences, 8 bytes each (NarrowTetrahedra).
-// About 31.6 bytes per tetrahedron in all on wavelet128 (37.8 with 32-bit run starts and 16-bit
-// lookups, 44 with 16-byte tetrahedra as well, 65 with explicit tuples), 17.3 without faces.
+// (NarrowIds); boundary flags are bits. The runs' starts are distances within small groups
+// (RunStarts: 8 bits per 16 for an edge's triangles, 16 per 64 otherwise), and an edge's lowest
+// vertex and a triangle's edge come from a RunLookup (1 byte per face). Tetrahedra are sorted
+// tuples of 16-bit differences, 8 bytes each (NarrowTetrahedra). About 30.8 bytes per tetrahedron
+// in all on wavelet128 (37.8 with 32-bit run starts and 16-bit lookups, 44 with 16-byte tetrahedra
+// as well, 65 with explicit tuples), 17.3 without faces.
 #ifndef ACTOPO_SERVER_CORE_TOPOLOGY_H_
 #define ACTOPO_SERVER_CORE_TOPOLOGY_H_
 
@@ -172,41 +173,46 @@ class RunLookup {
 };
 
 // The starts of consecutive runs (a non-decreasing array: a vertex's edges, an edge's triangles,
-// a vertex's tetrahedra) in about 2 bytes each instead of 4: per 64 entries the first (32 bits),
-// and each entry's distance from it in 16 bits. A group of 64 runs holding 65,536 items or more
-// (a vertex in that many tetrahedra) keeps its 64 entries whole.
+// a vertex's tetrahedra) in narrow distances instead of 32 bits: per group of 2^kShift entries the
+// first (32 bits), and each entry's distance from it as a `Distance`. A group whose runs hold too
+// many items for that (a vertex in 65,536 tetrahedra, 16 edges in 256 triangles) keeps its
+// entries whole. Edges' triangle starts: 8 bits per 16 (1.25 bytes each), others 16 bits per 64.
+template <class Distance, int kShift>
 class RunStarts {
  public:
   size_t size() const { return distance_.size(); }
   SimplexId operator[](size_t i) const {
-    const Group& group = groups_[i >> 6];
+    const Group& group = groups_[i >> kShift];
     if (group.whole >= 0) [[unlikely]]
-      return whole_[size_t(group.whole) + (i & 63)];
+      return whole_[size_t(group.whole) + (i & kMask)];
     return group.first + distance_[i];
   }
   // Entries i and i + 1: a run's start and end.
   std::pair<SimplexId, SimplexId> Run(size_t i) const {
-    if ((i & 63) == 63) return {(*this)[i], (*this)[i + 1]};
-    const Group& group = groups_[i >> 6];
+    if ((i & kMask) == kMask) return {(*this)[i], (*this)[i + 1]};
+    const Group& group = groups_[i >> kShift];
     if (group.whole >= 0) [[unlikely]]
-      return {whole_[size_t(group.whole) + (i & 63)], whole_[size_t(group.whole) + (i & 63) + 1]};
+      return {whole_[size_t(group.whole) + (i & kMask)],
+              whole_[size_t(group.whole) + (i & kMask) + 1]};
     return {group.first + distance_[i], group.first + distance_[i + 1]};
   }
   // Takes the values of `starts` (non-decreasing); ParallelFor over stretches of groups.
   void Assign(std::span<const SimplexId> starts, int threads);
   int64_t bytes() const {
-    return int64_t(groups_.size() * sizeof(Group) + distance_.size() * sizeof(uint16_t) +
+    return int64_t(groups_.size() * sizeof(Group) + distance_.size() * sizeof(Distance) +
                    whole_.size() * sizeof(SimplexId));
   }
 
  private:
+  static constexpr size_t kMask = (size_t(1) << kShift) - 1;
   struct Group {
     SimplexId first;  // the group's first entry
     int32_t whole;    // where its entries are in whole_, or -1 (stored as distances)
   };
   std::vector<Group> groups_;
-  FilledVector<uint16_t> distance_;
-  std::vector<SimplexId> whole_;  // the wide groups' entries, 64 per group (the last: fewer)
+  FilledVector<Distance> distance_;
+  std::vector<SimplexId>
+      whole_;  // the wide groups' entries, a group's worth each (the last: fewer)
 };
 
 // Which entries of an array are kept whole (the few whose differences do not fit 16 bits), and
@@ -550,16 +556,16 @@ class Topology {
   std::vector<int32_t> vertex_block_;          // by internal vertex
   std::vector<SimplexId> block_vertex_begin_;  // B + 1
   std::vector<SimplexId> block_tet_begin_;     // B + 1
-  RunStarts vertex_edge_begin_;                // V + 1: run of edges (v, *)
+  RunStarts<uint16_t, 6> vertex_edge_begin_;   // V + 1: run of edges (v, *)
   NarrowIds edge_upper_;                       // 1 per edge: b of (a, b), from a
   RunLookup edge_lowest_;                      // edge -> a
-  RunStarts edge_triangle_begin_;              // E + 1: run of triangles (a, b, *)
+  RunStarts<uint8_t, 4> edge_triangle_begin_;  // E + 1: run of triangles (a, b, *)
   NarrowIds triangle_third_;                   // 1 per triangle: c of (a, b, c), from a
   RunLookup triangle_edge_;                    // triangle -> edge (a, b)
   std::vector<uint64_t> triangle_boundary_;    // 1 bit per triangle
   bool crowded_triangles_ = false;             // has_crowded_triangles()
   NarrowTetrahedra tets_;                      // sorted tuples
-  RunStarts vertex_tet_begin_;                 // V + 1: run of tetrahedra (v, *)
+  RunStarts<uint16_t, 6> vertex_tet_begin_;    // V + 1: run of tetrahedra (v, *)
   std::vector<SimplexId> external_offsets_;    // B + 1
   std::vector<SimplexId> external_tets_;
   std::vector<int32_t> block_neighbor_offsets_;  // B + 1

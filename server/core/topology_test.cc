@@ -412,21 +412,13 @@ TEST(RunLookup, MatchesLinearScanAcrossEmptyStretches) {
   }
 }
 
-// Run starts with runs of 0 to 70,000 items: the groups of 64 whose items do not fit 16-bit
-// distances keep their starts whole, the others are narrow, and a run's pair of starts may cross
-// from one kind of group to the other. Built on 1 and 3 threads.
-TEST(RunStarts, MatchesTheStartsGivenAcrossWideGroups) {
-  std::vector<SimplexId> starts = {0};
-  uint64_t state = 12345;
-  for (int i = 0; i < 20000; ++i) {
-    state = state * 6364136223846793005u + 1442695040888963407u;
-    const int kind = int(state >> 56);  // 0..255
-    // Mostly short runs, a quarter empty, one in 256 past 16 bits (a fifth of the groups).
-    const SimplexId items = kind == 0 ? 70000 : kind < 64 ? 0 : SimplexId((state >> 32) % 40);
-    starts.push_back(starts.back() + items);
-  }
+// Run starts with runs of 0 to 70,000 items: the groups whose items do not fit their distances
+// keep their starts whole, the others are narrow, and a run's pair of starts may cross from one
+// kind of group to the other. Both widths the topology uses, built on 1 and 3 threads.
+template <class Starts>
+void ExpectStartsMatch(std::span<const SimplexId> starts, size_t distance_bytes) {
   for (int threads : {1, 3}) {
-    RunStarts narrow;
+    Starts narrow;
     narrow.Assign(starts, threads);
     ASSERT_EQ(narrow.size(), starts.size());
     for (size_t i = 0; i < starts.size(); ++i) {
@@ -435,10 +427,29 @@ TEST(RunStarts, MatchesTheStartsGivenAcrossWideGroups) {
         ASSERT_EQ(narrow.Run(i), std::make_pair(starts[i], starts[i + 1])) << "run " << i;
       }
     }
-    // Both kinds of group are there: whole starts take 4 bytes each, narrow ones 2.
-    EXPECT_GT(narrow.bytes(), int64_t(2 * starts.size() + 64 * 4));
+    // Both kinds of group are there: whole starts take 4 bytes each, narrow ones fewer.
+    EXPECT_GT(narrow.bytes(), int64_t(distance_bytes * starts.size() + 64 * 4));
     EXPECT_LT(narrow.bytes(), int64_t(4 * starts.size()));
   }
+}
+
+TEST(RunStarts, MatchesTheStartsGivenAcrossWideGroups) {
+  uint64_t state = 12345;
+  const auto make_starts = [&](SimplexId wide_run, int mostly_below) {
+    std::vector<SimplexId> starts = {0};
+    for (int i = 0; i < 20000; ++i) {
+      state = state * 6364136223846793005u + 1442695040888963407u;
+      const int kind = int(state >> 56);  // 0..255
+      // Mostly short runs, a quarter empty, one in 256 too long for its group.
+      const SimplexId items = kind == 0   ? wide_run
+                              : kind < 64 ? 0
+                                          : SimplexId((state >> 32) % mostly_below);
+      starts.push_back(starts.back() + items);
+    }
+    return starts;
+  };
+  ExpectStartsMatch<RunStarts<uint16_t, 6>>(make_starts(70000, 40), 2);
+  ExpectStartsMatch<RunStarts<uint8_t, 4>>(make_starts(300, 4), 1);
 }
 
 TEST(Topology, FindRejectsAbsentSimplices) {
