@@ -113,6 +113,32 @@ void RunLookup::Build(std::span<const SimplexId> begin, SimplexId items, int thr
   if (items > 0) sample_.back() = run_of(items - 1);
 }
 
+void NarrowTetrahedra::Finish(std::vector<Tuple> wholes, int threads) {
+  whole_ = std::move(wholes);
+  // Each whole entry gets its slot: the whole entries before it (they are in id order).
+  constexpr size_t kPerTask = size_t(1) << 18;
+  const int64_t tasks = int64_t((entries_.size() + kPerTask - 1) / kPerTask);
+  const auto range = [&](int64_t task) {
+    return std::pair(size_t(task) * kPerTask,
+                     std::min(entries_.size(), size_t(task + 1) * kPerTask));
+  };
+  std::vector<size_t> before(size_t(tasks) + 1, 0);
+  ParallelFor(tasks, threads, [&](int64_t task, int) {
+    const auto [first, end] = range(task);
+    for (size_t t = first; t < end; ++t) before[task + 1] += entries_[t][0] == kWhole;
+  });
+  for (int64_t task = 0; task < tasks; ++task) before[task + 1] += before[task];
+  ParallelFor(tasks, threads, [&](int64_t task, int) {
+    const auto [first, end] = range(task);
+    size_t slot = before[task];
+    for (size_t t = first; t < end; ++t) {
+      if (entries_[t][0] != kWhole) continue;
+      entries_[t] = {kWhole, uint16_t(slot), uint16_t(slot >> 16), 0};
+      ++slot;
+    }
+  });
+}
+
 template <class Distance, int kShift>
 void RunStarts<Distance, kShift>::Assign(std::span<const SimplexId> starts, int threads) {
   constexpr size_t kSize = size_t(1) << kShift;

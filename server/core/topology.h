@@ -216,8 +216,8 @@ class RunStarts {
 };
 
 // Which entries of an array are kept whole (the few whose differences do not fit 16 bits), and
-// each one's slot among them: a 64-bit mask and a running count per 64 entries (0.25 bytes per
-// entry), so a slot is one popcount.
+// each one's slot among them: a 64-bit mask per 64 entries and a running count per 256 (0.14 bytes
+// per entry), so a slot is at most four popcounts.
 class WholeRank {
  public:
   // Marks entries [0, n) for which whole(i) is true; ParallelFor over stretches of groups.
@@ -225,38 +225,40 @@ class WholeRank {
   void Build(size_t n, int threads, IsWhole&& whole);
   // The slot of a whole entry i: the whole entries before it.
   uint32_t Rank(size_t i) const {
-    const Group& group = groups_[i >> 6];
+    const size_t group = i >> 6;
+    uint32_t rank = before_[i >> 8];
+    for (size_t g = group & ~size_t(3); g < group; ++g) rank += std::popcount(masks_[g]);
     const uint64_t below = (uint64_t(1) << (i & 63)) - 1;
-    return group.before + uint32_t(std::popcount(group.mask & below));
+    return rank + uint32_t(std::popcount(masks_[group] & below));
   }
-  int64_t bytes() const { return int64_t(groups_.size() * sizeof(Group)); }
+  int64_t bytes() const {
+    return int64_t(masks_.size() * sizeof(uint64_t) + before_.size() * sizeof(uint32_t));
+  }
 
  private:
-  struct Group {      // per 64 entries
-    uint64_t mask;    // bit k: entry 64g + k is whole
-    uint32_t before;  // whole entries in the groups before
-  };
-  std::vector<Group> groups_;
+  std::vector<uint64_t> masks_;   // per 64 entries: bit k, entry 64g + k is whole
+  std::vector<uint32_t> before_;  // per 256 entries: the whole entries before them
 };
 
 template <class IsWhole>
 void WholeRank::Build(size_t n, int threads, IsWhole&& whole) {
-  groups_.resize((n + 63) / 64);
+  masks_.resize((n + 63) / 64);
   constexpr int64_t kGroupsPerTask = 1 << 12;
-  const int64_t tasks = (int64_t(groups_.size()) + kGroupsPerTask - 1) / kGroupsPerTask;
+  const int64_t tasks = (int64_t(masks_.size()) + kGroupsPerTask - 1) / kGroupsPerTask;
   ParallelFor(tasks, threads, [&](int64_t task, int) {
-    const size_t end = std::min(groups_.size(), size_t(task + 1) * kGroupsPerTask);
+    const size_t end = std::min(masks_.size(), size_t(task + 1) * kGroupsPerTask);
     for (size_t g = size_t(task) * kGroupsPerTask; g < end; ++g) {
       uint64_t mask = 0;
       const size_t last = std::min(n, g * 64 + 64);
       for (size_t i = g * 64; i < last; ++i) mask |= uint64_t(whole(i)) << (i & 63);
-      groups_[g].mask = mask;
+      masks_[g] = mask;
     }
   });
+  before_.resize((masks_.size() + 3) / 4);
   uint32_t wholes = 0;
-  for (Group& group : groups_) {
-    group.before = wholes;
-    wholes += uint32_t(std::popcount(group.mask));
+  for (size_t g = 0; g < masks_.size(); ++g) {
+    if (g % 4 == 0) before_[g / 4] = wholes;
+    wholes += uint32_t(std::popcount(masks_[g]));
   }
 }
 
@@ -344,8 +346,8 @@ class NarrowIds {
 // lowest vertex, so a tetrahedron's lowest vertex is stored as its difference from a base per
 // group of 4096 (at or below every lowest vertex of the group), and its three others as their
 // differences from the lowest, 16 bits each. A tetrahedron with a difference that does not fit
-// (a vertex far in vertex order: another block) is kept whole beside them, found through a
-// WholeRank.
+// (a vertex far in vertex order: another block) is kept whole beside them; its entry holds its
+// slot there.
 class NarrowTetrahedra {
  public:
   using Tuple = std::array<SimplexId, 4>;
@@ -353,16 +355,14 @@ class NarrowTetrahedra {
   [[gnu::always_inline]] Tuple Get(SimplexId t) const {
     const Entry e = entries_[t];
     if (e[0] == kWhole) [[unlikely]]
-      return Whole(t);
+      return Whole(e);
     const SimplexId a = lowest_[size_t(t) >> kLowestShift] + e[0];
     return {a, a + e[1], a + e[2], a + e[3]};
   }
   SimplexId lowest(SimplexId t) const {
     const uint16_t d = entries_[t][0];
-    return d != kWhole ? lowest_[size_t(t) >> kLowestShift] + d : whole_[rank_.Rank(t)][0];
+    return d != kWhole ? lowest_[size_t(t) >> kLowestShift] + d : Whole(entries_[t])[0];
   }
-  // A tetrahedron kept whole (out of line: Get stays small).
-  [[gnu::noinline]] Tuple Whole(SimplexId t) const { return whole_[rank_.Rank(t)]; }
   // Building, in parallel over disjoint ids: Start sizes the entries (unwritten) and takes each
   // group's base, `base(first id of the group)`: the lowest vertex of that tetrahedron, or any
   // vertex at or below every lowest vertex of the group (a looser one keeps more whole). Put
@@ -387,14 +387,10 @@ class NarrowTetrahedra {
                    uint16_t(s[3] - s[0])};
     return true;
   }
-  void Finish(std::vector<Tuple> wholes, int threads) {
-    whole_ = std::move(wholes);
-    rank_.Build(entries_.size(), threads, [&](size_t i) { return entries_[i][0] == kWhole; });
-  }
+  void Finish(std::vector<Tuple> wholes, int threads);
   int64_t bytes() const {
     return int64_t(entries_.size() * sizeof(Entry) + lowest_.size() * sizeof(SimplexId) +
-                   whole_.size() * sizeof(Tuple)) +
-           rank_.bytes();
+                   whole_.size() * sizeof(Tuple));
   }
 
  private:
@@ -403,11 +399,13 @@ class NarrowTetrahedra {
   // second cache miss per random read (a 16-bit difference spans 4096 tetrahedra's lowest
   // vertices, about 700 vertices, with room to spare).
   static constexpr int kLowestShift = 12;
+  // Differences; a tetrahedron kept whole: {kWhole, its slot's low and high 16 bits, 0}.
   using Entry = std::array<uint16_t, 4>;
+  // A tetrahedron kept whole (out of line: Get stays small).
+  [[gnu::noinline]] Tuple Whole(Entry e) const { return whole_[size_t(e[1]) | size_t(e[2]) << 16]; }
   FilledVector<Entry> entries_;
   std::vector<SimplexId> lowest_;  // per 4096: Start's base of the first
   std::vector<Tuple> whole_;       // the tetrahedra kept whole, in id order
-  WholeRank rank_;
 };
 
 class Topology {
