@@ -139,6 +139,33 @@ void NarrowTetrahedra::Finish(std::vector<Tuple> wholes, int threads) {
   });
 }
 
+void AscendingIdLists::Assign(std::span<const SimplexId> offsets, std::span<const SimplexId> ids,
+                              int threads) {
+  const int64_t lists = int64_t(offsets.size()) - 1;
+  offsets_.assign(offsets.begin(), offsets.end());
+  gaps_.resize(ids.size());  // every entry is written below
+  // Each list's gaps and how many ids it keeps whole, then the whole ids in list order.
+  whole_offsets_.assign(offsets.size(), 0);
+  ParallelFor(lists, threads, [&](int64_t k, int) {
+    SimplexId previous = 0, wholes = 0;
+    for (SimplexId i = offsets[k]; i < offsets[k + 1]; ++i) {
+      const int64_t gap = int64_t(ids[i]) - previous;
+      gaps_[i] = gap >= 0 && gap < kWhole ? uint16_t(gap) : kWhole;
+      wholes += gaps_[i] == kWhole;
+      previous = ids[i];
+    }
+    whole_offsets_[k + 1] = wholes;
+  });
+  for (int64_t k = 0; k < lists; ++k) whole_offsets_[k + 1] += whole_offsets_[k];
+  whole_.resize(size_t(whole_offsets_.back()));
+  ParallelFor(lists, threads, [&](int64_t k, int) {
+    SimplexId slot = whole_offsets_[k];
+    for (SimplexId i = offsets[k]; i < offsets[k + 1]; ++i) {
+      if (gaps_[i] == kWhole) whole_[slot++] = ids[i];
+    }
+  });
+}
+
 template <class Distance, int kShift>
 void RunStarts<Distance, kShift>::Assign(std::span<const SimplexId> starts, int threads) {
   constexpr size_t kSize = size_t(1) << kShift;
@@ -258,8 +285,8 @@ TopologyBytes Topology::bytes() const {
   // tet_internal_id_ is built on first use by the service; not part of what algorithms need.
   b.tetrahedra = tets_.bytes() + vertex_tet_begin_.bytes() + VectorBytes(tet_input_id_);
   b.blocks = VectorBytes(block_vertex_begin_) + VectorBytes(block_tet_begin_) +
-             VectorBytes(external_offsets_) + VectorBytes(external_tets_) +
-             VectorBytes(block_neighbor_offsets_) + VectorBytes(block_neighbors_);
+             external_tets_.bytes() + VectorBytes(block_neighbor_offsets_) +
+             VectorBytes(block_neighbors_);
   return b;
 }
 
@@ -520,9 +547,11 @@ void Topology::Encoder::FindExternalTetrahedra() {
       }
     }
   };
+  std::vector<SimplexId> offsets, external;
   BucketItems(
-      nt, num_blocks, threads, for_each_external_block, t.external_offsets_, t.external_tets_,
+      nt, num_blocks, threads, for_each_external_block, offsets, external,
       [](int64_t, SimplexId) {}, [](int64_t, int64_t) {});
+  t.external_tets_.Assign(offsets, external, threads);
 }
 
 // Allocates the window buffers and reserves the face arrays; leaves them empty for the windows.

@@ -25,9 +25,10 @@
 // (NarrowIds); boundary flags are bits. The runs' starts are distances within small groups
 // (RunStarts: 8 bits per 16 for an edge's triangles, 16 per 64 otherwise), and an edge's lowest
 // vertex and a triangle's edge come from a RunLookup (1 byte per face). Tetrahedra are sorted
-// tuples of 16-bit differences, 8 bytes each (NarrowTetrahedra). About 30.8 bytes per tetrahedron
-// in all on wavelet128 (37.8 with 32-bit run starts and 16-bit lookups, 44 with 16-byte tetrahedra
-// as well, 65 with explicit tuples), 17.3 without faces.
+// tuples of 16-bit differences, 8 bytes each (NarrowTetrahedra); a block's external tetrahedra
+// are 16-bit gaps (AscendingIdLists). About 29.5 bytes per tetrahedron in all on wavelet128 (37.8
+// with 32-bit run starts, lookups of 16 bits and 32-bit external tetrahedra, 44 with 16-byte
+// tetrahedra as well, 65 with explicit tuples), 16.3 without faces.
 #ifndef ACTOPO_SERVER_CORE_TOPOLOGY_H_
 #define ACTOPO_SERVER_CORE_TOPOLOGY_H_
 
@@ -37,6 +38,7 @@
 #include <bit>
 #include <cstdint>
 #include <functional>
+#include <iterator>
 #include <memory>
 #include <mutex>
 #include <span>
@@ -135,9 +137,10 @@ struct TopologyBytes {
 
 // The run holding an item when items are numbered run after run (edges by their lowest vertex,
 // triangles by their edge): the largest r with begin[r] <= x, in two loads. Each item keeps its
-// run's distance from the run of item 64 * (x / 64) in 8 bits (a distance is below 64 unless
-// runs are empty: every edge of a tetrahedral mesh has a triangle); a distance that does not fit
-// (stretches of empty runs: unused vertices) falls back to a binary search over that stretch.
+// run's distance from the run of item 64 * (x / 64) in 8 bits (64 items span at most 64 runs
+// and the empty runs between them: a vertex with no edge above it, an edge (a, b) with no triangle
+// (a, b, c > b)); a distance that does not fit (stretches of hundreds of empty runs: unused
+// vertices) falls back to a binary search over that stretch.
 class RunLookup {
  public:
   void Build(std::span<const SimplexId> begin, SimplexId items, int threads);
@@ -408,6 +411,67 @@ class NarrowTetrahedra {
   std::vector<Tuple> whole_;       // the tetrahedra kept whole, in id order
 };
 
+// Lists of ascending ids (each block's external tetrahedra) as 16-bit gaps from the previous id
+// of the list, read in order; a gap that does not fit (the next tetrahedron's lowest vertex in
+// another block, far in id) keeps its id whole beside them.
+class AscendingIdLists {
+ public:
+  static constexpr uint16_t kWhole = 0xffff;
+  class Iterator {
+   public:
+    using iterator_category = std::input_iterator_tag;
+    using value_type = SimplexId;
+    using difference_type = std::ptrdiff_t;
+    using pointer = void;
+    using reference = SimplexId;
+    Iterator() = default;
+    Iterator(const uint16_t* gap, const SimplexId* whole) : gap_(gap), whole_(whole) {}
+    SimplexId operator*() const { return *gap_ != kWhole ? previous_ + *gap_ : *whole_; }
+    Iterator& operator++() {
+      const SimplexId id = **this;
+      whole_ += *gap_ == kWhole;
+      previous_ = id;
+      ++gap_;
+      return *this;
+    }
+    Iterator operator++(int) {
+      Iterator before = *this;
+      ++*this;
+      return before;
+    }
+    bool operator==(const Iterator& other) const { return gap_ == other.gap_; }
+
+   private:
+    const uint16_t* gap_ = nullptr;
+    const SimplexId* whole_ = nullptr;
+    SimplexId previous_ = 0;  // the first id's gap is from 0
+  };
+  struct List {
+    Iterator first, last;
+    size_t count;
+    Iterator begin() const { return first; }
+    Iterator end() const { return last; }
+    size_t size() const { return count; }
+    bool empty() const { return count == 0; }
+  };
+  List list(int32_t k) const {
+    const uint16_t* gaps = gaps_.data();
+    return {Iterator(gaps + offsets_[k], whole_.data() + whole_offsets_[k]),
+            Iterator(gaps + offsets_[k + 1], nullptr), size_t(offsets_[k + 1] - offsets_[k])};
+  }
+  // Takes lists [offsets[k], offsets[k + 1]) of `ids`; ParallelFor over the lists.
+  void Assign(std::span<const SimplexId> offsets, std::span<const SimplexId> ids, int threads);
+  int64_t bytes() const {
+    return int64_t((offsets_.size() + whole_offsets_.size() + whole_.size()) * sizeof(SimplexId) +
+                   gaps_.size() * sizeof(uint16_t));
+  }
+
+ private:
+  std::vector<SimplexId> offsets_, whole_offsets_;  // per list + 1: into gaps_, into whole_
+  FilledVector<uint16_t> gaps_;
+  std::vector<SimplexId> whole_;
+};
+
 class Topology {
  public:
   // `vertex_block` gives the block of each input vertex (dense ids 0..B-1, e.g. OctreeBlocks).
@@ -514,10 +578,7 @@ class Topology {
 
   // Tetrahedra whose lowest vertex lies in an earlier block but which have a vertex in b,
   // ascending. All of them have smaller ids than b's internal tetrahedra.
-  std::span<const SimplexId> external_tetrahedra(int32_t b) const {
-    return {external_tets_.data() + external_offsets_[b],
-            external_tets_.data() + external_offsets_[b + 1]};
-  }
+  AscendingIdLists::List external_tetrahedra(int32_t b) const { return external_tets_.list(b); }
   // Blocks sharing a tetrahedron with b, ascending, b excluded.
   std::span<const int32_t> block_neighbors(int32_t b) const {
     return {block_neighbors_.data() + block_neighbor_offsets_[b],
@@ -551,21 +612,20 @@ class Topology {
   // first, or were handed the topology after it was set.
   std::atomic<bool> has_faces_ = false;
   mutable Mutex faces_mu_;
-  std::vector<int32_t> vertex_block_;          // by internal vertex
-  std::vector<SimplexId> block_vertex_begin_;  // B + 1
-  std::vector<SimplexId> block_tet_begin_;     // B + 1
-  RunStarts<uint16_t, 6> vertex_edge_begin_;   // V + 1: run of edges (v, *)
-  NarrowIds edge_upper_;                       // 1 per edge: b of (a, b), from a
-  RunLookup edge_lowest_;                      // edge -> a
-  RunStarts<uint8_t, 4> edge_triangle_begin_;  // E + 1: run of triangles (a, b, *)
-  NarrowIds triangle_third_;                   // 1 per triangle: c of (a, b, c), from a
-  RunLookup triangle_edge_;                    // triangle -> edge (a, b)
-  std::vector<uint64_t> triangle_boundary_;    // 1 bit per triangle
-  bool crowded_triangles_ = false;             // has_crowded_triangles()
-  NarrowTetrahedra tets_;                      // sorted tuples
-  RunStarts<uint16_t, 6> vertex_tet_begin_;    // V + 1: run of tetrahedra (v, *)
-  std::vector<SimplexId> external_offsets_;    // B + 1
-  std::vector<SimplexId> external_tets_;
+  std::vector<int32_t> vertex_block_;            // by internal vertex
+  std::vector<SimplexId> block_vertex_begin_;    // B + 1
+  std::vector<SimplexId> block_tet_begin_;       // B + 1
+  RunStarts<uint16_t, 6> vertex_edge_begin_;     // V + 1: run of edges (v, *)
+  NarrowIds edge_upper_;                         // 1 per edge: b of (a, b), from a
+  RunLookup edge_lowest_;                        // edge -> a
+  RunStarts<uint8_t, 4> edge_triangle_begin_;    // E + 1: run of triangles (a, b, *)
+  NarrowIds triangle_third_;                     // 1 per triangle: c of (a, b, c), from a
+  RunLookup triangle_edge_;                      // triangle -> edge (a, b)
+  std::vector<uint64_t> triangle_boundary_;      // 1 bit per triangle
+  bool crowded_triangles_ = false;               // has_crowded_triangles()
+  NarrowTetrahedra tets_;                        // sorted tuples
+  RunStarts<uint16_t, 6> vertex_tet_begin_;      // V + 1: run of tetrahedra (v, *)
+  AscendingIdLists external_tets_;               // per block
   std::vector<int32_t> block_neighbor_offsets_;  // B + 1
   std::vector<int32_t> block_neighbors_;
   std::vector<SimplexId> vertex_input_id_, vertex_internal_id_;

@@ -452,6 +452,40 @@ TEST(RunStarts, MatchesTheStartsGivenAcrossWideGroups) {
   ExpectStartsMatch<RunStarts<uint8_t, 4>>(make_starts(300, 4), 1);
 }
 
+// Lists of ascending ids with gaps below and above 16 bits, first ids far from 0, and empty
+// lists: read back in order, with their sizes. Built on 1 and 3 threads.
+TEST(AscendingIdLists, ReadsBackListsWithFarGaps) {
+  std::vector<SimplexId> offsets = {0}, ids;
+  uint64_t state = 777;
+  for (int list = 0; list < 500; ++list) {
+    state = state * 6364136223846793005u + 1442695040888963407u;
+    const int length = list % 7 == 0 ? 0 : int(state >> 58);  // 0..63
+    SimplexId id = SimplexId((state >> 20) % 200000);
+    for (int i = 0; i < length; ++i) {
+      state = state * 6364136223846793005u + 1442695040888963407u;
+      // One gap in 8 past 16 bits (65,535 itself included), the others short.
+      const int kind = int(state >> 61);
+      id += kind == 0 ? 65535 + SimplexId((state >> 30) % 100000) : SimplexId((state >> 30) % 300);
+      ids.push_back(id);
+    }
+    offsets.push_back(SimplexId(ids.size()));
+  }
+  for (int threads : {1, 3}) {
+    AscendingIdLists lists;
+    lists.Assign(offsets, ids, threads);
+    for (int32_t k = 0; k + 1 < int32_t(offsets.size()); ++k) {
+      const auto list = lists.list(k);
+      ASSERT_EQ(list.size(), size_t(offsets[k + 1] - offsets[k])) << "list " << k;
+      EXPECT_EQ(std::vector<SimplexId>(list.begin(), list.end()),
+                std::vector<SimplexId>(ids.begin() + offsets[k], ids.begin() + offsets[k + 1]))
+          << "list " << k << ", " << threads << " threads";
+    }
+    // Some ids are kept whole, most are 2 bytes.
+    EXPECT_GT(lists.bytes(), int64_t(2 * ids.size() + 4 * offsets.size() * 2 + 4 * 100));
+    EXPECT_LT(lists.bytes(), int64_t(4 * ids.size()));
+  }
+}
+
 TEST(Topology, FindRejectsAbsentSimplices) {
   auto topo = BuildOrDie(testing::NonManifold(), 3);
   // Vertices 0 and 9 are in different components.
