@@ -51,8 +51,9 @@ absl::Status LoadedMesh::EnsureFaces(const Progress& progress, Trace* trace) con
       faces_done_.WaitFor(faces_mu_, std::chrono::milliseconds(20));
     }
     if (topology->has_faces()) return absl::OkStatus();
-    // Measured: edges and triangles take 25.6 bytes per tetrahedron on wavelet128 (261 MB); the
-    // window being appended adds little. What they hold is what stays reserved.
+    // Measured: edges and triangles take 13.2 bytes per tetrahedron on wavelet128 (135 MB) once
+    // built; while they are built, their run starts in 32 bits (about 5 more) and the window
+    // being appended add to that. What they hold is what stays reserved.
     if (MemoryBudget* budget = reservation.budget(); budget != nullptr) {
       faces_reservation_ = Reservation(budget);
       RETURN_IF_ERROR(
@@ -87,8 +88,8 @@ MeshRegistry::MeshRegistry(MeshRegistryOptions options, MemoryBudget* budget)
     : options_(std::move(options)), budget_(budget) {}
 
 int64_t MeshRegistry::EstimateBytes(int64_t vertices, int64_t tetrahedra, int point_fields) {
-  // Measured: the static encoding is about 49 bytes per tetrahedron with its faces (wavelet128,
-  // jittered:256), 24 without, the mesh itself 24 + 8 per field per vertex and 16 per
+  // Measured: the static encoding is about 30 bytes per tetrahedron with its faces (wavelet128,
+  // part_5M; 49 when the peak below was taken), 16 without, the mesh itself 24 + 8 per field per vertex and 16 per
   // tetrahedron. jittered:256 (99.5M tetrahedra) peaked at 67 bytes per tetrahedron besides its
   // vertices when the mesh's tetrahedra were kept and its faces built in the load; 80 covers it
   // with a margin. Now the tetrahedra are freed as they are encoded (a byte per tetrahedron
