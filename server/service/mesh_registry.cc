@@ -89,12 +89,13 @@ MeshRegistry::MeshRegistry(MeshRegistryOptions options, MemoryBudget* budget)
 
 int64_t MeshRegistry::EstimateBytes(int64_t vertices, int64_t tetrahedra, int point_fields) {
   // Measured: the static encoding is about 30 bytes per tetrahedron with its faces (wavelet128,
-  // part_5M; 49 when the peak below was taken), 16 without, the mesh itself 24 + 8 per field per vertex and 16 per
-  // tetrahedron. jittered:256 (99.5M tetrahedra) peaked at 67 bytes per tetrahedron besides its
-  // vertices when the mesh's tetrahedra were kept and its faces built in the load; 80 covers it
-  // with a margin. Now the tetrahedra are freed as they are encoded (a byte per tetrahedron
-  // stays) and the faces wait for a session that reads them (LoadedMesh::EnsureFaces, reserved
-  // then): once loaded, a mesh's reservation shrinks to what it holds (Add).
+  // part_5M; 49 when the peak below was taken), 16 without, the mesh itself 24 + 8 per field per
+  // vertex and 16 per tetrahedron. jittered:256 (99.5M tetrahedra) peaked at 67 bytes per
+  // tetrahedron besides its vertices when the mesh's tetrahedra were kept and its faces built in
+  // the load; 80 covers it with a margin. Now the tetrahedra are freed as they are encoded (a byte
+  // per tetrahedron stays) and the faces wait for a session that reads them
+  // (LoadedMesh::EnsureFaces, reserved then): once loaded, a mesh's reservation shrinks to what it
+  // holds (Add).
   return vertices * (48 + 8 * std::max(point_fields - 3, 0)) + tetrahedra * 80;
 }
 
