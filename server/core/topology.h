@@ -214,8 +214,8 @@ class RunStarts {
   };
   std::vector<Group> groups_;
   FilledVector<Distance> distance_;
-  std::vector<SimplexId>
-      whole_;  // the wide groups' entries, a group's worth each (the last: fewer)
+  // The wide groups' entries, a group's worth each (the last group: fewer).
+  std::vector<SimplexId> whole_;
 };
 
 // Which entries of an array are kept whole (the few whose differences do not fit 16 bits), and
@@ -428,9 +428,7 @@ class AscendingIdLists {
     Iterator(const uint16_t* gap, const SimplexId* whole) : gap_(gap), whole_(whole) {}
     SimplexId operator*() const { return *gap_ != kWhole ? previous_ + *gap_ : *whole_; }
     Iterator& operator++() {
-      const SimplexId id = **this;
-      whole_ += *gap_ == kWhole;
-      previous_ = id;
+      previous_ = *gap_ != kWhole ? previous_ + *gap_ : *whole_++;
       ++gap_;
       return *this;
     }
