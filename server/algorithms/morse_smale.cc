@@ -221,7 +221,7 @@ class Builder {
       if (!wall_.insert(f).second) continue;
       const auto [a, b, c] = topo_.triangle(f);
       for (SimplexId e : {topo_.FindEdge(a, b), topo_.FindEdge(a, c), topo_.FindEdge(b, c)}) {
-        wall_edges_.push_back({e, f});
+        wall_edges_.push_back(uint64_t(e) << 32 | uint64_t(f));
         if (saddles_.edge(e)) wall_saddles_.push_back(e);
         const SimplexId paired = g_.up[1][e];
         if (paired >= 0 && paired != f) bfs.push(paired);
@@ -230,16 +230,17 @@ class Builder {
     std::sort(wall_saddles_.begin(), wall_saddles_.end());
     wall_saddles_.erase(std::unique(wall_saddles_.begin(), wall_saddles_.end()),
                         wall_saddles_.end());
-    std::sort(wall_edges_.begin(), wall_edges_.end());
+    std::sort(wall_edges_.begin(), wall_edges_.end());  // 64-bit keys sort faster than pairs
   }
 
-  // The wall's triangles around edge e, ascending: the edge-triangle row's order.
-  std::span<const std::pair<SimplexId, SimplexId>> WallTriangles(SimplexId e) const {
-    const auto [first, last] =
-        std::equal_range(wall_edges_.begin(), wall_edges_.end(), std::pair{e, SimplexId(0)},
-                         [](const auto& x, const auto& y) { return x.first < y.first; });
-    return {first, last};
+  // The wall's triangles around edge e, ascending (the edge-triangle row's order), as keys:
+  // WallTriangle(key) is the triangle.
+  std::span<const uint64_t> WallTriangles(SimplexId e) const {
+    const uint64_t key = uint64_t(e) << 32;
+    const auto first = std::lower_bound(wall_edges_.begin(), wall_edges_.end(), key);
+    return {first, std::lower_bound(first, wall_edges_.end(), key + (uint64_t(1) << 32))};
   }
+  static SimplexId WallTriangle(uint64_t key) { return SimplexId(key & 0xffffffffu); }
 
   // From 1-saddle s1 up through the current wall: triangle -> its paired edge -> the wall
   // triangle around that edge other than the previous one (the last in TTK's edge-triangle
@@ -249,7 +250,8 @@ class Builder {
     path.push_back(s1);  // an edge, then triangle and edge in turn
     SimplexId cur = -1;
     candidates_.clear();
-    for (const auto& [e, f] : WallTriangles(s1)) {
+    for (const uint64_t key : WallTriangles(s1)) {
+      const SimplexId f = WallTriangle(key);
       if (saddles_.triangle(f)) {
         path.push_back(f);
         return true;
@@ -267,8 +269,8 @@ class Builder {
       path.push_back(e);
       if (saddles_.edge(e)) return true;
       candidates_.clear();
-      for (const auto& [edge, f] : WallTriangles(e)) {
-        if (f != old) candidates_.push_back(f);
+      for (const uint64_t key : WallTriangles(e)) {
+        if (WallTriangle(key) != old) candidates_.push_back(WallTriangle(key));
       }
       if (candidates_.empty()) return true;  // dead end: the path stops at edge e
       cur = LastInTtkOrder(candidates_);
@@ -323,7 +325,7 @@ class Builder {
   std::span<const uint8_t> input_corners_;
   std::span<const SimplexId> next_up_;
   absl::flat_hash_set<SimplexId> wall_;  // the current wall: a few triangles of many
-  std::vector<std::pair<SimplexId, SimplexId>> wall_edges_;  // (edge, wall triangle), sorted
+  std::vector<uint64_t> wall_edges_;     // edge << 32 | wall triangle, sorted
   std::vector<SimplexId> wall_saddles_, candidates_, star_, triangle_star_;
   std::vector<std::array<SimplexId, 4>> star_tuples_;  // ScanStar's star, decoded
 };
