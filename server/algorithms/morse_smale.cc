@@ -1,16 +1,14 @@
 #include "server/algorithms/morse_smale.h"
 
 #include <algorithm>
-#include <array>
 #include <atomic>
-#include <bit>
 #include <iterator>
 #include <optional>
-#include <utility>
 
 #include "absl/container/flat_hash_set.h"
 #include "absl/strings/str_cat.h"
 #include "server/algorithms/digest.h"
+#include "server/algorithms/pair_keys.h"
 #include "server/algorithms/prefetch_off.h"
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
@@ -237,47 +235,8 @@ class Builder {
     std::sort(wall_saddles_.begin(), wall_saddles_.end());
     wall_saddles_.erase(std::unique(wall_saddles_.begin(), wall_saddles_.end()),
                         wall_saddles_.end());
-    SortWallEdges();
+    SortPairKeys(wall_edges_, sort_scratch_);
   }
-
-  // wall_edges_ ascending. Walls reach 59k triangles on part_5M (3.8M over its 8,541 2-saddles),
-  // where std::sort took 5.5% of the whole process's samples: larger walls go through a radix
-  // sort on the edges' offsets from the wall's lowest edge (11 bits a pass, two or three
-  // passes), then each edge's few triangles are put in order in place.
-  void SortWallEdges() {
-    std::vector<uint64_t>& keys = wall_edges_;
-    if (keys.size() < kRadixMin) {
-      std::sort(keys.begin(), keys.end());
-      return;
-    }
-    uint32_t low = UINT32_MAX, high = 0;
-    for (const uint64_t k : keys) {
-      low = std::min(low, uint32_t(k >> 32));
-      high = std::max(high, uint32_t(k >> 32));
-    }
-    const int bits = std::bit_width(high - low);
-    sort_scratch_.resize(keys.size());
-    for (int shift = 0; shift < bits; shift += kDigitBits) {
-      std::array<uint32_t, kDigits> start{};
-      const auto digit = [&](uint64_t k) {
-        return ((uint32_t(k >> 32) - low) >> shift) & (kDigits - 1);
-      };
-      for (const uint64_t k : keys) ++start[digit(k)];
-      uint32_t sum = 0;
-      for (uint32_t& n : start) sum += std::exchange(n, sum);
-      for (const uint64_t k : keys) sort_scratch_[start[digit(k)]++] = k;
-      keys.swap(sort_scratch_);
-    }
-    for (size_t i = 1; i < keys.size(); ++i) {  // moves a key only past its own edge's
-      const uint64_t k = keys[i];
-      size_t j = i;
-      for (; j > 0 && keys[j - 1] > k; --j) keys[j] = keys[j - 1];
-      keys[j] = k;
-    }
-  }
-  static constexpr size_t kRadixMin = 1024;
-  static constexpr int kDigitBits = 11;
-  static constexpr uint32_t kDigits = 1u << kDigitBits;
 
   // The wall's triangles around edge e but the one paired with it, ascending (the
   // edge-triangle row's order), as keys: WallTriangle(key) is the triangle.
@@ -367,10 +326,10 @@ class Builder {
   const CriticalSaddles& saddles_;
   std::span<const uint8_t> input_corners_;
   std::span<const SimplexId> next_up_;
-  std::vector<SimplexId> wall_;       // the current wall's triangles, as found
-  std::vector<bool> in_wall_;         // per triangle, whether wall_ holds it (1 bit each)
-  std::vector<uint64_t> wall_edges_;  // edge << 32 | wall triangle, sorted
-  std::vector<uint64_t> sort_scratch_;
+  std::vector<SimplexId> wall_;         // the current wall's triangles, as found
+  std::vector<bool> in_wall_;           // per triangle, whether wall_ holds it (1 bit each)
+  std::vector<uint64_t> wall_edges_;    // edge << 32 | wall triangle, sorted
+  std::vector<uint64_t> sort_scratch_;  // SortPairKeys's
   std::vector<SimplexId> wall_saddles_, candidates_, star_, triangle_star_;
   std::vector<std::array<SimplexId, 4>> star_tuples_;  // ScanStar's star, decoded
 };
