@@ -83,6 +83,12 @@ class LowerStarPairing {
     PairStar(x);
   }
 
+  // Has Process record `links` (AscendingLinks), as consumer `consumer`.
+  void RecordLinks(AscendingLinks* links, int consumer) {
+    links_ = links;
+    consumer_ = consumer;
+  }
+
   // The same for a gradient being updated to a new order: first forgets what the gradient held
   // for the star's cells (critical cells are left unwritten). With `from_tetrahedra`, the star is
   // read from VT alone and the static encoding's lookups (FindEdge, FindTriangle), for structures
@@ -183,6 +189,7 @@ class LowerStarPairing {
     cells_.resize(edges_.size() + triangles_.size() + tetrahedra_.size());
     edge_rank_.resize(edges_.size());
     triangle_rank_.resize(triangles_.size());
+    if (links_ != nullptr) triangle_index_.resize(cells_.size());
     size_t t = 0, q = 0;
     int32_t r = 0;
     for (size_t i = 0; i < edges_.size(); ++i) {
@@ -190,6 +197,7 @@ class LowerStarPairing {
       cells_[r++] = {edges_[i].id, {-1, -1, -1}, 1, false};
       for (; t < triangles_.size() && triangles_[t].key >> 32 == i; ++t) {
         triangle_rank_[t] = r;
+        if (links_ != nullptr) triangle_index_[r] = int32_t(t);
         const int32_t lower_edge = edge_rank_[uint32_t(triangles_[t].key)];
         cells_[r++] = {triangles_[t].id, {edge_rank_[i], lower_edge, -1}, 2, false};
         for (; q < tetrahedra_.size() && tetrahedra_[q].key >> 32 == t; ++q) {
@@ -235,6 +243,7 @@ class LowerStarPairing {
         const int32_t gamma = zero_.PopMin();
         cells_[gamma].paired = true;  // critical
         critical_[cells_[gamma].dim].push_back(cells_[gamma].id);
+        if (links_ != nullptr && cells_[gamma].dim == 2) RecordSaddle(gamma);
         PushCofacets(gamma);
       }
     }
@@ -265,9 +274,14 @@ class LowerStarPairing {
       }
       triangles_.SortByKey();
     }
-    if (triangles_.size() >= 3) {
+    // Links read the whole star: its first tetrahedron, and those around the lower triangles.
+    if (triangles_.size() >= 3 || links_ != nullptr) {
       const std::span<const SimplexId> star = reader.vertex_star(x);
       tetrahedra_.Clear(star.size());
+      if (links_ != nullptr) {
+        upper_cofacets_.assign(triangles_.size(), {-1, -1});
+        links_->first_tetrahedron[x] = FirstInInput(star);
+      }
       for (SimplexId t : star) {
         const auto v = reader.tetrahedron_vertices(t);
         // Descending by a sorting network; x's order comes first exactly when the rest are lower.
@@ -278,7 +292,14 @@ class LowerStarPairing {
           p = high;
         };
         descend(o0, o1), descend(o2, o3), descend(o0, o2), descend(o1, o3), descend(o1, o2);
-        if (o0 == ox) AddTetrahedron(o1, o2, o3, t);  // a few of the star
+        if (o0 == ox) {
+          AddTetrahedron(o1, o2, o3, t);  // a few of the star
+        } else if (links_ != nullptr && o1 == ox) {
+          // x second: its face on x and the two below is a lower triangle; t is outside the
+          // lower star, so the pairing does not see it next to that triangle.
+          auto& slots = upper_cofacets_[TriangleIndex(EdgeIndex(o2), EdgeIndex(o3))];
+          slots[slots[0] >= 0] = t;
+        }
       }
     }
     Rank();
@@ -391,6 +412,44 @@ class LowerStarPairing {
     Record(alpha.dim, alpha.id, beta.id);
     alpha.paired = true;
     beta.paired = true;
+    if (links_ != nullptr && alpha.dim == 2) {
+      SimplexId other[2];
+      links_->up[beta.id] = TriangleTetrahedra(lower, higher, other) == 1 ? other[0] : -1;
+    }
+  }
+
+  // The star's tetrahedron first in input order (-1 when empty).
+  SimplexId FirstInInput(std::span<const SimplexId> star) const {
+    SimplexId first = -1, first_input = 0;
+    for (SimplexId t : star) {
+      const SimplexId input = topology_.tetrahedron_input_id(t);
+      if (first < 0 || input < first_input) {
+        first = t;
+        first_input = input;
+      }
+    }
+    return first;
+  }
+
+  // The tetrahedra of the star's triangle of rank `triangle` but the one of rank `except` (-1:
+  // none), into `out`; returns how many: its cofacets in the lower star and those outside it.
+  int TriangleTetrahedra(int32_t triangle, int32_t except, SimplexId out[2]) const {
+    int n = 0;
+    for (int32_t k = cofacet_begin_[triangle]; k < cofacet_begin_[triangle + 1]; ++k) {
+      if (cofacets_[k] != except) out[n++] = cells_[cofacets_[k]].id;
+    }
+    for (SimplexId t : upper_cofacets_[triangle_index_[triangle]]) {
+      if (t >= 0) out[n++] = t;
+    }
+    return n;
+  }
+
+  // A critical triangle of the star and its tetrahedra, ascending, into links_->saddles.
+  void RecordSaddle(int32_t triangle) {
+    SimplexId tets[2] = {-1, -1};
+    const int n = TriangleTetrahedra(triangle, -1, tets);
+    if (n == 2 && tets[1] < tets[0]) std::swap(tets[0], tets[1]);
+    links_->saddles[consumer_].push_back({cells_[triangle].id, tets[0], tets[1]});
   }
   // Writes the pair (d-cell lower, (d + 1)-cell higher) into the gradient.
   void Record(int d, SimplexId lower, SimplexId higher) {
@@ -414,6 +473,13 @@ class LowerStarPairing {
   std::vector<SimplexId> below_;
   std::vector<std::pair<SimplexId, SimplexId>> pairs_below_;
   std::vector<std::array<SimplexId, 4>> lower_tetrahedra_;
+  // RecordLinks's: where to record, and the star's tetrahedra not in the lower star (id, vertices).
+  AscendingLinks* links_ = nullptr;
+  int consumer_ = 0;
+  // Per lower triangle (by index in triangles_), its tetrahedra outside the lower star (the star
+  // has them: each holds x), and per rank a triangle's index.
+  std::vector<std::array<SimplexId, 2>> upper_cofacets_;
+  std::vector<int32_t> triangle_index_;
 };
 
 }  // namespace
@@ -563,11 +629,9 @@ std::string DiscreteGradientResult::PairsDigest(const Topology& topology) const 
 RelationSet DiscreteGradientDeclared() { return {Relation::kVE, Relation::kVF, Relation::kVT}; }
 
 template <class Structure>
-absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,
-                                                           std::span<const SimplexId> order,
-                                                           const RunContext& context,
-                                                           GradientArrays arrays,
-                                                           VertexNeighbors* neighbors) {
+absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
+    Structure& structure, std::span<const SimplexId> order, const RunContext& context,
+    GradientArrays arrays, VertexNeighbors* neighbors, AscendingLinks* links) {
   const Topology& topo = structure.topology();
   DiscreteGradientResult result;
   GradientField& g = result.gradient;
@@ -582,7 +646,7 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,
     if (all || d < 2) unpaired(g.up[d], d);
   }
   for (int d = 1; d < 4; ++d) {
-    if (all || d == 3) unpaired(g.down[d], d);
+    if (all || (d == 3 && arrays == GradientArrays::kPersistence)) unpaired(g.down[d], d);
   }
   // Every cell lies in the lower star of exactly one vertex (its highest), so consumers on
   // different blocks write disjoint entries. Each counts what it pairs and lists what it leaves
@@ -597,6 +661,7 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(Structure& structure,
       [&](int consumer, ItemQueue& queue, WorkTracker& tracker) {
         auto reader = structure.NewReader();
         LowerStarPairing pairing(g, topo);
+        if (links != nullptr) pairing.RecordLinks(links, consumer);
         int64_t begin, end;
         while (queue.Next(begin, end)) {
           for (int32_t b = int32_t(begin); b < int32_t(end); ++b) {
@@ -764,20 +829,14 @@ template absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(
     ActopoStructure&, DiscreteGradientResult, std::span<const SimplexId>,
     std::span<const SimplexId>, const RunContext&, std::span<const SimplexId>);
 
-template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(ExplicitStructure&,
-                                                                    std::span<const SimplexId>,
-                                                                    const RunContext&,
-                                                                    GradientArrays,
-                                                                    VertexNeighbors*);
-template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(CompactStructure&,
-                                                                    std::span<const SimplexId>,
-                                                                    const RunContext&,
-                                                                    GradientArrays,
-                                                                    VertexNeighbors*);
-template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(ActopoStructure&,
-                                                                    std::span<const SimplexId>,
-                                                                    const RunContext&,
-                                                                    GradientArrays,
-                                                                    VertexNeighbors*);
+template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
+    ExplicitStructure&, std::span<const SimplexId>, const RunContext&, GradientArrays,
+    VertexNeighbors*, AscendingLinks*);
+template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
+    CompactStructure&, std::span<const SimplexId>, const RunContext&, GradientArrays,
+    VertexNeighbors*, AscendingLinks*);
+template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
+    ActopoStructure&, std::span<const SimplexId>, const RunContext&, GradientArrays,
+    VertexNeighbors*, AscendingLinks*);
 
 }  // namespace actopo

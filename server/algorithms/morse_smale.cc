@@ -55,9 +55,10 @@ bool Contains(std::span<const SimplexId, 4> tv, SimplexId b, SimplexId c) {
 }
 
 // Which edges and triangles are critical, one bit each. The gradient keeps only the pairings
-// the paths follow (GradientArrays::kPersistence: vertex -> edge, edge -> triangle, tetrahedron
-// -> triangle); a triangle's edge comes from its edges' pairings (DownEdge). The three arrays
-// left out are 4 bytes per edge and 8 per triangle: 259 MB on wavelet128.vtu.
+// the paths follow (GradientArrays::kPaths: vertex -> edge, edge -> triangle; kPersistence adds
+// tetrahedron -> triangle, for a caller's gradient); a triangle's edge comes from its edges'
+// pairings (DownEdge). The arrays left out are 4 bytes per edge and 8 per triangle: 259 MB on
+// wavelet128.vtu.
 class CriticalSaddles {
  public:
   CriticalSaddles(const Topology& topo, const std::array<std::vector<SimplexId>, 4>& critical)
@@ -578,11 +579,23 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
   // The passes after the consumers' phases (segmentations) run on as many threads.
   const int threads = std::max(context.consumers, 1);
   MorseSmaleResult result;
+  // Per tetrahedron its next one up (-1 for the critical ones until they are labelled), per
+  // vertex its first tetrahedron (in vertex_label until the labels are known), per 2-saddle its
+  // tetrahedra (two slots, -1 when on the boundary): what the ascending separatrices and
+  // segmentation read of the vertex stars. The gradient's sweep records them (AscendingLinks)
+  // when this run computes the gradient, else a pass over the blocks reads them below.
+  std::vector<SimplexId> up(topo.num_tetrahedra(), -1);
+  std::vector<SimplexId> vertex_label(topo.num_vertices(), -1);
+  std::vector<SimplexId> saddle_tets;
+  const bool linked = !gradient && !topo.has_crowded_triangles();
+  AscendingLinks links{up, vertex_label, {}};
+  links.saddles.resize(size_t(threads));
   if (gradient) {
     result.gradient = std::move(*gradient);
   } else {
-    ASSIGN_OR_RETURN(result.gradient, RunDiscreteGradient(structure, order, phase(0.0, 0.5),
-                                                          GradientArrays::kPersistence));
+    const GradientArrays arrays = linked ? GradientArrays::kPaths : GradientArrays::kPersistence;
+    ASSIGN_OR_RETURN(result.gradient, RunDiscreteGradient(structure, order, phase(0.0, 0.5), arrays,
+                                                          nullptr, linked ? &links : nullptr));
   }
   GradientField& g = result.gradient.gradient;
   // What the paths do not follow (a caller's gradient may have every array), and the gradient's
@@ -595,34 +608,50 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
   const CriticalSaddles critical_saddles(topo, result.gradient.critical);
   DescendingSeparatrices(topo, g, result.gradient.critical[1], result.separatrices);
 
-  // In one pass over the blocks, while their vertex stars are at hand: each tetrahedron's next
-  // one up (ScanStar; -1 for the critical ones until they are labelled), each vertex's first
-  // tetrahedron (ScanStar's result, in vertex_label until the labels are known) and each 2-saddle's
-  // tetrahedra (two slots, -1 when on the boundary). The separatrices then read no relation
-  // (part_5M.vtu, actopo: tracing them through vertex stars recomputed VT 10,066 times over
-  // 3,631 blocks), and the ascending segmentation resolves `up`.
   const std::vector<SimplexId>& saddles = result.gradient.critical[2];
-  std::vector<SimplexId> up(topo.num_tetrahedra(), -1);
-  std::vector<SimplexId> vertex_label(topo.num_vertices(), -1);
-  std::vector<SimplexId> saddle_tets(2 * saddles.size(), -1);
-  absl::Status status = RunOnConsumers(
-      phase(0.5, 0.6), topo, topo.num_blocks(), [&](int, BlockRange range, WorkTracker& tracker) {
-        auto reader = structure.NewReader();
-        Builder builder(reader, g, critical_saddles, input_corners);
-        for (int32_t b = range.begin; b < range.end; ++b) {
-          for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
-            vertex_label[v] = builder.ScanStar(v, up);
+  saddle_tets.assign(2 * saddles.size(), -1);
+  absl::Status status;
+  if (linked) {
+    // The sweep met each 2-saddle once, in its highest vertex's lower star.
+    std::vector<std::array<SimplexId, 3>> met;
+    met.reserve(saddles.size());
+    for (const auto& per_consumer : links.saddles) {
+      met.insert(met.end(), per_consumer.begin(), per_consumer.end());
+    }
+    std::sort(met.begin(), met.end());
+    for (size_t i = 0; i < met.size() && i < saddles.size(); ++i) {
+      saddle_tets[2 * i] = met[i][1];
+      saddle_tets[2 * i + 1] = met[i][2];
+    }
+    if (met.size() != saddles.size()) {
+      return absl::InternalError(absl::StrCat("morse-smale: the gradient's sweep met ", met.size(),
+                                              " 2-saddles of ", saddles.size()));
+    }
+  } else {
+    // In one pass over the blocks, while their vertex stars are at hand (ScanStar, TriangleStar).
+    // The separatrices then read no relation (part_5M.vtu, actopo: tracing them through vertex
+    // stars recomputed VT 10,066 times over 3,631 blocks), and the ascending segmentation
+    // resolves `up`.
+    status = RunOnConsumers(
+        phase(0.5, 0.6), topo, topo.num_blocks(), [&](int, BlockRange range, WorkTracker& tracker) {
+          auto reader = structure.NewReader();
+          Builder builder(reader, g, critical_saddles, input_corners);
+          for (int32_t b = range.begin; b < range.end; ++b) {
+            for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1);
+                 ++v) {
+              vertex_label[v] = builder.ScanStar(v, up);
+            }
+            for (auto i =
+                     std::lower_bound(saddles.begin(), saddles.end(), topo.block_triangle_begin(b));
+                 i != saddles.end() && *i < topo.block_triangle_begin(b + 1); ++i) {
+              const auto star = builder.TriangleStar(*i);
+              std::copy(star.begin(), star.end(), saddle_tets.begin() + 2 * (i - saddles.begin()));
+            }
+            reader.Finished(b);  // both read the stars of b's own vertices
+            if (!tracker.Done()) return;
           }
-          for (auto i =
-                   std::lower_bound(saddles.begin(), saddles.end(), topo.block_triangle_begin(b));
-               i != saddles.end() && *i < topo.block_triangle_begin(b + 1); ++i) {
-            const auto star = builder.TriangleStar(*i);
-            std::copy(star.begin(), star.end(), saddle_tets.begin() + 2 * (i - saddles.begin()));
-          }
-          reader.Finished(b);  // both read the stars of b's own vertices
-          if (!tracker.Done()) return;
-        }
-      });
+        });
+  }
   if (!status.ok()) return status;
   // The maxima labelled 0.. in ascending input tetrahedron id, in `up` (LabelCode), where the
   // ascending paths below find their ends. Nothing reads the tetrahedron -> triangle pairing

@@ -170,6 +170,23 @@ TEST(MorseSmale, InvariantsAndStructureIndependence) {
   }
 }
 
+// A triangle with three tetrahedra: the gradient's sweep records no links there (AscendingLinks
+// holds two tetrahedra per triangle), so the stars are scanned in a pass of their own, which
+// takes every tetrahedron of a triangle's star.
+TEST(MorseSmale, CrowdedTrianglesTakeTheStarPass) {
+  Input in = Make(testing::NonManifold(), 4);
+  ASSERT_TRUE(in.topo->has_crowded_triangles());
+  auto explicit_structure = *ExplicitStructure::Build(in.topo, {});
+  const MorseSmaleResult r = *RunMorseSmale(*explicit_structure, in.order, in.corners, {});
+  EXPECT_EQ(r.descending.size(), size_t(in.topo->num_vertices()));
+  EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kDescending), 2 * r.gradient.critical_cells[1]);
+  CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = 2});
+  const MorseSmaleResult c = *RunMorseSmale(compact, in.order, in.corners, {.consumers = 2});
+  EXPECT_EQ(c.morse_smale, r.morse_smale);
+  EXPECT_EQ(c.ascending, r.ascending);
+  EXPECT_EQ(c.separatrices.size(), r.separatrices.size());
+}
+
 TEST(MorseSmale, DoesNotDependOnTheBlockSize) {
   const Mesh mesh = testing::Lattice(8, 8, 8, 77);
   std::set<std::string> seen;
