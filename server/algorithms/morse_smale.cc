@@ -222,7 +222,8 @@ class Builder {
     for (size_t i = 0; i < wall_.size(); ++i) {  // breadth first: wall_ is the queue
       const SimplexId f = wall_[i];
       const auto [a, b, c] = topo_.triangle(f);
-      for (SimplexId e : {topo_.FindEdge(a, b), topo_.FindEdge(a, c), topo_.FindEdge(b, c)}) {
+      // Its edge (a, b) is the one the encoding keeps with it; the other two are looked up.
+      for (SimplexId e : {topo_.triangle_edge(f), topo_.FindEdge(a, c), topo_.FindEdge(b, c)}) {
         const SimplexId paired = g_.up[1][e];
         if (paired == f) continue;
         wall_edges_.push_back(uint64_t(e) << 32 | uint64_t(f));
@@ -283,12 +284,14 @@ class Builder {
 
   // The edge paired with wall triangle f (every wall triangle but its saddle is paired with one
   // of its edges): the one of its three edges whose pairing points back at it.
+  // Edges are looked up only until it is found.
   SimplexId DownEdge(SimplexId f) const {
+    const SimplexId ab = topo_.triangle_edge(f);
+    if (g_.up[1][ab] == f) return ab;
     const auto [a, b, c] = topo_.triangle(f);
-    for (SimplexId e : {topo_.FindEdge(a, b), topo_.FindEdge(a, c), topo_.FindEdge(b, c)}) {
-      if (g_.up[1][e] == f) return e;
-    }
-    return -1;
+    if (const SimplexId ac = topo_.FindEdge(a, c); g_.up[1][ac] == f) return ac;
+    const SimplexId bc = topo_.FindEdge(b, c);
+    return g_.up[1][bc] == f ? bc : -1;
   }
 
   // TTK numbers triangles by first appearance over tetrahedra in input order, faces (v0 v1 v2),
