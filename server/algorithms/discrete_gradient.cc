@@ -275,13 +275,13 @@ class LowerStarPairing {
       triangles_.SortByKey();
     }
     // Links read the whole star: its first tetrahedron, and those around the lower triangles.
-    if (triangles_.size() >= 3 || links_ != nullptr) {
+    const bool first = links_ != nullptr && !links_->first_tetrahedron.empty();
+    if (triangles_.size() >= 3 || first || (links_ != nullptr && !triangles_.empty())) {
       const std::span<const SimplexId> star = reader.vertex_star(x);
       tetrahedra_.Clear(star.size());
-      if (links_ != nullptr) {
-        upper_cofacets_.assign(triangles_.size(), {-1, -1});
-        links_->first_tetrahedron[x] = FirstInInput(star);
-      }
+      upper_count_ = 0;
+      if (links_ != nullptr && upper_faces_.size() < star.size()) upper_faces_.resize(star.size());
+      if (first) links_->first_tetrahedron[x] = FirstInInput(star);
       for (SimplexId t : star) {
         const auto v = reader.tetrahedron_vertices(t);
         // Descending by a sorting network; x's order comes first exactly when the rest are lower.
@@ -294,11 +294,13 @@ class LowerStarPairing {
         descend(o0, o1), descend(o2, o3), descend(o0, o2), descend(o1, o3), descend(o1, o2);
         if (o0 == ox) {
           AddTetrahedron(o1, o2, o3, t);  // a few of the star
-        } else if (links_ != nullptr && o1 == ox) {
-          // x second: its face on x and the two below is a lower triangle; t is outside the
-          // lower star, so the pairing does not see it next to that triangle.
-          auto& slots = upper_cofacets_[TriangleIndex(EdgeIndex(o2), EdgeIndex(o3))];
-          slots[slots[0] >= 0] = t;
+        } else if (links_ != nullptr) {
+          // With x second, its face on x and the two below is a lower triangle, next to which
+          // the pairing does not see t (outside the lower star). Kept by that face's orders
+          // (written always, kept when x is second: no branch to mispredict); looked up only
+          // for the few triangles whose lower cofacets are not all their tetrahedra.
+          upper_faces_[upper_count_] = {Pack(o2, o3), t};
+          upper_count_ += o1 == ox;
         }
       }
     }
@@ -432,14 +434,24 @@ class LowerStarPairing {
   }
 
   // The tetrahedra of the star's triangle of rank `triangle` but the one of rank `except` (-1:
-  // none), into `out`; returns how many: its cofacets in the lower star and those outside it.
+  // none), into `out`; returns how many: its cofacets in the lower star, then those outside it
+  // (a triangle has two tetrahedra at most: no crowded triangles).
   int TriangleTetrahedra(int32_t triangle, int32_t except, SimplexId out[2]) const {
-    int n = 0;
-    for (int32_t k = cofacet_begin_[triangle]; k < cofacet_begin_[triangle + 1]; ++k) {
+    int n = 0, found = 0;  // found: `except` too
+    for (int32_t k = cofacet_begin_[triangle]; k < cofacet_begin_[triangle + 1]; ++k, ++found) {
       if (cofacets_[k] != except) out[n++] = cells_[cofacets_[k]].id;
     }
-    for (SimplexId t : upper_cofacets_[triangle_index_[triangle]]) {
-      if (t >= 0) out[n++] = t;
+    if (found == 2) return n;
+    // The triangle's other two vertices' orders, higher first, from its two edges' keys.
+    const uint64_t edges = triangles_[triangle_index_[triangle]].key;
+    const uint64_t key =
+        Pack(SimplexId(edges_[edges >> 32].key), SimplexId(edges_[uint32_t(edges)].key));
+    for (size_t i = 0; i < upper_count_; ++i) {
+      const auto& [face, t] = upper_faces_[i];
+      if (face == key) {
+        out[n++] = t;
+        if (++found == 2) break;
+      }
     }
     return n;
   }
@@ -473,12 +485,14 @@ class LowerStarPairing {
   std::vector<SimplexId> below_;
   std::vector<std::pair<SimplexId, SimplexId>> pairs_below_;
   std::vector<std::array<SimplexId, 4>> lower_tetrahedra_;
-  // RecordLinks's: where to record, and the star's tetrahedra not in the lower star (id, vertices).
+  // RecordLinks's: where to record, as which consumer.
   AscendingLinks* links_ = nullptr;
   int consumer_ = 0;
-  // Per lower triangle (by index in triangles_), its tetrahedra outside the lower star (the star
-  // has them: each holds x), and per rank a triangle's index.
-  std::vector<std::array<SimplexId, 2>> upper_cofacets_;
+  // The star's tetrahedra outside the lower star with x second in order: (their face on x and
+  // the two vertices below it, as Pack(higher order, lower order); the tetrahedron). And per
+  // rank, a triangle's index in triangles_.
+  std::vector<std::pair<uint64_t, SimplexId>> upper_faces_;  // the first upper_count_
+  size_t upper_count_ = 0;
   std::vector<int32_t> triangle_index_;
 };
 
@@ -624,6 +638,29 @@ std::string DiscreteGradientResult::PairsDigest(const Topology& topology) const 
             }});
   }
   return SortedLinesSha256(topology.num_vertices(), groups);
+}
+
+absl::StatusOr<std::vector<SimplexId>> SaddleTetrahedra(const AscendingLinks& links,
+                                                        std::span<const SimplexId> saddles) {
+  // The sweep met each 2-saddle once, in its highest vertex's lower star.
+  std::vector<std::array<SimplexId, 3>> met;
+  met.reserve(saddles.size());
+  for (const auto& per_consumer : links.saddles) {
+    met.insert(met.end(), per_consumer.begin(), per_consumer.end());
+  }
+  std::sort(met.begin(), met.end());
+  if (met.size() != saddles.size() ||
+      !std::equal(met.begin(), met.end(), saddles.begin(),
+                  [](const std::array<SimplexId, 3>& m, SimplexId f) { return m[0] == f; })) {
+    return absl::InternalError(absl::StrCat("the gradient's sweep recorded ", met.size(),
+                                            " 2-saddles, not the ", saddles.size(), " it found"));
+  }
+  std::vector<SimplexId> tets(2 * met.size());
+  for (size_t i = 0; i < met.size(); ++i) {
+    tets[2 * i] = met[i][1];
+    tets[2 * i + 1] = met[i][2];
+  }
+  return tets;
 }
 
 RelationSet DiscreteGradientDeclared() { return {Relation::kVE, Relation::kVF, Relation::kVT}; }

@@ -67,8 +67,9 @@ RelationSet DiscreteGradientDeclared();
 // answers for d = 0; `links->up` takes the place of the tetrahedron -> triangle array).
 enum class GradientArrays : uint8_t { kAll, kPersistence, kPaths };
 
-// What the Morse-Smale complex's ascending separatrices and segmentation read of the vertex
-// stars, recorded by the gradient's sweep while it holds each star. After the sweep, a pass
+// What the ascending paths (the Morse-Smale complex's separatrices and segmentation, the
+// persistence diagram's saddle-maximum pairs) read of the vertex stars, recorded by the
+// gradient's sweep while it holds each star. After the sweep, a pass
 // would read every vertex star again: on compact and actopo that computes each block's VT a
 // second time (part_5M.vtu: 3,680 blocks, 0.2 s on two consumers). Meshes with crowded
 // triangles (three tetrahedra or more) are not supported (Topology::has_crowded_triangles).
@@ -77,11 +78,18 @@ struct AscendingLinks {
   // triangle is on the boundary. The critical tetrahedra's entries are not written.
   std::span<SimplexId> up;
   // Per vertex: the tetrahedron of its star first in input order, -1 for a vertex in none.
+  // Empty: not recorded (the persistence diagram's paths need none).
   std::span<SimplexId> first_tetrahedron;
   // Per consumer (sized by the caller): each critical triangle met, then its tetrahedra,
   // ascending (-1 in the last slot for a triangle on the boundary).
   std::vector<std::vector<std::array<SimplexId, 3>>> saddles;
 };
+
+// The 2-saddles' tetrahedra that `links` recorded, two slots per saddle in the order of
+// `saddles` (the gradient's critical triangles, ascending id), -1 in the second slot for one on
+// the boundary. An internal error if the sweep met other 2-saddles than those.
+absl::StatusOr<std::vector<SimplexId>> SaddleTetrahedra(const AscendingLinks& links,
+                                                        std::span<const SimplexId> saddles);
 
 // With `neighbors`, each consumer also keeps its blocks' vertex neighbours there, read from the
 // VE rows the pairing has just read (a caller whose next passes read VV in no order in space).

@@ -69,18 +69,23 @@ struct PersistenceCurve {
 };
 PersistenceCurve ComputePersistenceCurve(const PersistenceDiagramResult& diagram, int type);
 
-// The gradient's lower stars (VE, VF, VT); the ascending paths find a triangle's tetrahedra in
-// the star of its lowest vertex (VT) and the boundaries its edges in the static encoding.
+// The gradient's lower stars (VE, VF, VT). The ascending paths follow what the gradient's sweep
+// recorded (AscendingLinks), or on a mesh with crowded triangles find a triangle's tetrahedra in
+// the star of its lowest vertex (VT); the boundaries find their edges in the static encoding.
 RelationSet PersistenceDiagramDeclared();
 
 // `scalars`: the field by input vertex id, only reported (births, deaths, persistence).
 // The gradient, the descending and ascending paths run on every consumer; the union-finds and the
 // boundary reduction, sequential as in TTK's reference, on one. `neighbors`: as for
-// RunDiscreteGradient, filled by the gradient's pass.
+// RunDiscreteGradient, filled by the gradient's pass. `arrays`: the pairings the result's
+// gradient keeps, kPaths (vertex -> edge, edge -> triangle), or kPersistence for a caller that
+// goes on with the gradient (a simplified complex updates it, then follows its tetrahedron ->
+// triangle pairs).
 template <class Structure>
 absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(
     Structure& structure, std::span<const SimplexId> order, std::span<const double> scalars,
-    const RunContext& context, VertexNeighbors* neighbors = nullptr);
+    const RunContext& context, VertexNeighbors* neighbors = nullptr,
+    GradientArrays arrays = GradientArrays::kPaths);
 
 }  // namespace actopo
 

@@ -201,6 +201,21 @@ TEST(PersistenceDiagram, EqualsTheFullBoundaryMatrixReduction) {
   }
 }
 
+// A triangle with three tetrahedra: the gradient's sweep records no links there, and the
+// ascending paths read vertex stars instead, to the boundary matrix's pairs all the same.
+TEST(PersistenceDiagram, CrowdedTrianglesReadVertexStars) {
+  const Input in = Make(testing::NonManifold(), 4);
+  ASSERT_TRUE(in.topo->has_crowded_triangles());
+  auto structure = *ExplicitStructure::Build(in.topo, {});
+  const auto r = RunPersistenceDiagram(*structure, in.order, in.scalars, {});
+  ASSERT_TRUE(r.ok()) << r.status();
+  ExpectConsistent(*r, in.scalars);
+  EXPECT_EQ(NonZeroPairs(*r), OraclePairs(in));
+  CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = 2});
+  EXPECT_EQ(RunPersistenceDiagram(compact, in.order, in.scalars, {.consumers = 2})->PairsDigest(),
+            r->PairsDigest());
+}
+
 TEST(PersistenceDiagram, DoesNotDependOnTheStructureOrThreads) {
   const Input in = Make(Carved(7, 5, [](int i, int j, int) { return i == 3 && j == 2; }), 23);
   auto explicit_structure = *ExplicitStructure::Build(in.topo, {});

@@ -625,8 +625,11 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
   SimplificationResult result;
   std::optional<VertexNeighbors> kept;
   if constexpr (!NeighborRows<Structure>::kInPlace) kept.emplace(topo);
-  ASSIGN_OR_RETURN(result.diagram, RunPersistenceDiagram(structure, order, scalars, diagram_context,
-                                                         kept ? &*kept : nullptr));
+  // The diagram's gradient is updated for the simplified complex (run_algorithm.cc), which
+  // follows its tetrahedron -> triangle pairs.
+  ASSIGN_OR_RETURN(result.diagram,
+                   RunPersistenceDiagram(structure, order, scalars, diagram_context,
+                                         kept ? &*kept : nullptr, GradientArrays::kPersistence));
   // The passes below read the kept neighbours and the gradient update a few stars: neither needs
   // the blocks the diagram left buffered, nor the memory its gradient and pairs freed, which the
   // allocator keeps in the consumers' arenas while the passes allocate on this thread.
