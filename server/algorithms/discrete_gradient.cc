@@ -163,6 +163,7 @@ class LowerStarPairing {
     edges_.Clear(edges);
     triangles_.Clear(0);
     tetrahedra_.Clear(0);
+    upper_count_ = 0;
   }
   void AddEdge(SimplexId other_order, SimplexId e) { edges_.Add(uint64_t(other_order), e); }
   // Its vertices other than x by order, descending. Edges must be sorted.
@@ -279,7 +280,6 @@ class LowerStarPairing {
     if (triangles_.size() >= 3 || first || (links_ != nullptr && !triangles_.empty())) {
       const std::span<const SimplexId> star = reader.vertex_star(x);
       tetrahedra_.Clear(star.size());
-      upper_count_ = 0;
       if (links_ != nullptr && upper_faces_.size() < star.size()) upper_faces_.resize(star.size());
       if (first) links_->first_tetrahedron[x] = FirstInInput(star);
       for (SimplexId t : star) {
