@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <numeric>
+#include <optional>
 #include <queue>
 #include <tuple>
 
@@ -12,7 +13,6 @@
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
-#include "server/core/parallel.h"
 #include "server/core/status_macros.h"
 
 namespace actopo {
@@ -274,45 +274,40 @@ class DiagramBuilder {
     std::iota(in_space.begin(), in_space.end(), 0);
     std::sort(in_space.begin(), in_space.end(),
               [&](int32_t a, int32_t b) { return saddles2_[a].id < saddles2_[b].id; });
-    if (!up_.empty()) {
-      // The links: each path climbs `up` to a maximum, marked with its index, or off the
-      // boundary (-1); no relation is read.
-      for (size_t i = 0; i < maxima_.size(); ++i) up_[maxima_[i].id] = MaximumCode(int32_t(i));
-      ParallelForRanges(int64_t(saddles2_.size()), 1 << 10, std::max(context.consumers, 1),
-                        [&](int64_t begin, int64_t end) {
-                          std::vector<int32_t> reached;
-                          for (int64_t j = begin; j < end; ++j) {
-                            const SimplexId* star = &saddle_tets_[2 * j];  // ascending id, as j
-                            reached.clear();
-                            for (int k = 0; k < 2 && star[k] >= 0; ++k) {
-                              reached.push_back(AscendLinked(star[k]));
-                            }
-                            ends[in_space[j]] = SaddleEnds(saddles2_[in_space[j]].id, reached);
-                          }
-                        });
-    } else {
-      PrefetchOff<Structure> off(structure_);
-      RETURN_IF_ERROR(RunOnConsumersShared(context, int64_t(saddles2_.size()), /*chunk=*/16,
-                                           [&](int, ItemQueue& queue, WorkTracker& tracker) {
-                                             auto reader = structure_.NewReader();
-                                             std::vector<int32_t> reached;
-                                             std::array<SimplexId, 2> star;
-                                             int64_t begin, end;
-                                             while (queue.Next(begin, end)) {
-                                               for (int64_t j = begin; j < end; ++j) {
-                                                 const int32_t i = in_space[j];
-                                                 const SimplexId f = saddles2_[i].id;
-                                                 reached.clear();
-                                                 const int n = TriangleStar(reader, f, -1, star);
-                                                 for (int k = 0; k < n; ++k)
-                                                   reached.push_back(
-                                                       AscendToMaximum(reader, star[k]));
-                                                 ends[i] = SaddleEnds(f, reached);
-                                               }
-                                               if (!tracker.Done(end - begin)) return;
-                                             }
-                                           }));
+    // With the gradient's links, each path climbs `up` to a maximum (marked with its index) or
+    // off the boundary (-1), and no relation is read; else through triangle stars.
+    const bool linked = !up_.empty();
+    for (size_t i = 0; linked && i < maxima_.size(); ++i) {
+      up_[maxima_[i].id] = MaximumCode(int32_t(i));
     }
+    std::optional<PrefetchOff<Structure>> off;
+    if (!linked) off.emplace(structure_);
+    RETURN_IF_ERROR(RunOnConsumersShared(
+        context, int64_t(saddles2_.size()), /*chunk=*/16,
+        [&](int, ItemQueue& queue, WorkTracker& tracker) {
+          auto reader = structure_.NewReader();
+          std::vector<int32_t> reached;
+          std::array<SimplexId, 2> star;
+          int64_t begin, end;
+          while (queue.Next(begin, end)) {
+            for (int64_t j = begin; j < end; ++j) {
+              const int32_t i = in_space[j];
+              const SimplexId f = saddles2_[i].id;
+              reached.clear();
+              if (linked) {
+                const SimplexId* tets = &saddle_tets_[2 * j];  // by id, as in_space
+                for (int k = 0; k < 2 && tets[k] >= 0; ++k)
+                  reached.push_back(AscendLinked(tets[k]));
+              } else {
+                const int n = TriangleStar(reader, f, -1, star);
+                for (int k = 0; k < n; ++k) reached.push_back(AscendToMaximum(reader, star[k]));
+              }
+              ends[i] = SaddleEnds(f, reached);
+            }
+            if (!tracker.Done(end - begin)) return;
+          }
+        }));
+    off.reset();
     Components components(maxima_.size());
     // Maxima are sorted by filtration order: the younger of two has the smaller index.
     const auto younger = [](int32_t a, int32_t b) { return a < b; };
@@ -336,18 +331,14 @@ class DiagramBuilder {
 
   // The two ends of 2-saddle f's ascending paths (`reached`, the maxima or kBoundary its
   // tetrahedra climb to), the boundary last; kNoTriplet twice unless exactly two differ.
-  static std::array<int32_t, 2> SaddleEnds(const Topology& topo, SimplexId f,
-                                           std::vector<int32_t>& reached) {
-    if (topo.triangle_on_boundary(f)) reached.push_back(kBoundary);
+  std::array<int32_t, 2> SaddleEnds(SimplexId f, std::vector<int32_t>& reached) const {
+    if (topo_.triangle_on_boundary(f)) reached.push_back(kBoundary);
     // Maxima ascending, the boundary last.
     std::sort(reached.begin(), reached.end(),
               [](int32_t a, int32_t b) { return (a < 0) != (b < 0) ? b < 0 : a < b; });
     reached.erase(std::unique(reached.begin(), reached.end()), reached.end());
     return reached.size() == 2 ? std::array<int32_t, 2>{reached[0], reached[1]}
                                : std::array<int32_t, 2>{kNoTriplet, kNoTriplet};
-  }
-  std::array<int32_t, 2> SaddleEnds(SimplexId f, std::vector<int32_t>& reached) const {
-    return SaddleEnds(topo_, f, reached);
   }
 
   // In up_, maximum i's mark: below -1 (the boundary's), as no tetrahedron id is.
