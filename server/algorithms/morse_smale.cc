@@ -221,9 +221,7 @@ class Builder {
     wall_.push_back(s2);
     for (size_t i = 0; i < wall_.size(); ++i) {  // breadth first: wall_ is the queue
       const SimplexId f = wall_[i];
-      const auto [a, b, c] = topo_.triangle(f);
-      // Its edge (a, b) is the one the encoding keeps with it; the other two are looked up.
-      for (SimplexId e : {topo_.triangle_edge(f), topo_.FindEdge(a, c), topo_.FindEdge(b, c)}) {
+      for (SimplexId e : topo_.triangle_edges(f)) {
         const SimplexId paired = g_.up[1][e];
         if (paired == f) continue;
         wall_edges_.push_back(uint64_t(e) << 32 | uint64_t(f));
@@ -288,7 +286,8 @@ class Builder {
   SimplexId DownEdge(SimplexId f) const {
     const SimplexId ab = topo_.triangle_edge(f);
     if (g_.up[1][ab] == f) return ab;
-    const auto [a, b, c] = topo_.triangle(f);
+    const SimplexId a = topo_.edge_lowest(ab), b = topo_.edge_upper(ab, a);
+    const SimplexId c = topo_.triangle_third(f, a);
     if (const SimplexId ac = topo_.FindEdge(a, c); g_.up[1][ac] == f) return ac;
     const SimplexId bc = topo_.FindEdge(b, c);
     return g_.up[1][bc] == f ? bc : -1;

@@ -103,15 +103,6 @@ int TriangleStar(Reader& reader, SimplexId f, SimplexId skip, std::array<Simplex
   return n;
 }
 
-// Triangle f's three edges, from the static encoding: its edge (a, b), and (a, c), (b, c) found
-// among the few edges of their lowest vertex.
-std::array<SimplexId, 3> TriangleEdges(const Topology& topo, SimplexId f) {
-  const SimplexId ab = topo.triangle_edge(f);
-  const SimplexId a = topo.edge_lowest(ab), b = topo.edge_upper(ab, a);
-  const SimplexId c = topo.triangle_third(f, a);
-  return {ab, topo.FindEdge(a, c), topo.FindEdge(b, c)};
-}
-
 // A cell that the saddle-max pairing sees when an ascending path leaves through the boundary.
 constexpr int32_t kBoundary = -1;
 
@@ -384,7 +375,7 @@ class DiagramBuilder {
           [&](int, ItemQueue& queue, WorkTracker& tracker) {
             EdgeChain chain;
             const auto add_triangle = [&](SimplexId f, SimplexId skip) {
-              for (SimplexId e : TriangleEdges(topo_, f)) {
+              for (SimplexId e : topo_.triangle_edges(f)) {
                 if (e != skip) chain.Add(EdgeOf(e));
               }
             };

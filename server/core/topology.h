@@ -515,6 +515,14 @@ class Topology {
     const SimplexId a = edge_lowest(e);
     return {a, edge_upper(e, a), triangle_third(f, a)};
   }
+  // Triangle f's three edges (a, b), (a, c), (b, c): the first is the one the encoding keeps
+  // with f, the other two are looked up (FindEdge).
+  std::array<SimplexId, 3> triangle_edges(SimplexId f) const {
+    const SimplexId ab = triangle_edge(f);
+    const SimplexId a = edge_lowest(ab), b = edge_upper(ab, a);
+    const SimplexId c = triangle_third(f, a);
+    return {ab, FindEdge(a, c), FindEdge(b, c)};
+  }
   [[gnu::always_inline]] std::array<SimplexId, 4> tetrahedron(SimplexId t) const {
     return tets_.Get(t);
   }
