@@ -138,7 +138,7 @@ build-tsan/build.ninja: | deps
 
 # The tree lists every test binary of the project; those not built show up as "<target>_NOT_BUILT"
 # and are left out. The core and algorithm tests are the unit tests built here.
-ASAN_CORE_TESTS = actopo_core_test actopo_algorithms_test
+ASAN_CORE_TESTS = actopo_core_test actopo_algorithms_test actopo_diagrams_test
 test-asan: deps build-asan/build.ninja
 	cmake --build build-asan -j $(JOBS) --target $(ASAN_CORE_TESTS)
 	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \

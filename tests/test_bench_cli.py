@@ -129,7 +129,7 @@ def test_bad_thresholds_are_named():
     proc = bench("--sample", "jittered:4", "--algorithm", "topological-simplification",
                  "--relative-threshold", "2", check=False)
     assert proc.returncode == 1
-    assert "relative_threshold" in proc.stderr and "[0, 1]" in proc.stderr
+    assert "--relative-threshold: " in proc.stderr and "[0, 1]" in proc.stderr
     proc = bench("--sample", "jittered:4", "--algorithm", "morse-smale",
                  "--relative-threshold", "0.1", "--persistence-threshold", "3", check=False)
     assert "not both" in proc.stderr

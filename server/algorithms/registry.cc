@@ -15,10 +15,11 @@
 namespace actopo {
 namespace {
 
-constexpr std::array<Algorithm, 6> kAll = {
+constexpr std::array<Algorithm, 7> kAll = {
     Algorithm::kTopoRelations,      Algorithm::kCriticalPoints,
     Algorithm::kDiscreteGradient,   Algorithm::kMorseSmale,
-    Algorithm::kPersistenceDiagram, Algorithm::kTopologicalSimplification};
+    Algorithm::kPersistenceDiagram, Algorithm::kTopologicalSimplification,
+    Algorithm::kDiagramDistance};
 
 }  // namespace
 
@@ -30,6 +31,7 @@ std::string_view AlgorithmName(Algorithm a) {
     case Algorithm::kMorseSmale: return "morse-smale";
     case Algorithm::kPersistenceDiagram: return "persistence-diagram";
     case Algorithm::kTopologicalSimplification: return "topological-simplification";
+    case Algorithm::kDiagramDistance: return "diagram-distance";
   }
   return "?";
 }
@@ -51,13 +53,16 @@ absl::StatusOr<Algorithm> ParseAlgorithm(std::string_view name) {
 
 std::span<const Algorithm> AllAlgorithms() { return kAll; }
 
+bool ComparesFields(Algorithm a) { return a == Algorithm::kDiagramDistance; }
+
 RelationSet DeclaredRelations(Algorithm a) {
   switch (a) {
     case Algorithm::kTopoRelations: return TopoRelationsDeclared();
     case Algorithm::kCriticalPoints: return CriticalPointsDeclared();
     case Algorithm::kDiscreteGradient: return DiscreteGradientDeclared();
     case Algorithm::kMorseSmale: return MorseSmaleDeclared();
-    case Algorithm::kPersistenceDiagram: return PersistenceDiagramDeclared();
+    case Algorithm::kPersistenceDiagram:
+    case Algorithm::kDiagramDistance: return PersistenceDiagramDeclared();
     case Algorithm::kTopologicalSimplification: return TopologicalSimplificationDeclared();
   }
   return {};
@@ -81,7 +86,7 @@ bool NeedsScalar(Algorithm a) { return a != Algorithm::kTopoRelations; }
 
 bool NeedsScalarValues(Algorithm a) {
   return a == Algorithm::kPersistenceDiagram || a == Algorithm::kTopologicalSimplification ||
-         a == Algorithm::kMorseSmale;
+         a == Algorithm::kMorseSmale || a == Algorithm::kDiagramDistance;
 }
 
 Prefetch DefaultPrefetch(Algorithm) {

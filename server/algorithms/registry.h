@@ -22,12 +22,17 @@ enum class Algorithm : uint8_t {
   kMorseSmale,
   kPersistenceDiagram,
   kTopologicalSimplification,
+  // A field list's persistence diagrams, then the distances between every two of them
+  // (server/diagrams): per field it runs as the persistence diagram.
+  kDiagramDistance,
 };
 
 std::string_view AlgorithmName(Algorithm a);  // "critical-points"
 // Accepts "critical-points" and "critical_points"; the error lists the algorithms.
 absl::StatusOr<Algorithm> ParseAlgorithm(std::string_view name);
 std::span<const Algorithm> AllAlgorithms();
+// Whether the algorithm compares fields (a list of at least two) instead of analysing one.
+bool ComparesFields(Algorithm a);
 
 RelationSet DeclaredRelations(Algorithm a);
 // The declared relations the algorithm reads block by block on actopo, which its producers

@@ -11,12 +11,15 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <map>
 #include <optional>
 
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
 #include "nlohmann/json.hpp"
 #include "server/algorithms/registry.h"
 #include "server/algorithms/structure_options.h"
@@ -33,6 +36,7 @@
 #include "server/core/trace.h"
 #include "server/io/samples.h"
 #include "server/io/vtk_reader.h"
+#include "server/results/field_distances.h"
 #include "server/results/result_files.h"
 #include "server/results/run_algorithm.h"
 
@@ -46,6 +50,7 @@ struct BenchOptions {
   std::string mesh;
   std::string sample;
   std::string scalar;
+  std::string scalars;  // many fields: "F1,F2,..." or "all"
   std::string algorithm = "topo-relations";
   std::string structure = "compact";
   int consumers = 0;  // 0: DefaultThreadPlan
@@ -60,8 +65,10 @@ struct BenchOptions {
   std::string boundary_rule = "ttk";
   std::string persistence_threshold, relative_threshold;  // as given, parsed by ApplyParameters
   std::string embedding;
-  std::string backend;    // simplification: lts or legacy
-  std::string relations;  // topo-relations: ttk or all
+  std::string backend;     // simplification: lts or legacy
+  std::string relations;   // topo-relations: ttk or all
+  std::string p;           // diagram-distance: the Wasserstein order
+  bool essential = false;  // diagram-distance: match the infinite pairs too
   std::string output;
   std::string trace;  // Chrome trace-event JSON file
   int threads = 0;
@@ -96,30 +103,53 @@ absl::Status Validate(const BenchOptions& o) {
   return absl::OkStatus();
 }
 
-struct RunOutput {
-  double preprocess_s = 0, run_s = 0;
-  double results_s = 0;                 // the summary (digests with --digests), --output files
-  int64_t peak_rss_after_run = 0;       // before result digests and files, which can be large
-  std::vector<std::string> files;       // written with --output
-  Json engine_detail = Json::object();  // actopo only
-  AccessStats access;
-  MemoryStats memory;
+// One field's run: its vertex order, the algorithm, the summary (and --output files).
+struct FieldOutput {
+  std::string field;
+  double order_s = 0, run_s = 0;
+  double results_s = 0;            // the summary (digests with --digests), --output files
+  int64_t peak_rss_after_run = 0;  // before result digests and files, which can be large
+  std::vector<std::string> files;  // written with --output
   Json result;
 };
 
-// Runs the algorithm; with `files` set (--output), also writes its result files.
+// The runs over every field on one structure, built once.
+struct RunOutput {
+  double preprocess_s = 0;
+  std::vector<FieldOutput> fields;
+  Json engine_detail = Json::object();  // actopo only
+  AccessStats access;
+  MemoryStats memory;
+};
+
+// What changes from field to field, for the structure-specific runners below.
+struct FieldRuns {
+  size_t count = 0;
+  // The algorithm's input for field i (its vertex order, timed into `order_s`).
+  std::function<absl::StatusOr<AlgorithmInput>(size_t i, double& order_s)> input;
+  // Where field i's --output files go, or null.
+  std::function<const ResultContext*(size_t i)> files;
+  // Called with each field's outcome before its summary (diagram-distance keeps the diagrams).
+  std::function<void(size_t i, const AlgorithmOutcome&)> keep;
+  // Several fields: each one's files are PREFIX_<field>_*, not PREFIX_*.
+  bool many = false;
+};
+
+// Runs field i's algorithm on `structure` and summarizes it.
 template <class Structure>
-absl::StatusOr<RunOutput> RunAndSummarize(Structure& structure, const AlgorithmInput& input,
-                                          const RunContext& context, const BenchOptions& o,
-                                          const ResultContext* files) {
+absl::StatusOr<FieldOutput> RunAndSummarize(Structure& structure, const AlgorithmInput& input,
+                                            const RunContext& context, const BenchOptions& o,
+                                            const FieldRuns& runs, size_t i) {
   ASSIGN_OR_RETURN(AlgorithmOutcome outcome, RunAlgorithm(structure, input, context));
-  RunOutput out;
+  FieldOutput out;
   out.run_s = outcome.run_s;
   out.peak_rss_after_run = outcome.peak_rss_after_run;
+  if (runs.keep) runs.keep(i, outcome);
   const auto start = Clock::now();
   out.result = Summarize(outcome.result, structure.topology(), {.digests = o.digests});
-  if (files != nullptr) {
-    ASSIGN_OR_RETURN(out.files, WriteResultFiles(o.output, *files, outcome.result));
+  if (const ResultContext* files = runs.files ? runs.files(i) : nullptr) {
+    const std::string prefix = runs.many ? o.output + "_" + files->scalar_name : o.output;
+    ASSIGN_OR_RETURN(out.files, WriteResultFiles(prefix, *files, outcome.result));
   }
   out.results_s = Seconds(start);
   Phase(context.trace, "results", start);
@@ -165,13 +195,69 @@ absl::StatusOr<StructureOptions> StructureFromFlags(const BenchOptions& o) {
 
 // The run's phases, in the order Run takes them; each is a span of the same name in --trace.
 
-// load: the mesh and the scalar field the algorithm reads.
+// load: the mesh and the scalar fields the algorithm reads (one, or --scalars' list).
 struct Loaded {
   Mesh mesh;
-  std::string scalar_name;
-  std::vector<double> scalars;
+  std::vector<PointField> fields;  // in the order run
   double seconds = 0;
 };
+
+// The fields --scalar or --scalars name: "all" is every floating-point field but the block
+// labels, in the file's order (a series' time order).
+absl::StatusOr<std::vector<int>> SelectFields(const BenchOptions& o, const Mesh& mesh,
+                                              Algorithm algorithm) {
+  std::vector<int> selected;
+  if (o.scalars.empty()) {
+    if (ComparesFields(algorithm)) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "--scalars: ", std::string(AlgorithmName(algorithm)),
+          " compares fields; give at least two, e.g. --scalars F1,F2 or --scalars all"));
+    }
+    if (!o.scalar.empty() || NeedsScalar(algorithm)) {
+      ASSIGN_OR_RETURN(int field, SelectScalarField(mesh, o.scalar, o.block_labels));
+      selected.push_back(field);
+    }
+    return selected;
+  }
+  if (!o.scalar.empty()) {
+    return absl::InvalidArgumentError("give --scalar NAME or --scalars LIST, not both");
+  }
+  if (!NeedsScalar(algorithm)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--scalars: ", std::string(AlgorithmName(algorithm)), " reads no scalar field"));
+  }
+  if (o.scalars == "all") {
+    for (size_t f = 0; f < mesh.point_fields.size(); ++f) {
+      const PointField& field = mesh.point_fields[f];
+      if (field.is_integer || field.name == o.block_labels) continue;
+      RETURN_IF_ERROR(ValidateScalarField(field));
+      selected.push_back(int(f));
+    }
+  } else {
+    for (const std::string& name : std::vector<std::string>(absl::StrSplit(o.scalars, ','))) {
+      if (name.empty()) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("--scalars: '", o.scalars, "' has an empty field name"));
+      }
+      absl::StatusOr<int> field = SelectScalarField(mesh, name);
+      if (!field.ok()) {
+        return absl::Status(field.status().code(),
+                            absl::StrCat("--scalars: ", field.status().message()));
+      }
+      if (std::find(selected.begin(), selected.end(), *field) != selected.end()) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("--scalars: field '", name, "' is listed twice"));
+      }
+      selected.push_back(*field);
+    }
+  }
+  if (ComparesFields(algorithm) && selected.size() < 2) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--scalars: ", std::string(AlgorithmName(algorithm)),
+                     " compares at least two fields; '", o.scalars, "' gives ", selected.size()));
+  }
+  return selected;
+}
 
 absl::StatusOr<Loaded> Load(const BenchOptions& o, Algorithm algorithm,
                             const std::shared_ptr<Trace>& trace) {
@@ -180,12 +266,9 @@ absl::StatusOr<Loaded> Load(const BenchOptions& o, Algorithm algorithm,
   ASSIGN_OR_RETURN(out.mesh, o.mesh.empty() ? io::MakeSample(o.sample)
                                             : io::ReadMesh(o.mesh, {.threads = o.threads}));
   if (o.mesh.empty()) RETURN_IF_ERROR(ValidateMesh(out.mesh));  // ReadMesh validated a file's
-  if (!o.scalar.empty() || NeedsScalar(algorithm)) {
-    ASSIGN_OR_RETURN(int field, SelectScalarField(out.mesh, o.scalar, o.block_labels));
-    out.scalar_name = out.mesh.point_fields[field].name;
-    out.scalars = out.mesh.point_fields[field].values;
-  }
-  // Without --output no result file carries the mesh's fields: the one read is copied above.
+  ASSIGN_OR_RETURN(const std::vector<int> selected, SelectFields(o, out.mesh, algorithm));
+  for (int f : selected) out.fields.push_back(out.mesh.point_fields[f]);
+  // Without --output no result file carries the mesh's fields: the ones read are copied above.
   if (o.output.empty()) std::vector<PointField>().swap(out.mesh.point_fields);
   out.seconds = Seconds(start);
   Phase(trace, "load", start);
@@ -235,11 +318,11 @@ absl::StatusOr<std::shared_ptr<const Topology>> Partition(
   return topology;
 }
 
-// vertex order: the algorithm's input, with the vertex order as its preconditioning (like TTK's
-// offsets; counted in `preprocess`) and the parameters given as flags.
+// vertex order: the algorithm's input for one field, with the vertex order as its
+// preconditioning (like TTK's offsets; counted in `preprocess`) and the parameters given as flags.
 absl::StatusOr<AlgorithmInput> PrepareInput(
     const BenchOptions& o, Algorithm algorithm, const Topology& topology,
-    const std::vector<double>& scalars, std::shared_ptr<const std::vector<uint8_t>> input_corners,
+    std::span<const double> scalars, std::shared_ptr<const std::vector<uint8_t>> input_corners,
     const std::shared_ptr<Trace>& trace, double& seconds) {
   const auto start = Clock::now();
   AlgorithmInput input{
@@ -248,7 +331,7 @@ absl::StatusOr<AlgorithmInput> PrepareInput(
                                                                      : BoundaryRule::kTtk}};
   if (!scalars.empty()) input.order = VertexOrder(topology, scalars);
   input.input_corners = std::move(input_corners);
-  if (NeedsScalarValues(algorithm)) input.scalars = scalars;
+  if (NeedsScalarValues(algorithm)) input.scalars.assign(scalars.begin(), scalars.end());
   // Thresholds go through the service's parameter parser: one spelling, one set of errors.
   std::map<std::string, std::string> parameters;
   if (!o.persistence_threshold.empty())
@@ -257,24 +340,53 @@ absl::StatusOr<AlgorithmInput> PrepareInput(
   if (!o.embedding.empty()) parameters["embedding"] = o.embedding;
   if (!o.backend.empty()) parameters["backend"] = o.backend;
   if (!o.relations.empty()) parameters["relations"] = o.relations;
-  RETURN_IF_ERROR(ApplyParameters(parameters, input));
+  if (!o.p.empty()) parameters["p"] = o.p;
+  if (o.essential) parameters["essential"] = "true";
+  if (absl::Status s = ApplyParameters(parameters, input); !s.ok()) {
+    // "parameters.relative_threshold: ..." is the flag --relative-threshold here.
+    std::string message(s.message());
+    if (absl::StartsWith(message, "parameters.")) {
+      const size_t colon = std::min(message.find(':'), message.size());
+      std::replace(message.begin(), message.begin() + colon, '_', '-');
+      message = "--" + message.substr(std::string_view("parameters.").size());
+    }
+    return absl::Status(s.code(), message);
+  }
   seconds = Seconds(start);
   Phase(trace, "vertex order", start);
   return input;
 }
 
-// preprocess and run, on each kind of structure; `files` (--output) also writes result files.
+// Every field's run on one structure: the vertex order, the algorithm, its summary.
+template <class Structure>
+absl::StatusOr<std::vector<FieldOutput>> RunFields(Structure& structure, const FieldRuns& runs,
+                                                   const RunContext& context,
+                                                   const BenchOptions& o) {
+  std::vector<FieldOutput> outputs;
+  for (size_t i = 0; i < runs.count; ++i) {
+    double order_s = 0;
+    ASSIGN_OR_RETURN(const AlgorithmInput input, runs.input(i, order_s));
+    ASSIGN_OR_RETURN(FieldOutput out, RunAndSummarize(structure, input, context, o, runs, i));
+    out.order_s = order_s;
+    outputs.push_back(std::move(out));
+  }
+  return outputs;
+}
+
+// preprocess and run, on each kind of structure. The structure is built once for all the
+// fields (explicit: its relations; compact: its cache carries over); actopo starts an engine per
+// field, as the service does per job, configured for the algorithm.
 absl::StatusOr<RunOutput> RunOnExplicit(std::shared_ptr<const Topology> topology,
-                                        const AlgorithmInput& input, const RunContext& context,
-                                        const BenchOptions& o, const ResultContext* files) {
+                                        const RelationSet& declared, const FieldRuns& runs,
+                                        const RunContext& context, const BenchOptions& o) {
   const auto start = Clock::now();
-  ASSIGN_OR_RETURN(auto structure, ExplicitStructure::Build(std::move(topology),
-                                                            {.relations = DeclaredRelations(input),
-                                                             .threads = o.threads}));
-  const double preprocess_s = Seconds(start);
+  ASSIGN_OR_RETURN(
+      auto structure,
+      ExplicitStructure::Build(std::move(topology), {.relations = declared, .threads = o.threads}));
+  RunOutput out;
+  out.preprocess_s = Seconds(start);
   Phase(context.trace, "preprocess", start);
-  ASSIGN_OR_RETURN(RunOutput out, RunAndSummarize(*structure, input, context, o, files));
-  out.preprocess_s = preprocess_s;
+  ASSIGN_OR_RETURN(out.fields, RunFields(*structure, runs, context, o));
   out.memory = structure->memory();
   return out;
 }
@@ -308,32 +420,45 @@ Json EngineDetail(const ActopoStructure& structure, const ActopoStructure::Optio
 }
 
 absl::StatusOr<RunOutput> RunOnActopo(std::shared_ptr<const Topology> topology,
-                                      const StructureOptions& options, const AlgorithmInput& input,
-                                      const RunContext& context, const BenchOptions& o,
-                                      const ResultContext* files) {
-  ActopoStructure::Options engine = EngineOptions(options, input.algorithm);
-  engine.declared = SweptRelations(input);
-  const auto start = Clock::now();
-  ASSIGN_OR_RETURN(auto structure, ActopoStructure::Create(std::move(topology), engine));
-  const double preprocess_s = Seconds(start);
-  Phase(context.trace, "preprocess", start);
-  ASSIGN_OR_RETURN(RunOutput out, RunAndSummarize(*structure, input, context, o, files));
-  // Producers still finishing a prefetch would count it after the statistics were read; joined
-  // first, the statistics count everything the trace holds.
-  structure->Shutdown();
-  out.preprocess_s = preprocess_s;
-  out.access = structure->stats().access;
-  out.memory = structure->memory();
-  out.engine_detail = EngineDetail(*structure, engine);
+                                      const StructureOptions& options, Algorithm algorithm,
+                                      const RelationSet& swept, const FieldRuns& runs,
+                                      const RunContext& context, const BenchOptions& o) {
+  ActopoStructure::Options engine = EngineOptions(options, algorithm);
+  engine.declared = swept;
+  RunOutput out;
+  for (size_t i = 0; i < runs.count; ++i) {
+    const auto start = Clock::now();
+    ASSIGN_OR_RETURN(auto structure, ActopoStructure::Create(topology, engine));
+    out.preprocess_s += Seconds(start);
+    Phase(context.trace, "preprocess", start);
+    FieldRuns one = runs;
+    one.input = [&](size_t, double& order_s) { return runs.input(i, order_s); };
+    one.files = [&](size_t) { return runs.files ? runs.files(i) : nullptr; };
+    one.keep = [&](size_t, const AlgorithmOutcome& outcome) {
+      if (runs.keep) runs.keep(i, outcome);
+    };
+    one.count = 1;
+    ASSIGN_OR_RETURN(std::vector<FieldOutput> field, RunFields(*structure, one, context, o));
+    // Producers still finishing a prefetch would count it after the statistics were read;
+    // joined first, the statistics count everything the trace holds.
+    structure->Shutdown();
+    out.fields.push_back(std::move(field[0]));
+    out.access += structure->stats().access;
+    const MemoryStats memory = structure->memory();
+    out.memory.static_bytes = memory.static_bytes;
+    out.memory.relation_peak_bytes =
+        std::max(out.memory.relation_peak_bytes, memory.relation_peak_bytes);
+    out.engine_detail = EngineDetail(*structure, engine);
+  }
   return out;
 }
 
 absl::StatusOr<RunOutput> RunOnCompact(std::shared_ptr<const Topology> topology,
-                                       const StructureOptions& options, const AlgorithmInput& input,
-                                       const RunContext& context, const BenchOptions& o,
-                                       const ResultContext* files) {
+                                       const StructureOptions& options, const FieldRuns& runs,
+                                       const RunContext& context, const BenchOptions& o) {
   CompactStructure structure(std::move(topology), CacheOptions(options, options.consumers));
-  ASSIGN_OR_RETURN(RunOutput out, RunAndSummarize(structure, input, context, o, files));
+  RunOutput out;
+  ASSIGN_OR_RETURN(out.fields, RunFields(structure, runs, context, o));
   out.access = structure.stats();
   out.memory = structure.memory();
   return out;
@@ -341,13 +466,24 @@ absl::StatusOr<RunOutput> RunOnCompact(std::shared_ptr<const Topology> topology,
 
 // The phases' times (seconds); run, preprocess and results come with the RunOutput.
 struct PhaseTimes {
-  double load = 0, partition = 0, order = 0;
+  double load = 0, partition = 0;
 };
 
-// The JSON report (README "actopo-bench").
+// The JSON report (README "actopo-bench"). `compared`: diagram-distance's matrices.
 Json Report(const BenchOptions& o, Algorithm algorithm, const Topology& topology,
-            const std::string& scalar_name, const PhaseTimes& times, const RunOutput& out) {
+            const PhaseTimes& times, const RunOutput& out, const Json& compared) {
   const TopologyBytes static_bytes = topology.bytes();
+  double order_s = 0, run_s = 0, results_s = 0;
+  int64_t peak_before_results = 0;
+  std::vector<std::string> names;
+  for (const FieldOutput& f : out.fields) {
+    order_s += f.order_s;
+    run_s += f.run_s;
+    results_s += f.results_s;
+    peak_before_results = std::max(peak_before_results, f.peak_rss_after_run);
+    if (!f.field.empty()) names.push_back(f.field);
+  }
+  const bool many = !o.scalars.empty();
   Json j;
   j["mesh"] = {{"source", o.mesh.empty() ? "sample:" + o.sample : o.mesh},
                {"vertices", topology.num_vertices()},
@@ -365,16 +501,18 @@ Json Report(const BenchOptions& o, Algorithm algorithm, const Topology& topology
                  {"buffer_ratio", o.buffer_ratio},
                  {"block_size", o.block_labels.empty() ? Json(o.block_size) : Json(nullptr)},
                  {"block_labels", o.block_labels.empty() ? Json(nullptr) : Json(o.block_labels)},
-                 {"scalar", scalar_name.empty() ? Json(nullptr) : Json(scalar_name)},
+                 {"scalar", many || names.empty() ? Json(nullptr) : Json(names[0])},
+                 {"scalars", many ? Json(names) : Json(nullptr)},
                  {"boundary_rule",
                   algorithm == Algorithm::kCriticalPoints ? Json(o.boundary_rule) : Json(nullptr)},
                  {"preprocess_threads", o.threads > 0 ? o.threads : DefaultThreads()}};
   j["times_s"] = {{"load", times.load},
                   {"partition", times.partition},
-                  {"preprocess", times.order + out.preprocess_s},
-                  {"run", out.run_s},
-                  {"results", out.results_s},
+                  {"preprocess", order_s + out.preprocess_s},
+                  {"run", run_s},
+                  {"results", results_s},
                   {"total", Seconds(kProcessStart)}};
+  if (compared.is_object()) j["times_s"]["distances"] = compared["distance_seconds"];
   j["engine"] = {{"wait_s", out.access.wait_ns * 1e-9},
                  {"requests", out.access.requests},
                  {"hits", out.access.hits},
@@ -384,7 +522,7 @@ Json Report(const BenchOptions& o, Algorithm algorithm, const Topology& topology
   for (auto& [key, value] : out.engine_detail.items()) j["engine"][key] = value;
   j["memory"] = {
       {"peak_rss_bytes", PeakRssBytes()},  // the whole process, results included
-      {"peak_rss_before_results_bytes", out.peak_rss_after_run},
+      {"peak_rss_before_results_bytes", peak_before_results},
       {"structure_bytes",
        out.memory.static_bytes + (o.structure == "explicit" ? out.memory.relation_bytes : 0)},
       {"static_bytes", out.memory.static_bytes},
@@ -395,13 +533,28 @@ Json Report(const BenchOptions& o, Algorithm algorithm, const Topology& topology
         {"tetrahedra", static_bytes.tetrahedra},
         {"blocks", static_bytes.blocks}}},
       {"buffer_peak_bytes", o.structure == "explicit" ? 0 : out.memory.relation_peak_bytes}};
-  j["result"] = out.result;
-  if (!out.files.empty()) j["files"] = out.files;
+  if (!many) {
+    j["result"] = out.fields.at(0).result;
+    if (!out.fields[0].files.empty()) j["files"] = out.fields[0].files;
+    return j;
+  }
+  // One entry per field, in the order run; diagram-distance's matrices as the result.
+  Json fields = Json::array();
+  for (const FieldOutput& f : out.fields) {
+    Json entry = {
+        {"scalar", f.field},
+        {"times_s", {{"preprocess", f.order_s}, {"run", f.run_s}, {"results", f.results_s}}},
+        {"result", f.result}};
+    if (!f.files.empty()) entry["files"] = f.files;
+    fields.push_back(std::move(entry));
+  }
+  j["fields"] = std::move(fields);
+  if (compared.is_object()) j["result"] = compared;
   return j;
 }
 
-// The whole run: flags checked, then load, partition, vertex order, preprocess, run and results,
-// then the report (and the trace, with --trace).
+// The whole run: flags checked, then load, partition, and per field vertex order, preprocess,
+// run and results, then the report (and the trace, with --trace).
 absl::StatusOr<Json> Run(BenchOptions o) {
   RETURN_IF_ERROR(Validate(o));
   ASSIGN_OR_RETURN(const StructureOptions options, StructureFromFlags(o));
@@ -429,28 +582,65 @@ absl::StatusOr<Json> Run(BenchOptions o) {
                    Partition(o, algorithm, loaded.mesh, input_corners, trace, times.partition));
   // Without --output the points and other fields are not needed: free them so peak RSS
   // reflects the structures.
-  std::optional<ResultContext> files;
+  std::vector<ResultContext> files;
   if (o.output.empty()) {
     loaded.mesh = Mesh();
   } else {
-    files.emplace(ResultContext{loaded.mesh, *topology, loaded.scalar_name, loaded.scalars,
-                                std::make_shared<VertexBoundary>(*topology)});
+    auto boundary = std::make_shared<VertexBoundary>(*topology);
+    for (const PointField& f : loaded.fields) {
+      files.push_back(ResultContext{loaded.mesh, *topology, f.name, f.values, boundary});
+    }
+    if (files.empty()) files.push_back(ResultContext{loaded.mesh, *topology, "", {}, boundary});
   }
-  ASSIGN_OR_RETURN(const AlgorithmInput input,
-                   PrepareInput(o, algorithm, *topology, loaded.scalars, std::move(input_corners),
-                                trace, times.order));
-  const ResultContext* files_or_null = files ? &*files : nullptr;
+  // The first field's input (the parameters checked) before any structure is built; the
+  // others' as their turn comes.
+  const auto values_of = [&](size_t i) {
+    return loaded.fields.empty() ? std::span<const double>() : loaded.fields[i].values;
+  };
+  double first_order_s = 0;
+  ASSIGN_OR_RETURN(AlgorithmInput first, PrepareInput(o, algorithm, *topology, values_of(0),
+                                                      input_corners, trace, first_order_s));
+  const RelationSet declared = DeclaredRelations(first), swept = SweptRelations(first);
+  const DistanceParameters distance = first.distance;
+  std::vector<FieldDiagram> diagrams(ComparesFields(algorithm) ? loaded.fields.size() : 0);
+  FieldRuns runs{
+      .count = std::max<size_t>(1, loaded.fields.size()),
+      .input = [&](size_t i, double& order_s) -> absl::StatusOr<AlgorithmInput> {
+        if (i == 0) {
+          order_s = first_order_s;
+          return std::move(first);
+        }
+        return PrepareInput(o, algorithm, *topology, values_of(i), input_corners, trace, order_s);
+      },
+      .files = [&](size_t i) { return files.empty() ? nullptr : &files[i]; },
+      .keep =
+          [&](size_t i, const AlgorithmOutcome& outcome) {
+            if (diagrams.empty()) return;
+            diagrams[i] = ToFieldDiagram(loaded.fields[i].name,
+                                         std::get<PersistenceDiagramResult>(outcome.result),
+                                         loaded.fields[i].values, distance);
+          },
+      .many = !o.scalars.empty()};
   const RunContext context{.consumers = o.consumers, .trace = trace};
   absl::StatusOr<RunOutput> run =
-      options.kind == StructureKind::kExplicit
-          ? RunOnExplicit(topology, input, context, o, files_or_null)
+      options.kind == StructureKind::kExplicit ? RunOnExplicit(topology, declared, runs, context, o)
       : options.kind == StructureKind::kActopo
-          ? RunOnActopo(topology, options, input, context, o, files_or_null)
-          : RunOnCompact(topology, options, input, context, o, files_or_null);
+          ? RunOnActopo(topology, options, algorithm, swept, runs, context, o)
+          : RunOnCompact(topology, options, runs, context, o);
   RETURN_IF_ERROR(run.status());
-  const RunOutput& out = *run;
+  RunOutput& out = *run;
+  for (size_t i = 0; i < loaded.fields.size() && i < out.fields.size(); ++i) {
+    out.fields[i].field = loaded.fields[i].name;
+  }
+  Json compared;
+  if (!diagrams.empty()) {
+    const auto start = Clock::now();
+    compared = FieldDistancesJson(
+        CompareFieldDiagrams(std::move(diagrams), first.distance, {.threads = o.consumers}));
+    Phase(trace, "distances", start);
+  }
 
-  Json j = Report(o, algorithm, *topology, loaded.scalar_name, times, out);
+  Json j = Report(o, algorithm, *topology, times, out, compared);
   if (trace) {
     trace->WriteJson(trace_file);
     trace_file.close();
@@ -512,15 +702,23 @@ int main(int argc, char** argv) {
   flags.Add("sample", &o.sample,
             "built-in sample instead of a file: " + absl::StrJoin(actopo::io::SampleNames(), "; "));
   flags.Add("scalar", &o.scalar, "point scalar field (default: first floating-point field)");
-  flags.Add(
-      "algorithm", &o.algorithm,
-      "topo-relations, critical-points, discrete-gradient, morse-smale, persistence-diagram or "
-      "topological-simplification");
+  flags.Add("scalars", &o.scalars,
+            "many fields in one process: F1,F2,... or all (every floating-point field, in the "
+            "file's order); the structure is built once and the JSON has one entry per field");
+  flags.Add("algorithm", &o.algorithm,
+            "topo-relations, critical-points, discrete-gradient, morse-smale, persistence-diagram, "
+            "topological-simplification or diagram-distance (over --scalars: the fields' "
+            "persistence diagrams and the Wasserstein and bottleneck distances of every two)");
+  flags.Add("p", &o.p, "diagram-distance: the Wasserstein order (default 2)");
+  flags.Add("essential", &o.essential,
+            "diagram-distance: match the infinite pairs too (by birth); distances are infinite "
+            "where their counts differ");
   flags.Add("boundary-rule", &o.boundary_rule,
             "critical-points: ttk (TTK >= 1.1 boundary saddles) or none");
   flags.Add("persistence-threshold", &o.persistence_threshold,
             "topological-simplification, morse-smale: keep the persistence pairs at least this "
-            "persistent (absolute) and simplify the rest away first");
+            "persistent (absolute) and simplify the rest away first; diagram-distance: compare "
+            "only those pairs");
   flags.Add("relative-threshold", &o.relative_threshold,
             "as --persistence-threshold, as a fraction of the field's range (e.g. 0.01)");
   flags.Add("backend", &o.backend,

@@ -1,5 +1,6 @@
 #include "server/results/run_algorithm.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
@@ -135,6 +136,46 @@ RunContext Phase(const RunContext& context, double from, double to) {
   return c;
 }
 
+// One of diagram-distance's parameters (ApplyParameters).
+absl::Status ApplyDistanceParameter(const std::string& name, const std::string& value,
+                                    DistanceParameters& distance) {
+  if (name == "p") {
+    double p = 0;
+    if (!absl::SimpleAtod(value, &p)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("parameters.p: '", value, "' is not a number"));
+    }
+    distance.options.p = p;
+    if (absl::Status s = diagrams::ValidateDistanceOptions(distance.options); !s.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat("parameters.", s.message()));
+    }
+    return absl::OkStatus();
+  }
+  if (name == "persistence_threshold" || name == "relative_threshold") {
+    ASSIGN_OR_RETURN(const double t, ParseThreshold(name, value));
+    const bool relative = name == "relative_threshold";
+    if (t < 0 || (relative && t > 1)) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "parameters.", name, ": ", value, " is outside ", relative ? "[0, 1]" : "[0, inf)"));
+    }
+    distance.threshold = t;
+    distance.relative = relative;
+    return absl::OkStatus();
+  }
+  if (name == "essential") {
+    if (value != "true" && value != "false") {
+      return absl::InvalidArgumentError(
+          absl::StrCat("parameters.essential: '", value, "' is not true or false"));
+    }
+    distance.options.essential = value == "true";
+    return absl::OkStatus();
+  }
+  return absl::InvalidArgumentError(
+      absl::StrCat("parameters: unknown parameter '", name,
+                   "' for diagram-distance; available: p, persistence_threshold, "
+                   "relative_threshold, essential"));
+}
+
 std::span<const uint8_t> InputCornersOf(const AlgorithmInput& input) {
   if (input.input_corners == nullptr) return {};  // RunMorseSmale names the mismatch
   return *input.input_corners;
@@ -142,9 +183,23 @@ std::span<const uint8_t> InputCornersOf(const AlgorithmInput& input) {
 
 }  // namespace
 
+double DistanceParameters::ThresholdFor(std::span<const double> values) const {
+  if (!relative || values.empty()) return threshold;
+  const auto [lo, hi] = std::minmax_element(values.begin(), values.end());
+  return threshold * (*hi - *lo);
+}
+
 absl::Status ApplyParameters(const std::map<std::string, std::string>& parameters,
                              AlgorithmInput& input) {
+  if (parameters.contains("persistence_threshold") && parameters.contains("relative_threshold")) {
+    return absl::InvalidArgumentError(
+        "parameters: give persistence_threshold or relative_threshold, not both");
+  }
   for (const auto& [name, value] : parameters) {
+    if (input.algorithm == Algorithm::kDiagramDistance) {
+      RETURN_IF_ERROR(ApplyDistanceParameter(name, value, input.distance));
+      continue;
+    }
     if (name == "boundary_rule" && input.algorithm == Algorithm::kCriticalPoints) {
       if (value == "ttk") {
         input.critical_points.boundary_rule = BoundaryRule::kTtk;
@@ -175,11 +230,6 @@ absl::Status ApplyParameters(const std::map<std::string, std::string>& parameter
     const bool simplifies = input.algorithm == Algorithm::kTopologicalSimplification ||
                             input.algorithm == Algorithm::kMorseSmale;
     if ((name == "persistence_threshold" || name == "relative_threshold") && simplifies) {
-      if (parameters.contains("persistence_threshold") &&
-          parameters.contains("relative_threshold")) {
-        return absl::InvalidArgumentError(
-            "parameters: give persistence_threshold or relative_threshold, not both");
-      }
       ASSIGN_OR_RETURN(const double t, ParseThreshold(name, value));
       const SimplificationOptions options{.threshold = t, .relative = name == "relative_threshold"};
       if (absl::Status s = ValidateSimplificationOptions(options); !s.ok()) {
@@ -288,7 +338,8 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
       out.result = std::move(r);
       break;
     }
-    case Algorithm::kPersistenceDiagram: {
+    case Algorithm::kPersistenceDiagram:
+    case Algorithm::kDiagramDistance: {  // per field, the diagram; compared by the caller
       ASSIGN_OR_RETURN(PersistenceDiagramResult diagram,
                        RunPersistenceDiagram(structure, in.order, in.scalars, context));
       diagram.embed_in_domain = in.embed_diagram_in_domain;

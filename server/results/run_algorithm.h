@@ -24,8 +24,20 @@
 #include "server/algorithms/registry.h"
 #include "server/algorithms/topo_relations.h"
 #include "server/algorithms/topological_simplification.h"
+#include "server/diagrams/distance.h"
 
 namespace actopo {
+
+// diagram-distance: how the fields' diagrams are compared.
+struct DistanceParameters {
+  diagrams::DistanceOptions options;
+  // Pairs less persistent than this are left out of both diagrams: an absolute persistence, or
+  // with `relative` a fraction of each field's own range. 0 keeps every pair.
+  double threshold = 0;
+  bool relative = false;
+  // The threshold for a field with these values.
+  double ThresholdFor(std::span<const double> values) const;
+};
 
 struct AlgorithmInput {
   Algorithm algorithm = Algorithm::kTopoRelations;
@@ -39,6 +51,7 @@ struct AlgorithmInput {
   bool embed_diagram_in_domain = false;  // persistence-diagram outputs
   // topological-simplification (default: 1% of the range); morse-smale simplifies first when set.
   std::optional<SimplificationOptions> simplification;
+  DistanceParameters distance;  // diagram-distance
 };
 
 // morse-smale with a persistence threshold: the complex of the simplified field.
@@ -53,7 +66,9 @@ struct SimplifiedMorseSmaleResult {
 // (birth, death) or at their vertices); "persistence_threshold" = an absolute persistence, or
 // "relative_threshold" = a fraction of the field's range (topological-simplification, and
 // morse-smale, which then runs on the simplified field), "backend" = "lts" (default) |
-// "legacy". Unknown names and values are errors naming them.
+// "legacy"; diagram-distance: "p" = the Wasserstein order (default 2), "persistence_threshold"
+// or "relative_threshold" (pairs below it left out, default none), "essential" = "true" |
+// "false" (match the infinite pairs too). Unknown names and values are errors naming them.
 absl::Status ApplyParameters(const std::map<std::string, std::string>& parameters,
                              AlgorithmInput& input);
 
