@@ -111,24 +111,23 @@ absl::Status ValidateScalarField(const PointField& field) {
   return absl::OkStatus();
 }
 
-absl::StatusOr<int> SelectScalarField(const Mesh& mesh, std::string_view name,
-                                      std::string_view block_label_field) {
+absl::StatusOr<int> SelectScalarField(std::span<const PointField* const> fields,
+                                      std::string_view name, std::string_view block_label_field) {
   int chosen = -1;
   if (!name.empty()) {
-    for (size_t i = 0; i < mesh.point_fields.size(); ++i) {
-      if (mesh.point_fields[i].name == name) chosen = static_cast<int>(i);
+    for (size_t i = 0; i < fields.size(); ++i) {
+      if (fields[i]->name == name) chosen = static_cast<int>(i);
     }
     if (chosen < 0) {
       std::vector<std::string> names;
-      for (const PointField& f : mesh.point_fields) names.push_back("'" + f.name + "'");
+      for (const PointField* f : fields) names.push_back("'" + f->name + "'");
       return absl::NotFoundError(absl::StrCat(
           "scalar field '", std::string(name),
           "' not found; point fields: ", names.empty() ? "none" : absl::StrJoin(names, ", ")));
     }
   } else {
-    for (size_t i = 0; i < mesh.point_fields.size(); ++i) {
-      const PointField& f = mesh.point_fields[i];
-      if (!f.is_integer && f.name != block_label_field) {
+    for (size_t i = 0; i < fields.size(); ++i) {
+      if (!fields[i]->is_integer && fields[i]->name != block_label_field) {
         chosen = static_cast<int>(i);
         break;
       }
@@ -138,9 +137,16 @@ absl::StatusOr<int> SelectScalarField(const Mesh& mesh, std::string_view name,
           "scalar field: the mesh has no floating-point point field to use as scalar");
     }
   }
-  const absl::Status valid = ValidateScalarField(mesh.point_fields[chosen]);
+  const absl::Status valid = ValidateScalarField(*fields[chosen]);
   if (!valid.ok()) return valid;
   return chosen;
+}
+
+absl::StatusOr<int> SelectScalarField(const Mesh& mesh, std::string_view name,
+                                      std::string_view block_label_field) {
+  std::vector<const PointField*> fields;
+  for (const PointField& f : mesh.point_fields) fields.push_back(&f);
+  return SelectScalarField(fields, name, block_label_field);
 }
 
 }  // namespace actopo

@@ -59,6 +59,10 @@ absl::Status ValidateScalarField(const PointField& field);
 // validated (finite values).
 absl::StatusOr<int> SelectScalarField(const Mesh& mesh, std::string_view name,
                                       std::string_view block_label_field = {});
+// The same choice among `fields` (a mesh's fields held elsewhere): the index in `fields`.
+absl::StatusOr<int> SelectScalarField(std::span<const PointField* const> fields,
+                                      std::string_view name,
+                                      std::string_view block_label_field = {});
 
 }  // namespace actopo
 

@@ -30,7 +30,7 @@ int64_t LoadedMesh::bytes() const {
   int64_t b = int64_t(mesh.points.capacity() * sizeof(double) +
                       mesh.tetrahedra.capacity() * sizeof(SimplexId));
   if (input_corners) b += int64_t(input_corners->capacity());
-  for (const PointField& f : mesh.point_fields) b += int64_t(f.values.capacity() * sizeof(double));
+  b += fields.bytes();
   return b + (topology ? topology->bytes().total() : 0);
 }
 
@@ -223,6 +223,8 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Add(
   loaded->id = NewId("mesh");
   loaded->name = std::move(name);
   loaded->source = std::move(source);
+  loaded->fields.Load(std::move(mesh.point_fields));
+  mesh.point_fields.clear();
   loaded->mesh = std::move(mesh);
   loaded->block_size = effective.block_label_field.empty() ? effective.bucket_capacity : 0;
   loaded->created = absl::Now();

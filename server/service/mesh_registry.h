@@ -21,6 +21,7 @@
 #include "server/core/sync.h"
 #include "server/core/topology.h"
 #include "server/results/vertex_boundary.h"
+#include "server/service/field_set.h"
 #include "server/service/memory_budget.h"
 
 namespace actopo::service {
@@ -29,9 +30,13 @@ struct LoadedMesh {
   std::string id;
   std::string name;
   std::string source;  // "file:PATH", "sample:NAME" or "upload"
-  // Input ids, as loaded: the points and point fields. Its tetrahedra are freed once encoded
-  // (the topology holds them, sorted, with their input ids; wavelet128: 156 MiB less per mesh).
+  // Input ids, as loaded: the points. Its tetrahedra are freed once encoded (the topology holds
+  // them, sorted, with their input ids; wavelet128: 156 MiB less per mesh), and its point
+  // fields move to `fields`.
   Mesh mesh;
+  // The point fields: those loaded, then those added (AddFields), less those deleted. The one
+  // part of a loaded mesh that changes, hence mutable; it locks itself.
+  mutable FieldSet fields;
   std::shared_ptr<const Topology> topology;
   // The one thing of the input tetrahedra the topology does not keep: the order each one's
   // vertices came in (InputCorners, a byte per tetrahedron), which Morse-Smale needs for TTK's

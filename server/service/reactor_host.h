@@ -69,6 +69,7 @@ class ReactorHost {
       const v1::LoadMeshRequest& request, const Progress& progress) = 0;
   virtual MeshRegistry& meshes() = 0;
   virtual MemoryBudget& budget() = 0;
+  virtual int SessionsOnMesh(const std::string& mesh_id) = 0;
 
   // Jobs: the session, its job lease (at most one job per session) and the job's metrics.
   virtual absl::StatusOr<std::shared_ptr<Session>> FindSession(const std::string& id) = 0;

@@ -68,6 +68,10 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService, p
                                     v1::GetMeshResponse*) override;
   grpc::ServerUnaryReactor* DeleteMesh(grpc::CallbackServerContext*, const v1::DeleteMeshRequest*,
                                        v1::DeleteMeshResponse*) override;
+  grpc::ServerReadReactor<v1::AddFieldsRequest>* AddFields(grpc::CallbackServerContext*,
+                                                           v1::AddFieldsResponse*) override;
+  grpc::ServerUnaryReactor* DeleteField(grpc::CallbackServerContext*, const v1::DeleteFieldRequest*,
+                                        v1::DeleteFieldResponse*) override;
   grpc::ServerUnaryReactor* OpenSession(grpc::CallbackServerContext*, const v1::OpenSessionRequest*,
                                         v1::OpenSessionResponse*) override;
   grpc::ServerUnaryReactor* GetSession(grpc::CallbackServerContext*, const v1::GetSessionRequest*,
@@ -116,6 +120,9 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService, p
       const v1::LoadMeshRequest& request, const Progress& progress) override;
   MeshRegistry& meshes() override { return *meshes_; }
   MemoryBudget& budget() override { return *budget_; }
+  int SessionsOnMesh(const std::string& mesh_id) override {
+    return sessions_->SessionsOnMesh(mesh_id);
+  }
   absl::StatusOr<std::shared_ptr<Session>> FindSession(const std::string& id) override;
   absl::StatusOr<JobLease> StartJob(const std::string& session_id, Algorithm algorithm) override;
   void RecordJob(std::string_view algorithm, std::string_view structure, double seconds,

@@ -6,11 +6,13 @@
 
 #include <chrono>
 #include <deque>
+#include <optional>
 
 #include "absl/strings/str_cat.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
 #include "server/core/sync.h"
+#include "server/service/field_decoder.h"
 #include "server/service/offload.h"
 #include "server/service/service.h"
 #include "server/service/upload_decoder.h"
@@ -138,6 +140,101 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
   Reservation reservation_;       // the raw bytes
   Reservation mesh_reservation_;  // the mesh they make
   std::chrono::steady_clock::time_point start_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// AddFields: header, then raw chunks, decoded into the fields as they arrive (FieldDecoder):
+// the call costs what its bytes cost. The fields' bytes are reserved when the header comes,
+// each field its own share, released with its last holder once added (FieldSet).
+class AddFieldsReactor final : public grpc::ServerReadReactor<v1::AddFieldsRequest> {
+ public:
+  AddFieldsReactor(ReactorHost* host, grpc::CallbackServerContext* context,
+                   v1::AddFieldsResponse* response)
+      : host_(host), response_(response) {
+    const absl::Status admitted = host_->Admit(context);
+    if (!admitted.ok()) {
+      Done(admitted);
+      return;
+    }
+    StartRead(&message_);
+  }
+
+  void OnReadDone(bool ok) override {
+    const absl::Status s = ok ? Consume() : Complete();
+    if (!ok || !s.ok()) {
+      Done(s);
+      return;
+    }
+    StartRead(&message_);
+  }
+
+  void OnDone() override { delete this; }
+
+ private:
+  absl::Status Consume() {
+    if (!decoder_) {
+      if (message_.payload_case() != v1::AddFieldsRequest::kHeader) {
+        return absl::InvalidArgumentError(
+            "header: the first message of AddFields must be the header");
+      }
+      return Start(message_.header());
+    }
+    if (message_.payload_case() != v1::AddFieldsRequest::kChunk) {
+      return absl::InvalidArgumentError("chunk: only one header per call; then send chunks");
+    }
+    return decoder_->Append(message_.chunk());
+  }
+
+  absl::Status Start(const v1::AddFieldsHeader& header) {
+    ASSIGN_OR_RETURN(mesh_, host_->meshes().Get(header.mesh_id()));
+    ASSIGN_OR_RETURN(FieldDecoder decoder,
+                     FieldDecoder::Start(header, mesh_->topology->num_vertices()));
+    for (int i = 0; i < header.fields_size(); ++i) {
+      const std::string& name = header.fields(i).name();
+      if (mesh_->fields.Contains(name)) {  // checked again when they are added
+        return absl::AlreadyExistsError(absl::StrCat("header.fields[", i, "].name: mesh '",
+                                                     mesh_->id, "' has a field '", name,
+                                                     "' already; delete it first"));
+      }
+      const int64_t bytes = int64_t(mesh_->topology->num_vertices()) * int64_t(sizeof(double));
+      RETURN_IF_ERROR(host_->budget().Reserve(
+          bytes, absl::StrCat("field '", name, "' of mesh '", mesh_->id, "'")));
+      reservations_.emplace_back(&host_->budget(), bytes);
+      if (header.fields(i).has_time()) {
+        times_.emplace_back(header.fields(i).time());
+      } else {
+        times_.emplace_back(std::nullopt);
+      }
+    }
+    decoder_.emplace(std::move(decoder));
+    return absl::OkStatus();
+  }
+
+  absl::Status Complete() {
+    if (!decoder_) return absl::InvalidArgumentError("header: the call sent no header");
+    ASSIGN_OR_RETURN(std::vector<PointField> decoded, decoder_->Finish());
+    std::vector<FieldSet::Field> fields;
+    for (size_t i = 0; i < decoded.size(); ++i) {
+      fields.push_back(
+          FieldSet::Make(std::move(decoded[i]), times_[i], std::move(reservations_[i])));
+    }
+    RETURN_IF_ERROR(mesh_->fields.Add(std::move(fields), "header.fields"));
+    Fill(*mesh_, host_->SessionsOnMesh(mesh_->id), response_->mutable_mesh());
+    return absl::OkStatus();
+  }
+
+  void Done(const absl::Status& status) {
+    host_->Count("AddFields", status);
+    Finish(ToGrpcStatus(status));
+  }
+
+  ReactorHost* host_;
+  v1::AddFieldsResponse* response_;
+  v1::AddFieldsRequest message_;
+  std::shared_ptr<const LoadedMesh> mesh_;
+  std::optional<FieldDecoder> decoder_;
+  std::vector<Reservation> reservations_;  // one per field
+  std::vector<std::optional<double>> times_;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -306,6 +403,11 @@ TopologyServiceImpl::LoadMeshWithProgress(grpc::CallbackServerContext* context,
 grpc::ServerReadReactor<v1::UploadMeshRequest>* TopologyServiceImpl::UploadMesh(
     grpc::CallbackServerContext* context, v1::UploadMeshResponse* response) {
   return new UploadReactor(this, context, response);
+}
+
+grpc::ServerReadReactor<v1::AddFieldsRequest>* TopologyServiceImpl::AddFields(
+    grpc::CallbackServerContext* context, v1::AddFieldsResponse* response) {
+  return new AddFieldsReactor(this, context, response);
 }
 
 grpc::ServerUnaryReactor* TopologyServiceImpl::OpenSession(grpc::CallbackServerContext* c,

@@ -13,10 +13,12 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "server/algorithms/vertex_order.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
 #include "server/core/sync.h"
 #include "server/core/trace.h"
+#include "server/results/field_distances.h"
 #include "server/service/ids.h"
 #include "server/service/reactor_host.h"
 #include "server/service/service.h"
@@ -323,10 +325,13 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   absl::Status Prepare(const v1::RunJobRequest& request) {
     ASSIGN_OR_RETURN(session_, host_->FindSession(request.session_id()));
     ASSIGN_OR_RETURN(input_.algorithm, FromProto(request.algorithm()));
+    RETURN_IF_ERROR(SelectFields(request));
     const AlgorithmInput& base = session_->base_input();
-    input_.order = base.order;
     if (input_.algorithm == Algorithm::kMorseSmale) input_.input_corners = base.input_corners;
-    if (NeedsScalarValues(input_.algorithm)) input_.scalars = base.scalars;
+    if (fields_.empty()) {  // the session's field; a list's fields get theirs in turn (Run)
+      input_.order = base.order;
+      if (NeedsScalarValues(input_.algorithm)) input_.scalars = base.scalars;
+    }
     std::map<std::string, std::string> parameters(request.parameters().begin(),
                                                   request.parameters().end());
     RETURN_IF_ERROR(ApplyParameters(parameters, input_));
@@ -340,7 +345,58 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     return absl::OkStatus();
   }
 
+  // The fields a job over several runs on (RunJobRequest.fields or all_fields), held for the
+  // job's length: deleting one meanwhile does not pull it from under the job.
+  absl::Status SelectFields(const v1::RunJobRequest& request) {
+    const Algorithm algorithm = input_.algorithm;
+    const std::string name(AlgorithmName(algorithm));
+    if (request.all_fields() && request.fields_size() > 0) {
+      return absl::InvalidArgumentError("fields: give fields or all_fields, not both");
+    }
+    const FieldSet& fields = session_->mesh().fields;
+    if (request.all_fields()) {
+      for (const FieldSet::Ref& f : fields.List()) {
+        if (f->field.is_integer) continue;
+        if (absl::Status s = ValidateScalarField(f->field); !s.ok()) {
+          return absl::InvalidArgumentError(absl::StrCat("all_fields: ", s.message()));
+        }
+        fields_.push_back(f);
+      }
+    }
+    for (int i = 0; i < request.fields_size(); ++i) {
+      const std::string& field = request.fields(i);
+      for (int k = 0; k < i; ++k) {
+        if (request.fields(k) == field) {
+          return absl::InvalidArgumentError(
+              absl::StrCat("fields[", i, "]: '", field, "' is listed twice"));
+        }
+      }
+      absl::StatusOr<FieldSet::Ref> held =
+          field.empty() ? absl::InvalidArgumentError("empty name") : fields.Select(field);
+      if (!held.ok()) {
+        return absl::Status(held.status().code(),
+                            absl::StrCat("fields[", i, "]: ", held.status().message()));
+      }
+      fields_.push_back(*std::move(held));
+    }
+    const bool listed = request.all_fields() || request.fields_size() > 0;
+    if (listed && !NeedsScalar(algorithm)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("fields: ", name, " reads no scalar field; run it without fields"));
+    }
+    if (ComparesFields(algorithm) && fields_.size() < 2) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "fields: ", name, " compares at least two fields; give them in fields (or all_fields)",
+          listed ? absl::StrCat(", not ", fields_.size()) : std::string()));
+    }
+    return absl::OkStatus();
+  }
+
   void Run() {
+    if (!fields_.empty()) {
+      RunFields();
+      return;
+    }
     RunContext context;
     context.cancel = &job_->cancel;
     context.deadline = deadline_;
@@ -385,9 +441,143 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   absl::Status SendResult(const JobOutcome& job, Trace* trace) {
     const auto start = std::chrono::steady_clock::now();
     if (include_arrays_) {
+      RETURN_IF_ERROR(SendArrays(session_->result_context(), job.outcome.result, trace));
+    }
+    v1::RunJobResponse summary;
+    FillSummary(job.outcome.result, *session_->mesh().topology, {.digests = digests_},
+                summary.mutable_summary()->mutable_result());
+    if (trace != nullptr) {
+      trace->Span("results", "phase", start, std::chrono::steady_clock::now());
+      SendTrace(*trace);
+    }
+    Push(std::move(summary));
+    PushStats(job.outcome.run_s, job.faces_s, job.engine, job.memory);
+    return absl::OkStatus();
+  }
+
+  void PushStats(double run_s, double faces_s, const EngineStats& engine,
+                 const MemoryStats& memory) {
+    v1::RunJobResponse stats;
+    stats.mutable_stats()->set_run_seconds(run_s);
+    stats.mutable_stats()->set_faces_seconds(faces_s);
+    Fill(engine, stats.mutable_stats()->mutable_engine());
+    Fill(memory, stats.mutable_stats()->mutable_memory());
+    stats.mutable_stats()->mutable_memory()->set_process_rss_bytes(CurrentRssBytes());
+    Push(std::move(stats));
+  }
+
+  // A job over several fields: the algorithm on each field in turn, on the session's structure,
+  // each field's arrays and FieldResult sent as soon as it is done; diagram-distance then
+  // compares the fields' diagrams. Progress runs over the whole list, and a cancellation stops
+  // the field running and the rest.
+  void RunFields() {
+    RunContext context;
+    context.cancel = &job_->cancel;
+    context.deadline = deadline_;
+    if (trace_) {
+      SetThreadRole("job");
+      context.trace = std::make_shared<Trace>(kMaxJobTraceEvents);
+    }
+    const auto start = std::chrono::steady_clock::now();
+    const auto report = [this, start](std::string_view phase, double fraction) {
+      v1::RunJobResponse progress;
+      v1::JobProgress* p = progress.mutable_progress();
+      p->set_phase(std::string(phase));
+      p->set_fraction(fraction);
+      p->set_elapsed_seconds(
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+      Push(std::move(progress));
+    };
+    const std::string what = absl::StrCat(
+        "job ", job_id_, " (", std::string(AlgorithmName(input_.algorithm)), " over ",
+        fields_.size(), " fields, ", std::string(StructureName(session_->options().structure.kind)),
+        ", ", session_->id(), ")");
+    LogLine(absl::StrCat(what, " started"));
+    const absl::Status status = RunEachField(context, report);
+    lease_.Release();  // before the client can see the end of the stream
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    LogLine(absl::StrCat(what, " ended after ", absl::StrFormat("%.3f", seconds),
+                         " s: ", status.ToString()));
+    host_->Count("RunJob", status);
+    MutexLock lock(mu_);
+    final_ = ToGrpcStatus(status);
+    WriteNextLocked();
+  }
+
+  absl::Status RunEachField(const RunContext& context, const Progress::Report& report) {
+    const LoadedMesh& mesh = session_->mesh();
+    const Topology& topology = *mesh.topology;
+    const size_t n = fields_.size();
+    double run_s = 0, faces_s = 0;
+    EngineStats engine;
+    MemoryStats memory;
+    std::vector<FieldDiagram> diagrams;
+    nlohmann::ordered_json names = nlohmann::ordered_json::array();
+    for (size_t i = 0; i < n; ++i) {
+      const PointField& field = fields_[i]->field;
+      RETURN_IF_ERROR(context.stop().status("run"));
+      AlgorithmInput input = input_;
+      input.order = VertexOrder(topology, field.values);
+      if (NeedsScalarValues(input.algorithm)) input.scalars = field.values;
+      RunContext one = context;
+      one.progress = [&report, i, n](double f) { report("run", (double(i) + f) / double(n)); };
+      ASSIGN_OR_RETURN(JobOutcome job, session_->RunJob(input, one, report));
+      run_s += job.outcome.run_s;
+      faces_s += job.faces_s;
+      engine += job.engine;
+      memory = job.memory;
+      host_->RecordJob(AlgorithmName(input_.algorithm),
+                       StructureName(session_->options().structure.kind), job.outcome.run_s,
+                       job.engine);
+      if (ComparesFields(input_.algorithm)) {
+        diagrams.push_back(ToFieldDiagram(field.name,
+                                          std::get<PersistenceDiagramResult>(job.outcome.result),
+                                          field.values, input_.distance));
+      }
+      if (include_arrays_) {
+        array_field_ = field.name;
+        RETURN_IF_ERROR(SendArrays(
+            ResultContext{mesh.mesh, topology, field.name, field.values, mesh.vertex_boundary},
+            job.outcome.result, context.trace.get()));
+        array_field_.clear();
+      }
+      v1::RunJobResponse done;
+      v1::FieldResult* r = done.mutable_field();
+      r->set_field(field.name);
+      r->set_index(int32_t(i));
+      r->set_run_seconds(job.outcome.run_s);
+      FillSummary(job.outcome.result, topology, {.digests = digests_}, r->mutable_result());
+      RETURN_IF_ERROR(PushPiece(std::move(done)));
+      names.push_back(field.name);
+    }
+    nlohmann::ordered_json summary = {{"fields", names}};
+    if (ComparesFields(input_.algorithm)) {
+      const Progress stop = context.stop();
+      const FieldDistances distances = CompareFieldDiagrams(
+          std::move(diagrams), input_.distance,
+          {.threads = session_->options().structure.consumers,
+           .progress = [&report](int64_t done,
+                                 int64_t total) { report("distances", double(done) / total); },
+           .stopped = [&stop] { return stop.stopped(); }});
+      RETURN_IF_ERROR(stop.status("distances"));
+      summary = FieldDistancesJson(distances);
+    }
+    v1::RunJobResponse message;
+    FillStruct(summary, message.mutable_summary()->mutable_result());
+    if (context.trace != nullptr) SendTrace(*context.trace);
+    Push(std::move(message));
+    PushStats(run_s, faces_s, engine, memory);
+    return absl::OkStatus();
+  }
+
+  // A result's arrays, each in pieces (SendArray).
+  absl::Status SendArrays(const ResultContext& result_context, const AlgorithmResult& result,
+                          Trace* trace) {
+    {
       const ResultOutputs outputs = [&] {
         Trace::Scope span(trace, "outputs", "phase");  // the arrays built, before any is sent
-        return BuildOutputs(session_->result_context(), job.outcome.result);
+        return BuildOutputs(result_context, result);
       }();
       // Every array goes out in pieces straight from where it lies (SendArray).
       const auto send = [this](const std::string& name, const io::NamedArray& named) {
@@ -435,21 +625,6 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
         RETURN_IF_ERROR(send("segmentation/" + named.name, named));
       }
     }
-    v1::RunJobResponse summary;
-    FillSummary(job.outcome.result, *session_->mesh().topology, {.digests = digests_},
-                summary.mutable_summary()->mutable_result());
-    if (trace != nullptr) {
-      trace->Span("results", "phase", start, std::chrono::steady_clock::now());
-      SendTrace(*trace);
-    }
-    Push(std::move(summary));
-    v1::RunJobResponse stats;
-    stats.mutable_stats()->set_run_seconds(job.outcome.run_s);
-    stats.mutable_stats()->set_faces_seconds(job.faces_s);
-    Fill(job.engine, stats.mutable_stats()->mutable_engine());
-    Fill(job.memory, stats.mutable_stats()->mutable_memory());
-    stats.mutable_stats()->mutable_memory()->set_process_rss_bytes(CurrentRssBytes());
-    Push(std::move(stats));
     return absl::OkStatus();
   }
 
@@ -482,6 +657,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
       c->mutable_array()->set_data(bytes.data() + offset, n);
       c->set_offset(int64_t(offset));
       c->set_total_bytes(int64_t(bytes.size()));
+      if (!array_field_.empty()) c->set_field(array_field_);
       RETURN_IF_ERROR(PushPiece(std::move(chunk)));
       offset += n;
     } while (offset < bytes.size());
@@ -534,6 +710,8 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   std::shared_ptr<Job> job_;  // its cancel flag, for OnCancel and OnWriteDone
   std::string job_id_;
   AlgorithmInput input_;
+  std::vector<FieldSet::Ref> fields_;  // a job over several fields: each in turn
+  std::string array_field_;            // the field whose arrays are being sent, in such a job
   bool include_arrays_ = false;
   bool trace_ = false;
   bool digests_ = false;

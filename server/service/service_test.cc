@@ -23,6 +23,8 @@
 namespace actopo::service {
 namespace {
 
+using testing::JobRun;
+using testing::RunJob;
 using testing::ServiceTest;
 
 TEST_F(ServiceTest, ServerInfo) {
@@ -469,21 +471,6 @@ TEST_F(ServiceTest, CancellingWhileAnswersAreWrittenEndsOnlyThatStream) {
   EXPECT_EQ(r.request_id(), 7);
   EXPECT_EQ(Rows(r.offsets(), r.values()).size(), vertices.size());
   EXPECT_TRUE(stream->Finish().ok());
-}
-
-struct JobRun {
-  grpc::Status status;
-  std::vector<v1::RunJobResponse> messages;
-};
-
-JobRun RunJob(v1::TopologyService::Stub& stub, grpc::ClientContext* context,
-              const v1::RunJobRequest& request) {
-  JobRun run;
-  auto reader = stub.RunJob(context, request);
-  v1::RunJobResponse message;
-  while (reader->Read(&message)) run.messages.push_back(message);
-  run.status = reader->Finish();
-  return run;
 }
 
 // A job with the request's defaults (arrays, no trace), its call ended and checked OK.

@@ -150,6 +150,18 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::DeleteMesh(grpc::CallbackServerCo
   return Unary(c, "DeleteMesh", [&] { return meshes_->Delete(in->mesh_id()); });
 }
 
+grpc::ServerUnaryReactor* TopologyServiceImpl::DeleteField(grpc::CallbackServerContext* c,
+                                                           const v1::DeleteFieldRequest* in,
+                                                           v1::DeleteFieldResponse* out) {
+  // Sessions and jobs reading the field hold it: it is freed when the last one lets go.
+  return Unary(c, "DeleteField", [&]() -> absl::Status {
+    ASSIGN_OR_RETURN(auto mesh, meshes_->Get(in->mesh_id()));
+    RETURN_IF_ERROR(mesh->fields.Delete(in->name()));
+    Fill(*mesh, sessions_->SessionsOnMesh(mesh->id), out->mutable_mesh());
+    return absl::OkStatus();
+  });
+}
+
 grpc::ServerUnaryReactor* TopologyServiceImpl::GetSession(grpc::CallbackServerContext* c,
                                                           const v1::GetSessionRequest* in,
                                                           v1::GetSessionResponse* out) {

@@ -67,9 +67,8 @@ absl::StatusOr<std::unique_ptr<Session>> Session::Open(std::shared_ptr<const Loa
                                                        const Progress& progress) {
   RETURN_IF_ERROR(Validate(options));
   auto s = std::unique_ptr<Session>(new Session());
-  const Mesh& m = mesh->mesh;
-  ASSIGN_OR_RETURN(int field, SelectScalarField(m, options.scalar_field));
-  s->scalar_name_ = m.point_fields[field].name;
+  ASSIGN_OR_RETURN(s->scalar_, mesh->fields.Select(options.scalar_field));
+  s->scalar_name_ = s->scalar_->field.name;
   const int64_t estimate = EstimateBytes(*mesh, options);
   RETURN_IF_ERROR(budget->Reserve(
       estimate, absl::StrCat("a ", std::string(StructureName(options.structure.kind)),
@@ -87,9 +86,9 @@ absl::StatusOr<std::unique_ptr<Session>> Session::Open(std::shared_ptr<const Loa
     RETURN_IF_ERROR(mesh->EnsureFaces(progress));
   const auto start = Clock::now();
   RETURN_IF_ERROR(progress.Update("precompute", 0));
-  s->base_.order = VertexOrder(*mesh->topology, m.point_fields[field].values);
+  s->base_.order = VertexOrder(*mesh->topology, s->scalar_->field.values);
   s->base_.input_corners = mesh->input_corners;
-  s->base_.scalars = m.point_fields[field].values;
+  s->base_.scalars = s->scalar_->field.values;
   const StructureOptions& structure = options.structure;
   switch (structure.kind) {
     case StructureKind::kExplicit: {
@@ -324,10 +323,8 @@ void Session::Query(Relation r, SimplexId s, std::vector<int64_t>& ids,
 const ResultContext& Session::result_context() {
   MutexLock lock(result_mu_);
   if (!result_context_) {
-    const Mesh& m = mesh_->mesh;
-    const PointField* field = m.FindField(scalar_name_);
-    result_context_.emplace(
-        ResultContext{m, *mesh_->topology, scalar_name_, field->values, mesh_->vertex_boundary});
+    result_context_.emplace(ResultContext{mesh_->mesh, *mesh_->topology, scalar_name_,
+                                          scalar_->field.values, mesh_->vertex_boundary});
   }
   return *result_context_;
 }

@@ -145,6 +145,7 @@ class Session {
   std::string id_;
   std::shared_ptr<const LoadedMesh> mesh_;
   SessionOptions options_;
+  FieldSet::Ref scalar_;  // held: deleting the field from the mesh leaves the session its copy
   std::string scalar_name_;
   absl::Time created_;
   Reservation reservation_;

@@ -148,17 +148,16 @@ void Fill(const LoadedMesh& mesh, int sessions, pb::MeshInfo* out) {
   out->set_tetrahedra(t.num_tetrahedra());
   out->set_blocks(t.num_blocks());
   out->set_block_size(mesh.block_size);
-  for (const PointField& f : mesh.mesh.point_fields) {
+  for (const FieldSet::Ref& held : mesh.fields.List()) {
+    const PointField& f = held->field;
     pb::FieldInfo* fi = out->add_fields();
     fi->set_name(f.name);
     fi->set_dtype(f.is_integer
                       ? (f.source_bytes == 4 ? pb::DATA_TYPE_INT32 : pb::DATA_TYPE_INT64)
                       : (f.source_bytes == 4 ? pb::DATA_TYPE_FLOAT32 : pb::DATA_TYPE_FLOAT64));
-    if (!f.values.empty()) {
-      const auto [lo, hi] = std::minmax_element(f.values.begin(), f.values.end());
-      fi->set_min(*lo);
-      fi->set_max(*hi);
-    }
+    fi->set_min(held->min);
+    fi->set_max(held->max);
+    if (held->time) fi->set_time(*held->time);
   }
   out->set_bytes(mesh.bytes());
   out->set_sessions(sessions);
@@ -238,13 +237,16 @@ void ToValue(const nlohmann::ordered_json& json, google::protobuf::Value* out) {
 
 }  // namespace
 
+void FillStruct(const nlohmann::ordered_json& json, Struct* out) {
+  out->Clear();
+  for (const auto& [key, value] : json.items()) ToValue(value, &(*out->mutable_fields())[key]);
+}
+
 void FillSummary(const AlgorithmResult& result, const Topology& topology,
                  const SummaryOptions& options, Struct* out) {
-  out->Clear();
   // Summarize spells the summary's keys once, for actopo-bench's JSON and for the wire; its tree
   // is copied node by node, without a text round trip.
-  const nlohmann::ordered_json summary = Summarize(result, topology, options);
-  for (const auto& [key, value] : summary.items()) ToValue(value, &(*out->mutable_fields())[key]);
+  FillStruct(Summarize(result, topology, options), out);
 }
 
 std::string_view Describe(const std::string& name, std::span<const int64_t> values,

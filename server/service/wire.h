@@ -113,6 +113,8 @@ void Fill(const MemoryStats& memory, pb::MemoryStats* out);
 // spells its keys) copied node by node into a Struct. Numbers are doubles, as in any Struct.
 void FillSummary(const AlgorithmResult& result, const Topology& topology,
                  const SummaryOptions& options, google::protobuf::Struct* out);
+// Any JSON object (diagram-distance's matrices, a many-field job's summary) the same way.
+void FillStruct(const nlohmann::ordered_json& json, google::protobuf::Struct* out);
 
 // Raw little-endian arrays. Describe* fill `out`'s name, type and shape and return the array's
 // bytes where they lie, for a caller that sends them in pieces (a job's result: no second copy

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "actopo/v1/topology_service.grpc.pb.h"
 #include "gtest/gtest.h"
@@ -17,6 +18,22 @@
 namespace actopo::service::testing {
 
 namespace v1 = ::actopo::v1;
+
+// A job's whole stream and how its call ended.
+struct JobRun {
+  grpc::Status status;
+  std::vector<v1::RunJobResponse> messages;
+};
+
+inline JobRun RunJob(v1::TopologyService::Stub& stub, grpc::ClientContext* context,
+                     const v1::RunJobRequest& request) {
+  JobRun run;
+  auto reader = stub.RunJob(context, request);
+  v1::RunJobResponse message;
+  while (reader->Read(&message)) run.messages.push_back(message);
+  run.status = reader->Finish();
+  return run;
+}
 
 class ServiceTest : public ::testing::Test {
  protected:

@@ -1,0 +1,453 @@
+// Fields into a loaded mesh (AddFields, DeleteField) and jobs over several fields, through a
+// real server: a field added behaves as one loaded with the mesh, a job over a list gives each
+// field what a job on it alone gives, and diagram-distance's matrices equal the distances
+// computed directly.
+#include <cmath>
+#include <cstring>
+
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "server/algorithms/digest.h"
+#include "server/algorithms/persistence_diagram.h"
+#include "server/algorithms/vertex_order.h"
+#include "server/core/explicit_structure.h"
+#include "server/core/partition.h"
+#include "server/results/field_distances.h"
+#include "server/service/testing/service_fixture.h"
+
+namespace actopo::service {
+namespace {
+
+using ::testing::HasSubstr;
+using testing::JobRun;
+using testing::RunJob;
+using testing::ServiceTest;
+
+// jittered:8's fields: "scalar" and "height".
+constexpr char kSample[] = "jittered:8";
+
+template <class T>
+std::string Bytes(const std::vector<T>& values) {
+  return std::string(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(T));
+}
+
+struct NewField {
+  std::string name;
+  v1::DataType dtype = v1::DATA_TYPE_FLOAT64;
+  std::string bytes;
+  std::optional<double> time;
+};
+
+NewField Float64(std::string name, const std::vector<double>& values,
+                 std::optional<double> time = std::nullopt) {
+  return {std::move(name), v1::DATA_TYPE_FLOAT64, Bytes(values), time};
+}
+
+class FieldsTest : public ServiceTest {
+ protected:
+  // AddFields with the fields' bytes in chunks of `chunk`; `sha256` "" checks nothing, "auto"
+  // the right digest, anything else is sent as it is.
+  grpc::Status AddFields(const std::string& mesh_id, const std::vector<NewField>& fields,
+                         v1::AddFieldsResponse* response, size_t chunk = 1000,
+                         const std::string& sha256 = "auto", int64_t drop_bytes = 0) {
+    auto context = Context();
+    auto writer = stub_->AddFields(context.get(), response);
+    v1::AddFieldsRequest header;
+    header.mutable_header()->set_mesh_id(mesh_id);
+    std::string data;
+    for (const NewField& f : fields) {
+      v1::UploadField* u = header.mutable_header()->add_fields();
+      u->set_name(f.name);
+      u->set_dtype(f.dtype);
+      if (f.time) u->set_time(*f.time);
+      data += f.bytes;
+    }
+    header.mutable_header()->set_sha256(sha256 == "auto" ? Sha256Hex(data) : sha256);
+    data.resize(data.size() - size_t(drop_bytes));
+    if (writer->Write(header)) {
+      for (size_t at = 0; at < data.size(); at += chunk) {
+        v1::AddFieldsRequest piece;
+        piece.set_chunk(data.substr(at, chunk));
+        if (!writer->Write(piece)) break;
+      }
+    }
+    writer->WritesDone();
+    return writer->Finish();
+  }
+
+  v1::MeshInfo GetMesh(const std::string& mesh_id) {
+    v1::GetMeshRequest request;
+    request.set_mesh_id(mesh_id);
+    v1::GetMeshResponse response;
+    EXPECT_TRUE(stub_->GetMesh(Context().get(), request, &response).ok());
+    return response.mesh();
+  }
+
+  std::vector<std::string> FieldNames(const std::string& mesh_id) {
+    std::vector<std::string> names;
+    const v1::MeshInfo mesh = GetMesh(mesh_id);
+    for (const v1::FieldInfo& f : mesh.fields()) names.push_back(f.name());
+    return names;
+  }
+
+  std::string OpenOn(const std::string& mesh_id, const std::string& field,
+                     v1::Structure structure = v1::STRUCTURE_COMPACT, int consumers = 1) {
+    v1::OpenSessionRequest request;
+    request.set_mesh_id(mesh_id);
+    request.set_scalar_field(field);
+    request.set_structure(structure);
+    request.mutable_engine()->set_consumers(consumers);
+    v1::OpenSessionResponse response;
+    const grpc::Status s = stub_->OpenSession(Context().get(), request, &response);
+    EXPECT_TRUE(s.ok()) << s.error_message();
+    return response.session().session_id();
+  }
+
+  JobRun Job(const std::string& session, v1::Algorithm algorithm,
+             const std::vector<std::string>& fields = {}, bool arrays = false,
+             std::map<std::string, std::string> parameters = {}) {
+    v1::RunJobRequest request;
+    request.set_session_id(session);
+    request.set_algorithm(algorithm);
+    request.set_digests(true);
+    request.set_include_arrays(arrays);
+    for (const std::string& f : fields) request.add_fields(f);
+    for (const auto& [k, v] : parameters) (*request.mutable_parameters())[k] = v;
+    auto context = Context();
+    return RunJob(*stub_, context.get(), request);
+  }
+
+  // The summary a job ended with, as JSON text.
+  static std::string Summary(const JobRun& run) {
+    for (const v1::RunJobResponse& m : run.messages) {
+      if (m.has_summary()) return m.summary().result().DebugString();
+    }
+    return "";
+  }
+};
+
+TEST_F(FieldsTest, AnAddedFieldBehavesAsALoadedOne) {
+  const Mesh sample = *io::MakeSample(kSample);
+  const std::vector<double>& scalar = sample.point_fields[0].values;
+  std::vector<double> twice(scalar);
+  for (double& x : twice) x *= 2;
+  std::vector<float> narrow(scalar.begin(), scalar.end());
+  const std::string mesh_id = LoadSample(kSample);
+  v1::AddFieldsResponse added;
+  const grpc::Status s = AddFields(mesh_id,
+                                   {Float64("twice", twice, 30.0),
+                                    {"narrow", v1::DATA_TYPE_FLOAT32, Bytes(narrow), std::nullopt}},
+                                   &added, /*chunk=*/777);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  ASSERT_EQ(added.mesh().fields_size(), 4);
+  const v1::FieldInfo& info = added.mesh().fields(2);
+  EXPECT_EQ(info.name(), "twice");
+  EXPECT_EQ(info.dtype(), v1::DATA_TYPE_FLOAT64);
+  EXPECT_EQ(info.min(), *std::min_element(twice.begin(), twice.end()));
+  EXPECT_EQ(info.max(), *std::max_element(twice.begin(), twice.end()));
+  EXPECT_TRUE(info.has_time());
+  EXPECT_EQ(info.time(), 30.0);
+  EXPECT_EQ(added.mesh().fields(3).dtype(), v1::DATA_TYPE_FLOAT32);
+  EXPECT_FALSE(added.mesh().fields(3).has_time());
+  EXPECT_EQ(FieldNames(mesh_id), (std::vector<std::string>{"scalar", "height", "twice", "narrow"}));
+
+  // Twice the field orders the vertices the same way: the same critical points and pairs.
+  for (const v1::Algorithm a : {v1::ALGORITHM_CRITICAL_POINTS, v1::ALGORITHM_PERSISTENCE_DIAGRAM}) {
+    const JobRun on_scalar = Job(OpenOn(mesh_id, "scalar"), a);
+    const JobRun on_twice = Job(OpenOn(mesh_id, "twice"), a);
+    ASSERT_TRUE(on_twice.status.ok()) << on_twice.status.error_message();
+    const auto digest = [](const JobRun& run, const std::string& key) {
+      for (const v1::RunJobResponse& m : run.messages) {
+        if (m.has_summary()) return m.summary().result().fields().at(key).string_value();
+      }
+      return std::string();
+    };
+    const std::string key = a == v1::ALGORITHM_CRITICAL_POINTS ? "vertices_sha256" : "pairs_sha256";
+    EXPECT_FALSE(digest(on_scalar, key).empty());
+    EXPECT_EQ(digest(on_twice, key), digest(on_scalar, key));
+  }
+}
+
+TEST_F(FieldsTest, BadFieldsAreRefusedNamingWhatIsWrongAndAddNothing) {
+  const std::string mesh_id = LoadSample(kSample);
+  const int64_t n = GetMesh(mesh_id).vertices();
+  const std::vector<double> ok(size_t(n), 1.5);
+  std::vector<double> nan = ok;
+  nan[7] = std::nan("");
+  struct Case {
+    std::string what;
+    std::string mesh_id;
+    std::vector<NewField> fields;
+    grpc::StatusCode code;
+    std::string message;
+    std::string sha256 = "auto";
+    int64_t drop_bytes = 0;
+  };
+  const std::vector<Case> cases = {
+      {"unknown mesh", "mesh-nope", {Float64("f", ok)}, grpc::NOT_FOUND, "mesh_id: no mesh"},
+      {"name taken",
+       mesh_id,
+       {Float64("height", ok)},
+       grpc::ALREADY_EXISTS,
+       "header.fields[0].name: mesh '" + mesh_id + "' has a field 'height' already"},
+      {"repeated",
+       mesh_id,
+       {Float64("f", ok), Float64("f", ok)},
+       grpc::INVALID_ARGUMENT,
+       "header.fields[1].name: 'f' is announced twice"},
+      {"integers",
+       mesh_id,
+       {{"f", v1::DATA_TYPE_INT32, Bytes(std::vector<int32_t>(n))}},
+       grpc::INVALID_ARGUMENT,
+       "header.fields[0].dtype: DATA_TYPE_INT32 is not FLOAT32"},
+      {"not finite",
+       mesh_id,
+       {Float64("f", ok), Float64("g", nan)},
+       grpc::INVALID_ARGUMENT,
+       "fields[1] 'g': vertex 7 has value nan"},
+      {"too few values",
+       mesh_id,
+       {Float64("f", std::vector<double>(size_t(n) - 1, 2.0))},
+       grpc::INVALID_ARGUMENT,
+       "the stream ended after"},
+      {"too many values",
+       mesh_id,
+       {Float64("f", std::vector<double>(size_t(n) + 1, 2.0))},
+       grpc::INVALID_ARGUMENT,
+       "received more than the"},
+      {"truncated",
+       mesh_id,
+       {Float64("f", ok)},
+       grpc::INVALID_ARGUMENT,
+       "the stream ended after",
+       "auto",
+       5},
+      {"corrupted",
+       mesh_id,
+       {Float64("f", ok)},
+       grpc::DATA_LOSS,
+       "header.sha256: the values hash",
+       std::string(64, 'a')},
+  };
+  const std::string session = OpenOn(mesh_id, "height");
+  const std::string before = Summary(Job(session, v1::ALGORITHM_CRITICAL_POINTS));
+  for (const Case& c : cases) {
+    v1::AddFieldsResponse response;
+    const grpc::Status s = AddFields(c.mesh_id, c.fields, &response, 1000, c.sha256, c.drop_bytes);
+    EXPECT_EQ(s.error_code(), c.code) << c.what << ": " << s.error_message();
+    EXPECT_THAT(s.error_message(), HasSubstr(c.message)) << c.what;
+    EXPECT_EQ(FieldNames(mesh_id), (std::vector<std::string>{"scalar", "height"})) << c.what;
+  }
+  // The mesh and its sessions did not notice.
+  EXPECT_EQ(Summary(Job(session, v1::ALGORITHM_CRITICAL_POINTS)), before);
+}
+
+TEST_F(FieldsTest, FieldsBeyondTheMemoryBudgetAreRefusedBeforeTheirBytes) {
+  options_.memory_budget_bytes = int64_t(40) << 20;
+  StartServer();
+  const std::string mesh_id = LoadSample("jittered:20", 500);
+  const int64_t n = GetMesh(mesh_id).vertices();
+  // Each field takes 8 bytes per vertex: a few hundred of them exceed 40 MiB.
+  std::vector<NewField> many;
+  for (int k = 0; k < 800; ++k) many.push_back(Float64("f" + std::to_string(k), {}));
+  auto context = Context();
+  v1::AddFieldsResponse response;
+  auto writer = stub_->AddFields(context.get(), &response);
+  v1::AddFieldsRequest header;
+  header.mutable_header()->set_mesh_id(mesh_id);
+  for (const NewField& f : many) {
+    v1::UploadField* u = header.mutable_header()->add_fields();
+    u->set_name(f.name);
+    u->set_dtype(v1::DATA_TYPE_FLOAT64);
+  }
+  writer->Write(header);
+  writer->WritesDone();
+  const grpc::Status s = writer->Finish();
+  EXPECT_EQ(s.error_code(), grpc::RESOURCE_EXHAUSTED) << s.error_message();
+  EXPECT_THAT(s.error_message(), HasSubstr("of mesh '" + mesh_id + "'"));
+  EXPECT_GT(n, 0);
+  EXPECT_EQ(FieldNames(mesh_id).size(), 2u);
+  // What was reserved for the refused call came back: one field still fits.
+  ASSERT_TRUE(
+      AddFields(mesh_id, {Float64("one", std::vector<double>(size_t(n), 1.0))}, &response).ok());
+}
+
+TEST_F(FieldsTest, ADeletedFieldStaysWithTheSessionsReadingIt) {
+  const std::string mesh_id = LoadSample(kSample);
+  const std::string session = OpenOn(mesh_id, "scalar", v1::STRUCTURE_ACTOPO);
+  const std::string before = Summary(Job(session, v1::ALGORITHM_PERSISTENCE_DIAGRAM));
+  v1::DeleteFieldRequest request;
+  request.set_mesh_id(mesh_id);
+  request.set_name("scalar");
+  v1::DeleteFieldResponse response;
+  ASSERT_TRUE(stub_->DeleteField(Context().get(), request, &response).ok());
+  ASSERT_EQ(response.mesh().fields_size(), 1);
+  EXPECT_EQ(response.mesh().fields(0).name(), "height");
+  EXPECT_EQ(Summary(Job(session, v1::ALGORITHM_PERSISTENCE_DIAGRAM)), before);
+  // Gone for everyone else: a new session, a job's list, a second delete.
+  v1::OpenSessionRequest open;
+  open.set_mesh_id(mesh_id);
+  open.set_scalar_field("scalar");
+  v1::OpenSessionResponse opened;
+  const grpc::Status refused = stub_->OpenSession(Context().get(), open, &opened);
+  EXPECT_EQ(refused.error_code(), grpc::NOT_FOUND);
+  EXPECT_THAT(refused.error_message(), HasSubstr("scalar field 'scalar' not found"));
+  const JobRun listed = Job(session, v1::ALGORITHM_CRITICAL_POINTS, {"height", "scalar"});
+  EXPECT_EQ(listed.status.error_code(), grpc::NOT_FOUND);
+  EXPECT_THAT(listed.status.error_message(), HasSubstr("fields[1]: scalar field 'scalar'"));
+  const grpc::Status again = stub_->DeleteField(Context().get(), request, &response);
+  EXPECT_EQ(again.error_code(), grpc::NOT_FOUND);
+  EXPECT_THAT(again.error_message(), HasSubstr("name: the mesh has no field 'scalar'"));
+  request.set_mesh_id("mesh-nope");
+  EXPECT_EQ(stub_->DeleteField(Context().get(), request, &response).error_code(), grpc::NOT_FOUND);
+}
+
+TEST_F(FieldsTest, AJobOverFieldsGivesEachWhatAJobOnItAloneGives) {
+  const std::string mesh_id = LoadSample(kSample);
+  const std::vector<std::string> fields = {"height", "scalar"};
+  for (const v1::Structure kind :
+       {v1::STRUCTURE_EXPLICIT, v1::STRUCTURE_COMPACT, v1::STRUCTURE_ACTOPO}) {
+    for (const v1::Algorithm a : {v1::ALGORITHM_CRITICAL_POINTS, v1::ALGORITHM_MORSE_SMALE,
+                                  v1::ALGORITHM_PERSISTENCE_DIAGRAM}) {
+      // The list decides, not the session's field ("scalar", second in the list).
+      const JobRun run = Job(OpenOn(mesh_id, "scalar", kind, 2), a, fields, /*arrays=*/true);
+      ASSERT_TRUE(run.status.ok()) << run.status.error_message();
+      std::vector<std::string> done;
+      for (const v1::RunJobResponse& m : run.messages) {
+        // The list's progress: field k's run fills [k / n, (k + 1) / n].
+        if (m.has_progress() && m.progress().phase() == "run") {
+          const double k = double(done.size()), n = double(fields.size());
+          EXPECT_GE(m.progress().fraction(), k / n - 1e-12);
+          EXPECT_LE(m.progress().fraction(), (k + 1) / n + 1e-12);
+        }
+        if (m.has_chunk()) {
+          EXPECT_EQ(m.chunk().field(), done.size() < fields.size() ? fields[done.size()] : "");
+        }
+        if (!m.has_field()) continue;
+        EXPECT_EQ(m.field().index(), int(done.size()));
+        done.push_back(m.field().field());
+        const JobRun alone = Job(OpenOn(mesh_id, m.field().field()), a);
+        EXPECT_EQ(m.field().result().DebugString(), Summary(alone))
+            << m.field().field() << " " << v1::Algorithm_Name(a);
+        EXPECT_GT(m.field().run_seconds(), 0);
+      }
+      EXPECT_EQ(done, fields);
+      EXPECT_THAT(Summary(run), HasSubstr("\"height\""));
+      EXPECT_TRUE(run.messages.back().has_stats());
+    }
+  }
+}
+
+TEST_F(FieldsTest, DiagramDistanceEqualsTheDistancesOfTheFieldsDiagrams) {
+  const Mesh sample = *io::MakeSample(kSample);
+  const std::string mesh_id = LoadSample(kSample);
+  std::vector<double> bent(sample.point_fields[0].values);
+  for (size_t v = 0; v < bent.size(); ++v) bent[v] += 0.3 * std::sin(double(v));
+  v1::AddFieldsResponse added;
+  ASSERT_TRUE(AddFields(mesh_id, {Float64("bent", bent)}, &added).ok());
+  const std::vector<std::string> fields = {"scalar", "height", "bent"};
+  const JobRun run = Job(OpenOn(mesh_id, "scalar", v1::STRUCTURE_ACTOPO, 2),
+                         v1::ALGORITHM_DIAGRAM_DISTANCE, fields, false, {{"p", "1"}});
+  ASSERT_TRUE(run.status.ok()) << run.status.error_message();
+  google::protobuf::Struct summary;
+  for (const v1::RunJobResponse& m : run.messages) {
+    if (m.has_summary()) summary = m.summary().result();
+  }
+  // The reference: each field's diagram on an explicit structure, compared directly.
+  auto topology = *Topology::Build(sample, OctreeBlocks(sample.points, {.bucket_capacity = 50}));
+  auto structure = *ExplicitStructure::Build(topology, {});
+  std::vector<diagrams::Diagram> expected;
+  for (const std::string& name : fields) {
+    const std::vector<double>& values = name == "bent" ? bent : sample.FindField(name)->values;
+    const auto diagram =
+        *RunPersistenceDiagram(*structure, VertexOrder(*topology, values), values, {});
+    expected.push_back(diagrams::ToDiagram(diagram));
+  }
+  const auto& w = summary.fields().at("wasserstein").list_value();
+  const auto& b = summary.fields().at("bottleneck").list_value();
+  ASSERT_EQ(w.values_size(), 3);
+  EXPECT_EQ(summary.fields().at("p").number_value(), 1);
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      const diagrams::Distance d = diagrams::ComputeDistance(expected[i], expected[j], {.p = 1});
+      EXPECT_NEAR(w.values(i).list_value().values(j).number_value(), d.wasserstein,
+                  1e-12 * std::max(1.0, d.wasserstein));
+      EXPECT_EQ(b.values(i).list_value().values(j).number_value(), d.bottleneck);
+    }
+  }
+  EXPECT_GT(w.values(0).list_value().values(2).number_value(), 0);
+}
+
+TEST_F(FieldsTest, BadFieldListsAreNamed) {
+  const std::string mesh_id = LoadSample(kSample);
+  const std::string session = OpenOn(mesh_id, "scalar");
+  struct Case {
+    v1::Algorithm algorithm;
+    std::vector<std::string> fields;
+    bool all = false;
+    grpc::StatusCode code;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {v1::ALGORITHM_DIAGRAM_DISTANCE,
+       {},
+       false,
+       grpc::INVALID_ARGUMENT,
+       "fields: diagram-distance compares at least two fields"},
+      {v1::ALGORITHM_DIAGRAM_DISTANCE,
+       {"scalar"},
+       false,
+       grpc::INVALID_ARGUMENT,
+       "compares at least two fields; give them in fields (or all_fields), not 1"},
+      {v1::ALGORITHM_CRITICAL_POINTS,
+       {"scalar", "nope"},
+       false,
+       grpc::NOT_FOUND,
+       "fields[1]: scalar field 'nope' not found; point fields: 'scalar', 'height'"},
+      {v1::ALGORITHM_CRITICAL_POINTS,
+       {"scalar", "scalar"},
+       false,
+       grpc::INVALID_ARGUMENT,
+       "fields[1]: 'scalar' is listed twice"},
+      {v1::ALGORITHM_CRITICAL_POINTS,
+       {"scalar"},
+       true,
+       grpc::INVALID_ARGUMENT,
+       "fields: give fields or all_fields, not both"},
+      {v1::ALGORITHM_TOPO_RELATIONS,
+       {"scalar"},
+       false,
+       grpc::INVALID_ARGUMENT,
+       "fields: topo-relations reads no scalar field"},
+      {v1::ALGORITHM_DIAGRAM_DISTANCE,
+       {"scalar", "height"},
+       false,
+       grpc::INVALID_ARGUMENT,
+       "parameters.p: 0.5 is not a Wasserstein order"},
+  };
+  for (const Case& c : cases) {
+    v1::RunJobRequest request;
+    request.set_session_id(session);
+    request.set_algorithm(c.algorithm);
+    for (const std::string& f : c.fields) request.add_fields(f);
+    request.set_all_fields(c.all);
+    if (c.message.find("parameters.p") != std::string::npos)
+      (*request.mutable_parameters())["p"] = "0.5";
+    auto context = Context();
+    const JobRun run = RunJob(*stub_, context.get(), request);
+    EXPECT_EQ(run.status.error_code(), c.code) << c.message << ": " << run.status.error_message();
+    EXPECT_THAT(run.status.error_message(), HasSubstr(c.message));
+  }
+  // all_fields takes every floating-point field, in the mesh's order.
+  v1::RunJobRequest all;
+  all.set_session_id(session);
+  all.set_algorithm(v1::ALGORITHM_DIAGRAM_DISTANCE);
+  all.set_all_fields(true);
+  auto context = Context();
+  const JobRun run = RunJob(*stub_, context.get(), all);
+  ASSERT_TRUE(run.status.ok()) << run.status.error_message();
+  EXPECT_THAT(Summary(run), HasSubstr("\"scalar\""));
+}
+
+}  // namespace
+}  // namespace actopo::service
