@@ -100,7 +100,12 @@ LOOKUP_TABLE default
         "load": (3, pb.LoadMeshRequest(sample="jittered:4")),
         "job": (4, pb.RunJobRequest(algorithm=pb.ALGORITHM_CRITICAL_POINTS)),
         "stream": (5, pb.StreamRelationsRequest(relation=pb.RELATION_VERTEX_STAR, ids=ids)),
-        "stats": (6, pb.GetSessionStatsRequest()),
+        "job_over_fields": (4, pb.RunJobRequest(algorithm=pb.ALGORITHM_DIAGRAM_DISTANCE,
+                                                all_fields=True)),
+        "add_fields": (6, pb.AddFieldsHeader(
+            fields=[pb.UploadField(name="f", dtype=pb.DATA_TYPE_FLOAT64, time=2.0)])),
+        "delete_field": (7, pb.DeleteFieldRequest(name="f")),
+        "stats": (8, pb.GetSessionStatsRequest()),
     }
     for name, (kind, message) in requests.items():
         write("request", name, bytes([kind]) + message.SerializeToString())

@@ -67,7 +67,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const auto fill = [](auto& request) {
     if (request.session_id().empty()) request.set_session_id(fixture->session_id);
   };
-  switch (data[0] % 7) {
+  switch (data[0] % 9) {
     case 0: {
       v1::GetRelationRequest r;
       if (!r.ParseFromArray(bytes, n)) return 0;
@@ -134,6 +134,38 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       while (stream->Read(&m)) {
       }
       (void)stream->Finish();
+      break;
+    }
+    case 6: {
+      // AddFields: the header from the input, the same bytes again as the values.
+      v1::AddFieldsRequest header;
+      if (!header.mutable_header()->ParseFromArray(bytes, n)) return 0;
+      if (header.header().mesh_id().empty()) header.mutable_header()->set_mesh_id(fixture->mesh_id);
+      auto context = Context();
+      v1::AddFieldsResponse out;
+      auto writer = stub.AddFields(context.get(), &out);
+      v1::AddFieldsRequest chunk;
+      chunk.set_chunk(bytes, size_t(n));
+      if (writer->Write(header)) writer->Write(chunk);
+      writer->WritesDone();
+      if (writer->Finish().ok()) {  // keep the fixture's mesh as it was
+        for (const v1::UploadField& f : header.header().fields()) {
+          v1::DeleteFieldRequest del;
+          del.set_mesh_id(header.header().mesh_id());
+          del.set_name(f.name());
+          v1::DeleteFieldResponse deleted;
+          (void)stub.DeleteField(Context().get(), del, &deleted);
+        }
+      }
+      break;
+    }
+    case 7: {
+      v1::DeleteFieldRequest r;
+      if (!r.ParseFromArray(bytes, n)) return 0;
+      if (r.mesh_id().empty()) r.set_mesh_id(fixture->mesh_id);
+      if (r.name() == "scalar" || r.name() == "height") return 0;  // the session's and jobs'
+      v1::DeleteFieldResponse out;
+      (void)stub.DeleteField(Context().get(), r, &out);
       break;
     }
     default: {

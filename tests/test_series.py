@@ -10,6 +10,7 @@ import gudhi.wasserstein
 import meshio
 import numpy as np
 import pytest
+import pyvista
 from test_bench_cli import DATA, bench, run_json
 
 SERIES = DATA / "isabel_series_s2_tet.vtu"
@@ -148,3 +149,34 @@ def test_bad_field_lists_and_parameters_are_named(flags, message):
     proc = bench("--mesh", str(SERIES), *flags, check=False)
     assert proc.returncode == 1
     assert message in proc.stderr, proc.stderr
+
+
+def test_tracking_links_consecutive_members_at_their_optimal_cost(tmp_path):
+    fields = ["velocityMag_02", "velocityMag_03", "velocityMag_04"]
+    r = run_json("--mesh", str(SERIES), "--scalars", ",".join(fields), "--algorithm",
+                 "tracking", "--structure", "actopo", "--output", str(tmp_path / "t"))
+    result = r["result"]
+    assert result["fields"] == fields
+    assert result["files"] == [str(tmp_path / "t_tracking.vtp")]
+    run_json("--mesh", str(SERIES), "--scalars", ",".join(fields), "--algorithm",
+             "persistence-diagram", "--structure", "explicit", "--output", str(tmp_path / "d"))
+    diagrams = [diagram_points(tmp_path / f"d_{f}_diagram.vtu") for f in fields]
+    # Each step's matching is optimal: its cost is Gudhi's exact Wasserstein-2, type by type.
+    for t in range(len(fields) - 1):
+        for k in range(3):
+            expected = gudhi.wasserstein.wasserstein_distance(
+                diagrams[t][k], diagrams[t + 1][k], order=2, internal_p=math.inf)
+            assert result["step_wasserstein_by_type"][t][k] == pytest.approx(expected, rel=1e-9)
+    lines = pyvista.read(tmp_path / "t_tracking.vtp")
+    assert lines.n_cells == result["links"]
+    component = lines.cell_data["ConnectedComponentId"]
+    assert len(set(component.tolist())) == result["trajectories"]
+    assert np.bincount(component).max() + 1 == result["longest"]
+    step, scalar = lines.point_data["TimeStep"], lines.point_data["Scalar"]
+    cost, length = lines.cell_data["Cost"], lines.cell_data["ComponentLength"]
+    ends = lines.lines.reshape(-1, 3)[:, 1:]
+    assert (step[ends[:, 1]] == step[ends[:, 0]] + 1).all()
+    # A link costs at least the change of its pair's extremum value (an L-infinity cost).
+    assert (cost >= np.abs(scalar[ends[:, 1]] - scalar[ends[:, 0]]) - 1e-12).all()
+    assert (length == np.bincount(component)[component]).all()
+    assert set(np.unique(lines.point_data["CriticalType"]).tolist()) <= {0, 1, 3}

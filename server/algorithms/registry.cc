@@ -15,11 +15,11 @@
 namespace actopo {
 namespace {
 
-constexpr std::array<Algorithm, 7> kAll = {
+constexpr std::array<Algorithm, 8> kAll = {
     Algorithm::kTopoRelations,      Algorithm::kCriticalPoints,
     Algorithm::kDiscreteGradient,   Algorithm::kMorseSmale,
     Algorithm::kPersistenceDiagram, Algorithm::kTopologicalSimplification,
-    Algorithm::kDiagramDistance};
+    Algorithm::kDiagramDistance,    Algorithm::kTracking};
 
 }  // namespace
 
@@ -32,6 +32,7 @@ std::string_view AlgorithmName(Algorithm a) {
     case Algorithm::kPersistenceDiagram: return "persistence-diagram";
     case Algorithm::kTopologicalSimplification: return "topological-simplification";
     case Algorithm::kDiagramDistance: return "diagram-distance";
+    case Algorithm::kTracking: return "tracking";
   }
   return "?";
 }
@@ -53,7 +54,9 @@ absl::StatusOr<Algorithm> ParseAlgorithm(std::string_view name) {
 
 std::span<const Algorithm> AllAlgorithms() { return kAll; }
 
-bool ComparesFields(Algorithm a) { return a == Algorithm::kDiagramDistance; }
+bool ComparesFields(Algorithm a) {
+  return a == Algorithm::kDiagramDistance || a == Algorithm::kTracking;
+}
 
 RelationSet DeclaredRelations(Algorithm a) {
   switch (a) {
@@ -62,7 +65,8 @@ RelationSet DeclaredRelations(Algorithm a) {
     case Algorithm::kDiscreteGradient: return DiscreteGradientDeclared();
     case Algorithm::kMorseSmale: return MorseSmaleDeclared();
     case Algorithm::kPersistenceDiagram:
-    case Algorithm::kDiagramDistance: return PersistenceDiagramDeclared();
+    case Algorithm::kDiagramDistance:
+    case Algorithm::kTracking: return PersistenceDiagramDeclared();
     case Algorithm::kTopologicalSimplification: return TopologicalSimplificationDeclared();
   }
   return {};
@@ -86,7 +90,7 @@ bool NeedsScalar(Algorithm a) { return a != Algorithm::kTopoRelations; }
 
 bool NeedsScalarValues(Algorithm a) {
   return a == Algorithm::kPersistenceDiagram || a == Algorithm::kTopologicalSimplification ||
-         a == Algorithm::kMorseSmale || a == Algorithm::kDiagramDistance;
+         a == Algorithm::kMorseSmale || ComparesFields(a);
 }
 
 Prefetch DefaultPrefetch(Algorithm) {

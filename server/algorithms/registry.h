@@ -25,6 +25,9 @@ enum class Algorithm : uint8_t {
   // A field list's persistence diagrams, then the distances between every two of them
   // (server/diagrams): per field it runs as the persistence diagram.
   kDiagramDistance,
+  // A series' persistence diagrams, consecutive ones matched and the matches chained into
+  // trajectories (server/diagrams/tracking.h): per field it runs as the persistence diagram.
+  kTracking,
 };
 
 std::string_view AlgorithmName(Algorithm a);  // "critical-points"

@@ -36,9 +36,9 @@
 #include "server/core/trace.h"
 #include "server/io/samples.h"
 #include "server/io/vtk_reader.h"
-#include "server/results/field_distances.h"
 #include "server/results/result_files.h"
 #include "server/results/run_algorithm.h"
+#include "server/results/series.h"
 
 namespace actopo {
 namespace {
@@ -512,7 +512,12 @@ Json Report(const BenchOptions& o, Algorithm algorithm, const Topology& topology
                   {"run", run_s},
                   {"results", results_s},
                   {"total", Seconds(kProcessStart)}};
-  if (compared.is_object()) j["times_s"]["distances"] = compared["distance_seconds"];
+  if (compared.contains("distance_seconds")) {
+    j["times_s"]["distances"] = compared["distance_seconds"];
+  }
+  if (compared.contains("tracking_seconds")) {
+    j["times_s"]["tracking"] = compared["tracking_seconds"];
+  }
   j["engine"] = {{"wait_s", out.access.wait_ns * 1e-9},
                  {"requests", out.access.requests},
                  {"hits", out.access.hits},
@@ -633,11 +638,22 @@ absl::StatusOr<Json> Run(BenchOptions o) {
     out.fields[i].field = loaded.fields[i].name;
   }
   Json compared;
-  if (!diagrams.empty()) {
+  if (algorithm == Algorithm::kDiagramDistance) {
     const auto start = Clock::now();
-    compared = FieldDistancesJson(
-        CompareFieldDiagrams(std::move(diagrams), first.distance, {.threads = o.consumers}));
+    compared =
+        FieldDistancesJson(CompareFieldDiagrams(diagrams, distance, {.threads = o.consumers}));
     Phase(trace, "distances", start);
+  } else if (algorithm == Algorithm::kTracking) {
+    const auto start = Clock::now();
+    const FieldTracking tracking = TrackFieldDiagrams(diagrams, distance, o.consumers);
+    compared = FieldTrackingJson(tracking);
+    Phase(trace, "tracking", start);
+    if (!o.output.empty()) {
+      const std::string path = o.output + "_tracking.vtp";
+      RETURN_IF_ERROR(
+          io::WritePolyData(path, TrackingPolyData(tracking, diagrams, loaded.mesh.points)));
+      compared["files"] = {path};
+    }
   }
 
   Json j = Report(o, algorithm, *topology, times, out, compared);
@@ -709,16 +725,16 @@ int main(int argc, char** argv) {
             "topo-relations, critical-points, discrete-gradient, morse-smale, persistence-diagram, "
             "topological-simplification or diagram-distance (over --scalars: the fields' "
             "persistence diagrams and the Wasserstein and bottleneck distances of every two)");
-  flags.Add("p", &o.p, "diagram-distance: the Wasserstein order (default 2)");
+  flags.Add("p", &o.p, "diagram-distance, tracking: the Wasserstein order (default 2)");
   flags.Add("essential", &o.essential,
-            "diagram-distance: match the infinite pairs too (by birth); distances are infinite "
-            "where their counts differ");
+            "diagram-distance, tracking: match the infinite pairs too (by birth); distances are "
+            "infinite where their counts differ");
   flags.Add("boundary-rule", &o.boundary_rule,
             "critical-points: ttk (TTK >= 1.1 boundary saddles) or none");
   flags.Add("persistence-threshold", &o.persistence_threshold,
             "topological-simplification, morse-smale: keep the persistence pairs at least this "
-            "persistent (absolute) and simplify the rest away first; diagram-distance: compare "
-            "only those pairs");
+            "persistent (absolute) and simplify the rest away first; diagram-distance, tracking: "
+            "compare only those pairs");
   flags.Add("relative-threshold", &o.relative_threshold,
             "as --persistence-threshold, as a fraction of the field's range (e.g. 0.01)");
   flags.Add("backend", &o.backend,

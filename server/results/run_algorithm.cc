@@ -172,8 +172,7 @@ absl::Status ApplyDistanceParameter(const std::string& name, const std::string& 
   }
   return absl::InvalidArgumentError(
       absl::StrCat("parameters: unknown parameter '", name,
-                   "' for diagram-distance; available: p, persistence_threshold, "
-                   "relative_threshold, essential"));
+                   "'; available: p, persistence_threshold, relative_threshold, essential"));
 }
 
 std::span<const uint8_t> InputCornersOf(const AlgorithmInput& input) {
@@ -196,7 +195,7 @@ absl::Status ApplyParameters(const std::map<std::string, std::string>& parameter
         "parameters: give persistence_threshold or relative_threshold, not both");
   }
   for (const auto& [name, value] : parameters) {
-    if (input.algorithm == Algorithm::kDiagramDistance) {
+    if (ComparesFields(input.algorithm)) {
       RETURN_IF_ERROR(ApplyDistanceParameter(name, value, input.distance));
       continue;
     }
@@ -339,7 +338,8 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
       break;
     }
     case Algorithm::kPersistenceDiagram:
-    case Algorithm::kDiagramDistance: {  // per field, the diagram; compared by the caller
+    case Algorithm::kDiagramDistance:
+    case Algorithm::kTracking: {  // per field, the diagram; compared by the caller
       ASSIGN_OR_RETURN(PersistenceDiagramResult diagram,
                        RunPersistenceDiagram(structure, in.order, in.scalars, context));
       diagram.embed_in_domain = in.embed_diagram_in_domain;

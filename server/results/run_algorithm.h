@@ -51,7 +51,7 @@ struct AlgorithmInput {
   bool embed_diagram_in_domain = false;  // persistence-diagram outputs
   // topological-simplification (default: 1% of the range); morse-smale simplifies first when set.
   std::optional<SimplificationOptions> simplification;
-  DistanceParameters distance;  // diagram-distance
+  DistanceParameters distance;  // diagram-distance, tracking
 };
 
 // morse-smale with a persistence threshold: the complex of the simplified field.
@@ -66,9 +66,10 @@ struct SimplifiedMorseSmaleResult {
 // (birth, death) or at their vertices); "persistence_threshold" = an absolute persistence, or
 // "relative_threshold" = a fraction of the field's range (topological-simplification, and
 // morse-smale, which then runs on the simplified field), "backend" = "lts" (default) |
-// "legacy"; diagram-distance: "p" = the Wasserstein order (default 2), "persistence_threshold"
-// or "relative_threshold" (pairs below it left out, default none), "essential" = "true" |
-// "false" (match the infinite pairs too). Unknown names and values are errors naming them.
+// "legacy"; diagram-distance and tracking: "p" = the Wasserstein order (default 2),
+// "persistence_threshold" or "relative_threshold" (pairs below it left out, default none),
+// "essential" = "true" | "false" (match the infinite pairs too). Unknown names and values are
+// errors naming them.
 absl::Status ApplyParameters(const std::map<std::string, std::string>& parameters,
                              AlgorithmInput& input);
 

@@ -4,6 +4,7 @@
 // computed directly.
 #include <cmath>
 #include <cstring>
+#include <map>
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
@@ -12,7 +13,7 @@
 #include "server/algorithms/vertex_order.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
-#include "server/results/field_distances.h"
+#include "server/results/series.h"
 #include "server/service/testing/service_fixture.h"
 
 namespace actopo::service {
@@ -376,6 +377,55 @@ TEST_F(FieldsTest, DiagramDistanceEqualsTheDistancesOfTheFieldsDiagrams) {
     }
   }
   EXPECT_GT(w.values(0).list_value().values(2).number_value(), 0);
+}
+
+TEST_F(FieldsTest, TrackingFollowsThePairsOfConsecutiveFields) {
+  const Mesh sample = *io::MakeSample(kSample);
+  const std::string mesh_id = LoadSample(kSample);
+  // Three steps of a field drifting in time.
+  std::vector<NewField> steps;
+  std::vector<std::vector<double>> values;
+  for (int t = 0; t < 3; ++t) {
+    std::vector<double> v(sample.point_fields[0].values);
+    for (size_t k = 0; k < v.size(); ++k) v[k] += 0.05 * t * std::cos(double(k) + t);
+    steps.push_back(Float64("t" + std::to_string(t), v, double(t)));
+    values.push_back(std::move(v));
+  }
+  v1::AddFieldsResponse added;
+  ASSERT_TRUE(AddFields(mesh_id, steps, &added).ok());
+  const JobRun run = Job(OpenOn(mesh_id, "scalar", v1::STRUCTURE_COMPACT, 2),
+                         v1::ALGORITHM_TRACKING, {"t0", "t1", "t2"}, /*arrays=*/true);
+  ASSERT_TRUE(run.status.ok()) << run.status.error_message();
+  google::protobuf::Struct summary;
+  std::map<std::string, int64_t> elements;  // tracking/<array> -> values
+  for (const v1::RunJobResponse& m : run.messages) {
+    if (m.has_summary()) summary = m.summary().result();
+    if (m.has_chunk() && m.chunk().field().empty()) {
+      int64_t n = 1;
+      for (int64_t d : m.chunk().array().shape()) n *= d;
+      elements[m.chunk().array().name()] = n;
+    }
+  }
+  auto topology = *Topology::Build(sample, OctreeBlocks(sample.points, {.bucket_capacity = 50}));
+  auto structure = *ExplicitStructure::Build(topology, {});
+  std::vector<diagrams::Diagram> expected;
+  for (const std::vector<double>& v : values) {
+    expected.push_back(
+        diagrams::ToDiagram(*RunPersistenceDiagram(*structure, VertexOrder(*topology, v), v, {})));
+  }
+  const auto& step = summary.fields().at("step_wasserstein").list_value();
+  ASSERT_EQ(step.values_size(), 2);
+  for (int t = 0; t < 2; ++t) {
+    const double w = diagrams::ComputeDistance(expected[t], expected[t + 1], {}).wasserstein;
+    EXPECT_NEAR(step.values(t).number_value(), w, 1e-12 * std::max(1.0, w));
+  }
+  const int64_t links = int64_t(summary.fields().at("links").number_value());
+  EXPECT_GT(links, 0);
+  EXPECT_EQ(elements["tracking/Cost"], links);
+  EXPECT_EQ(elements["tracking/ConnectedComponentId"], links);
+  EXPECT_EQ(elements["tracking/Offsets"], links + 1);
+  EXPECT_EQ(elements["tracking/Points"], 3 * elements["tracking/TimeStep"]);
+  EXPECT_EQ(elements["tracking/VertexId"], elements["tracking/TimeStep"]);
 }
 
 TEST_F(FieldsTest, BadFieldListsAreNamed) {

@@ -224,6 +224,11 @@ class AddFieldsReactor final : public grpc::ServerReadReactor<v1::AddFieldsReque
   }
 
   void Done(const absl::Status& status) {
+    // What a refused call reserved or decoded goes before the client hears back, not when
+    // gRPC deletes the reactor: its next call finds the budget as it was.
+    reservations_.clear();
+    decoder_.reset();
+    mesh_.reset();
     host_->Count("AddFields", status);
     Finish(ToGrpcStatus(status));
   }

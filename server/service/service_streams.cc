@@ -18,7 +18,7 @@
 #include "server/core/status_macros.h"
 #include "server/core/sync.h"
 #include "server/core/trace.h"
-#include "server/results/field_distances.h"
+#include "server/results/series.h"
 #include "server/service/ids.h"
 #include "server/service/reactor_host.h"
 #include "server/service/service.h"
@@ -552,10 +552,19 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
       names.push_back(field.name);
     }
     nlohmann::ordered_json summary = {{"fields", names}};
-    if (ComparesFields(input_.algorithm)) {
+    if (input_.algorithm == Algorithm::kTracking) {
+      const FieldTracking tracking =
+          TrackFieldDiagrams(diagrams, input_.distance, session_->options().structure.consumers);
+      RETURN_IF_ERROR(context.stop().status("tracking"));
+      if (include_arrays_) {
+        RETURN_IF_ERROR(
+            SendPolyData("tracking", TrackingPolyData(tracking, diagrams, mesh.mesh.points)));
+      }
+      summary = FieldTrackingJson(tracking);
+    } else if (input_.algorithm == Algorithm::kDiagramDistance) {
       const Progress stop = context.stop();
       const FieldDistances distances = CompareFieldDiagrams(
-          std::move(diagrams), input_.distance,
+          diagrams, input_.distance,
           {.threads = session_->options().structure.consumers,
            .progress = [&report](int64_t done,
                                  int64_t total) { report("distances", double(done) / total); },
@@ -571,6 +580,43 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     return absl::OkStatus();
   }
 
+  absl::Status SendNamed(const std::string& name, const io::NamedArray& named) {
+    v1::Array header;
+    const std::string_view bytes = Describe(name, named, &header);
+    return SendArray(header, bytes);
+  }
+
+  absl::Status SendIds(const std::string& name, std::span<const int32_t> ids) {
+    const std::vector<int64_t> wide(ids.begin(), ids.end());
+    v1::Array header;
+    const std::string_view bytes = Describe(name, wide, &header);
+    return SendArray(header, bytes);
+  }
+
+  // Poly data as "<group>/Points", "<group>/Offsets" (and "<group>/Connectivity" when a line
+  // reuses points), then its point and cell arrays.
+  absl::Status SendPolyData(const std::string& group, const io::PolyData& poly) {
+    v1::Array points;
+    const std::string_view xyz = DescribePoints(group + "/Points", poly.points, &points);
+    RETURN_IF_ERROR(SendArray(points, xyz));
+    if (!poly.line_offsets.empty()) {
+      RETURN_IF_ERROR(SendIds(group + "/Offsets", poly.line_offsets));
+      // Lines run through consecutive points (separatrices) unless a line reuses points
+      // (the diagram's diagonal): then the point ids go too.
+      bool consecutive = true;
+      for (size_t i = 0; i < poly.line_connectivity.size() && consecutive; ++i) {
+        consecutive = poly.line_connectivity[i] == int32_t(i);
+      }
+      if (!consecutive) RETURN_IF_ERROR(SendIds(group + "/Connectivity", poly.line_connectivity));
+    }
+    for (const auto* arrays : {&poly.point_arrays, &poly.cell_arrays}) {
+      for (const io::NamedArray& named : *arrays) {
+        RETURN_IF_ERROR(SendNamed(group + "/" + named.name, named));
+      }
+    }
+    return absl::OkStatus();
+  }
+
   // A result's arrays, each in pieces (SendArray).
   absl::Status SendArrays(const ResultContext& result_context, const AlgorithmResult& result,
                           Trace* trace) {
@@ -580,49 +626,19 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
         return BuildOutputs(result_context, result);
       }();
       // Every array goes out in pieces straight from where it lies (SendArray).
-      const auto send = [this](const std::string& name, const io::NamedArray& named) {
-        v1::Array header;
-        const std::string_view bytes = Describe(name, named, &header);
-        return SendArray(header, bytes);
-      };
-      const auto send_ids = [this](const std::string& name, std::span<const int32_t> ids) {
-        const std::vector<int64_t> wide(ids.begin(), ids.end());
-        v1::Array header;
-        const std::string_view bytes = Describe(name, wide, &header);
-        return SendArray(header, bytes);
-      };
       for (const auto& [group, poly] : outputs.poly_data) {
-        v1::Array points;
-        const std::string_view xyz = DescribePoints(group + "/Points", poly.points, &points);
-        RETURN_IF_ERROR(SendArray(points, xyz));
-        if (!poly.line_offsets.empty()) {
-          RETURN_IF_ERROR(send_ids(group + "/Offsets", poly.line_offsets));
-          // Lines run through consecutive points (separatrices) unless a line reuses points
-          // (the diagram's diagonal): then the point ids go too.
-          bool consecutive = true;
-          for (size_t i = 0; i < poly.line_connectivity.size() && consecutive; ++i) {
-            consecutive = poly.line_connectivity[i] == int32_t(i);
-          }
-          if (!consecutive) {
-            RETURN_IF_ERROR(send_ids(group + "/Connectivity", poly.line_connectivity));
-          }
-        }
-        for (const auto* arrays : {&poly.point_arrays, &poly.cell_arrays}) {
-          for (const io::NamedArray& named : *arrays) {
-            RETURN_IF_ERROR(send(group + "/" + named.name, named));
-          }
-        }
+        RETURN_IF_ERROR(SendPolyData(group, poly));
       }
       for (const io::NamedArray& named : outputs.simplified) {
-        RETURN_IF_ERROR(send("simplified/" + named.name, named));
+        RETURN_IF_ERROR(SendNamed("simplified/" + named.name, named));
       }
       for (const auto& [table, columns] : outputs.tables) {
         for (const io::NamedArray& named : columns) {
-          RETURN_IF_ERROR(send(table + "/" + named.name, named));
+          RETURN_IF_ERROR(SendNamed(table + "/" + named.name, named));
         }
       }
       for (const io::NamedArray& named : outputs.segmentation) {
-        RETURN_IF_ERROR(send("segmentation/" + named.name, named));
+        RETURN_IF_ERROR(SendNamed("segmentation/" + named.name, named));
       }
     }
     return absl::OkStatus();

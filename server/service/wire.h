@@ -72,6 +72,7 @@ inline constexpr EnumMapping<pb::Algorithm, Algorithm> kAlgorithmMapping[] = {
     {pb::ALGORITHM_PERSISTENCE_DIAGRAM, Algorithm::kPersistenceDiagram},
     {pb::ALGORITHM_TOPOLOGICAL_SIMPLIFICATION, Algorithm::kTopologicalSimplification},
     {pb::ALGORITHM_DIAGRAM_DISTANCE, Algorithm::kDiagramDistance},
+    {pb::ALGORITHM_TRACKING, Algorithm::kTracking},
 };
 inline constexpr EnumMapping<pb::Structure, StructureKind> kStructureMapping[] = {
     {pb::STRUCTURE_EXPLICIT, StructureKind::kExplicit},
