@@ -9,6 +9,7 @@
 #define ACTOPO_SERVER_CORE_MESH_H_
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -32,6 +33,8 @@ struct PointField {
   // Bytes per value of the source array (4: float32/int32, 8: float64/int64), so clients can be
   // told the type the field had as loaded.
   int8_t source_bytes = 8;
+  // A series member's time value (a .pvd step's timestep, or given when the field was added).
+  std::optional<double> time;
 };
 
 struct Mesh {

@@ -327,6 +327,8 @@ int ServeMeshRead(const std::string& path, int64_t memory_limit_bytes, int fd, i
     out.String(f.name);
     out.Value(uint8_t(f.is_integer));
     out.Value(f.source_bytes);
+    out.Value(uint8_t(f.time.has_value()));
+    out.Value(f.time.value_or(0.0));
   }
   return out.ok() ? 0 : 1;
 }
@@ -410,11 +412,14 @@ absl::StatusOr<Mesh> ReadMeshIsolated(const std::string& path, const IsolatedRea
   Mesh mesh;
   mesh.point_fields.resize(size_t(fields));
   for (PointField& f : mesh.point_fields) {
-    uint8_t is_integer = 0;
-    if (!in.String(f.name, kMaxText) || !in.Value(is_integer) || !in.Value(f.source_bytes)) {
+    uint8_t is_integer = 0, has_time = 0;
+    double time = 0;
+    if (!in.String(f.name, kMaxText) || !in.Value(is_integer) || !in.Value(f.source_bytes) ||
+        !in.Value(has_time) || !in.Value(time)) {
       return failed();
     }
     f.is_integer = is_integer != 0;
+    if (has_time != 0) f.time = time;
   }
   // The child has written the arrays and is exiting; they are read back from the memory file.
   int64_t offset = 0;

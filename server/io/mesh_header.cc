@@ -13,6 +13,8 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "absl/strings/string_view.h"
+#include "server/core/status_macros.h"
+#include "server/io/collection.h"
 
 namespace actopo::io {
 namespace {
@@ -216,6 +218,16 @@ absl::StatusOr<MeshCounts> ReadMeshCounts(const std::string& path) {
   if (extension == ".vtu") return UnstructuredGridCounts(path);
   if (extension == ".vti") return ImageDataCounts(path);
   if (extension == ".vtk") return LegacyCounts(path);
+  if (extension == ".pvd") {
+    // The first step's counts, with every step's fields.
+    ASSIGN_OR_RETURN(const std::vector<CollectionStep> steps, ReadCollection(path));
+    ASSIGN_OR_RETURN(MeshCounts counts, ReadMeshCounts(steps[0].path));
+    for (size_t k = 1; k < steps.size(); ++k) {
+      ASSIGN_OR_RETURN(const MeshCounts step, ReadMeshCounts(steps[k].path));
+      counts.point_fields += step.point_fields;
+    }
+    return counts;
+  }
   return NoCounts(path, absl::StrCat("unsupported extension '", extension, "'"));
 }
 

@@ -20,6 +20,7 @@
 #include "absl/strings/str_cat.h"
 #include "server/core/parallel.h"
 #include "server/core/status_macros.h"
+#include "server/io/collection.h"
 #include "server/io/internal/appended_vtu.h"
 #include "server/io/internal/vtk_bridge.h"
 
@@ -28,7 +29,8 @@ namespace {
 
 constexpr char kSupportedExtensions[] =
     ".vtu (VTK XML unstructured grid), .vtk (legacy VTK unstructured grid), "
-    ".vti (VTK XML image data, split into tetrahedra)";
+    ".vti (VTK XML image data, split into tetrahedra), .pvd (ParaView collection: a series of "
+    "such files on the same mesh)";
 
 absl::Status Prefixed(const std::string& path, const absl::Status& status) {
   return absl::Status(status.code(), absl::StrCat(path, ": ", status.message()));
@@ -118,12 +120,46 @@ absl::StatusOr<Mesh> ReadXmlImageData(const std::string& path, const Progress& p
   return Convert(path, tetrahedralize->GetOutput());
 }
 
+// A .pvd: every step read and appended to the first (collection.h).
+absl::StatusOr<Mesh> ReadSeries(const std::string& path, const ReadOptions& options,
+                                const Progress& progress) {
+  ASSIGN_OR_RETURN(const std::vector<CollectionStep> steps, ReadCollection(path));
+  Mesh series;
+  for (size_t k = 0; k < steps.size(); ++k) {
+    const std::string& file = steps[k].path;
+    if (absl::AsciiStrToLower(std::filesystem::path(file).extension().string()) == ".pvd") {
+      return absl::InvalidArgumentError(
+          absl::StrCat(path, ": step ", k, " is a collection itself (", file, ")"));
+    }
+    // Each step reports its share of the read.
+    const Progress step = progress.AlsoReporting([](std::string_view, double) {});
+    absl::StatusOr<Mesh> read = ReadMesh(file, options, step);
+    if (!read.ok()) {
+      return absl::Status(read.status().code(),
+                          absl::StrCat(path, ": step ", k, ": ", read.status().message()));
+    }
+    RETURN_IF_ERROR(progress.Update("read", double(k + 1) / double(steps.size())));
+    if (k == 0) {
+      series = *std::move(read);
+      for (PointField& field : series.point_fields) {
+        field.name = SeriesFieldName(field.name, 0, steps.size());
+        field.time = steps[0].time;
+      }
+      continue;
+    }
+    RETURN_IF_ERROR(AppendSeriesStep(series, steps[0].path, *std::move(read), file, k, steps.size(),
+                                     steps[k].time));
+  }
+  return series;
+}
+
 }  // namespace
 
 absl::StatusOr<Mesh> ReadMesh(const std::string& path, const ReadOptions& options,
                               const Progress& progress) {
   const std::string extension =
       absl::AsciiStrToLower(std::filesystem::path(path).extension().string());
+  if (extension == ".pvd") return ReadSeries(path, options, progress);
   if (extension != ".vtu" && extension != ".vtk" && extension != ".vti") {
     return absl::InvalidArgumentError(
         absl::StrCat(path, ": ",

@@ -20,7 +20,10 @@ FieldSet::Field FieldSet::Make(PointField field, std::optional<double> time,
 
 void FieldSet::Load(std::vector<PointField> loaded) {
   MutexLock lock(mu_);
-  for (PointField& f : loaded) fields_.push_back(std::make_shared<const Field>(Make(std::move(f))));
+  for (PointField& f : loaded) {
+    const std::optional<double> time = f.time;
+    fields_.push_back(std::make_shared<const Field>(Make(std::move(f), time)));
+  }
 }
 
 std::vector<FieldSet::Ref> FieldSet::List() const {

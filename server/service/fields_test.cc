@@ -4,17 +4,22 @@
 // computed directly.
 #include <cmath>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <map>
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "nlohmann/json.hpp"
 #include "server/algorithms/digest.h"
 #include "server/algorithms/persistence_diagram.h"
 #include "server/algorithms/vertex_order.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
+#include "server/io/test_data.h"
 #include "server/results/series.h"
 #include "server/service/testing/service_fixture.h"
+#include "tests/testing/skip.h"
 
 namespace actopo::service {
 namespace {
@@ -426,6 +431,53 @@ TEST_F(FieldsTest, TrackingFollowsThePairsOfConsecutiveFields) {
   EXPECT_EQ(elements["tracking/Offsets"], links + 1);
   EXPECT_EQ(elements["tracking/Points"], 3 * elements["tracking/TimeStep"]);
   EXPECT_EQ(elements["tracking/VertexId"], elements["tracking/TimeStep"]);
+}
+
+TEST_F(FieldsTest, ASeriesLoadsFromAParaViewCollectionAsOneMesh) {
+  namespace fs = std::filesystem;
+  const fs::path shared = io::testing::DataDir();
+  if (!fs::is_directory(shared / "isabel_series_s2")) {
+    ACTOPO_SKIP() << "the shared data folder " << shared << " is not there";
+  }
+  fs::copy(shared / "isabel_series_s2", data_dir_ / "isabel");
+  v1::LoadMeshRequest load;
+  load.set_path("isabel/isabel_series.pvd");
+  v1::LoadMeshResponse loaded;
+  const grpc::Status s = stub_->LoadMesh(Context().get(), load, &loaded);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  ASSERT_EQ(loaded.mesh().fields_size(), 4);
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_EQ(loaded.mesh().fields(k).name(), "velocityMag_" + std::to_string(k));
+    EXPECT_EQ(loaded.mesh().fields(k).time(), 2 + k);
+  }
+  // Every member's diagram is TTK's (expected-ttk-series.json, members 02 to 05).
+  std::ifstream expected_file(shared / "expected-ttk-series.json");
+  const auto expected = nlohmann::json::parse(expected_file)["isabel_series_s2_tet.vtu"];
+  v1::RunJobRequest request;
+  request.set_session_id(OpenOn(loaded.mesh().mesh_id(), "", v1::STRUCTURE_ACTOPO, 2));
+  request.set_algorithm(v1::ALGORITHM_PERSISTENCE_DIAGRAM);
+  request.set_all_fields(true);
+  request.set_digests(true);
+  auto context = Context();
+  const JobRun run = RunJob(*stub_, context.get(), request);
+  ASSERT_TRUE(run.status.ok()) << run.status.error_message();
+  int members = 0;
+  for (const v1::RunJobResponse& m : run.messages) {
+    if (!m.has_field()) continue;
+    const std::string member = "velocityMag_0" + std::to_string(2 + m.field().index());
+    EXPECT_EQ(m.field().result().fields().at("pairs_sha256").string_value(),
+              expected[member]["upstream"]["persistence_diagram"]["pairs_sha256"])
+        << member;
+    ++members;
+  }
+  EXPECT_EQ(members, 4);
+  // A collection may list only files under the data directory.
+  std::ofstream(data_dir_ / "escape.pvd")
+      << "<VTKFile><Collection><DataSet file=\"../outside.vtu\"/></Collection></VTKFile>";
+  load.set_path("escape.pvd");
+  const grpc::Status escape = stub_->LoadMesh(Context().get(), load, &loaded);
+  EXPECT_EQ(escape.error_code(), grpc::INVALID_ARGUMENT);
+  EXPECT_THAT(escape.error_message(), HasSubstr("outside the server's data directory"));
 }
 
 TEST_F(FieldsTest, BadFieldListsAreNamed) {

@@ -3,10 +3,12 @@
 #include <chrono>
 #include <filesystem>
 
+#include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_replace.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
+#include "server/io/collection.h"
 #include "server/io/isolated_reader.h"
 #include "server/io/mesh_header.h"
 #include "server/io/samples.h"
@@ -127,6 +129,19 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFile(
   }
   if (!fs::exists(full)) {
     return absl::NotFoundError(absl::StrCat("path: '", path, "' not found in the data directory"));
+  }
+  // A series' files, like the path itself, must lie under the data directory.
+  if (absl::AsciiStrToLower(full.extension().string()) == ".pvd") {
+    ASSIGN_OR_RETURN(const std::vector<io::CollectionStep> steps, io::ReadCollection(full));
+    for (const io::CollectionStep& step : steps) {
+      const fs::path file = fs::weakly_canonical(step.path, ec);
+      const auto [end, unused] = std::mismatch(root.begin(), root.end(), file.begin(), file.end());
+      if (ec || end != root.end()) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "path: the series '", path, "' lists '", step.path.substr(step.path.rfind('/') + 1),
+            "', which is outside the server's data directory"));
+      }
+    }
   }
   // The budget is held before anything is read: what the mesh and its encoding will take, by
   // the counts its header announces (reading peaks below that: VTK's copy and ours, about 48
