@@ -1,9 +1,10 @@
 """Python client of the ACTOPO topology service.
 
-Load or upload tetrahedral meshes, open sessions on a topological data structure (explicit,
-compact or the task-parallel actopo engine), query relations and run TTK-compatible algorithms
-(critical points, discrete gradient, Morse-Smale complex, persistence diagram, topological
-simplification), with numpy in and out.
+Load or upload tetrahedral meshes and add fields to them, open sessions on a topological data
+structure (explicit, compact or the task-parallel actopo engine), query relations and run
+TTK-compatible algorithms (critical points, discrete gradient, Morse-Smale complex, persistence
+diagram, topological simplification) on one field or over many, and the distances between the
+fields' persistence diagrams, with numpy in and out.
 
     import actopo
 
@@ -16,9 +17,9 @@ simplification), with numpy in and out.
             print(result.segmentation["MorseSmaleManifold"][:10])
 
 Every failure is an ActopoError; its subclasses name the kind (InvalidMeshError, NotFoundError,
-ResourceExhaustedError, ...) and keep the gRPC code and the server's message. Structure,
-Algorithm, Relation, Prefetch and Precompute are the Literal types of the names the methods take;
-the statistics and other data the calls return are in actopo.types.
+AlreadyExistsError, ResourceExhaustedError, ...) and keep the gRPC code and the server's
+message. Structure, Algorithm, Relation, Prefetch and Precompute are the Literal types of the
+names the methods take; the statistics and other data the calls return are in actopo.types.
 """
 
 from actopo import types as types  # the returned data types, documented beside __all__
@@ -26,6 +27,7 @@ from actopo._async_client import AsyncClient, AsyncJob, AsyncSession
 from actopo._client import Client, Job, Session
 from actopo._errors import (
                             ActopoError,
+                            AlreadyExistsError,
                             AuthenticationError,
                             CancelledError,
                             DeadlineExceededError,
@@ -45,7 +47,7 @@ __version__ = "0.1.0"
 
 # The list is documented, one line a name, in README.md ("Public names"); a test compares them.
 __all__ = [
-    "ActopoError", "Algorithm", "AsyncClient", "AsyncJob", "AsyncSession",
+    "ActopoError", "Algorithm", "AlreadyExistsError", "AsyncClient", "AsyncJob", "AsyncSession",
     "AuthenticationError", "CancelledError", "Client", "DeadlineExceededError",
     "FailedPreconditionError", "InvalidArgumentError", "InvalidMeshError", "Job", "JobResult",
     "LoadProgress", "MeshInfo", "NotFoundError", "OutOfRangeError", "Precompute", "Prefetch",

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import grpc
 import grpc.aio
 import numpy as np
+import numpy.typing as npt
 
 from actopo import _batches, _messages, _requests
 from actopo._batches import Piece
@@ -32,7 +33,9 @@ from actopo._channel import (
     client_metadata,
     resolve_target,
 )
+from actopo._distances import DistanceMatrix
 from actopo._errors import ActopoError, translate, translated
+from actopo._fields import FieldsLike, TimesArg
 from actopo._literals import Algorithm, Precompute, Prefetch, Relation, Structure
 from actopo._mesh import MeshLike
 from actopo._progress import (
@@ -43,8 +46,8 @@ from actopo._progress import (
     make_progress,
 )
 from actopo._proto import pb
-from actopo._requests import MeshRef, SimplexArg, SimplexIds
-from actopo._results import Assembler, JobResult
+from actopo._requests import FieldsArg, MeshRef, SimplexArg, SimplexIds, distance_parameters
+from actopo._results import Assembler, FieldResult, JobResult, distance_matrix_of
 from actopo._stub import async_stub
 from actopo._types import (
     JobProgress,
@@ -184,6 +187,29 @@ class AsyncClient:
     async def delete_mesh(self, mesh: MeshRef) -> None:
         """See Client.delete_mesh()."""
         await self._call(self._stub.DeleteMesh, _messages.build_delete_mesh(mesh))
+
+    async def add_fields(self, mesh: MeshRef, fields: FieldsLike, *,
+                         times: TimesArg = None) -> MeshInfo:
+        """See Client.add_fields()."""
+        vertices = mesh.vertices if isinstance(mesh, MeshInfo) \
+            else (await self.get_mesh(mesh)).vertices
+        requests = _messages.build_add_fields(mesh, fields, vertices, times)
+        with translated():
+            response = await self._stub.AddFields(requests, timeout=self._mesh_timeout,
+                                                  metadata=self._metadata)
+        return _messages.decode_add_fields(response)
+
+    async def add_field(self, mesh: MeshRef, name: str, values: npt.ArrayLike, *,
+                        time: float | None = None) -> MeshInfo:
+        """See Client.add_field()."""
+        return await self.add_fields(mesh, {name: values},
+                                     times=None if time is None else [time])
+
+    async def delete_field(self, mesh: MeshRef, name: str) -> MeshInfo:
+        """See Client.delete_field()."""
+        response = await self._call(self._stub.DeleteField,
+                                    _messages.build_delete_field(mesh, name))
+        return _messages.decode_delete_field(response)
 
     def open_session(self, mesh: MeshRef, *, scalar: str | None = None,
                      structure: Structure = "actopo", consumers: int = 0, producers: int = 0,
@@ -346,24 +372,60 @@ class AsyncSession:
 
     async def submit(self, algorithm: Algorithm, *, parameters: Mapping[str, Any] | None = None,
                      include_arrays: bool = True, trace: bool = False, digests: bool = False,
-                     timeout: float | None = None) -> AsyncJob:
+                     timeout: float | None = None, fields: FieldsArg = None) -> AsyncJob:
         """See Session.submit()."""
+        return await self._submit(algorithm, parameters, include_arrays, trace, digests,
+                                  timeout, fields)
+
+    async def _submit(self, algorithm: Algorithm, parameters: Mapping[str, Any] | None,
+                      include_arrays: bool, trace: bool, digests: bool, timeout: float | None,
+                      fields: FieldsArg, keep_fields: bool = True) -> AsyncJob:
         request, name = _messages.build_run_job(self._id(), algorithm, parameters,
-                                                include_arrays, trace, digests)
+                                                include_arrays, trace, digests, fields)
         call = self._client._stub.RunJob(request, timeout=timeout,
                                          metadata=self._client._metadata)
-        job = AsyncJob(self._client, call, name)
+        job = AsyncJob(self._client, call, name, keep_fields)
         await job._accepted()
         return job
 
     async def run(self, algorithm: Algorithm, *, parameters: Mapping[str, Any] | None = None,
                   progress: ProgressArg = False, include_arrays: bool = True,
                   trace: bool = False, digests: bool = False,
-                  timeout: float | None = None) -> JobResult:
+                  timeout: float | None = None, fields: FieldsArg = None) -> JobResult:
         """See Session.run(). Cancelling the awaiting task cancels the job."""
         job = await self.submit(algorithm, parameters=parameters, include_arrays=include_arrays,
-                                trace=trace, digests=digests, timeout=timeout)
+                                trace=trace, digests=digests, timeout=timeout, fields=fields)
         return await job.result(progress=progress)
+
+    async def run_fields(self, algorithm: Algorithm, fields: FieldsArg, *,
+                         parameters: Mapping[str, Any] | None = None,
+                         progress: ProgressArg = False, include_arrays: bool = True,
+                         digests: bool = False,
+                         timeout: float | None = None) -> AsyncIterator[FieldResult]:
+        """See Session.run_fields(); an async iterator. Closing it early (``aclose()``, or
+        leaving a ``contextlib.aclosing(...)`` block), or cancelling the task that iterates
+        it, cancels the job."""
+        job = await self._submit(algorithm, parameters, include_arrays, False, digests, timeout,
+                                 fields, keep_fields=False)
+        bar = make_progress(progress, job.algorithm)
+        try:
+            async for result in job._each_field(bar):
+                yield result
+            job._assembler.result()  # the stream ended with its summary
+        finally:
+            job._call.cancel()  # a no-op once the job is over
+            bar.close()
+
+    async def distance_matrix(self, fields: FieldsArg = "all", *, p: float = 2,
+                              persistence_threshold: float | None = None,
+                              relative_threshold: float | None = None, essential: bool = False,
+                              progress: ProgressArg = False) -> DistanceMatrix:
+        """See Session.distance_matrix()."""
+        parameters = distance_parameters(p, persistence_threshold, relative_threshold,
+                                         essential)
+        result = await self.run("diagram-distance", fields=fields, parameters=parameters,
+                                include_arrays=False, progress=progress)
+        return distance_matrix_of(result)
 
     async def stats(self) -> SessionStats:
         """See Session.stats()."""
@@ -402,11 +464,11 @@ class AsyncJob:
 
     def __init__(self, client: AsyncClient,
                  call: grpc.aio.UnaryStreamCall[pb.RunJobRequest, pb.RunJobResponse],
-                 algorithm: Algorithm) -> None:
+                 algorithm: Algorithm, keep_fields: bool = True) -> None:
         self._client = client
         self._call = call
         self._responses = aiter(call)
-        self._assembler = Assembler(algorithm)
+        self._assembler = Assembler(algorithm, keep_fields)
         self.algorithm = algorithm
         self.job_id = ""
 
@@ -441,12 +503,18 @@ class AsyncJob:
         """See Job.result()."""
         bar = make_progress(progress, self.algorithm)
         try:
-            with translated():
-                while await self._read(bar.update):
-                    pass
+            async for _ in self._each_field(bar):
+                pass
             return self._assembler.result()
         except (asyncio.CancelledError, KeyboardInterrupt):
             self._call.cancel()
             raise
         finally:
             bar.close()
+
+    async def _each_field(self, bar: Progress[JobProgress]) -> AsyncIterator[FieldResult]:
+        """See Job._each_field()."""
+        with translated():
+            while await self._read(bar.update):
+                for result in self._assembler.take_fields():
+                    yield result

@@ -1,12 +1,15 @@
 """The `actopo` command line: a thin layer over Client (its options: _cli_parser).
 
-    actopo --server HOST:PORT info | meshes | load | upload | delete | sessions | open | close
-                              | run | relation | stats | compare | bench
+    actopo --server HOST:PORT info | meshes | load | upload | delete | add-fields
+                              | delete-field | sessions | open | close | run | relation
+                              | stats | compare | bench
 
 `--server` (or `--target`, before or after the command) defaults to $ACTOPO_SERVER. Every
 listing command takes --json. Exit status: 0 on success, 1 on a service error, 2 on a usage
 error, 130 on Ctrl-C (the running load or job is cancelled on the server). `run` takes the
-algorithm as `--algorithm NAME` or as its first word (`actopo run persistence-diagram ...`).
+algorithm as `--algorithm NAME` or as its first word (`actopo run persistence-diagram ...`),
+and with `--scalars F1,F2,...|all` runs it over several fields, a line per field as each is
+done (`actopo run diagram-distance --scalars all` prints the distance matrices).
 """
 
 from __future__ import annotations
@@ -24,13 +27,15 @@ from typing import Any, TypeAlias, cast
 
 from actopo import _names
 from actopo._bench import Bench, Load
-from actopo._cli_parser import DIAGRAM, STRUCTURES, parser
+from actopo._cli_parser import DIAGRAM, DISTANCE, MANY_FIELDS, STRUCTURES, parser
 from actopo._client import Client, Session
+from actopo._distances import DistanceMatrix
 from actopo._errors import ActopoError, InvalidArgumentError
+from actopo._fields import read_point_fields
 from actopo._literals import Algorithm, Structure
 from actopo._mesh import MeshArrays, mesh_arrays
-from actopo._results import JobResult
-from actopo._types import MeshInfo, SessionInfo, SessionStats, plain
+from actopo._results import FieldResult, JobResult
+from actopo._types import FieldInfo, MeshInfo, SessionInfo, SessionStats, plain
 
 
 class UsageError(Exception):
@@ -170,6 +175,28 @@ def cmd_delete(client: Client, args: argparse.Namespace) -> None:
         client.delete_mesh(mesh_id)
 
 
+def _field_rows(fields: Sequence[FieldInfo]) -> None:
+    _table([(f.name, f.dtype, f.min, f.max, "-" if f.time is None else f"{f.time:g}")
+            for f in fields], ["FIELD", "DTYPE", "MIN", "MAX", "TIME"])
+
+
+def cmd_add_fields(client: Client, args: argparse.Namespace) -> None:
+    found = read_point_fields(args.file)
+    names = args.fields or list(found)
+    missing = [name for name in names if name not in found]
+    if missing:
+        raise InvalidArgumentError(f"--fields: {args.file} has no scalar point field "
+                                   f"'{missing[0]}' (it has: {', '.join(found) or 'none'})")
+    info = client.add_fields(args.mesh_id, {name: found[name] for name in names},
+                             times=args.times)
+    _print_json(info) if args.json else _field_rows(info.fields)
+
+
+def cmd_delete_field(client: Client, args: argparse.Namespace) -> None:
+    info = client.delete_field(args.mesh_id, args.name)
+    _print_json(info) if args.json else _field_rows(info.fields)
+
+
 def _session_rows(sessions: Sequence[SessionInfo]) -> None:
     _table([(s.session_id, s.mesh_id, s.scalar_field, s.structure, s.engine.consumers,
              s.engine.producers, s.engine.buffer_ratio, s.running_job_id or "-")
@@ -247,12 +274,26 @@ def _parameters(args: argparse.Namespace) -> dict[str, str]:
 
 def _run_algorithm(args: argparse.Namespace) -> Algorithm:
     """The algorithm of `run` (--algorithm NAME or the first word), with the options that only
-    drawing a persistence diagram takes checked against it."""
+    some algorithms, or only one field, take checked against it."""
     algorithm = cast(Algorithm, args.algorithm or args.algorithm_word)
     if args.threshold is not None and not args.plot:
         raise UsageError("--threshold is the line of the plot: give --plot PATH.png too")
-    if args.plot and algorithm != DIAGRAM:
+    if args.scalars and args.scalar:
+        raise UsageError("--scalar and --scalars: give one (--scalars F1,F2,... runs over "
+                         "several fields)")
+    if algorithm in MANY_FIELDS and not args.scalars:
+        raise UsageError(f"{algorithm} compares fields: give --scalars F1,F2,... or "
+                         "--scalars all")
+    if algorithm == DISTANCE:
+        if args.threshold is not None:
+            raise UsageError(f"--threshold draws on a persistence diagram; {DISTANCE} takes "
+                             "--param persistence_threshold=T or --param relative_threshold=F")
+    elif args.plot and algorithm != DIAGRAM:
         raise UsageError(f"--plot draws a persistence diagram: run {DIAGRAM}, not {algorithm}")
+    elif args.plot and args.scalars:
+        raise UsageError("--plot draws one field's persistence diagram: run without --scalars")
+    if args.output and args.scalars:
+        raise UsageError("--output writes one field's result: run without --scalars")
     return algorithm
 
 
@@ -288,6 +329,8 @@ def cmd_run(client: Client, args: argparse.Namespace) -> None:
     start = time.perf_counter()
     algorithm = _run_algorithm(args)
     parameters = _parameters(args)
+    if args.scalars:
+        return _run_fields(client, args, algorithm, parameters, start)
     with _mesh(client, args) as mesh, _open(client, mesh.info, args) as session:
         result = session.run(algorithm, parameters=parameters,
                              include_arrays=bool(args.output or args.plot),
@@ -326,6 +369,69 @@ def cmd_run(client: Client, args: argparse.Namespace) -> None:
     print("result: " + json.dumps(result.summary, indent=1))
     for path in [*report.get("files", []), *([report["plot"]] if "plot" in report else [])]:
         print(f"wrote {path}")
+    if "trace" in report:
+        print(f"wrote {report['trace']} (open it in ui.perfetto.dev or chrome://tracing)")
+
+
+def _field_line(result: FieldResult) -> str:
+    """One field's line of `run --scalars`: its name, its run time and its summary."""
+    return (f"  {result.field}: {result.run_seconds:.3f} s, "
+            f"{json.dumps(result.summary, separators=(', ', ': '))}")
+
+
+def _matrix_rows(name: str, values: Any, fields: Sequence[str]) -> None:
+    print(f"{name}:")
+    _table([(field, *(f"{v:.6g}" for v in row)) for field, row in zip(fields, values.tolist(),
+                                                                         strict=True)],
+           ["", *fields])
+
+
+def _print_distances(matrix: DistanceMatrix, seconds: Any) -> None:
+    essential = "matched" if matrix.essential else "left out"
+    print(f"distances between {len(matrix)} persistence diagrams (p = {matrix.p:g}, infinite "
+          f"pairs {essential}), {seconds or 0:.3f} s:")
+    _matrix_rows(f"Wasserstein-{matrix.p:g}", matrix.wasserstein, matrix.fields)
+    _matrix_rows("bottleneck", matrix.bottleneck, matrix.fields)
+    print("pairs compared: " + ", ".join(map(str, matrix.pairs)))
+    if any(matrix.thresholds):
+        print("thresholds: " + ", ".join(f"{t:g}" for t in matrix.thresholds))
+
+
+def _run_fields(client: Client, args: argparse.Namespace, algorithm: Algorithm,
+                parameters: dict[str, str], start: float) -> None:
+    """`run --scalars`: the job over several fields, a line per field as each is done (with
+    --json one object with a "fields" list), and diagram-distance's matrices."""
+    fields = "all" if args.scalars == ["all"] else args.scalars
+    with _mesh(client, args) as mesh, _open(client, mesh.info, args) as session:
+        job = session.submit(algorithm, parameters=parameters, include_arrays=False,
+                             trace=bool(args.trace), digests=args.digests, fields=fields)
+        if not args.json:
+            print(f"{algorithm} on {mesh.info.name} ({mesh.info.tetrahedra} tetrahedra, "
+                  f"{mesh.info.blocks} blocks), structure {session.info.structure}, "
+                  f"job {job.job_id}", flush=True)
+        result = job._result(_progress(args), None if args.json else
+                             lambda field: print(_field_line(field), flush=True))
+        report = _report(client.get_mesh(mesh.info), session, result, session.stats(),
+                         parameters, time.perf_counter() - start)
+    report["config"]["scalars"] = [f.field for f in result.fields]
+    report["fields"] = [{"field": f.field, "index": f.index, "run_s": f.run_seconds,
+                         "result": f.summary} for f in result.fields]
+    matrix = result.distance_matrix
+    if args.trace:
+        report["trace"] = result.save_trace(args.trace)
+    if args.plot and matrix is not None:
+        report["plot"] = matrix.plot(args.plot)
+    if args.json:
+        return _print_json(report)
+    print(f"  run {report['times_s']['run']:.3f} s over {len(result.fields)} fields, wait "
+          f"{report['engine']['wait_s']:.3f} s, rss "
+          f"{_mib(report['memory']['process_rss_bytes'])}")
+    if matrix is not None:
+        _print_distances(matrix, result.summary.get("distance_seconds"))
+    elif set(result.summary) != {"fields"}:  # a job that compares the fields, e.g. tracking
+        print("result: " + json.dumps(result.summary, indent=1))
+    if "plot" in report:
+        print(f"wrote {report['plot']}")
     if "trace" in report:
         print(f"wrote {report['trace']} (open it in ui.perfetto.dev or chrome://tracing)")
 
@@ -518,7 +624,8 @@ def cmd_bench(client: Client, args: argparse.Namespace) -> None:
 Command: TypeAlias = Callable[[Client, argparse.Namespace], None]
 COMMANDS: dict[str, Command] = {
     "info": cmd_info, "meshes": cmd_meshes, "load": cmd_load, "upload": cmd_upload,
-    "delete": cmd_delete, "sessions": cmd_sessions, "open": cmd_open, "close": cmd_close,
+    "delete": cmd_delete, "add-fields": cmd_add_fields, "delete-field": cmd_delete_field,
+    "sessions": cmd_sessions, "open": cmd_open, "close": cmd_close,
     "run": cmd_run, "relation": cmd_relation, "stats": cmd_stats, "compare": cmd_compare,
     "bench": cmd_bench,
 }

@@ -16,6 +16,11 @@ from actopo._bench import MODES, ORDERS
 STRUCTURES = list(_names.STRUCTURES)
 ALGORITHMS = list(_names.ALGORITHMS)
 DIAGRAM = "persistence-diagram"
+DISTANCE = "diagram-distance"
+MANY_FIELDS = (DISTANCE, "tracking")
+"""The algorithms that compare several fields: they run only with --scalars."""
+SINGLE_FIELD = [a for a in ALGORITHMS if a not in MANY_FIELDS]
+"""The algorithms that run on one field: those that `compare` and `bench` time."""
 
 Commands: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
 
@@ -25,9 +30,9 @@ def parser() -> argparse.ArgumentParser:
                                 "service: meshes, sessions, relations and algorithm jobs.")
     _add_connection(p)
     commands = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (_add_info, _add_meshes, _add_load, _add_upload, _add_delete, _add_sessions,
-                _add_open, _add_close, _add_run, _add_relation, _add_stats, _add_compare,
-                _add_bench):
+    for add in (_add_info, _add_meshes, _add_load, _add_upload, _add_delete, _add_add_fields,
+                _add_delete_field, _add_sessions, _add_open, _add_close, _add_run,
+                _add_relation, _add_stats, _add_compare, _add_bench):
         add(commands)
     return p
 
@@ -89,6 +94,24 @@ def _add_delete(commands: Commands) -> None:
     c.add_argument("mesh_ids", nargs="+", metavar="MESH_ID")
 
 
+def _add_add_fields(commands: Commands) -> None:
+    c = _command(commands, "add-fields",
+                 "add the point fields of a local mesh file (read with pyvista or meshio) to a "
+                 "loaded mesh with the same vertices")
+    c.add_argument("mesh_id", metavar="MESH_ID")
+    c.add_argument("file", metavar="FILE")
+    c.add_argument("--fields", type=_list(str), metavar="A,B,...",
+                   help="the file's scalar point fields to add, comma-separated (default: all)")
+    c.add_argument("--times", type=_list(float), metavar="T1,T2,...",
+                   help="a time value per field added, in order (series members)")
+
+
+def _add_delete_field(commands: Commands) -> None:
+    c = _command(commands, "delete-field", "delete a point field of a loaded mesh")
+    c.add_argument("mesh_id", metavar="MESH_ID")
+    c.add_argument("name", metavar="NAME")
+
+
 def _add_sessions(commands: Commands) -> None:
     _command(commands, "sessions", "list the open sessions")
 
@@ -105,17 +128,23 @@ def _add_close(commands: Commands) -> None:
 
 
 def _add_run(commands: Commands) -> None:
-    c = _command(commands, "run", "run an algorithm on a mesh and print its result")
+    c = _command(commands, "run", "run an algorithm on a mesh and print its result; with "
+                 "--scalars, over several fields, a line per field")
     which = c.add_mutually_exclusive_group(required=True)
     which.add_argument("algorithm_word", nargs="?", choices=ALGORITHMS, metavar="ALGORITHM",
                        help="the algorithm, as the first word or as --algorithm")
     which.add_argument("--algorithm", choices=ALGORITHMS)
     _add_mesh_source(c)
     _add_engine(c)
+    c.add_argument("--scalars", type=_list(str), metavar="F1,F2,...|all",
+                   help="run over these point fields one after the other (all: every "
+                   f"floating-point field) instead of --scalar; {' and '.join(MANY_FIELDS)} "
+                   "need two or more")
     _add_parameters(c, "an algorithm parameter (repeatable), e.g. embedding=domain "
                     "(persistence-diagram), relative_threshold=0.05 or persistence_threshold=2.5 "
-                    "(topological-simplification, morse-smale), relations=all (topo-relations: "
-                    "22 relations instead of TTK's 20)")
+                    "(topological-simplification, morse-smale, and each field's own range with "
+                    f"{DISTANCE}), p=1 and essential=true ({DISTANCE}), relations=all "
+                    "(topo-relations: 22 relations instead of TTK's 20)")
     _add_run_outputs(c)
     _add_progress(c, "the load's and the job's progress bars")
 
@@ -132,7 +161,8 @@ def _add_run_outputs(c: argparse.ArgumentParser) -> None:
                    help="write PREFIX_critical_points.vtp, ... for ParaView")
     c.add_argument("--plot", metavar="PATH.png",
                    help=f"{DIAGRAM}: draw the diagram (birth, death) into this image with "
-                   "matplotlib (pip install 'actopo[plot]')")
+                   f"matplotlib (pip install 'actopo[plot]'); {DISTANCE}: the Wasserstein "
+                   "matrix as a heat map (with a dendrogram when scipy is installed)")
     c.add_argument("--threshold", type=_threshold, metavar="T",
                    help="with --plot: draw the line death = birth + T; T is a persistence, or "
                    "a percentage of the scalar field's range such as 1%%")
@@ -169,7 +199,7 @@ def _add_compare(commands: Commands) -> None:
     c = _command(commands, "compare",
                  "run an algorithm on several structures and compare time, wait and memory")
     _add_mesh_source(c)
-    c.add_argument("--algorithm", required=True, choices=ALGORITHMS)
+    c.add_argument("--algorithm", required=True, choices=SINGLE_FIELD)
     c.add_argument("--structures", default=",".join(STRUCTURES),
                    help="comma-separated (default: all)")
     c.add_argument("--repeat", type=int, default=1, help="runs per structure (median)")
@@ -186,7 +216,7 @@ def _add_bench(commands: Commands) -> None:
     _add_mesh_source(c, required=False)
     _add_bench_sweep(c)
     _add_bench_requests(c)
-    c.add_argument("--algorithm", default="critical-points", choices=ALGORITHMS,
+    c.add_argument("--algorithm", default="critical-points", choices=SINGLE_FIELD,
                    help="the job of the job mode (default critical-points)")
     _add_parameters(c)
     _add_engine(c, structure=False)

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import threading
 from collections import deque
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import grpc
 import numpy as np
+import numpy.typing as npt
 
 from actopo import _batches, _messages, _requests
 from actopo._batches import Piece
@@ -20,7 +21,9 @@ from actopo._channel import (
     resolve_target,
     sync_channel,
 )
+from actopo._distances import DistanceMatrix
 from actopo._errors import ActopoError, translate, translated
+from actopo._fields import FieldsLike, TimesArg
 from actopo._literals import Algorithm, Precompute, Prefetch, Relation, Structure
 from actopo._mesh import MeshLike
 from actopo._progress import (
@@ -31,10 +34,11 @@ from actopo._progress import (
     make_progress,
 )
 from actopo._proto import pb
-from actopo._requests import MeshRef, SimplexArg, SimplexIds
-from actopo._results import Assembler, JobResult
+from actopo._requests import FieldsArg, MeshRef, SimplexArg, SimplexIds, distance_parameters
+from actopo._results import Assembler, FieldResult, JobResult, distance_matrix_of
 from actopo._stub import ResponseStream, sync_stub
 from actopo._types import (
+    JobProgress,
     LoadProgress,
     MeshInfo,
     RelationBatch,
@@ -126,7 +130,7 @@ class Client:
 
         >>> client.server_info().algorithms
         ['topo-relations', 'critical-points', 'discrete-gradient', 'morse-smale',
-         'persistence-diagram', 'topological-simplification']
+         'persistence-diagram', 'topological-simplification', 'diagram-distance', 'tracking']
         """
         response = self._call(self._stub.GetServerInfo, _messages.build_get_server_info())
         info = _messages.decode_get_server_info(response)
@@ -228,6 +232,56 @@ class Client:
     def delete_mesh(self, mesh: MeshRef) -> None:
         """Deletes a mesh; the server frees it once no session uses it."""
         self._call(self._stub.DeleteMesh, _messages.build_delete_mesh(mesh))
+
+    # Fields.
+
+    def add_fields(self, mesh: MeshRef, fields: FieldsLike, *,
+                   times: TimesArg = None) -> MeshInfo:
+        """Adds point fields to a loaded mesh and returns the mesh with them.
+
+        `fields`: a mapping name -> values, one per vertex (float32 values are kept as
+        float32, float64 as float64, integers become float64), or a pyvista dataset or a
+        meshio.Mesh of the same vertices, whose scalar point fields are taken. A bad dtype,
+        shape or length raises InvalidArgumentError naming the field before anything is sent.
+        `times`: the fields' time values (series members), by name or one per field in order;
+        they come back as ``FieldInfo.time``.
+
+        The values go over one AddFields call in 1 MiB chunks, each field in turn, with their
+        SHA-256. All or nothing: the server adds every field or none. It raises
+        AlreadyExistsError for a name the mesh has, InvalidArgumentError for an empty or
+        repeated name or a non-finite value (naming ``fields[i]``), NotFoundError for an
+        unknown mesh, ResourceExhaustedError past its memory budget.
+
+        >>> info = client.upload_mesh((np.eye(4, 3), [[0, 1, 2, 3]], {"h": np.arange(4.0)}))
+        >>> info = client.add_fields(info, {"x": np.arange(4), "y": np.ones(4, np.float32)},
+        ...                          times=[0.5, 1.5])
+        >>> [(f.name, f.dtype, f.max, f.time) for f in info.fields]
+        [('h', 'float64', 3.0, None), ('x', 'float64', 3.0, 0.5), ('y', 'float32', 1.0, 1.5)]
+        >>> [f.name for f in client.delete_field(info, "x").fields]
+        ['h', 'y']
+        >>> client.delete_mesh(info)
+        """
+        requests = _messages.build_add_fields(mesh, fields, self._vertices(mesh), times)
+        with translated():
+            response = self._stub.AddFields(requests, timeout=self._mesh_timeout,
+                                            metadata=self._metadata)
+        return _messages.decode_add_fields(response)
+
+    def add_field(self, mesh: MeshRef, name: str, values: npt.ArrayLike, *,
+                  time: float | None = None) -> MeshInfo:
+        """Adds one point field; see add_fields()."""
+        return self.add_fields(mesh, {name: values}, times=None if time is None else [time])
+
+    def delete_field(self, mesh: MeshRef, name: str) -> MeshInfo:
+        """Deletes a point field of a mesh and returns the mesh without it (NotFoundError for
+        an unknown mesh or field). Sessions and jobs that read it keep it until they are
+        done."""
+        response = self._call(self._stub.DeleteField, _messages.build_delete_field(mesh, name))
+        return _messages.decode_delete_field(response)
+
+    def _vertices(self, mesh: MeshRef) -> int:
+        """The mesh's vertex count (asked of the server for a mesh given by id)."""
+        return mesh.vertices if isinstance(mesh, MeshInfo) else self.get_mesh(mesh).vertices
 
     # Sessions.
 
@@ -421,29 +475,45 @@ class Session:
 
     def submit(self, algorithm: Algorithm, *, parameters: Mapping[str, Any] | None = None,
                include_arrays: bool = True, trace: bool = False, digests: bool = False,
-               timeout: float | None = None) -> Job:
+               timeout: float | None = None, fields: FieldsArg = None) -> Job:
         """Starts a job and returns once the server accepted it; see run()."""
+        return self._submit(algorithm, parameters, include_arrays, trace, digests, timeout,
+                            fields)
+
+    def _submit(self, algorithm: Algorithm, parameters: Mapping[str, Any] | None,
+                include_arrays: bool, trace: bool, digests: bool, timeout: float | None,
+                fields: FieldsArg, keep_fields: bool = True) -> Job:
         request, name = _messages.build_run_job(self._id(), algorithm, parameters,
-                                                include_arrays, trace, digests)
+                                                include_arrays, trace, digests, fields)
         call = self._client._stub.RunJob(request, timeout=timeout,
                                          metadata=self._client._metadata)
-        return Job(self._client, call, name)
+        return Job(self._client, call, name, keep_fields)
 
     def run(self, algorithm: Algorithm, *, parameters: Mapping[str, Any] | None = None,
             progress: ProgressArg = False, include_arrays: bool = True, trace: bool = False,
-            digests: bool = False, timeout: float | None = None) -> JobResult:
+            digests: bool = False, timeout: float | None = None,
+            fields: FieldsArg = None) -> JobResult:
         """Runs an algorithm and returns its result.
 
         `algorithm`: "critical-points", "discrete-gradient", "morse-smale",
-        "persistence-diagram", "topological-simplification" or "topo-relations" ("morse_smale"
-        works too). `parameters`: e.g. ``{"boundary_rule": "none"}``, ``{"embedding":
+        "persistence-diagram", "topological-simplification", "topo-relations" ("morse_smale"
+        works too), or over several fields "diagram-distance" (see distance_matrix()) or
+        "tracking" (the pairs of consecutive fields matched into trajectories: the summary
+        counts them, the ``tracking`` group holds TTK's tracking output).
+        `parameters`: e.g. ``{"boundary_rule": "none"}``, ``{"embedding":
         "domain"}`` (persistence-diagram: its points at the vertices), ``{"relative_threshold":
         "0.05"}`` or ``{"persistence_threshold": "2.5"}`` (topological-simplification, and
         morse-smale on the simplified field), ``{"relations": "all"}`` (topo-relations: 22
         relations instead of TTK's 20).
+        `fields`: a list of point fields of the session's mesh, or "all" (every floating-point
+        one, in the mesh's order), to run the algorithm over each of them in turn instead of
+        over the session's scalar field;
+        the result's ``fields`` then holds a FieldResult per field, each as a job on that
+        field alone would give it (see run_fields() to get each as soon as it is done).
         `progress`: True for progress bars on stderr, one per phase ("faces": the mesh's edges
         and triangles, built by the first job or query on the mesh that reads them; then the
-        run), or a callable(fraction) of the run.
+        run, over all the fields of a job over several; "distances" for diagram-distance's
+        matrix), or a callable(fraction) of the run.
         `include_arrays`: False to receive only the summary and statistics.
         `trace`: True to record where the job's threads spent their time, as a Chrome trace
         (``result.trace``; ``result.save_trace("job.json")`` and open it in ui.perfetto.dev).
@@ -458,8 +528,57 @@ class Session:
         (array([0, 3], dtype=int8), array([0, 4], dtype=int32))
         """
         return self.submit(algorithm, parameters=parameters, include_arrays=include_arrays,
-                           trace=trace, digests=digests,
-                           timeout=timeout).result(progress=progress)
+                           trace=trace, digests=digests, timeout=timeout,
+                           fields=fields).result(progress=progress)
+
+    def run_fields(self, algorithm: Algorithm, fields: FieldsArg, *,
+                   parameters: Mapping[str, Any] | None = None, progress: ProgressArg = False,
+                   include_arrays: bool = True, digests: bool = False,
+                   timeout: float | None = None) -> Iterator[FieldResult]:
+        """Runs an algorithm over several fields (names, or "all"), as run() does, and yields
+        each field's FieldResult, in the job's order, as soon as the server has it; the
+        results are not kept once yielded. The job starts when the iteration does. Closing
+        the iterator before the end (``close()``, or leaving a ``with
+        contextlib.closing(...)`` block), or Ctrl-C, cancels the job on the server.
+
+        >>> mesh = client.upload_mesh((np.eye(4, 3), [[0, 1, 2, 3]], {"a": np.arange(4.0)}))
+        >>> mesh = client.add_field(mesh, "b", [3.0, 2.0, 1.0, 0.0])
+        >>> with client.open_session(mesh) as s:
+        ...     for r in s.run_fields("critical-points", ["a", "b"]):
+        ...         print(r.index, r.field, r.critical_points["ttkVertexScalarField"],
+        ...               r.critical_points["CriticalType"])  # 0: minimum, 3: maximum
+        0 a [0 3] [0 3]
+        1 b [0 3] [3 0]
+        >>> client.delete_mesh(mesh)
+        """
+        job = self._submit(algorithm, parameters, include_arrays, False, digests, timeout,
+                           fields, keep_fields=False)
+        bar = make_progress(progress, job.algorithm)
+        try:
+            yield from job._each_field(bar)
+            job._assembler.result()  # the stream ended with its summary
+        finally:
+            job._call.cancel()  # a no-op once the job is over
+            bar.close()
+
+    def distance_matrix(self, fields: FieldsArg = "all", *, p: float = 2,
+                        persistence_threshold: float | None = None,
+                        relative_threshold: float | None = None, essential: bool = False,
+                        progress: ProgressArg = False) -> DistanceMatrix:
+        """The exact Wasserstein-p and bottleneck distances between the persistence diagrams
+        of several fields of the session's mesh (at least two; "all": every floating-point
+        one), from one diagram-distance job.
+
+        `persistence_threshold` (absolute) or `relative_threshold` (a fraction of each field's
+        own range) leaves out the pairs below it; `essential` matches the infinite pairs too
+        (by birth; a distance between diagrams with different counts of them is then inf).
+        `progress` as for run(): the diagrams' run, then the "distances" phase.
+        """
+        parameters = distance_parameters(p, persistence_threshold, relative_threshold,
+                                         essential)
+        result = self.run("diagram-distance", fields=fields, parameters=parameters,
+                          include_arrays=False, progress=progress)
+        return distance_matrix_of(result)
 
     def stats(self) -> SessionStats:
         """Cumulative statistics of the session (diff two snapshots for an interval)."""
@@ -527,11 +646,11 @@ class Job:
     result() waits for the end; cancel() may be called from any thread."""
 
     def __init__(self, client: Client, call: ResponseStream[pb.RunJobResponse],
-                 algorithm: Algorithm) -> None:
+                 algorithm: Algorithm, keep_fields: bool = True) -> None:
         self._client = client
         self._call = call
         self._lock = threading.Lock()
-        self._assembler = Assembler(algorithm)
+        self._assembler = Assembler(algorithm, keep_fields)
         self.algorithm = algorithm
         try:
             with translated():
@@ -554,17 +673,31 @@ class Job:
 
     def result(self, progress: ProgressArg = False) -> JobResult:
         """Waits for the job and returns its result; Ctrl-C cancels it."""
+        return self._result(progress)
+
+    def _result(self, progress: ProgressArg,
+                on_field: Callable[[FieldResult], Any] | None = None) -> JobResult:
+        """result(), calling `on_field` with each field's result of a job over several as
+        soon as it is complete (the CLI prints it then)."""
         with self._lock:
             bar = make_progress(progress, self.algorithm)
             try:
-                with translated():
-                    for response in self._call:
-                        report = self._assembler.feed(response)
-                        if report is not None:
-                            bar.update(report)
-                    return self._assembler.result()
+                for field in self._each_field(bar):
+                    if on_field is not None:
+                        on_field(field)
+                return self._assembler.result()
             except KeyboardInterrupt:
                 self._call.cancel()
                 raise
             finally:
                 bar.close()
+
+    def _each_field(self, bar: Progress[JobProgress]) -> Iterator[FieldResult]:
+        """Reads the rest of the stream, reporting progress to `bar`; yields the result of
+        each field of a job over several as soon as it is complete."""
+        with translated():
+            for response in self._call:
+                report = self._assembler.feed(response)
+                if report is not None:
+                    bar.update(report)
+                yield from self._assembler.take_fields()

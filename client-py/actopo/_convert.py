@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any, TypeVar, cast
 
-from google.protobuf import json_format
+from google.protobuf import struct_pb2
 
 from actopo import _names
 from actopo._arrays import dtype_name
@@ -53,8 +54,8 @@ def server_info(r: pb.GetServerInfoResponse) -> ServerInfo:
 
 
 def mesh_info(m: pb.MeshInfo) -> MeshInfo:
-    fields = [FieldInfo(name=f.name, dtype=dtype_name(f.dtype), min=f.min, max=f.max)
-              for f in m.fields]
+    fields = [FieldInfo(name=f.name, dtype=dtype_name(f.dtype), min=f.min, max=f.max,
+                        time=f.time if f.HasField("time") else None) for f in m.fields]
     return MeshInfo(mesh_id=m.mesh_id, name=m.name, source=m.source, vertices=m.vertices,
                     edges=m.edges if m.HasField("edges") else None,
                     triangles=m.triangles if m.HasField("triangles") else None,
@@ -102,22 +103,30 @@ def job_stats(s: pb.JobStats) -> JobStats:
                     memory=memory_stats(s.memory), faces_seconds=s.faces_seconds)
 
 
-def struct_to_dict(struct: Any) -> dict[str, Any]:
+def struct_to_dict(struct: struct_pb2.Struct) -> dict[str, Any]:
     """A google.protobuf.Struct as plain Python, integral numbers as int.
 
     Struct numbers are doubles; the summaries hold counts (exact below 2**53) and hex digests,
     so ints come back as ints and the object equals actopo-bench's JSON `result`. A Struct is a
-    map, whose order the wire does not keep: keys come back sorted.
+    map, whose order the wire does not keep: keys come back sorted. Non-finite numbers (an
+    infinite distance) stay floats, inf or nan, where JSON has no spelling for them.
     """
-    result: dict[str, Any] = _ints(json_format.MessageToDict(struct))
-    return result
+    return {key: _value(struct.fields[key]) for key in sorted(struct.fields)}
 
 
-def _ints(value: Any) -> Any:
-    if isinstance(value, float) and value.is_integer() and abs(value) < 2**53:
-        return int(value)
-    if isinstance(value, dict):
-        return {k: _ints(value[k]) for k in sorted(value)}
-    if isinstance(value, list):
-        return [_ints(v) for v in value]
-    return value
+def _value(value: struct_pb2.Value) -> Any:
+    kind = value.WhichOneof("kind")
+    if kind == "number_value":
+        number = value.number_value
+        if math.isfinite(number) and number.is_integer() and abs(number) < 2**53:
+            return int(number)
+        return number
+    if kind == "struct_value":
+        return struct_to_dict(value.struct_value)
+    if kind == "list_value":
+        return [_value(v) for v in value.list_value.values]
+    if kind == "string_value":
+        return value.string_value
+    if kind == "bool_value":
+        return value.bool_value
+    return None

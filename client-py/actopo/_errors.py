@@ -39,7 +39,11 @@ class OutOfRangeError(ActopoError, IndexError):
 
 
 class NotFoundError(ActopoError, LookupError):
-    """Unknown mesh, session, job, file or sample."""
+    """Unknown mesh, session, job, file, sample or field."""
+
+
+class AlreadyExistsError(ActopoError):
+    """A name already taken, e.g. a field added to a mesh that has one of that name."""
 
 
 class FailedPreconditionError(ActopoError):
@@ -70,6 +74,7 @@ _BY_CODE: dict[grpc.StatusCode, type[ActopoError]] = {
     grpc.StatusCode.INVALID_ARGUMENT: InvalidArgumentError,
     grpc.StatusCode.OUT_OF_RANGE: OutOfRangeError,
     grpc.StatusCode.NOT_FOUND: NotFoundError,
+    grpc.StatusCode.ALREADY_EXISTS: AlreadyExistsError,
     grpc.StatusCode.FAILED_PRECONDITION: FailedPreconditionError,
     grpc.StatusCode.RESOURCE_EXHAUSTED: ResourceExhaustedError,
     grpc.StatusCode.UNAVAILABLE: UnavailableError,

@@ -15,8 +15,9 @@ Structure: TypeAlias = Literal["explicit", "compact", "actopo"]
 
 Algorithm: TypeAlias = Literal["topo-relations", "critical-points", "discrete-gradient",
                                "morse-smale", "persistence-diagram",
-                               "topological-simplification"]
-"""An algorithm that Session.run() runs."""
+                               "topological-simplification", "diagram-distance", "tracking"]
+"""An algorithm that Session.run() runs; "diagram-distance" and "tracking" run over several
+fields (its ``fields`` argument; Session.distance_matrix() runs the first)."""
 
 Relation: TypeAlias = Literal[
     "vertex_neighbors", "vertex_edges", "vertex_triangles", "vertex_star",

@@ -20,15 +20,18 @@ import numpy as np
 from actopo import _convert, _names, _upload
 from actopo._arrays import to_numpy
 from actopo._errors import ActopoError, error_for_number
+from actopo._fields import FieldsLike, TimesArg, field_arrays
 from actopo._literals import Algorithm, Precompute, Prefetch, Relation, Structure
 from actopo._mesh import MeshLike, mesh_arrays
 from actopo._proto import pb
 from actopo._requests import (
     DEFAULT_BATCH,
+    FieldsArg,
     MeshRef,
     SessionRef,
     SimplexArg,
     engine_count,
+    job_fields,
     mesh_id,
     partition,
     relation,
@@ -134,6 +137,25 @@ def decode_get_mesh(response: pb.GetMeshResponse) -> MeshInfo:
 
 def build_delete_mesh(mesh: MeshRef) -> pb.DeleteMeshRequest:
     return pb.DeleteMeshRequest(mesh_id=mesh_id(mesh))
+
+
+def build_add_fields(mesh: MeshRef, fields: FieldsLike, vertices: int,
+                     times: TimesArg = None) -> Iterator[pb.AddFieldsRequest]:
+    """The messages of AddFields. The fields are checked here against the mesh's `vertices`,
+    in the caller's thread and before anything is sent (see _fields)."""
+    return _upload.add_fields_requests(mesh_id(mesh), field_arrays(fields, vertices, times))
+
+
+def decode_add_fields(response: pb.AddFieldsResponse) -> MeshInfo:
+    return _convert.mesh_info(response.mesh)
+
+
+def build_delete_field(mesh: MeshRef, name: str) -> pb.DeleteFieldRequest:
+    return pb.DeleteFieldRequest(mesh_id=mesh_id(mesh), name=name)
+
+
+def decode_delete_field(response: pb.DeleteFieldResponse) -> MeshInfo:
+    return _convert.mesh_info(response.mesh)
 
 
 # Sessions.
@@ -247,14 +269,16 @@ def decode_stream_relations(response: pb.StreamRelationsResponse,
 
 def build_run_job(session: SessionRef, algorithm: Algorithm,
                   parameters: Mapping[str, Any] | None, include_arrays: bool,
-                  trace: bool = False,
-                  digests: bool = False) -> tuple[pb.RunJobRequest, Algorithm]:
+                  trace: bool = False, digests: bool = False,
+                  fields: FieldsArg = None) -> tuple[pb.RunJobRequest, Algorithm]:
     """The request, and the algorithm's name as the package spells it ("morse_smale" is
-    "morse-smale")."""
+    "morse-smale"). `fields`: names or "all" for a job over several fields, None for the
+    session's scalar field."""
     code = _names.lookup(_names.ALGORITHMS, algorithm, "algorithm")
     request = pb.RunJobRequest(session_id=session_id(session), algorithm=code,
                                parameters={str(k): str(v) for k, v in (parameters or {}).items()},
-                               include_arrays=include_arrays, trace=trace, digests=digests)
+                               include_arrays=include_arrays, trace=trace, digests=digests,
+                               **job_fields(fields))
     return request, cast(Algorithm, _names.name_of(_names.ALGORITHMS, code))
 
 

@@ -1,14 +1,16 @@
-"""Persistence diagrams drawn with matplotlib (the ``plot`` extra), birth against death.
+"""Drawings with matplotlib (the ``plot`` extra): persistence diagrams, birth against death,
+and distance matrices as heat maps, with a dendrogram when scipy is there.
 
-It takes the pairs' arrays, not the PersistenceDiagram, so that _diagram depends on this module
-and not the other way round. No pyplot: a Figure of its own draws without a display and leaves
-matplotlib's global state (the backend, the current figure) as the caller had it.
+It takes plain arrays, not the PersistenceDiagram or the DistanceMatrix, so that _diagram and
+_distances depend on this module and not the other way round. No pyplot: a Figure of its own
+draws without a display and leaves matplotlib's global state (the backend, the current figure)
+as the caller had it.
 """
 
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,12 +26,12 @@ PAIR_STYLES = {
 """Pair type -> (colour, marker, what the pair joins)."""
 
 
-def _figure() -> Figure:
+def _figure(size: float = 7.0) -> Figure:
     try:
         from matplotlib.figure import Figure
     except ImportError:
         raise ImportError("plotting needs matplotlib: pip install 'actopo[plot]'") from None
-    return Figure(figsize=(7.0, 7.0), layout="constrained")
+    return Figure(figsize=(size, size), layout="constrained")
 
 
 def draw(birth: np.ndarray, death: np.ndarray, pair_type: np.ndarray, is_finite: np.ndarray, *,
@@ -80,4 +82,67 @@ def save(path: str | os.PathLike[str], birth: np.ndarray, death: np.ndarray,
     draw(birth, death, pair_type, is_finite, threshold=threshold, title=title,
          ax=figure.add_subplot())
     figure.savefig(path, dpi=dpi)
+    return str(path)
+
+
+ANNOTATED_FIELDS = 12
+"""Up to this many fields, each cell of a distance heat map shows its value."""
+
+
+def _leaf_order(merges: np.ndarray | None) -> tuple[list[int] | None, Any]:
+    """The leaves of the dendrogram of `merges` (scipy's linkage format), left to right, and
+    scipy's dendrogram function; (None, None) without merges or without scipy."""
+    if merges is None or len(merges) == 0:
+        return None, None
+    try:
+        from scipy.cluster.hierarchy import dendrogram
+    except ImportError:
+        return None, None
+    leaves: list[int] = dendrogram(merges, no_plot=True)["leaves"]
+    return leaves, dendrogram
+
+
+def draw_matrix(values: np.ndarray, names: list[str], *, merges: np.ndarray | None = None,
+                title: str | None = None, ax: Axes | None = None) -> Axes:
+    """Draws an (n, n) matrix of distances between named fields as a heat map with a colour
+    bar, the names on both axes, and the values in the cells when there are few. With
+    `merges` (a linkage of the fields) and scipy, the rows and columns follow the dendrogram's
+    leaves and the dendrogram is drawn in an inset above the heat map; non-finite distances
+    are left blank."""
+    ax = ax if ax is not None else _figure(max(7.0, 3.0 + 0.4 * len(names))).add_subplot()
+    order, dendrogram = _leaf_order(merges)
+    index = np.arange(len(names)) if order is None else np.array(order)
+    shown = np.asarray(values, dtype=np.float64)[np.ix_(index, index)]
+    labels = [names[i] for i in index]
+    image = ax.imshow(np.where(np.isfinite(shown), shown, np.nan), cmap="viridis",
+                      aspect="auto", interpolation="nearest")
+    ax.figure.colorbar(image, ax=ax, fraction=0.046, pad=0.02, label="distance")
+    ax.set_xticks(range(len(labels)), labels, rotation=90)
+    ax.set_yticks(range(len(labels)), labels)
+    if len(labels) <= ANNOTATED_FIELDS:
+        finite = shown[np.isfinite(shown)]
+        middle = (finite.min() + finite.max()) / 2 if len(finite) else 0.0
+        for (row, column), value in np.ndenumerate(shown):
+            ax.text(column, row, f"{value:.3g}", ha="center", va="center", fontsize="x-small",
+                    color="black" if value > middle else "white")
+    top = ax
+    if dendrogram is not None:
+        top = ax.inset_axes((0.0, 1.02, 1.0, 0.22))
+        dendrogram(merges, ax=top, no_labels=True, link_color_func=lambda _: "0.3")
+        top.set_xticks([])
+        top.set_ylabel("average\nlinkage", fontsize="small")
+        for side in ("top", "right", "bottom"):
+            top.spines[side].set_visible(False)
+    top.set_title(title if title is not None else f"distances between {len(names)} fields")
+    return ax
+
+
+def save_matrix(path: str | os.PathLike[str], values: np.ndarray, names: list[str], *,
+                merges: np.ndarray | None = None, title: str | None = None,
+                dpi: int = 150) -> str:
+    """draw_matrix() on a figure of its own, written to `path`; returns the path."""
+    figure = _figure(max(7.0, 3.0 + 0.4 * len(names)))
+    draw_matrix(values, names, merges=merges, title=title, ax=figure.add_subplot())
+    # The dendrogram's inset lies outside the heat map's box, where the layout does not look.
+    figure.savefig(path, dpi=dpi, bbox_inches="tight")
     return str(path)

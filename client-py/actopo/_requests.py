@@ -4,7 +4,7 @@ partitions and engine counts (no I/O). _messages builds the requests from them."
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, Protocol, TypeAlias, TypedDict
+from typing import Any, Literal, Protocol, TypeAlias, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -28,6 +28,10 @@ SimplexArg: TypeAlias = Id | Sequence[Id] | IdArray
 SimplexIds: TypeAlias = Id | Sequence[Id] | Sequence[Sequence[Id]] | IdArray
 """Many simplices: one id, a sequence or 1-D array of ids, or (n, k) vertex tuples as nested
 sequences or a 2-D array."""
+
+FieldsArg: TypeAlias = Sequence[str] | Literal["all"] | None
+"""The fields a job runs over: names, "all" (every floating-point field of the session's mesh,
+in its order), or None for the session's scalar field alone."""
 
 DEFAULT_BATCH = 100_000
 
@@ -108,3 +112,52 @@ def simplices(values: np.ndarray) -> SimplexArrays:
     if values.ndim == 1:
         return {"ids": to_array(values, "ids")}
     return {"vertex_tuples": to_array(values, "vertex_tuples")}
+
+
+class JobFields(TypedDict, total=False):
+    """The keyword arguments of a RunJobRequest that name its fields: one of the two, or none."""
+
+    fields: list[str]
+    all_fields: bool
+
+
+def job_fields(fields: FieldsArg) -> JobFields:
+    """The ``fields`` or ``all_fields`` of a job's request; {} for a job on the session's
+    scalar field."""
+    if fields is None:
+        return {}
+    if isinstance(fields, str):
+        if fields == "all":
+            return {"all_fields": True}
+        raise InvalidArgumentError(f"fields: '{fields}' is neither a list of field names nor "
+                                   f"'all' (for that field alone: ['{fields}'])")
+    names = list(fields)
+    if not names:
+        raise InvalidArgumentError("fields: an empty list; give field names, or 'all'")
+    for name in names:
+        if not isinstance(name, str):
+            raise InvalidArgumentError(f"fields: {name!r} is not a field name")
+    return {"fields": names}
+
+
+def _number(what: str, value: float) -> str:
+    """A number parameter as the server reads it (the shortest text that round-trips)."""
+    if isinstance(value, bool):
+        raise InvalidArgumentError(f"{what}: {value!r} is not a number")
+    try:
+        return repr(float(value))
+    except (TypeError, ValueError):
+        raise InvalidArgumentError(f"{what}: {value!r} is not a number") from None
+
+
+def distance_parameters(p: float, persistence_threshold: float | None,
+                        relative_threshold: float | None, essential: bool) -> dict[str, str]:
+    """The parameters of a diagram-distance job (the server checks their values and that at
+    most one threshold is given)."""
+    parameters = {"p": _number("p", p), "essential": "true" if essential else "false"}
+    if persistence_threshold is not None:
+        parameters["persistence_threshold"] = _number("persistence_threshold",
+                                                      persistence_threshold)
+    if relative_threshold is not None:
+        parameters["relative_threshold"] = _number("relative_threshold", relative_threshold)
+    return parameters

@@ -1,8 +1,10 @@
-"""Job results: the RunJob stream assembled into numpy arrays, the summary and statistics."""
+"""Job results: the RunJob stream assembled into numpy arrays, the summary and statistics; in
+a job over several fields, a FieldResult per field as its FieldResult message arrives."""
 
 from __future__ import annotations
 
 import os
+from collections import deque
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -10,9 +12,10 @@ from typing import Any
 
 import numpy as np
 
-from actopo import _convert, _diagram, _simplified, _vtk
+from actopo import _convert, _diagram, _distances, _simplified, _vtk
 from actopo._arrays import dtype_of
 from actopo._diagram import PersistenceDiagram
+from actopo._distances import DistanceMatrix
 from actopo._errors import ActopoError
 from actopo._literals import Algorithm
 from actopo._proto import pb
@@ -43,6 +46,12 @@ class JobResult:
 
     A persistence diagram also comes typed, one entry per pair: ``result.diagram``; a
     simplified field, one value per vertex: ``result.simplified``.
+
+    A job over several fields (``Session.run(..., fields=[...])``) has one FieldResult per
+    field in ``fields``, in the job's order, each with the summary, arrays and typed views a
+    job on that field alone gives; its own summary is ``{"fields": [names]}``, or for
+    diagram-distance the matrices (typed: ``result.distance_matrix``), and its ``stats`` the
+    whole job's.
     """
 
     algorithm: Algorithm
@@ -51,6 +60,7 @@ class JobResult:
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
     stats: JobStats | None = None
     trace: bytes | None = None
+    fields: list[FieldResult] = field(default_factory=list)
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.arrays[name]
@@ -99,6 +109,14 @@ class JobResult:
         group = self.group("simplified")
         return _simplified.from_arrays(group) if group else None
 
+    @cached_property
+    def distance_matrix(self) -> DistanceMatrix | None:
+        """The matrices of a diagram-distance job as a DistanceMatrix; None for the other
+        jobs (and for each field's own result)."""
+        if self.algorithm != "diagram-distance" or "wasserstein" not in self.summary:
+            return None
+        return _distances.from_summary(self.summary)
+
     def save_trace(self, path: str | os.PathLike[str]) -> str:
         """Writes the job's trace (run with ``trace=True``) to `path`, for ui.perfetto.dev or
         chrome://tracing, and returns the path."""
@@ -138,16 +156,52 @@ class JobResult:
         return written
 
 
-class Assembler:
-    """Feeds on RunJob responses and builds the JobResult (shared by both clients)."""
+@dataclass
+class FieldResult(JobResult):
+    """One field's result in a job over several fields: what a job on that field alone gives
+    (summary, arrays, ``diagram``, ``simplified``, ...), its name, its position in the job's
+    list and the seconds the algorithm ran on it. ``stats`` is None: the statistics are the
+    whole job's (JobResult.stats)."""
 
-    def __init__(self, algorithm: Algorithm) -> None:
+    field: str = ""
+    index: int = 0
+    run_seconds: float = 0.0
+
+    def __repr__(self) -> str:
+        return (f"FieldResult({self.field!r}, index={self.index}, {self.algorithm!r}, "
+                f"{len(self.arrays)} arrays)")
+
+
+def distance_matrix_of(result: JobResult) -> DistanceMatrix:
+    """The matrix of a diagram-distance job's result (Session.distance_matrix())."""
+    matrix = result.distance_matrix
+    if matrix is None:
+        raise ActopoError(f"job {result.job_id}: its summary holds no distance matrix")
+    return matrix
+
+
+_Buffers = dict[str, tuple[bytearray, np.dtype[Any], tuple[int, ...]]]
+"""Result arrays being assembled: name -> (bytes, dtype, shape)."""
+
+
+class Assembler:
+    """Feeds on RunJob responses and builds the JobResult (shared by both clients).
+
+    In a job over several fields, the arrays of each field are kept apart (ResultChunk.field)
+    until its FieldResult message makes them a FieldResult; take_fields() hands out those made
+    since its last call. With `keep_fields` False they are not kept for the JobResult as well
+    (Session.run_fields, which hands each out once)."""
+
+    def __init__(self, algorithm: Algorithm, keep_fields: bool = True) -> None:
         self.algorithm = algorithm
         self.job_id = ""
         self.summary: dict[str, Any] | None = None
         self.stats: JobStats | None = None
-        self._buffers: dict[str, tuple[bytearray, np.dtype[Any], tuple[int, ...]]] = {}
+        self._buffers: dict[str, _Buffers] = {}  # by field, "" for the job's own arrays
         self._trace: bytearray | None = None
+        self._keep_fields = keep_fields
+        self._fields: list[FieldResult] = []
+        self._ready: deque[FieldResult] = deque()
 
     def feed(self, response: pb.RunJobResponse) -> JobProgress | None:
         """Takes one response; returns the progress report when it is a progress message."""
@@ -166,7 +220,25 @@ class Assembler:
             self.stats = _convert.job_stats(response.stats)
         elif event == "trace":
             self._trace_piece(response.trace)
+        elif event == "field":
+            self._field(response.field)
         return None
+
+    def take_fields(self) -> list[FieldResult]:
+        """The fields' results completed since the last call, in order."""
+        taken = list(self._ready)
+        self._ready.clear()
+        return taken
+
+    def _field(self, message: pb.FieldResult) -> None:
+        result = FieldResult(algorithm=self.algorithm, job_id=self.job_id,
+                             summary=_convert.struct_to_dict(message.result),
+                             arrays=self._arrays(self._buffers.pop(message.field, {})),
+                             field=message.field, index=message.index,
+                             run_seconds=message.run_seconds)
+        self._ready.append(result)
+        if self._keep_fields:
+            self._fields.append(result)
 
     def _trace_piece(self, piece: pb.TraceChunk) -> None:
         if self._trace is None:
@@ -179,23 +251,30 @@ class Assembler:
 
     def _chunk(self, chunk: pb.ResultChunk) -> None:
         a = chunk.array
-        if a.name not in self._buffers:
+        buffers = self._buffers.setdefault(chunk.field, {})
+        if a.name not in buffers:
             total = chunk.total_bytes or len(a.data)
-            self._buffers[a.name] = (bytearray(total), dtype_of(a.dtype), tuple(a.shape))
-        buffer = self._buffers[a.name][0]
+            buffers[a.name] = (bytearray(total), dtype_of(a.dtype), tuple(a.shape))
+        buffer = buffers[a.name][0]
         end = chunk.offset + len(a.data)
         if chunk.offset < 0 or end > len(buffer):
-            raise ActopoError(f"result array '{a.name}': piece [{chunk.offset}, {end}) outside "
-                              f"its {len(buffer)} bytes")
+            of = f" of field '{chunk.field}'" if chunk.field else ""
+            raise ActopoError(f"result array '{a.name}'{of}: piece [{chunk.offset}, {end}) "
+                              f"outside its {len(buffer)} bytes")
         buffer[chunk.offset:end] = a.data
+
+    @staticmethod
+    def _arrays(buffers: _Buffers) -> dict[str, np.ndarray]:
+        arrays = {}
+        for name, (buffer, dtype, shape) in buffers.items():
+            values = np.frombuffer(buffer, dtype=dtype)
+            arrays[name] = values.reshape(shape) if len(shape) > 1 else values
+        return arrays
 
     def result(self) -> JobResult:
         if self.summary is None:
             raise ActopoError(f"job {self.job_id or '?'}: the stream ended without a summary")
-        arrays = {}
-        for name, (buffer, dtype, shape) in self._buffers.items():
-            values = np.frombuffer(buffer, dtype=dtype)
-            arrays[name] = values.reshape(shape) if len(shape) > 1 else values
         return JobResult(algorithm=self.algorithm, job_id=self.job_id, summary=self.summary,
-                         arrays=arrays, stats=self.stats,
-                         trace=None if self._trace is None else bytes(self._trace))
+                         arrays=self._arrays(self._buffers.get("", {})), stats=self.stats,
+                         trace=None if self._trace is None else bytes(self._trace),
+                         fields=list(self._fields))

@@ -45,6 +45,8 @@ class Stub(Protocol):
     ListMeshes: grpc.UnaryUnaryMultiCallable[pb.ListMeshesRequest, pb.ListMeshesResponse]
     GetMesh: grpc.UnaryUnaryMultiCallable[pb.GetMeshRequest, pb.GetMeshResponse]
     DeleteMesh: grpc.UnaryUnaryMultiCallable[pb.DeleteMeshRequest, pb.DeleteMeshResponse]
+    AddFields: grpc.StreamUnaryMultiCallable[pb.AddFieldsRequest, pb.AddFieldsResponse]
+    DeleteField: grpc.UnaryUnaryMultiCallable[pb.DeleteFieldRequest, pb.DeleteFieldResponse]
     OpenSession: grpc.UnaryUnaryMultiCallable[pb.OpenSessionRequest, pb.OpenSessionResponse]
     GetSession: grpc.UnaryUnaryMultiCallable[pb.GetSessionRequest, pb.GetSessionResponse]
     ListSessions: grpc.UnaryUnaryMultiCallable[pb.ListSessionsRequest, pb.ListSessionsResponse]
@@ -72,6 +74,9 @@ class AsyncStub(Protocol):
     ListMeshes: grpc.aio.UnaryUnaryMultiCallable[pb.ListMeshesRequest, pb.ListMeshesResponse]
     GetMesh: grpc.aio.UnaryUnaryMultiCallable[pb.GetMeshRequest, pb.GetMeshResponse]
     DeleteMesh: grpc.aio.UnaryUnaryMultiCallable[pb.DeleteMeshRequest, pb.DeleteMeshResponse]
+    AddFields: grpc.aio.StreamUnaryMultiCallable[pb.AddFieldsRequest, pb.AddFieldsResponse]
+    DeleteField: grpc.aio.UnaryUnaryMultiCallable[pb.DeleteFieldRequest,
+                                                  pb.DeleteFieldResponse]
     OpenSession: grpc.aio.UnaryUnaryMultiCallable[pb.OpenSessionRequest, pb.OpenSessionResponse]
     GetSession: grpc.aio.UnaryUnaryMultiCallable[pb.GetSessionRequest, pb.GetSessionResponse]
     ListSessions: grpc.aio.UnaryUnaryMultiCallable[pb.ListSessionsRequest,

@@ -44,12 +44,15 @@ class ServerInfo:
 
 @dataclass(frozen=True)
 class FieldInfo:
-    """A point field of a mesh: name, numpy dtype name and value range."""
+    """A point field of a mesh: name, numpy dtype name and value range, and the time value of
+    a series member when it was added with one (Client.add_fields(..., times=...)), else
+    None."""
 
     name: str
     dtype: str
     min: float
     max: float
+    time: float | None = None
 
 
 @dataclass(frozen=True)

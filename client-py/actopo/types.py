@@ -11,7 +11,8 @@ JobResult); the rest are here only:
 """
 
 from actopo._diagram import DiagramGrid, PersistenceCurve, PersistenceDiagram
-from actopo._results import JobResult
+from actopo._distances import DistanceMatrix
+from actopo._results import FieldResult, JobResult
 from actopo._simplified import SimplifiedField
 from actopo._types import (
     Counter,
@@ -34,8 +35,9 @@ from actopo._types import (
 )
 
 __all__ = [
-    "Counter", "DiagramGrid", "EngineOptions", "EngineStats", "FailedItem", "FieldInfo",
-    "JobResult", "JobStats", "LoadProgress", "MemoryStats", "MeshInfo", "PersistenceCurve",
-    "PersistenceDiagram", "QueryBreakdown", "RelationBatch", "ServerInfo", "ServerLimits",
-    "SessionInfo", "SessionStats", "SimplexRelation", "SimplifiedField", "StreamItem",
+    "Counter", "DiagramGrid", "DistanceMatrix", "EngineOptions", "EngineStats", "FailedItem",
+    "FieldInfo", "FieldResult", "JobResult", "JobStats", "LoadProgress", "MemoryStats",
+    "MeshInfo", "PersistenceCurve", "PersistenceDiagram", "QueryBreakdown", "RelationBatch",
+    "ServerInfo", "ServerLimits", "SessionInfo", "SessionStats", "SimplexRelation",
+    "SimplifiedField", "StreamItem",
 ]

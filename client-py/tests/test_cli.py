@@ -1,5 +1,6 @@
 """The `actopo` command line: every command, --json outputs parsed, results equal upstream TTK's
-(and, for `run --json`, actopo-bench's, as the README promises)."""
+(and, for `run --json`, actopo-bench's, as the README promises); fields added and deleted, and
+`run` over several fields and diagram-distance's matrices."""
 
 from __future__ import annotations
 
@@ -11,9 +12,13 @@ import subprocess
 import sys
 from pathlib import Path
 
+import matplotlib.image
+import meshio
+import numpy as np
 import pytest
 import pyvista  # noqa: F401 (the CLI writes its .vtp files with it: a dependency of these tests)
 from harness import start_cli, wait_for
+from meshes import lattice
 from references import ENTRY, check_summary, ttk, ttk_simplification
 
 from actopo._cli import COMMANDS, main
@@ -281,3 +286,131 @@ def test_ctrl_c_cancels_the_cli_job(server, client):
     assert process.returncode == 130 and "actopo: cancelled" in err
     assert {s.session_id for s in client.list_sessions()} == sessions
     assert {m.mesh_id for m in client.list_meshes()} == before
+
+
+# Fields: add-fields, delete-field, and run over several fields.
+
+SERIES = "isabel_series_s2_tet.vtu"
+SOME = ["velocityMag_02", "velocityMag_30", "velocityMag_45", "velocityMag_46"]
+
+
+@pytest.fixture(scope="module")
+def isabel(client):
+    mesh = client.load_mesh(SERIES)
+    yield mesh
+    client.delete_mesh(mesh)
+
+
+def test_run_over_fields_prints_a_line_per_field(cli, client, isabel):
+    status, out, err = cli("run", "persistence-diagram", "--mesh-id", isabel.mesh_id,
+                           "--scalars", "velocityMag_02,velocityMag_30", "--structure",
+                           "compact")
+    assert status == 0, err
+    lines = out.splitlines()
+    assert lines[0].startswith(f"persistence-diagram on {SERIES} (230640 tetrahedra")
+    assert lines[1].startswith("  velocityMag_02: ") and '"pairs": 655' in lines[1]
+    assert lines[2].startswith("  velocityMag_30: ") and '"pairs": 3109' in lines[2]
+    assert lines[3].startswith("  run ") and "over 2 fields" in lines[3] and len(lines) == 4
+    report = _json(cli, "run", "critical-points", "--mesh-id", isabel.mesh_id, "--scalars",
+                   "all", "--digests", "--structure", "explicit")
+    names = [f.name for f in isabel.fields]
+    assert [f["field"] for f in report["fields"]] == names
+    assert [f["index"] for f in report["fields"]] == list(range(12))
+    assert report["result"] == {"fields": names} and report["config"]["scalars"] == names
+    assert report["algorithm"] == "critical-points" and report["structure"] == "explicit"
+    with client.open_session(isabel, scalar="velocityMag_48", structure="compact") as session:
+        alone = session.run("critical-points", digests=True, include_arrays=False)
+    assert report["fields"][-1]["result"] == alone.summary
+    assert all(f["run_s"] > 0 for f in report["fields"])
+
+
+def test_run_diagram_distance_prints_the_matrices(cli, isabel, bench, data_dir, tmp_path):
+    plot = tmp_path / "distances.png"
+    status, out, err = cli("run", "diagram-distance", "--mesh-id", isabel.mesh_id, "--scalars",
+                           ",".join(SOME), "--param", "p=1", "--plot", str(plot))
+    assert status == 0, err
+    assert "distances between 4 persistence diagrams (p = 1, infinite pairs left out)" in out
+    header = out.splitlines()[out.splitlines().index("Wasserstein-1:") + 1]
+    assert header.split() == SOME and "bottleneck:" in out
+    assert f"wrote {plot}" in out
+    assert matplotlib.image.imread(plot).shape[0] > 500
+    report = _json(cli, "run", "diagram-distance", "--mesh-id", isabel.mesh_id, "--scalars",
+                   ",".join(SOME), "--param", "p=1")
+    expected = bench(data_dir / SERIES, "diagram-distance", "--scalars", ",".join(SOME), "--p",
+                     "1")
+    result = report["result"]
+    assert (result["fields"], result["pairs"], result["thresholds"], result["p"]) == (
+        expected["fields"], expected["pairs"], expected["thresholds"], expected["p"])
+    for key in ("wasserstein", "bottleneck"):
+        np.testing.assert_allclose(result[key], expected[key], rtol=0, atol=1e-12)
+    assert [f["result"]["pairs"] for f in report["fields"]] == [655, 3109, 2819, 2920]
+
+
+@pytest.mark.parametrize("args,message", [
+    (["run", "diagram-distance"], "diagram-distance compares fields: give --scalars"),
+    (["run", "critical-points", "--scalar", "a", "--scalars", "a,b"], "--scalar and --scalars"),
+    (["run", "morse-smale", "--scalars", "a,b", "--output", "out/x"],
+     "--output writes one field's result"),
+    (["run", "persistence-diagram", "--scalars", "a,b", "--plot", "x.png"],
+     "--plot draws one field's persistence diagram"),
+    (["run", "diagram-distance", "--scalars", "all", "--plot", "x.png", "--threshold", "1%"],
+     "--threshold draws on a persistence diagram"),
+])
+def test_usage_errors_of_run_over_fields(cli, args, message):
+    status, out, err = cli(*args, "--mesh-id", "mesh-never-asked")
+    assert status == 2 and out == "" and message in err
+
+
+@pytest.mark.parametrize("args", [["add-fields", "mesh-1"], ["delete-field", "mesh-1"],
+                                  ["add-fields", "mesh-1", "f.vtu", "--times", "soon"],
+                                  ["run", "critical-points", "--scalars", ",", "--sample", "x"]])
+def test_usage_errors_of_the_field_commands(cli, args, capsys):
+    with pytest.raises(SystemExit) as usage:
+        cli(*args)
+    assert usage.value.code == 2 and "usage:" in capsys.readouterr().err
+
+
+def test_add_fields_and_delete_field(cli, client, tmp_path):
+    points, tets, fields = lattice(4)
+    mesh = client.upload_mesh((points, tets, {"f": fields["f"]}), name="cli fields")
+    path = tmp_path / "more.vtu"
+    meshio.write(path, meshio.Mesh(points, [("tetra", tets)], point_data={
+        "p": points[:, 0] * 2.0, "q": fields["z"], "normals": points}))
+    try:
+        status, out, err = cli("add-fields", mesh.mesh_id, str(path), "--fields", "q",
+                               "--times", "1.5")
+        assert status == 0, err
+        rows = [line.split() for line in out.splitlines()]
+        assert rows[0] == ["FIELD", "DTYPE", "MIN", "MAX", "TIME"]
+        assert rows[1][::4] == ["f", "-"] and rows[2] == ["q", "float32", "0.000", "1.000", "1.5"]
+        status, _, err = cli("add-fields", mesh.mesh_id, str(path))  # p and q: q is taken
+        assert status == 1 and "ALREADY_EXISTS" in err and "'q'" in err
+        assert [f.name for f in client.get_mesh(mesh).fields] == ["f", "q"]  # p was not added
+        added = _json(cli, "add-fields", mesh.mesh_id, str(path), "--fields", "p")
+        assert [(f["name"], f["time"]) for f in added["fields"]] == [
+            ("f", None), ("q", 1.5), ("p", None)]
+        status, _, err = cli("add-fields", mesh.mesh_id, str(path), "--fields", "normals")
+        assert status == 1 and "has no scalar point field 'normals' (it has: p, q)" in err
+        status, _, err = cli("add-fields", mesh.mesh_id, str(tmp_path / "none.vtu"))
+        assert status == 1 and "no such mesh file" in err
+        status, out, err = cli("delete-field", mesh.mesh_id, "q")
+        assert status == 0 and [line.split()[0] for line in out.splitlines()] == [
+            "FIELD", "f", "p"]
+        status, _, err = cli("delete-field", mesh.mesh_id, "q")
+        assert status == 1 and "NOT_FOUND" in err
+        assert [f["name"] for f in _json(cli, "delete-field", mesh.mesh_id, "p")["fields"]] \
+            == ["f"]
+    finally:
+        client.delete_mesh(mesh)
+
+
+def test_run_tracking_prints_its_summary_after_the_fields(cli, isabel):
+    status, out, err = cli("run", "tracking", "--mesh-id", isabel.mesh_id, "--scalars",
+                           ",".join(SOME[:2]), "--param", "relative_threshold=0.05")
+    assert status == 0, err
+    lines = out.splitlines()
+    assert [line.split(":")[0] for line in lines[1:3]] == [f"  {f}" for f in SOME[:2]]
+    summary = json.loads(out[out.index("result: ") + len("result: "):])
+    assert summary["fields"] == SOME[:2] and summary["links"] > 0
+    status, _, err = cli("run", "tracking", "--mesh-id", isabel.mesh_id)
+    assert status == 2 and "tracking compares fields: give --scalars" in err

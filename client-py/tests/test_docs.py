@@ -30,7 +30,7 @@ def test_docstring_examples(client):
 
 def test_readme_examples(server, monkeypatch, capsys):
     blocks = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
-    assert len(blocks) == 7
+    assert len(blocks) == 8
     monkeypatch.setenv("ACTOPO_SERVER", server)
     monkeypatch.chdir(README.parents[1])
     for code in blocks:
@@ -44,3 +44,8 @@ def test_readme_examples(server, monkeypatch, capsys):
             "141 {'0': 63, '0_infinite': 1, '1': 61, '2': 16}\n0 0 6408 False\n") in out
     assert ("SimplifiedField('height', 14570 vertices) 3.6677284240722656 7\nTrue\n"
             "2539 2539\n[3, 8, 2, 0] True\n") in out
+    assert ("[('velocityMag', None), ('velocityMag_03', 3.0), ('velocityMag_04', 4.0), "
+            "('velocityMag_05', 5.0)]\n[('velocityMag', 655), ('velocityMag_03', 814), "
+            "('velocityMag_04', 1008), ('velocityMag_05', 1183)]\n"
+            "['velocityMag_02', 'velocityMag_03'] 13.526 [0 0 0 0 1 1 1 1 2 2 2 2]\n"
+            "velocityMag_02 161\nvelocityMag_48 818\n") in out

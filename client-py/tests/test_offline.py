@@ -91,6 +91,7 @@ def test_upload_stream_chunks_and_digest():
 @pytest.mark.parametrize("code,cls", [
     (grpc.StatusCode.INVALID_ARGUMENT, actopo.InvalidArgumentError),
     (grpc.StatusCode.NOT_FOUND, actopo.NotFoundError),
+    (grpc.StatusCode.ALREADY_EXISTS, actopo.AlreadyExistsError),
     (grpc.StatusCode.RESOURCE_EXHAUSTED, actopo.ResourceExhaustedError),
     (grpc.StatusCode.OUT_OF_RANGE, actopo.OutOfRangeError),
     (grpc.StatusCode.FAILED_PRECONDITION, actopo.FailedPreconditionError),
