@@ -316,15 +316,18 @@ TEST_F(FieldsTest, AJobOverFieldsGivesEachWhatAJobOnItAloneGives) {
     for (const v1::Algorithm a : {v1::ALGORITHM_CRITICAL_POINTS, v1::ALGORITHM_MORSE_SMALE,
                                   v1::ALGORITHM_PERSISTENCE_DIAGRAM}) {
       // The list decides, not the session's field ("scalar", second in the list).
-      const JobRun run = Job(OpenOn(mesh_id, "scalar", kind, 2), a, fields, /*arrays=*/true);
+      const std::string session = OpenOn(mesh_id, "scalar", kind, 2);
+      const JobRun run = Job(session, a, fields, /*arrays=*/true);
       ASSERT_TRUE(run.status.ok()) << run.status.error_message();
       std::vector<std::string> done;
+      double reached = 0;
       for (const v1::RunJobResponse& m : run.messages) {
-        // The list's progress: field k's run fills [k / n, (k + 1) / n].
+        // The list's progress: field k's run fills [k / n, (k + 1) / n], never going back.
         if (m.has_progress() && m.progress().phase() == "run") {
           const double k = double(done.size()), n = double(fields.size());
-          EXPECT_GE(m.progress().fraction(), k / n - 1e-12);
+          EXPECT_GE(m.progress().fraction(), std::max(k / n, reached) - 1e-12);
           EXPECT_LE(m.progress().fraction(), (k + 1) / n + 1e-12);
+          reached = m.progress().fraction();
         }
         if (m.has_chunk()) {
           EXPECT_EQ(m.chunk().field(), done.size() < fields.size() ? fields[done.size()] : "");
@@ -339,6 +342,12 @@ TEST_F(FieldsTest, AJobOverFieldsGivesEachWhatAJobOnItAloneGives) {
       }
       EXPECT_EQ(done, fields);
       EXPECT_THAT(Summary(run), HasSubstr("\"height\""));
+      // One job however many fields.
+      v1::GetSessionStatsRequest stats_request;
+      stats_request.set_session_id(session);
+      v1::GetSessionStatsResponse stats;
+      ASSERT_TRUE(stub_->GetSessionStats(Context().get(), stats_request, &stats).ok());
+      EXPECT_EQ(stats.jobs().count(), 1);
       EXPECT_TRUE(run.messages.back().has_stats());
     }
   }

@@ -514,6 +514,8 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     MemoryStats memory;
     std::vector<FieldDiagram> diagrams;
     nlohmann::ordered_json names = nlohmann::ordered_json::array();
+    double reached = 0;  // the progress reported so far
+    const auto start = std::chrono::steady_clock::now();
     for (size_t i = 0; i < n; ++i) {
       const PointField& field = fields_[i]->field;
       RETURN_IF_ERROR(context.stop().status("run"));
@@ -521,8 +523,13 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
       input.order = VertexOrder(topology, field.values);
       if (NeedsScalarValues(input.algorithm)) input.scalars = field.values;
       RunContext one = context;
-      one.progress = [&report, i, n](double f) { report("run", (double(i) + f) / double(n)); };
-      ASSIGN_OR_RETURN(JobOutcome job, session_->RunJob(input, one, report));
+      // Field i fills [i / n, (i + 1) / n] of the list, never going back (an algorithm's own
+      // phases may report a lower fraction than before).
+      one.progress = [&report, &reached, i, n](double f) {
+        reached = std::max(reached, (double(i) + f) / double(n));
+        report("run", reached);
+      };
+      ASSIGN_OR_RETURN(JobOutcome job, session_->RunJob(input, one, report, /*whole_job=*/false));
       run_s += job.outcome.run_s;
       faces_s += job.faces_s;
       engine += job.engine;
@@ -572,6 +579,9 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
       RETURN_IF_ERROR(stop.status("distances"));
       summary = FieldDistancesJson(distances);
     }
+    session_->CountJob(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                           std::chrono::steady_clock::now() - start)
+                           .count());
     v1::RunJobResponse message;
     FillStruct(summary, message.mutable_summary()->mutable_result());
     if (context.trace != nullptr) SendTrace(*context.trace);

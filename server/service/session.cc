@@ -330,7 +330,7 @@ const ResultContext& Session::result_context() {
 }
 
 absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input, const RunContext& context,
-                                           const Progress::Report& prepare) {
+                                           const Progress::Report& prepare, bool whole_job) {
   Touch();
   const auto start = Clock::now();
   RunContext ctx = context;
@@ -374,10 +374,14 @@ absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input, const Ru
     finished_jobs_ += out.engine;
     relation_peak_bytes_ = std::max(relation_peak_bytes_, out.memory.relation_peak_bytes);
   }
-  jobs_.fetch_add(1, std::memory_order_relaxed);
-  job_ns_.fetch_add(NanosSince(start), std::memory_order_relaxed);
+  if (whole_job) CountJob(NanosSince(start));
   Touch();
   return out;
+}
+
+void Session::CountJob(int64_t ns) {
+  jobs_.fetch_add(1, std::memory_order_relaxed);
+  job_ns_.fetch_add(ns, std::memory_order_relaxed);
 }
 
 SessionStats Session::stats() const {

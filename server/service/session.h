@@ -119,8 +119,12 @@ class Session {
   // Runs an algorithm. The caller holds the session's JobLease (SessionManager::StartJob).
   // What comes before the run reports to `prepare` (phase "faces": the mesh's edges and
   // triangles, built or waited for when the algorithm reads them); the run to context.progress.
+  // `whole_job` false: one field of a job over several, which counts once, when it has
+  // finished every field (CountJob).
   absl::StatusOr<JobOutcome> RunJob(const AlgorithmInput& input, const RunContext& context,
-                                    const Progress::Report& prepare = {});
+                                    const Progress::Report& prepare = {}, bool whole_job = true);
+  // A finished job in the session's statistics.
+  void CountJob(int64_t ns);
   const AlgorithmInput& base_input() const { return base_; }
   // For result arrays and files.
   const ResultContext& result_context();
