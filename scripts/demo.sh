@@ -44,6 +44,29 @@ step "Morse-Smale complex after simplifying away the pairs below 5% of the range
 "$actopo" run --mesh-id "$mesh" --algorithm morse-smale --structure actopo \
   --param relative_threshold=0.05
 
+if [[ -f "$data_dir/isabel_series_s2_tet.vtu" ]]; then
+  series=isabel_series_s2_tet.vtu
+  step "a time series: the 12 Hurricane Isabel members on one mesh, each member's persistence diagram"
+  "$actopo" run --mesh "$series" persistence-diagram --scalars all --structure actopo
+
+  step "the 12 x 12 Wasserstein-2 and bottleneck distances between the members' diagrams (exact)"
+  "$actopo" run --mesh "$series" diagram-distance --scalars all --structure actopo
+
+  step "the three groups of the series, by average linkage of the Wasserstein distances"
+  "$here/.venv/bin/python" - "$series" <<'PY'
+import sys
+import actopo
+with actopo.Client() as client:
+    mesh = client.load_mesh(sys.argv[1])
+    with client.open_session(mesh, structure="actopo") as session:
+        matrix = session.distance_matrix("all")
+    for group in sorted(set(matrix.groups(3))):
+        members = [f for f, g in zip(matrix.fields, matrix.groups(3), strict=True) if g == group]
+        print(f"group {group}: {', '.join(members)}")
+    client.delete_mesh(mesh)
+PY
+fi
+
 step "relation queries: the star of vertex 0, the triangles around edge (0,1), vertex 7 on the boundary?"
 "$actopo" relation --mesh-id "$mesh" vertex_star 0
 "$actopo" relation --mesh-id "$mesh" --vertices edge_triangles 0,1
