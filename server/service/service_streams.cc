@@ -392,11 +392,8 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     return absl::OkStatus();
   }
 
-  void Run() {
-    if (!fields_.empty()) {
-      RunFields();
-      return;
-    }
+  // The run's cancel flag, deadline and trace (when asked for).
+  RunContext NewContext() {
     RunContext context;
     context.cancel = &job_->cancel;
     context.deadline = deadline_;
@@ -404,8 +401,12 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
       SetThreadRole("job");
       context.trace = std::make_shared<Trace>(kMaxJobTraceEvents);
     }
-    const auto start = std::chrono::steady_clock::now();
-    const auto report = [this, start](std::string_view phase, double fraction) {
+    return context;
+  }
+
+  // Progress messages: the phase, its fraction and the seconds since `start`.
+  Progress::Report Reporter(std::chrono::steady_clock::time_point start) {
+    return [this, start](std::string_view phase, double fraction) {
       v1::RunJobResponse progress;
       v1::JobProgress* p = progress.mutable_progress();
       p->set_phase(std::string(phase));
@@ -414,6 +415,16 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
       Push(std::move(progress));
     };
+  }
+
+  void Run() {
+    if (!fields_.empty()) {
+      RunFields();
+      return;
+    }
+    const auto start = std::chrono::steady_clock::now();
+    RunContext context = NewContext();
+    const Progress::Report report = Reporter(start);
     context.progress = [report](double fraction) { report("run", fraction); };
     const std::string what = absl::StrCat(
         "job ", job_id_, " (", std::string(AlgorithmName(input_.algorithm)), ", ",
@@ -471,23 +482,9 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   // compares the fields' diagrams. Progress runs over the whole list, and a cancellation stops
   // the field running and the rest.
   void RunFields() {
-    RunContext context;
-    context.cancel = &job_->cancel;
-    context.deadline = deadline_;
-    if (trace_) {
-      SetThreadRole("job");
-      context.trace = std::make_shared<Trace>(kMaxJobTraceEvents);
-    }
     const auto start = std::chrono::steady_clock::now();
-    const auto report = [this, start](std::string_view phase, double fraction) {
-      v1::RunJobResponse progress;
-      v1::JobProgress* p = progress.mutable_progress();
-      p->set_phase(std::string(phase));
-      p->set_fraction(fraction);
-      p->set_elapsed_seconds(
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-      Push(std::move(progress));
-    };
+    RunContext context = NewContext();
+    const Progress::Report report = Reporter(start);
     const std::string what = absl::StrCat(
         "job ", job_id_, " (", std::string(AlgorithmName(input_.algorithm)), " over ",
         fields_.size(), " fields, ", std::string(StructureName(session_->options().structure.kind)),
