@@ -723,8 +723,10 @@ int main(int argc, char** argv) {
             "file's order); the structure is built once and the JSON has one entry per field");
   flags.Add("algorithm", &o.algorithm,
             "topo-relations, critical-points, discrete-gradient, morse-smale, persistence-diagram, "
-            "topological-simplification or diagram-distance (over --scalars: the fields' "
-            "persistence diagrams and the Wasserstein and bottleneck distances of every two)");
+            "topological-simplification, diagram-distance (over --scalars: the fields' "
+            "persistence diagrams and the Wasserstein and bottleneck distances of every two) or "
+            "tracking (over --scalars in time order: the pairs of consecutive fields matched "
+            "and chained into trajectories; --output writes PREFIX_tracking.vtp)");
   flags.Add("p", &o.p, "diagram-distance, tracking: the Wasserstein order (default 2)");
   flags.Add("essential", &o.essential,
             "diagram-distance, tracking: match the infinite pairs too (by birth); distances are "
