@@ -80,4 +80,7 @@ echo "$out"
 grep -q '^minimum: [1-9]' <<< "$out"
 "$build/client-examples/query_relations" "$target" > /dev/null
 "$build/client-examples/stream_batch" "$target" jittered:12 > /dev/null
+out=$("$build/client-examples/series" "$target" sample:jittered:12 2> /dev/null)
+echo "$out"
+grep -q '^ 1 height ' <<< "$out"
 step "all passed"

@@ -139,7 +139,7 @@ Simplex Simplex::Vertices(std::vector<int64_t> vertices) {
   return s;
 }
 
-const Array* JobResult::Find(std::string_view name) const {
+const Array* ResultArrays::Find(std::string_view name) const {
   auto it = arrays.find(name);
   return it == arrays.end() ? nullptr : &it->second;
 }

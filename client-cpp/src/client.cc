@@ -1,4 +1,4 @@
-// Client: connection, server info, meshes and sessions (unary calls).
+// Client: connection, server info, meshes, fields and sessions (unary calls).
 #include "actopo/client.h"
 
 #include "absl/strings/str_cat.h"
@@ -138,6 +138,16 @@ absl::Status Client::DeleteMesh(std::string_view mesh_id) {
   request.set_mesh_id(std::string(mesh_id));
   return core_->Unary(&v1::TopologyService::Stub::DeleteMesh, request, core_->QuickContext())
       .status();
+}
+
+absl::StatusOr<MeshInfo> Client::DeleteField(std::string_view mesh_id, std::string_view name) {
+  v1::DeleteFieldRequest request;
+  request.set_mesh_id(std::string(mesh_id));
+  request.set_name(std::string(name));
+  ACTOPO_ASSIGN_OR_RETURN(
+      v1::DeleteFieldResponse response,
+      core_->Unary(&v1::TopologyService::Stub::DeleteField, request, core_->QuickContext()));
+  return FromProto(response.mesh());
 }
 
 // ---------------------------------------------------------------------------------------------

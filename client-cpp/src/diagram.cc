@@ -1,4 +1,4 @@
-// JobResult::PersistencePairs: the diagram/ arrays of a persistence-diagram job (TTK's diagram
+// ResultArrays::PersistencePairs: the diagram/ arrays of a persistence diagram (TTK's diagram
 // grid) read back into its pairs.
 //
 // The grid holds two points per pair, birth then death, and one line per pair; in the "diagram"
@@ -22,12 +22,13 @@ absl::Status Malformed(const char* name, const std::string& what) {
 }
 
 // The array `name` of the group, its bytes matching its shape.
-absl::StatusOr<const Array*> Column(const JobResult& result, const char* name) {
+absl::StatusOr<const Array*> Column(const ResultArrays& result, const char* name) {
   const Array* array = result.Find(absl::StrCat(kGroup, name));
   if (array == nullptr) {
     return absl::NotFoundError(
         absl::StrCat("result array '", kGroup, name,
-                     "' not found: persistence pairs come from a persistence-diagram job run with "
+                     "' not found: persistence pairs come from a persistence-diagram job (or a "
+                     "field of a diagram-distance or tracking job) run with "
                      "JobOptions::include_arrays"));
   }
   if (absl::Status s = array->CheckLayout(array->dtype); !s.ok()) return s;
@@ -41,7 +42,7 @@ absl::Status CheckCount(const char* name, size_t got, size_t expected, const cha
 
 // The `count` values of an integer array, whatever their width: the wire's ids are int32 today,
 // and reading them by value keeps working if a server widens them for larger meshes.
-absl::StatusOr<std::vector<int64_t>> Integers(const JobResult& result, const char* name,
+absl::StatusOr<std::vector<int64_t>> Integers(const ResultArrays& result, const char* name,
                                               size_t count, const char* per) {
   absl::StatusOr<const Array*> array = Column(result, name);
   if (!array.ok()) return array.status();
@@ -51,8 +52,8 @@ absl::StatusOr<std::vector<int64_t>> Integers(const JobResult& result, const cha
   return values;
 }
 
-absl::StatusOr<std::vector<double>> Reals(const JobResult& result, const char* name, size_t count,
-                                          const char* per) {
+absl::StatusOr<std::vector<double>> Reals(const ResultArrays& result, const char* name,
+                                          size_t count, const char* per) {
   absl::StatusOr<const Array*> array = Column(result, name);
   if (!array.ok()) return array.status();
   const DataType dtype = (*array)->dtype;
@@ -67,7 +68,7 @@ absl::StatusOr<std::vector<double>> Reals(const JobResult& result, const char* n
 
 }  // namespace
 
-absl::StatusOr<std::vector<PersistencePair>> JobResult::PersistencePairs() const {
+absl::StatusOr<std::vector<PersistencePair>> ResultArrays::PersistencePairs() const {
   // PairIdentifier counts the lines and tells whether the last one is TTK's diagonal (-1).
   absl::StatusOr<const Array*> identifiers = Column(*this, "PairIdentifier");
   if (!identifiers.ok()) return identifiers.status();

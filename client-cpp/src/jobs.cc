@@ -1,5 +1,6 @@
-// Client::RunJob: the RunJob stream (accepted, progress, result chunks, summary, statistics)
-// assembled into a JobResult; cancellation through a CancelToken or CancelJob.
+// Client::RunJob: the RunJob stream (accepted, progress, result chunks, each field's result in a
+// job over fields, summary, statistics) assembled into a JobResult; cancellation through a
+// CancelToken or CancelJob.
 #include <cstring>
 
 #include "absl/strings/str_cat.h"
@@ -58,54 +59,105 @@ class ArrayAssembler {
   std::map<std::string, int64_t> received_;
 };
 
-// Takes one event of the stream into `result`.
-absl::Status Consume(const v1::RunJobResponse& response, const JobOptions& options,
-                     JobResult& result, ArrayAssembler& arrays, bool& have_summary) {
-  switch (response.event_case()) {
-    case v1::RunJobResponse::kAccepted:
-      result.job_id = response.accepted().job_id();
-      if (options.on_accepted) options.on_accepted(result.job_id);
-      break;
-    case v1::RunJobResponse::kProgress: {
-      const v1::JobProgress& p = response.progress();
-      // A server that reports no phase runs the algorithm only.
-      const std::string phase = p.phase().empty() ? "run" : p.phase();
-      if (options.progress && phase == "run") options.progress(p.fraction());
-      if (options.phase_progress) {
-        options.phase_progress(
-            {.phase = phase, .fraction = p.fraction(), .elapsed_seconds = p.elapsed_seconds()});
-      }
-      break;
-    }
-    case v1::RunJobResponse::kChunk: return arrays.Add(response.chunk());
-    case v1::RunJobResponse::kSummary: {
-      have_summary = true;
-      const auto converted = google::protobuf::util::MessageToJsonString(
-          response.summary().result(), &result.summary_json);
-      if (!converted.ok()) {
-        return absl::DataLossError(
-            absl::StrCat("summary: not convertible to JSON: ", converted.ToString()));
-      }
-      break;
-    }
-    case v1::RunJobResponse::kStats: result.stats = internal::FromProto(response.stats()); break;
-    case v1::RunJobResponse::kTrace: {
-      const v1::TraceChunk& piece = response.trace();
-      if (result.trace.empty() && piece.total_bytes() > 0) {
-        result.trace.resize(size_t(piece.total_bytes()));
-      }
-      const int64_t end = piece.offset() + int64_t(piece.data().size());
-      if (piece.offset() < 0 || end > int64_t(result.trace.size())) {
-        return absl::DataLossError(absl::StrCat("trace: bytes [", piece.offset(), ", ", end,
-                                                ") outside its ", result.trace.size()));
-      }
-      result.trace.replace(size_t(piece.offset()), piece.data().size(), piece.data());
-      break;
-    }
-    case v1::RunJobResponse::EVENT_NOT_SET: break;  // an event of a newer server
+// A summary (google.protobuf.Struct) as JSON text.
+absl::Status ToJson(const google::protobuf::Struct& summary, std::string_view what,
+                    std::string* out) {
+  const auto converted = google::protobuf::util::MessageToJsonString(summary, out);
+  if (!converted.ok()) {
+    return absl::DataLossError(
+        absl::StrCat(std::string(what), ": not convertible to JSON: ", converted.ToString()));
   }
   return absl::OkStatus();
 }
+
+// The stream of a RunJob call taken into a JobResult, event by event.
+class JobStream {
+ public:
+  JobStream(const JobOptions& options, JobResult& result) : options_(options), result_(result) {}
+
+  absl::Status Consume(const v1::RunJobResponse& response) {
+    switch (response.event_case()) {
+      case v1::RunJobResponse::kAccepted:
+        result_.job_id = response.accepted().job_id();
+        if (options_.on_accepted) options_.on_accepted(result_.job_id);
+        break;
+      case v1::RunJobResponse::kProgress: {
+        const v1::JobProgress& p = response.progress();
+        // A server that reports no phase runs the algorithm only.
+        const std::string phase = p.phase().empty() ? "run" : p.phase();
+        if (options_.progress && phase == "run") options_.progress(p.fraction());
+        if (options_.phase_progress) {
+          options_.phase_progress(
+              {.phase = phase, .fraction = p.fraction(), .elapsed_seconds = p.elapsed_seconds()});
+        }
+        break;
+      }
+      case v1::RunJobResponse::kChunk: {
+        // In a job over fields a field's arrays are its own until its FieldResult comes.
+        const std::string& field = response.chunk().field();
+        return (field.empty() ? arrays_ : field_arrays_[field]).Add(response.chunk());
+      }
+      case v1::RunJobResponse::kField: return TakeField(response.field());
+      case v1::RunJobResponse::kSummary:
+        have_summary_ = true;
+        return ToJson(response.summary().result(), "summary", &result_.summary_json);
+      case v1::RunJobResponse::kStats: result_.stats = internal::FromProto(response.stats()); break;
+      case v1::RunJobResponse::kTrace: {
+        const v1::TraceChunk& piece = response.trace();
+        std::string& trace = result_.trace;
+        if (trace.empty() && piece.total_bytes() > 0) trace.resize(size_t(piece.total_bytes()));
+        const int64_t end = piece.offset() + int64_t(piece.data().size());
+        if (piece.offset() < 0 || end > int64_t(trace.size())) {
+          return absl::DataLossError(absl::StrCat("trace: bytes [", piece.offset(), ", ", end,
+                                                  ") outside its ", trace.size()));
+        }
+        trace.replace(size_t(piece.offset()), piece.data().size(), piece.data());
+        break;
+      }
+      case v1::RunJobResponse::EVENT_NOT_SET: break;  // an event of a newer server
+    }
+    return absl::OkStatus();
+  }
+
+  // After the stream ended well: the summary came, and every array is whole and claimed.
+  absl::Status Finish() {
+    if (!have_summary_) {
+      return absl::DataLossError(absl::StrCat("job ", result_.job_id.empty() ? "?" : result_.job_id,
+                                              ": the stream ended without a summary"));
+    }
+    if (!field_arrays_.empty()) {
+      return absl::DataLossError(absl::StrCat("result arrays of field '",
+                                              field_arrays_.begin()->first,
+                                              "': the stream ended without the field's result"));
+    }
+    ACTOPO_ASSIGN_OR_RETURN(result_.arrays, arrays_.Take());
+    return absl::OkStatus();
+  }
+
+ private:
+  absl::Status TakeField(const v1::FieldResult& message) {
+    FieldResult field;
+    field.field = message.field();
+    field.index = message.index();
+    field.run_seconds = message.run_seconds();
+    ACTOPO_RETURN_IF_ERROR(ToJson(message.result(),
+                                  absl::StrCat("result of field '", message.field(), "'"),
+                                  &field.summary_json));
+    if (auto it = field_arrays_.find(message.field()); it != field_arrays_.end()) {
+      ACTOPO_ASSIGN_OR_RETURN(field.arrays, it->second.Take());
+      field_arrays_.erase(it);
+    }
+    if (options_.on_field) options_.on_field(field);
+    if (options_.keep_fields) result_.fields.push_back(std::move(field));
+    return absl::OkStatus();
+  }
+
+  const JobOptions& options_;
+  JobResult& result_;
+  ArrayAssembler arrays_;                               // the job's own
+  std::map<std::string, ArrayAssembler> field_arrays_;  // by field, until its FieldResult
+  bool have_summary_ = false;
+};
 
 }  // namespace
 
@@ -123,6 +175,12 @@ absl::StatusOr<JobResult> Client::RunJob(std::string_view session_id, std::strin
   request.set_include_arrays(options.include_arrays);
   request.set_trace(options.trace);
   request.set_digests(options.digests);
+  if (options.all_fields && !options.fields.empty()) {
+    return absl::InvalidArgumentError(
+        "options.fields, options.all_fields: give fields or all_fields, not both");
+  }
+  request.mutable_fields()->Add(options.fields.begin(), options.fields.end());
+  request.set_all_fields(options.all_fields);
 
   JobResult result;
   result.algorithm = internal::AlgorithmName(a);
@@ -134,14 +192,11 @@ absl::StatusOr<JobResult> Client::RunJob(std::string_view session_id, std::strin
   std::unique_ptr<grpc::ClientReader<v1::RunJobResponse>> reader =
       core_->stub->RunJob(raw, request);
 
-  ArrayAssembler arrays;
+  JobStream stream(options, result);
   absl::Status problem;  // a malformed stream: the call is cancelled and this returned
-  bool have_summary = false;
   v1::RunJobResponse response;
   try {
-    while (problem.ok() && reader->Read(&response)) {
-      problem = Consume(response, options, result, arrays, have_summary);
-    }
+    while (problem.ok() && reader->Read(&response)) problem = stream.Consume(response);
   } catch (...) {  // from a callback: end the call (and the job) before the stack unwinds
     raw->TryCancel();
     while (reader->Read(&response)) {
@@ -158,11 +213,7 @@ absl::StatusOr<JobResult> Client::RunJob(std::string_view session_id, std::strin
   registration.reset();  // before the context goes
   ACTOPO_RETURN_IF_ERROR(problem);
   ACTOPO_RETURN_IF_ERROR(internal::FromGrpc(status));
-  if (!have_summary) {
-    return absl::DataLossError(absl::StrCat("job ", result.job_id.empty() ? "?" : result.job_id,
-                                            ": the stream ended without a summary"));
-  }
-  ACTOPO_ASSIGN_OR_RETURN(result.arrays, arrays.Take());
+  ACTOPO_RETURN_IF_ERROR(stream.Finish());
   return result;
 }
 

@@ -1,6 +1,10 @@
-// Client::UploadMesh: shapes checked here, then a header with the SHA-256 of the data and the
-// raw little-endian bytes (points, tetrahedra, fields) in chunks that may straddle arrays.
+// Client::UploadMesh and Client::AddFields: shapes checked here, then a header with the SHA-256
+// of the data and the raw little-endian bytes (points, tetrahedra, fields; or the added fields'
+// values) in chunks that may straddle arrays, read from the caller's spans as they go.
+#include <algorithm>
+#include <cmath>
 #include <set>
+#include <variant>
 
 #include "absl/strings/str_cat.h"
 #include "actopo/client.h"
@@ -51,10 +55,11 @@ absl::Status CheckShapes(size_t points, size_t tetrahedra, const std::vector<Sca
 }
 
 // Sends the concatenation of `buffers` as chunks of exactly `chunk_bytes` (the last may be
-// shorter). Returns false when the stream broke (Finish then says why).
+// shorter), in Request's `chunk`. Returns false when the stream broke (Finish then says why).
+template <class Request>
 bool WriteChunks(const std::vector<std::span<const std::byte>>& buffers, size_t chunk_bytes,
-                 grpc::ClientWriter<v1::UploadMeshRequest>& writer) {
-  v1::UploadMeshRequest message;
+                 grpc::ClientWriter<Request>& writer) {
+  Request message;
   std::string* chunk = message.mutable_chunk();
   chunk->reserve(chunk_bytes);
   for (std::span<const std::byte> buffer : buffers) {
@@ -71,6 +76,13 @@ bool WriteChunks(const std::vector<std::span<const std::byte>>& buffers, size_t 
   return chunk->empty() || writer.Write(message);
 }
 
+// The SHA-256 of the concatenation of `buffers`, read once in place.
+absl::StatusOr<std::string> Digest(const std::vector<std::span<const std::byte>>& buffers) {
+  internal::Sha256 sha;
+  for (std::span<const std::byte> b : buffers) sha.Update(b);
+  return sha.HexDigest();
+}
+
 template <class Index>
 absl::StatusOr<MeshInfo> Upload(internal::Core& core, std::span<const double> points,
                                 std::span<const Index> tetrahedra,
@@ -81,8 +93,6 @@ absl::StatusOr<MeshInfo> Upload(internal::Core& core, std::span<const double> po
   std::vector<std::span<const std::byte>> buffers = {std::as_bytes(points),
                                                      std::as_bytes(tetrahedra)};
   for (const ScalarField& f : fields) buffers.push_back(std::as_bytes(f.values));
-  internal::Sha256 sha;
-  for (std::span<const std::byte> b : buffers) sha.Update(b);
 
   v1::UploadMeshRequest first;
   v1::UploadMeshHeader* header = first.mutable_header();
@@ -96,7 +106,7 @@ absl::StatusOr<MeshInfo> Upload(internal::Core& core, std::span<const double> po
     field->set_name(f.name);
     field->set_dtype(v1::DATA_TYPE_FLOAT64);
   }
-  ACTOPO_ASSIGN_OR_RETURN(*header->mutable_sha256(), sha.HexDigest());
+  ACTOPO_ASSIGN_OR_RETURN(*header->mutable_sha256(), Digest(buffers));
   *header->mutable_partition() = internal::ToProto(options.partition);
 
   v1::UploadMeshResponse response;
@@ -111,7 +121,106 @@ absl::StatusOr<MeshInfo> Upload(internal::Core& core, std::span<const double> po
   return internal::FromProto(response.mesh());
 }
 
+size_t Count(const FieldValues& field) {
+  return std::visit([](auto values) { return values.size(); }, field.values);
+}
+
+std::span<const std::byte> Bytes(const FieldValues& field) {
+  return std::visit([](auto values) { return std::as_bytes(values); }, field.values);
+}
+
+v1::DataType DtypeOf(const FieldValues& field) {
+  return std::holds_alternative<std::span<const float>>(field.values) ? v1::DATA_TYPE_FLOAT32
+                                                                      : v1::DATA_TYPE_FLOAT64;
+}
+
+// What the client can see wrong in AddFields' input; the server checks the rest (the count
+// against the mesh's vertices, names it has, finite values).
+absl::Status CheckFields(const std::vector<FieldValues>& fields, const AddFieldsOptions& options) {
+  if (fields.empty()) {
+    return absl::InvalidArgumentError("fields: none given; expected at least one field");
+  }
+  std::set<std::string> names;
+  for (size_t i = 0; i < fields.size(); ++i) {
+    const FieldValues& f = fields[i];
+    if (f.name.empty()) {
+      return absl::InvalidArgumentError(absl::StrCat("fields[", i, "].name: empty"));
+    }
+    if (!names.insert(f.name).second) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("fields[", i, "].name: '", f.name, "' appears twice"));
+    }
+    // The values travel concatenated, so fields of different lengths would shift into each
+    // other unseen if their total matched the server's expectation.
+    if (Count(f) == 0 || Count(f) != Count(fields[0])) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "fields[", i, "] '", f.name, "': ", Count(f), " values",
+          i == 0 ? ""
+                 : absl::StrCat(" but fields[0] '", fields[0].name, "' has ", Count(fields[0])),
+          "; expected one per vertex of the mesh"));
+    }
+    if (f.time && !std::isfinite(*f.time)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("fields[", i, "] '", f.name, "': time ", *f.time, " is not finite"));
+    }
+  }
+  if (options.chunk_bytes == 0) {
+    return absl::InvalidArgumentError("options.chunk_bytes: 0; expected a positive size");
+  }
+  if (options.sha256 && !options.sha256->empty()) {
+    const std::string& hex = *options.sha256;
+    const bool digits = std::all_of(hex.begin(), hex.end(), [](char c) {
+      return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f');
+    });
+    if (hex.size() != 64 || !digits) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("options.sha256: '", hex,
+                       "' is not 64 lowercase hex digits (a SHA-256), nor empty (no check)"));
+    }
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace
+
+absl::StatusOr<MeshInfo> Client::AddFields(std::string_view mesh_id,
+                                           const std::vector<FieldValues>& fields,
+                                           const AddFieldsOptions& options) {
+  ACTOPO_RETURN_IF_ERROR(CheckFields(fields, options));
+  std::vector<std::span<const std::byte>> buffers;
+  for (const FieldValues& f : fields) buffers.push_back(Bytes(f));
+
+  v1::AddFieldsRequest first;
+  v1::AddFieldsHeader* header = first.mutable_header();
+  header->set_mesh_id(std::string(mesh_id));
+  for (const FieldValues& f : fields) {
+    v1::UploadField* field = header->add_fields();
+    field->set_name(f.name);
+    field->set_dtype(DtypeOf(f));
+    if (f.time) field->set_time(*f.time);
+  }
+  if (options.sha256) {
+    header->set_sha256(*options.sha256);
+  } else {
+    ACTOPO_ASSIGN_OR_RETURN(*header->mutable_sha256(), Digest(buffers));
+  }
+
+  v1::AddFieldsResponse response;
+  std::unique_ptr<grpc::ClientContext> context = core_->MeshContext();
+  std::unique_ptr<grpc::ClientWriter<v1::AddFieldsRequest>> writer =
+      core_->stub->AddFields(context.get(), &response);
+  // A failed write means the server already ended the call: Finish gives its status.
+  if (writer->Write(first) && WriteChunks(buffers, options.chunk_bytes, *writer)) {
+    writer->WritesDone();
+  }
+  ACTOPO_RETURN_IF_ERROR(internal::FromGrpc(writer->Finish()));
+  return internal::FromProto(response.mesh());
+}
+
+absl::StatusOr<MeshInfo> Client::AddField(std::string_view mesh_id, const FieldValues& field,
+                                          const AddFieldsOptions& options) {
+  return AddFields(mesh_id, {field}, options);
+}
 
 absl::StatusOr<MeshInfo> Client::UploadMesh(std::span<const double> points,
                                             std::span<const int32_t> tetrahedra,

@@ -20,10 +20,10 @@ TEST_F(ServerTest, ServerInfo) {
   absl::StatusOr<ServerInfo> info = client().GetServerInfo();
   ASSERT_OK(info);
   EXPECT_FALSE(info->version.empty());
-  EXPECT_EQ(info->algorithms,
-            (std::vector<std::string>{"topo-relations", "critical-points", "discrete-gradient",
-                                      "morse-smale", "persistence-diagram",
-                                      "topological-simplification"}));
+  EXPECT_EQ(info->algorithms, (std::vector<std::string>{
+                                  "topo-relations", "critical-points", "discrete-gradient",
+                                  "morse-smale", "persistence-diagram",
+                                  "topological-simplification", "diagram-distance", "tracking"}));
   ASSERT_EQ(info->relations.size(), 22u);
   EXPECT_EQ(info->relations.front(), "vertex_neighbors");
   EXPECT_EQ(info->relations.back(), "triangle_neighbors");
@@ -42,10 +42,11 @@ TEST_F(ServerTest, ServerInfo) {
   for (const std::string& relation : info->relations) {
     EXPECT_OK(client().Relation(session, relation, 0)) << relation;
   }
-  // And every algorithm.
+  // And every algorithm; those comparing fields over the sample's two.
   for (const std::string& algorithm : info->algorithms) {
+    const bool compares = algorithm == "diagram-distance" || algorithm == "tracking";
     absl::StatusOr<JobResult> job =
-        client().RunJob(session, algorithm, {}, {.include_arrays = false});
+        client().RunJob(session, algorithm, {}, {.include_arrays = false, .all_fields = compares});
     ASSERT_OK(job) << algorithm;
     EXPECT_EQ(job->algorithm, algorithm);
   }

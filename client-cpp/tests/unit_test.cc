@@ -1,6 +1,7 @@
 // What the client does without a server: arrays, names, statistics, tokens, argument checks.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
@@ -28,6 +29,61 @@ namespace {
   absl::StatusOr<actopo::client::JobResult> result =
       (*client)->RunJob(session->session_id, "critical-points");
   if (result.ok()) std::cout << result->summary_json << "\n";  // {"counts": {...}, ...}
+  return absl::OkStatus();
+}
+
+// The examples of README.md's "Fields and series", so that they keep compiling (never run).
+[[maybe_unused]] absl::Status ReadmeSeriesExamples(Client* client, const std::string& mesh_id,
+                                                   const std::string& session_id,
+                                                   const std::vector<double>& wave) {
+  const auto PressureAt = [&](int) { return std::vector<float>(wave.begin(), wave.end()); };
+  const std::vector<double> tripled = wave;
+  {
+    std::vector<double> doubled(wave.size());
+    for (size_t v = 0; v < wave.size(); ++v) doubled[v] = 2 * wave[v];
+    std::vector<float> step7 = PressureAt(7);  // one per vertex
+    absl::StatusOr<actopo::client::MeshInfo> mesh =
+        client->AddFields(mesh_id, {{.name = "doubled", .values = doubled},
+                                    {.name = "pressure_07", .values = step7, .time = 0.7}});
+    if (!mesh.ok()) return mesh.status();  // e.g. ALREADY_EXISTS: header.fields[0].name: ...
+    absl::StatusOr<actopo::client::MeshInfo> one =
+        client->AddField(mesh_id, {.name = "tripled", .values = tripled});
+  }
+  { absl::StatusOr<actopo::client::MeshInfo> mesh = client->DeleteField(mesh_id, "doubled"); }
+  {
+    absl::StatusOr<actopo::client::JobResult> result = client->RunJob(
+        session_id, "critical-points", {},
+        {.fields = {"height", "scalar"}, .on_field = [](const actopo::client::FieldResult& f) {
+           std::cerr << f.field << " done\n";
+         }});
+    if (!result.ok()) return result.status();
+    for (const actopo::client::FieldResult& f : result->fields) {
+      absl::StatusOr<std::vector<int8_t>> types = f.Get<int8_t>("critical_points/CriticalType");
+      if (types.ok()) std::cout << f.field << ": " << types->size() << " critical points\n";
+    }
+  }
+  {
+    absl::StatusOr<actopo::client::DistanceMatrix> matrix =
+        client->DiagramDistances(session_id, {{"relative_threshold", "0.01"}});
+    if (!matrix.ok()) return matrix.status();
+    for (size_t i = 0; i < matrix->size(); ++i) {
+      for (size_t j = 0; j < matrix->size(); ++j) std::cout << matrix->Wasserstein(i, j) << " ";
+      std::cout << "\n";
+    }
+  }
+  {
+    absl::StatusOr<actopo::client::MeshInfo> series =
+        client->LoadMesh("isabel_series_s2/isabel_series.pvd");  // FieldInfo::time 2, 3, 4, 5
+    if (!series.ok()) return series.status();
+    absl::StatusOr<actopo::client::SessionInfo> session = client->OpenSession(series->mesh_id);
+    if (!session.ok()) return session.status();
+    absl::StatusOr<actopo::client::JobResult> result =
+        client->RunJob(session->session_id, "tracking", {}, {.all_fields = true});
+    if (!result.ok()) return result.status();
+    absl::StatusOr<actopo::client::TrackingSummary> tracking = result->Tracking();
+    absl::StatusOr<std::vector<double>> cost = result->Get<double>("tracking/Cost");
+    if (tracking.ok()) std::cout << tracking->trajectories << " trajectories\n";
+  }
   return absl::OkStatus();
 }
 
@@ -265,6 +321,88 @@ TEST(PersistencePairsTest, MalformedArraysAreNamed) {
   }
 }
 
+// A FieldResult reads its arrays as a JobResult does.
+TEST(JobResultTest, FieldResultsHaveTheirArrays) {
+  JobResult result;
+  FieldResult field;
+  field.field = "height";
+  field.arrays["critical_points/CriticalType"] =
+      MakeArray<int8_t>("critical_points/CriticalType", {0, 3}, {2});
+  result.fields.push_back(field);
+  ASSERT_NE(result.Field("height"), nullptr);
+  EXPECT_EQ(result.Field("scalar"), nullptr);
+  EXPECT_EQ(*result.Field("height")->Get<int8_t>("critical_points/CriticalType"),
+            (std::vector<int8_t>{0, 3}));
+  EXPECT_EQ(result.Field("height")->PersistencePairs().status().code(),
+            absl::StatusCode::kNotFound);
+}
+
+// JSON has no infinity: an infinite distance (essential pairs of different counts) is
+// "Infinity" as protobuf writes summary_json, null as actopo-bench writes it.
+TEST(SeriesTest, DistanceMatrixFromTheSummary) {
+  JobResult result;
+  result.algorithm = "diagram-distance";
+  result.summary_json = R"({"fields": ["a", "b"], "p": 2, "essential": true,
+      "wasserstein": [[0, "Infinity"], [null, 0]], "bottleneck": [[0, 1.5], [1.5, 0]],
+      "pairs": [3, 4], "thresholds": [0, 0.25], "distance_seconds": 0.01})";
+  absl::StatusOr<DistanceMatrix> matrix = result.Distances();
+  ASSERT_TRUE(matrix.ok()) << matrix.status();
+  EXPECT_EQ(matrix->fields, (std::vector<std::string>{"a", "b"}));
+  EXPECT_EQ(matrix->size(), 2u);
+  EXPECT_EQ(matrix->p, 2.0);
+  EXPECT_TRUE(matrix->essential);
+  EXPECT_EQ(matrix->wasserstein[0], 0.0);
+  EXPECT_TRUE(std::isinf(matrix->Wasserstein(0, 1)));
+  EXPECT_TRUE(std::isinf(matrix->Wasserstein(1, 0)));
+  EXPECT_EQ(matrix->bottleneck, (std::vector<double>{0, 1.5, 1.5, 0}));
+  EXPECT_EQ(matrix->Bottleneck(1, 0), 1.5);
+  EXPECT_EQ(matrix->pairs, (std::vector<int64_t>{3, 4}));
+  EXPECT_EQ(matrix->thresholds, (std::vector<double>{0, 0.25}));
+  EXPECT_EQ(matrix->distance_seconds, 0.01);
+
+  JobResult ragged = result;
+  ragged.summary_json = R"({"fields": ["a", "b"], "p": 2, "essential": false,
+      "wasserstein": [[0, 1], [1]], "bottleneck": [[0, 1], [1, 0]],
+      "pairs": [3, 4], "thresholds": [0, 0], "distance_seconds": 0})";
+  EXPECT_EQ(ragged.Distances().status().code(), absl::StatusCode::kDataLoss);
+  EXPECT_NE(ragged.Distances().status().message().find("'wasserstein'"), std::string::npos)
+      << ragged.Distances().status();
+  ragged.summary_json = R"({"fields": ["a"]})";
+  EXPECT_NE(ragged.Distances().status().message().find("'p': missing"), std::string::npos)
+      << ragged.Distances().status();
+  result.algorithm = "tracking";
+  EXPECT_EQ(result.Distances().status().code(), absl::StatusCode::kNotFound);
+}
+
+TEST(SeriesTest, TrackingSummary) {
+  JobResult result;
+  result.algorithm = "tracking";
+  result.summary_json = R"({"fields": ["t0", "t1", "t2"], "p": 1, "trajectories": 5,
+      "trajectories_by_type": [2, 2, 1], "links": 7, "longest": 3,
+      "step_wasserstein": [0.5, 0.75], "step_wasserstein_by_type": [[0.1, 0.2, 0.3], [0, 0, 0.75]],
+      "tracking_seconds": 0.002})";
+  absl::StatusOr<TrackingSummary> tracking = result.Tracking();
+  ASSERT_TRUE(tracking.ok()) << tracking.status();
+  EXPECT_EQ(tracking->fields, (std::vector<std::string>{"t0", "t1", "t2"}));
+  EXPECT_EQ(tracking->p, 1.0);
+  EXPECT_EQ(tracking->trajectories, 5);
+  EXPECT_EQ(tracking->trajectories_by_type, (std::vector<int64_t>{2, 2, 1}));
+  EXPECT_EQ(tracking->links, 7);
+  EXPECT_EQ(tracking->longest, 3);
+  EXPECT_EQ(tracking->step_wasserstein, (std::vector<double>{0.5, 0.75}));
+  EXPECT_EQ(tracking->step_wasserstein_by_type,
+            (std::vector<std::vector<double>>{{0.1, 0.2, 0.3}, {0, 0, 0.75}}));
+  EXPECT_EQ(tracking->tracking_seconds, 0.002);
+
+  result.summary_json = R"({"fields": ["t0", "t1"], "p": 1, "trajectories": 2.5})";
+  EXPECT_EQ(result.Tracking().status().code(), absl::StatusCode::kDataLoss);
+  EXPECT_NE(result.Tracking().status().message().find("'trajectories': not an integer"),
+            std::string::npos)
+      << result.Tracking().status();
+  result.algorithm = "critical-points";
+  EXPECT_EQ(result.Tracking().status().code(), absl::StatusCode::kNotFound);
+}
+
 TEST(RelationCsrTest, RowsAreSpans) {
   const RelationCsr csr{.offsets = {0, 2, 2, 5}, .values = {1, 2, 3, 4, 5}};
   ASSERT_EQ(csr.size(), 3u);
@@ -387,11 +525,12 @@ TEST(ArgumentsTest, CheckedOnTheClient) {
   EXPECT_NE(job.status().message().find("morse-smale"), std::string::npos);
   // The algorithm names come from the proto the library was built from.
   EXPECT_NE(job.status().message().find("morse-smale, persistence-diagram, "
-                                        "topological-simplification"),
+                                        "topological-simplification, diagram-distance, tracking"),
             std::string::npos)
       << job.status();
   // A known name passes the client's check and reaches for the server, which is not there.
-  for (const char* name : {"persistence-diagram", "persistence_diagram"}) {
+  for (const char* name :
+       {"persistence-diagram", "persistence_diagram", "diagram-distance", "Tracking"}) {
     EXPECT_EQ(c.RunJob("session-x", name).status().code(), absl::StatusCode::kUnavailable) << name;
   }
   CancelToken cancelled;
@@ -415,6 +554,39 @@ TEST(ArgumentsTest, CheckedOnTheClient) {
   auto twice = c.UploadMesh(points, tets, {{"h", height}, {"h", height}});
   EXPECT_EQ(twice.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(twice.status().message().find("appears twice"), std::string::npos);
+  // Added fields: names, lengths, digests and times the client can judge.
+  const std::vector<float> narrow = {0, 0, 0, 1};
+  const auto added = [&](const std::vector<FieldValues>& fields,
+                         const AddFieldsOptions& options = {}) {
+    return c.AddFields("mesh-x", fields, options).status();
+  };
+  const auto expect_invalid = [](const absl::Status& s, const std::string& part) {
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << s;
+    EXPECT_NE(s.message().find(part), std::string::npos) << s;
+  };
+  expect_invalid(added({}), "fields: none given");
+  expect_invalid(added({{.name = "", .values = height}}), "fields[0].name: empty");
+  expect_invalid(added({{.name = "h", .values = height}, {.name = "h", .values = narrow}}),
+                 "fields[1].name: 'h' appears twice");
+  expect_invalid(added({{.name = "h", .values = height}, {.name = "g", .values = short_field}}),
+                 "fields[1] 'g': 3 values but fields[0] 'h' has 4");
+  expect_invalid(added({{.name = "h", .values = std::span<const double>()}}),
+                 "fields[0] 'h': 0 values");
+  expect_invalid(added({{.name = "h", .values = height, .time = std::nan("")}}),
+                 "fields[0] 'h': time nan is not finite");
+  expect_invalid(added({{.name = "h", .values = height}}, {.chunk_bytes = 0}),
+                 "options.chunk_bytes");
+  expect_invalid(added({{.name = "h", .values = height}}, {.sha256 = "ABC"}), "options.sha256");
+  expect_invalid(added({{.name = "h", .values = height}}, {.sha256 = std::string(64, 'A')}),
+                 "options.sha256");
+  // Well formed, they reach for the server.
+  EXPECT_EQ(added({{.name = "h", .values = height}, {.name = "n", .values = narrow}}).code(),
+            absl::StatusCode::kUnavailable);
+  EXPECT_EQ(added({{.name = "h", .values = height}}, {.sha256 = std::string(64, 'a')}).code(),
+            absl::StatusCode::kUnavailable);
+  expect_invalid(
+      c.RunJob("session-x", "tracking", {}, {.fields = {"a", "b"}, .all_fields = true}).status(),
+      "give fields or all_fields, not both");
   // Empty inputs need no call at all.
   EXPECT_EQ(c.RelationBatch("s", "vertex_star", {})->size(), 0u);
   EXPECT_TRUE(

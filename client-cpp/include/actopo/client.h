@@ -1,9 +1,11 @@
 // actopo/client.h: the C++ client of the ACTOPO topology service (proto package actopo.v1).
 //
-// A `Client` talks to an actopo-server over gRPC. It loads or uploads tetrahedral meshes, opens
-// sessions (a topological data structure on a mesh and a scalar field), asks relation queries
-// (one simplex, a batch, or a stream) and runs TTK-compatible algorithm jobs, whose results
-// come as named arrays (a persistence diagram's also as pairs: JobResult::PersistencePairs).
+// A `Client` talks to an actopo-server over gRPC. It loads or uploads tetrahedral meshes and adds
+// point fields to them, opens sessions (a topological data structure on a mesh and a scalar
+// field), asks relation queries (one simplex, a batch, or a stream) and runs TTK-compatible
+// algorithm jobs, on the session's field or over several fields, whose results come as named
+// arrays (a persistence diagram's also as pairs: JobResult::PersistencePairs) and, comparing
+// fields, as distance matrices (JobResult::Distances) or tracked pairs (JobResult::Tracking).
 // Every fallible call returns absl::Status or absl::StatusOr<T> carrying the server's gRPC code
 // and message unchanged (NOT_FOUND for an unknown mesh, OUT_OF_RANGE for a simplex id past the
 // end, ...); problems the client finds itself (an unknown relation name, a ragged array) are
@@ -51,6 +53,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <variant>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -141,7 +144,7 @@ struct ServerLimits {
 struct ServerInfo {
   std::string version;
   std::map<std::string, std::string> library_versions;  // e.g. "grpc" -> "1.51.1"
-  std::vector<std::string> algorithms;                  // "topo-relations", "critical-points", ...
+  std::vector<std::string> algorithms;                  // "topo-relations", ..., "tracking"
   std::vector<std::string> relations;                   // "vertex_neighbors", "vertex_edges", ...
   std::vector<std::string> samples;                     // built-in samples with their descriptions
   ServerLimits limits;
@@ -156,6 +159,8 @@ struct FieldInfo {
   DataType dtype = DataType::kUnspecified;  // as loaded
   double min = 0;
   double max = 0;
+  // The time value of a series member: a .pvd collection's step, or the one given to AddFields.
+  std::optional<double> time;
 };
 
 // A mesh loaded on the server.
@@ -197,6 +202,28 @@ struct UploadOptions {
   std::string name;  // shown in MeshInfo::name; empty: "upload"
   PartitionOptions partition;
   size_t chunk_bytes = size_t{1} << 20;  // bytes per message after the header
+};
+
+// A point field to add to a loaded mesh (Client::AddFields): one value per vertex of the mesh,
+// float64 or float32 (the server keeps float64 and reports the dtype sent), and optionally the
+// time value of a series member (FieldInfo::time).
+//
+//   std::vector<float> pressure = ...;   // one per vertex
+//   client->AddField(mesh_id, {.name = "pressure_07", .values = pressure, .time = 0.7});
+struct FieldValues {
+  std::string name;
+  std::variant<std::span<const double>, std::span<const float>> values;
+  std::optional<double> time;
+};
+
+// Options of Client::AddFields.
+struct AddFieldsOptions {
+  size_t chunk_bytes = size_t{1} << 20;  // bytes per message after the header
+  // The SHA-256 (64 lowercase hex digits) of all the values' bytes in order, which the server
+  // checks what it received against (DATA_LOSS if they differ). Unset: computed here from the
+  // values before they are sent; empty: none, the server checks nothing. Give the digest known
+  // at the data's source to have the whole way checked.
+  std::optional<std::string> sha256;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -409,7 +436,13 @@ class RelationStream {
 
 // ---------------------------------------------------------------------------------------------
 // Jobs. Algorithm names: "topo-relations", "critical-points", "discrete-gradient",
-// "morse-smale", "persistence-diagram", "topological-simplification" ("morse_smale" works too).
+// "morse-smale", "persistence-diagram", "topological-simplification", "diagram-distance",
+// "tracking" ("morse_smale" works too). The last two compare the persistence diagrams of
+// several fields (JobOptions::fields or all_fields, at least two): parameters "p" (the
+// Wasserstein order, default 2), "persistence_threshold" or "relative_threshold" (pairs below
+// it left out), "essential" ("true": match the infinite pairs too).
+
+struct FieldResult;
 
 // Cancels a running job from any thread: RunJob then returns CANCELLED. Copies share the same
 // state, so keep one and hand a copy to JobOptions.
@@ -461,6 +494,20 @@ struct JobOptions {
   CancelToken cancel;
   // Deadline of the whole job; 0: none.
   std::chrono::milliseconds timeout{0};
+
+  // Run over these point fields of the session's mesh instead of the session's field, one
+  // after the other on the session's structure (each result equals a job on that field alone),
+  // or with all_fields over every floating-point field in the mesh's order (a series' time
+  // order). JobResult::fields gets one FieldResult per field; `progress` runs over the whole
+  // list.
+  std::vector<std::string> fields;
+  bool all_fields = false;
+  // In a job over fields: called with each field's result (summary and arrays) as soon as it
+  // arrives, on RunJob's thread, before the next field's.
+  std::function<void(const FieldResult& field)> on_field;
+  // In a job over fields: keep each field's result in JobResult::fields. False: they go to
+  // on_field only (a long series whose arrays need not all be held at once).
+  bool keep_fields = true;
 };
 
 // How far a load has got (Client::LoadMeshWithProgress).
@@ -509,7 +556,8 @@ struct PersistencePair {
   bool finite = true;
 };
 
-// The outcome of Client::RunJob.
+// Result arrays by name, with typed readers: a job's own (JobResult) and, in a job over several
+// fields, each field's (FieldResult).
 //
 // Arrays are named "<group>/<TTK array name>" (see the proto's ResultChunk):
 //   critical-points:   critical_points/{Points, CriticalType, IsOnBoundary, ...}
@@ -522,39 +570,110 @@ struct PersistencePair {
 //                      persistence_curve/{PairType, Persistence, NumberOfPairs};
 //                      PersistencePairs() reads the pairs back from the diagram/ arrays
 //   topological-simplification: simplified/{<scalar>, <scalar>_Order}
+//   diagram-distance:  none of its own; each field's persistence diagram in its FieldResult
+//   tracking:          tracking/{Points (k, 3) float64, Offsets int64 (a line of two points per
+//                      link), Connectivity int64, TimeStep, CriticalType, Scalar, VertexId (per
+//                      point), ConnectedComponentId, MatchingIdentifier, Cost, ComponentLength
+//                      (per link)}, TTK's tracking output; each field's diagram in its
+//                      FieldResult
 //
 //   absl::StatusOr<std::vector<int8_t>> types =
 //       result->Get<int8_t>("critical_points/CriticalType");
 //   absl::StatusOr<std::vector<PersistencePair>> pairs = result->PersistencePairs();
-struct JobResult {
-  std::string job_id;
-  std::string algorithm;  // canonical name, e.g. "morse-smale"
-  // The summary as a JSON object: the same keys and values as actopo-bench's "result".
-  std::string summary_json;
+struct ResultArrays {
   std::map<std::string, Array, std::less<>> arrays;
-  JobStats stats;
-  std::string trace;  // with JobOptions::trace: the trace-event JSON; else empty
 
   // The array named `name`, or nullptr.
   const Array* Find(std::string_view name) const;
   // The values of array `name` as T: NOT_FOUND without it, INVALID_ARGUMENT for another dtype.
   template <class T>
   absl::StatusOr<std::vector<T>> Get(std::string_view name) const;
-  // The pairs of a persistence-diagram job, in the server's order (by the vertex order of the
-  // birth vertex), without TTK's diagonal; either embedding. NOT_FOUND without the diagram/
-  // arrays (another algorithm, or JobOptions::include_arrays off); INVALID_ARGUMENT naming the
-  // array when they do not hold TTK's layout (two points and one line per pair).
+  // The pairs of a persistence diagram (a persistence-diagram job, or a field of a
+  // diagram-distance or tracking job), in the server's order (by the vertex order of the birth
+  // vertex), without TTK's diagonal; either embedding. NOT_FOUND without the diagram/ arrays
+  // (another algorithm, or JobOptions::include_arrays off); INVALID_ARGUMENT naming the array
+  // when they do not hold TTK's layout (two points and one line per pair).
   absl::StatusOr<std::vector<PersistencePair>> PersistencePairs() const;
 };
 
 template <class T>
-absl::StatusOr<std::vector<T>> JobResult::Get(std::string_view name) const {
+absl::StatusOr<std::vector<T>> ResultArrays::Get(std::string_view name) const {
   const Array* array = Find(name);
   if (array == nullptr) {
     return absl::NotFoundError("result array '" + std::string(name) + "' not found");
   }
   return array->As<T>();
 }
+
+// One field's result in a job over several fields (JobOptions::fields): what a job on that
+// field alone gives, its summary and its arrays (Get<T>, PersistencePairs as on a JobResult).
+struct FieldResult : ResultArrays {
+  std::string field;
+  int32_t index = 0;  // its position in the job's list
+  // Its summary as JSON: the same object as a job on that field alone.
+  std::string summary_json;
+  double run_seconds = 0;  // running the algorithm on it
+};
+
+// The distances between the persistence diagrams of n fields (a diagram-distance job:
+// JobResult::Distances, Client::DiagramDistances). Row and column i are fields[i]; the
+// matrices are n x n, row-major, symmetric with a zero diagonal. With "essential" a distance
+// between diagrams with different counts of infinite pairs is infinite (in summary_json, which
+// has no infinity, "Infinity").
+struct DistanceMatrix {
+  std::vector<std::string> fields;
+  double p = 2;  // the Wasserstein order
+  bool essential = false;
+  std::vector<double> wasserstein;  // Wasserstein-p
+  std::vector<double> bottleneck;
+  std::vector<int64_t> pairs;      // pairs compared per field (after the threshold)
+  std::vector<double> thresholds;  // the absolute persistence threshold per field (0: none)
+  double distance_seconds = 0;
+
+  size_t size() const { return fields.size(); }
+  double Wasserstein(size_t i, size_t j) const { return wasserstein[i * fields.size() + j]; }
+  double Bottleneck(size_t i, size_t j) const { return bottleneck[i * fields.size() + j]; }
+};
+
+// The summary of a tracking job (JobResult::Tracking): the persistence pairs of consecutive
+// fields matched (exact Wasserstein-p matching per pair type) and chained into trajectories.
+// The trajectories themselves are the tracking/ arrays (JobResult::Get).
+struct TrackingSummary {
+  std::vector<std::string> fields;  // the steps, in order
+  double p = 2;
+  int64_t trajectories = 0;
+  std::vector<int64_t> trajectories_by_type;  // per pair type 0, 1, 2
+  int64_t links = 0;                          // matched pairs of consecutive steps: lines
+  int64_t longest = 0;                        // steps of the longest trajectory
+  // The Wasserstein-p distance between step i and i + 1, and per pair type (0, 1, 2).
+  std::vector<double> step_wasserstein;
+  std::vector<std::vector<double>> step_wasserstein_by_type;
+  double tracking_seconds = 0;
+};
+
+// The outcome of Client::RunJob: the summary, the job's own arrays (ResultArrays), the
+// statistics and, in a job over several fields, each field's result.
+struct JobResult : ResultArrays {
+  std::string job_id;
+  std::string algorithm;  // canonical name, e.g. "morse-smale"
+  // The summary as a JSON object: the same keys and values as actopo-bench's "result". A job
+  // over fields: {"fields": [...]}, or diagram-distance's and tracking's comparisons.
+  std::string summary_json;
+  JobStats stats;
+  std::string trace;  // with JobOptions::trace: the trace-event JSON; else empty
+  // A job over fields: one per field, in the job's order (unless JobOptions::keep_fields is
+  // off).
+  std::vector<FieldResult> fields;
+
+  // The result of field `name`, or nullptr.
+  const FieldResult* Field(std::string_view name) const;
+  // The matrices of a diagram-distance job: NOT_FOUND for another algorithm, DATA_LOSS if the
+  // summary lacks them.
+  absl::StatusOr<DistanceMatrix> Distances() const;
+  // The summary of a tracking job: NOT_FOUND for another algorithm, DATA_LOSS if the summary
+  // lacks its figures.
+  absl::StatusOr<TrackingSummary> Tracking() const;
+};
 
 // ---------------------------------------------------------------------------------------------
 // The client.
@@ -645,6 +764,23 @@ class Client {
   absl::StatusOr<MeshInfo> GetMesh(std::string_view mesh_id, bool count_faces = false);
   // Deletes a mesh; the server frees it once no session uses it.
   absl::Status DeleteMesh(std::string_view mesh_id);
+  // Adds point fields to a loaded mesh, all or none, each with one value per vertex: a header
+  // with the SHA-256 of the values (AddFieldsOptions::sha256), then the values' bytes in
+  // chunks, read from the spans as they go. Names must be new to the mesh (ALREADY_EXISTS) and
+  // values finite (INVALID_ARGUMENT naming the field and the vertex). Returns the mesh with
+  // its fields.
+  //
+  //   std::vector<double> doubled = ...;   // one per vertex
+  //   auto mesh = client->AddFields(mesh_id, {{.name = "doubled", .values = doubled},
+  //                                           {.name = "t1", .values = step1, .time = 1.0}});
+  absl::StatusOr<MeshInfo> AddFields(std::string_view mesh_id,
+                                     const std::vector<FieldValues>& fields,
+                                     const AddFieldsOptions& options = {});
+  absl::StatusOr<MeshInfo> AddField(std::string_view mesh_id, const FieldValues& field,
+                                    const AddFieldsOptions& options = {});
+  // Deletes a point field of a mesh; sessions and jobs reading it keep it until they are done.
+  // NOT_FOUND for an unknown mesh or field. Returns the mesh with its remaining fields.
+  absl::StatusOr<MeshInfo> DeleteField(std::string_view mesh_id, std::string_view name);
 
   // Sessions.
 
@@ -702,6 +838,16 @@ class Client {
                                    const JobOptions& options = {});
   // Cancels a running job by id (the RunJob call then returns CANCELLED).
   absl::Status CancelJob(std::string_view job_id);
+  // The distances between the persistence diagrams of several fields of the session's mesh:
+  // a diagram-distance job over options.fields (every floating-point field when none are
+  // given), without arrays, its summary read into a DistanceMatrix. `parameters`: "p",
+  // "persistence_threshold" or "relative_threshold", "essential".
+  //
+  //   auto matrix = client->DiagramDistances(session_id, {{"relative_threshold", "0.01"}});
+  //   if (matrix.ok()) std::cout << matrix->Wasserstein(0, 1) << "\n";
+  absl::StatusOr<DistanceMatrix> DiagramDistances(
+      std::string_view session_id, const std::map<std::string, std::string>& parameters = {},
+      const JobOptions& options = {});
 
  private:
   explicit Client(std::shared_ptr<internal::Core> core);

@@ -56,8 +56,11 @@ MeshInfo FromProto(const v1::MeshInfo& mesh) {
   out.blocks = mesh.blocks();
   out.block_size = mesh.block_size();
   for (const v1::FieldInfo& f : mesh.fields()) {
-    out.fields.push_back(
-        FieldInfo{.name = f.name(), .dtype = FromProto(f.dtype()), .min = f.min(), .max = f.max()});
+    out.fields.push_back(FieldInfo{.name = f.name(),
+                                   .dtype = FromProto(f.dtype()),
+                                   .min = f.min(),
+                                   .max = f.max(),
+                                   .time = f.has_time() ? std::optional(f.time()) : std::nullopt});
   }
   out.bytes = mesh.bytes();
   out.sessions = mesh.sessions();

@@ -69,12 +69,16 @@ std::string ServerBinary() { return EnvOr("ACTOPO_SERVER_BIN", ACTOPO_DEFAULT_SE
 std::string BenchBinary() { return EnvOr("ACTOPO_BENCH_BIN", ACTOPO_DEFAULT_BENCH_BIN); }
 std::string DataDir() { return EnvOr("ACTOPO_DATA_DIR", ACTOPO_DEFAULT_DATA_DIR); }
 
-nlohmann::json BenchResult(const std::string& file, const std::string& scalar,
-                           const std::string& algorithm) {
+namespace {
+
+// actopo-bench's "result" on a file under the data directory with `scalar_flags`, cached.
+nlohmann::json RunBench(const std::string& file, const std::string& scalar_flags,
+                        const std::string& algorithm) {
   static std::mutex mu;
   static std::map<std::string, nlohmann::json> cache;
-  const std::string command = BenchBinary() + " --mesh '" + DataDir() + "/" + file + "' --scalar " +
-                              scalar + " --algorithm " + algorithm + " --structure compact --json";
+  const std::string command = BenchBinary() + " --mesh '" + DataDir() + "/" + file + "' " +
+                              scalar_flags + " --algorithm " + algorithm +
+                              " --structure compact --json";
   std::lock_guard<std::mutex> lock(mu);
   if (auto it = cache.find(command); it != cache.end()) return it->second;
   FILE* pipe = popen(command.c_str(), "r");
@@ -96,6 +100,18 @@ nlohmann::json BenchResult(const std::string& file, const std::string& scalar,
     return nullptr;
   }
   return cache[command] = result["result"];
+}
+
+}  // namespace
+
+nlohmann::json BenchResult(const std::string& file, const std::string& scalar,
+                           const std::string& algorithm) {
+  return RunBench(file, "--scalar " + scalar, algorithm);
+}
+
+nlohmann::json BenchSeriesResult(const std::string& file, const std::string& scalars,
+                                 const std::string& algorithm) {
+  return RunBench(file, "--scalars " + scalars, algorithm);
 }
 
 nlohmann::json TtkReference(const std::string& file, const std::string& field,

@@ -30,6 +30,10 @@ inline constexpr int kSharedMaxBatchSize = 64;
 // and a test failure if it cannot run.
 nlohmann::json BenchResult(const std::string& file, const std::string& scalar,
                            const std::string& algorithm);
+// The same over several fields (actopo-bench --scalars: "F1,F2,..." or "all"), e.g. the
+// matrices of diagram-distance.
+nlohmann::json BenchSeriesResult(const std::string& file, const std::string& scalars,
+                                 const std::string& algorithm);
 
 // Upstream TTK's result of `section` (critical_points, discrete_gradient, morse_smale,
 // persistence_diagram) for `field` on `file`, from expected-ttk.json under the data directory; a
