@@ -1,13 +1,16 @@
 """Run by pvbatch for tests/test_paraview_plugin.py: loads the ACTOPO plugin with
 paraview/load_actopo.py, applies each case's filter to its mesh, and writes what every output port
-holds: arrays.npz (points, line offsets, an unstructured grid's cell types, offsets and
-connectivity, point and cell arrays by "<case>/<port>/<kind>/<name>") and outputs.json (types,
-counts, field data, the Python modules the plugin ended up using).
+holds: arrays.npz (points, line offsets and connectivity, an unstructured grid's cell types,
+offsets and connectivity, point and cell arrays, a table's numeric columns, by
+"<case>/<port>/<kind>/<name>") and outputs.json (types, counts, field data, a table's columns
+and string columns, the Python modules the plugin ended up using).
 
     pvbatch tests/paraview_driver.py CASES.json OUT_DIR [PLUGIN_DIR]
 
-CASES.json: {"cases": [{"name", "filter", "mesh", "properties": {...}}, ...]}. A filter that
-fails leaves its outputs empty; the test reads its message from pvbatch's output.
+CASES.json: {"cases": [{"name", "filter", "mesh", "properties": {...}, "before": [[filter,
+{...}], ...]}, ...]}; "before" (optional) are ParaView filters applied to the mesh, in order,
+before the case's filter. A filter that fails leaves its outputs empty; the test reads its message
+from pvbatch's output.
 """
 
 import json
@@ -41,8 +44,34 @@ def attribute_arrays(data, prefix, arrays):
     return names
 
 
+def plain(value):
+    """A property's value as JSON takes it (a vector property as a list)."""
+    if isinstance(value, (str, int, float)) or value is None:
+        return value
+    return [plain(v) for v in value]
+
+
+def describe_table(table, prefix, arrays):
+    """A vtkTable: its columns in order, numeric ones into `arrays` ("<prefix>/row/<name>"),
+    string ones in the description."""
+    port = {"type": table.GetClassName(), "rows": table.GetNumberOfRows(), "columns": [],
+            "strings": {},
+            "field_data": field_data(table.GetFieldData())}
+    for i in range(table.GetNumberOfColumns()):
+        column = table.GetColumn(i)
+        port["columns"].append(column.GetName())
+        if column.IsA("vtkStringArray"):
+            port["strings"][column.GetName()] = [column.GetValue(j)
+                                                 for j in range(column.GetNumberOfValues())]
+        else:
+            arrays[f"{prefix}/row/{column.GetName()}"] = numpy_support.vtk_to_numpy(column)
+    return port
+
+
 def describe(output, prefix, arrays):
     """What one output port holds; its bulk arrays go into `arrays`."""
+    if output.IsA("vtkTable"):
+        return describe_table(output, prefix, arrays)
     port = {"type": output.GetClassName(), "points": output.GetNumberOfPoints(),
             "cells": output.GetNumberOfCells(), "field_data": field_data(output.GetFieldData())}
     if output.GetPoints() is not None:
@@ -55,6 +84,8 @@ def describe(output, prefix, arrays):
         port["lines"] = output.GetNumberOfLines()
         arrays[f"{prefix}/geometry/LineOffsets"] = numpy_support.vtk_to_numpy(
             output.GetLines().GetOffsetsArray())
+        arrays[f"{prefix}/geometry/LineConnectivity"] = numpy_support.vtk_to_numpy(
+            output.GetLines().GetConnectivityArray())
     elif output.IsA("vtkUnstructuredGrid") and output.GetNumberOfCells():
         arrays[f"{prefix}/geometry/CellTypes"] = numpy_support.vtk_to_numpy(
             output.GetCellTypesArray())
@@ -78,7 +109,13 @@ def main(cases_path, out_dir, plugin_dir):
         if mesh not in readers:
             readers[mesh] = simple.XMLUnstructuredGridReader(FileName=[mesh])
             readers[mesh].UpdatePipeline()
-        proxy = getattr(simple, case["filter"])(Input=readers[mesh])
+        upstream = readers[mesh]
+        before = []
+        for filter_name, properties in case.get("before", []):
+            upstream = getattr(simple, filter_name)(Input=upstream, **properties)
+            upstream.UpdatePipeline()
+            before.append(upstream)
+        proxy = getattr(simple, case["filter"])(Input=upstream)
         for name, value in case["properties"].items():
             setattr(proxy, name, value)
         print(f"driver: running {case['name']}", flush=True)
@@ -87,7 +124,12 @@ def main(cases_path, out_dir, plugin_dir):
         report["cases"][case["name"]] = [
             describe(algorithm.GetOutputDataObject(port), f"{case['name']}/{port}", arrays)
             for port in range(algorithm.GetNumberOfOutputPorts())]
+        # What the properties held when the filter ran (the defaults the domains chose).
+        report.setdefault("properties", {})[case["name"]] = {
+            name: plain(getattr(proxy, name)) for name in case.get("report", [])}
         simple.Delete(proxy)
+        for step in reversed(before):
+            simple.Delete(step)
 
     # The modules the plugin ended up with: ParaView's numpy, the client's gRPC stack.
     report["python"] = sys.version.split()[0]

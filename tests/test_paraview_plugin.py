@@ -5,9 +5,13 @@ must equal what the Python client returns for the same mesh, scalar, structure a
 TTK names, dtypes and values, points, polylines, the segmentation on the input grid, TTK's
 persistence diagram as lines with its diagonal, the simplified field in place of the input's with
 its order beside it (whose digests also equal upstream TTK's), the summary in the field data
-beside the session's statistics. Failures (an unknown scalar, an unreachable server, a wrong token,
-triangles, a relative threshold above 1) must print the server's or client's message and leave
-pvbatch running.
+beside the session's statistics. The filters over several fields run on the Isabel series (12
+fields on one mesh): the distance matrix's table must hold, row by row and column by column under
+TTK's column names, the very distances Session.distance_matrix() returns, and the tracking's lines
+the client's tracking arrays, a line per link between consecutive steps. Failures (an unknown
+scalar, an unreachable server, a wrong token, triangles, a relative threshold above 1, a single
+field, an integer field, an unknown field, a Wasserstein order below 1) must print the server's or
+client's message and leave pvbatch running.
 
 The plugin finds the client on its own (the repository's .venv and client-py/, after ParaView's
 numpy); the test checks it runs on ParaView's numpy with the client's protobuf and gRPC, that a
@@ -45,6 +49,9 @@ DEBIAN_PARAVIEW_PYTHON = Path("/usr/lib/python3/dist-packages/paraview")
 TOKEN = "paraview-test-token"
 FERTILITY = "fertility_tet.vtu"
 FINGERS = "viscousFingers001_s2_tet.vtu"
+SERIES = "isabel_series_s2_tet.vtu"  # 12 fields velocityMag_02 ... velocityMag_48, time order
+SERIES_MEMBERS = ["velocityMag_48", "velocityMag_02", "velocityMag_30", "velocityMag_45"]
+SERIES_STEPS = ["velocityMag_02", "velocityMag_03", "velocityMag_04", "velocityMag_05"]
 PVBATCH_SECONDS = 120
 
 # name, filter, mesh, properties (as pvbatch sets them), how the client runs the same
@@ -108,7 +115,37 @@ CASES: list[dict[str, Any]] = [
                 "parameters": {"relative_threshold": "0.05"}},
      "ttk": "0.05"},
 ]
-# Failing runs: name, filter, properties, what pvbatch's output must say (mesh: fertility).
+# The filters over several fields: name, filter, mesh, properties, the properties whose value
+# pvbatch reports (the defaults the domain chose), how the client computes the same.
+SERIES_CASES: list[dict[str, Any]] = [
+    # The defaults: every field of the input, uploaded with it; p = 2; every pair.
+    {"name": "distance_matrix", "filter": "ACTOPOPersistenceDiagramDistanceMatrix",
+     "mesh": SERIES, "properties": {}, "report": ["ScalarFields"],
+     "client": {"kind": "distance_matrix", "fields": "all", "options": {},
+                "session": {"structure": "actopo"}}},
+    # Four members in an order of their own, on the server's copy of the mesh.
+    {"name": "distance_matrix_server_path", "filter": "ACTOPOPersistenceDiagramDistanceMatrix",
+     "mesh": SERIES,
+     "properties": {"ScalarFields": SERIES_MEMBERS, "ServerPath": SERIES, "Structure": "compact",
+                    "WassersteinOrder": 1.0, "PersistenceThreshold": 0.01},
+     "client": {"kind": "distance_matrix", "fields": SERIES_MEMBERS, "load": SERIES,
+                "options": {"p": 1, "relative_threshold": 0.01},
+                "session": {"structure": "compact"}}},
+    {"name": "tracking", "filter": "ACTOPOTrackingFromFields", "mesh": SERIES,
+     "properties": {}, "report": ["ScalarFields"],
+     "client": {"kind": "tracking", "fields": "all", "session": {"structure": "actopo"}}},
+    {"name": "tracking_absolute", "filter": "ACTOPOTrackingFromFields", "mesh": SERIES,
+     "properties": {"ScalarFields": SERIES_STEPS, "Structure": "explicit",
+                    "WassersteinOrder": 1.5, "PersistenceThreshold": 2.0,
+                    "ThresholdIsRelative": 0},
+     "client": {"kind": "tracking", "fields": SERIES_STEPS,
+                "parameters": {"p": "1.5", "persistence_threshold": "2.0"},
+                "session": {"structure": "explicit"}}},
+]
+TRACKING_POINT_ARRAYS = ["TimeStep", "CriticalType", "Scalar", "VertexId"]
+TRACKING_CELL_ARRAYS = ["ConnectedComponentId", "MatchingIdentifier", "Cost", "ComponentLength"]
+# Failing runs: name, filter, properties, what pvbatch's output must say (mesh: fertility;
+# "before": ParaView filters applied to it first).
 ERRORS: list[dict[str, Any]] = [
     {"name": "error_unknown_scalar", "filter": "ACTOPOCriticalPoints",
      "properties": {"ScalarField": ["POINTS", "nope"], "ServerPath": FERTILITY},
@@ -127,6 +164,24 @@ ERRORS: list[dict[str, Any]] = [
      "properties": {"ScalarField": ["POINTS", "height"], "PersistenceThreshold": 1.5},
      "message": "parameters.relative_threshold: threshold: 1.5 is not a fraction of the scalar "
                 "range in [0, 1] [INVALID_ARGUMENT]"},
+    {"name": "error_one_field", "filter": "ACTOPOPersistenceDiagramDistanceMatrix",
+     "properties": {"ScalarFields": ["height"]},
+     "message": "the distance matrix needs at least two point fields (Scalar Fields), got 1: "
+                "'height'"},
+    {"name": "error_integer_field", "filter": "ACTOPOTrackingFromFields",
+     "before": [["Calculator", {"ResultArrayName": "ids", "Function": "floor(height)",
+                                "ResultArrayType": "Int"}]],
+     "properties": {"ScalarFields": ["height", "ids"]},
+     "message": "point array 'ids' holds int values; tracking takes floating-point fields "
+                "(float or double)"},
+    {"name": "error_unknown_field", "filter": "ACTOPOTrackingFromFields",
+     "properties": {"ScalarFields": ["height", "nope"], "ServerPath": FERTILITY},
+     "message": "fields[1]: scalar field 'nope' not found; point fields: 'eigenfunction4', "
+                "'height' [NOT_FOUND]"},
+    {"name": "error_wasserstein_order", "filter": "ACTOPOPersistenceDiagramDistanceMatrix",
+     "properties": {"WassersteinOrder": 0.5},
+     "message": "parameters.p: 0.5 is not a Wasserstein order; give a finite number of at least "
+                "1 (the bottleneck distance comes with every result) [INVALID_ARGUMENT]"},
 ]
 GROUP_OF_PORT = {"critical-points": ["critical_points"], "discrete-gradient": ["critical_cells"],
                  "morse-smale": ["critical_points", "separatrices", "segmentation"],
@@ -199,9 +254,10 @@ def run_pvbatch(cases: list[dict[str, Any]], tmp: Path, target: str,
 
 
 def driver_case(name: str, filter_name: str, mesh: str, target: str,
-                properties: dict[str, Any]) -> dict[str, Any]:
+                properties: dict[str, Any], **extra: Any) -> dict[str, Any]:
+    """A case for the driver; `extra`: its "before" filters and the properties to "report"."""
     return {"name": name, "filter": filter_name, "mesh": str(DATA_DIR / mesh),
-            "properties": {"ServerAddress": target, "Token": TOKEN, **properties}}
+            "properties": {"ServerAddress": target, "Token": TOKEN, **properties}, **extra}
 
 
 @pytest.fixture(scope="module")
@@ -212,9 +268,11 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
         unreachable = f"127.0.0.1:{free_port()}"
         cases = [driver_case(c["name"], c["filter"], c["mesh"], target, c["properties"])
                  for c in CASES]
+        cases += [driver_case(c["name"], c["filter"], c["mesh"], target, c["properties"],
+                              report=c.get("report", [])) for c in SERIES_CASES]
         cases += [driver_case(e["name"], e["filter"], e.get("mesh", FERTILITY),
                               unreachable if e["name"] == "error_unreachable" else target,
-                              e["properties"])
+                              e["properties"], before=e.get("before", []))
                   for e in ERRORS]
         yield run_pvbatch(cases, tmp_path_factory.mktemp("paraview"), target)
 
@@ -360,6 +418,25 @@ def test_simplified_fields_equal_ttks(run: Run, expected: dict[str, Any],
     assert summary["threshold"] == ttk["threshold"]
 
 
+def assert_statistics(run: Run, data: dict[str, Any], algorithm: str, structure: str,
+                      where: str) -> None:
+    """The job's identity and the session's statistics in an output's field data."""
+    assert data["ActopoAlgorithm"] == algorithm
+    assert data["ActopoStructure"] == structure
+    assert data["ActopoServer"] == run.target
+    missing = [k for k in STATISTICS if k not in data]
+    assert not missing, f"{where}: no {missing} in {sorted(data)}"
+    assert data["ActopoJobs"] == 1
+    assert data["ActopoEngineHits"] + data["ActopoEngineMisses"] == \
+        data["ActopoEngineRequests"]
+    if data["ActopoStructure"] != "explicit":  # explicit reads stored relations: no requests
+        assert data["ActopoEngineRequests"] > 0
+    assert data["ActopoMemoryStaticBytes"] > 0
+    assert data["ActopoRunSeconds"] > 0
+    assert data["ActopoEngineWaitSeconds"] >= 0
+    assert 0 <= data["ActopoEngineHitRate"] <= 1
+
+
 @pytest.mark.parametrize("case", CASES, ids=[c["name"] for c in CASES])
 def test_every_output_carries_the_summary_and_the_sessions_statistics(
         run: Run, expected: dict[str, Any], case: dict[str, Any]) -> None:
@@ -368,20 +445,140 @@ def test_every_output_carries_the_summary_and_the_sessions_statistics(
         data = output["field_data"]
         where = f"{case['name']} port {port}"
         assert json.loads(data["ActopoSummary"]) == result.summary, where
-        assert data["ActopoAlgorithm"] == case["client"]["algorithm"]
-        assert data["ActopoStructure"] == case["client"]["session"]["structure"]
-        assert data["ActopoServer"] == run.target
-        missing = [k for k in STATISTICS if k not in data]
-        assert not missing, f"{where}: no {missing} in {sorted(data)}"
-        assert data["ActopoJobs"] == 1
-        assert data["ActopoEngineHits"] + data["ActopoEngineMisses"] == \
-            data["ActopoEngineRequests"]
-        if data["ActopoStructure"] != "explicit":  # explicit reads stored relations: no requests
-            assert data["ActopoEngineRequests"] > 0
-        assert data["ActopoMemoryStaticBytes"] > 0
-        assert data["ActopoRunSeconds"] > 0
-        assert data["ActopoEngineWaitSeconds"] >= 0
-        assert 0 <= data["ActopoEngineHitRate"] <= 1
+        assert_statistics(run, data, case["client"]["algorithm"],
+                          case["client"]["session"]["structure"], where)
+
+
+# --- The filters over several fields -------------------------------------------------------------
+
+
+def series_fields() -> list[str]:
+    """The Isabel series' fields in the file's order (series.json lists them so)."""
+    return list(json.loads((DATA_DIR / "series.json").read_text())["fields"])
+
+
+def case_fields(case: dict[str, Any]) -> list[str]:
+    fields = case["client"]["fields"]
+    return series_fields() if fields == "all" else list(fields)
+
+
+def ttk_columns(prefix: str, count: int) -> list[str]:
+    """TTK PersistenceDiagramDistanceMatrix's column names: the index zero-padded to the width
+    of the last one (ttkPersistenceDiagramDistanceMatrix.cpp)."""
+    width = len(str(count - 1))
+    return [prefix + str(i).zfill(width) for i in range(count)]
+
+
+def without_seconds(summary: dict[str, Any]) -> dict[str, Any]:
+    """A summary without its timings, which differ from one run to the next."""
+    return {k: v for k, v in summary.items() if not k.endswith("_seconds")}
+
+
+@pytest.fixture(scope="module")
+def expected_series(run: Run) -> dict[str, Any]:
+    """What the Python client returns for each case over several fields, on the same server:
+    Session.distance_matrix() or the JobResult of a tracking job."""
+    import actopo
+
+    results: dict[str, Any] = {}
+    with actopo.Client(run.target, token=TOKEN) as client:
+        for case in SERIES_CASES:
+            how = case["client"]
+            mesh = client.load_mesh(how["load"]) if "load" in how \
+                else client.upload_mesh(DATA_DIR / case["mesh"])
+            with client.open_session(mesh, **how["session"]) as session:
+                if how["kind"] == "distance_matrix":
+                    results[case["name"]] = session.distance_matrix(how["fields"],
+                                                                    **how["options"])
+                else:
+                    results[case["name"]] = session.run("tracking", fields=how["fields"],
+                                                        parameters=how.get("parameters"))
+            client.delete_mesh(mesh)
+    return results
+
+
+DISTANCE_CASES = [c for c in SERIES_CASES if c["client"]["kind"] == "distance_matrix"]
+TRACKING_CASES = [c for c in SERIES_CASES if c["client"]["kind"] == "tracking"]
+
+
+@pytest.mark.parametrize("case", DISTANCE_CASES, ids=[c["name"] for c in DISTANCE_CASES])
+def test_distance_matrix_equals_the_clients(run: Run, expected_series: dict[str, Any],
+                                            case: dict[str, Any]) -> None:
+    """A row per field, named by FieldName in the fields' order; TTK's Diagram columns hold the
+    Wasserstein-p distances and the Bottleneck columns the bottleneck ones, each exactly the
+    client's; the field data carry the job's summary and the session's statistics."""
+    name = case["name"]
+    matrix = expected_series[name]
+    fields = case_fields(case)
+    count = len(fields)
+    assert matrix.fields == fields
+    assert len(run.outputs["cases"][name]) == 1
+    output = run.port(name, 0)
+    assert output["type"] == "vtkTable"
+    assert output["rows"] == count
+    diagrams, bottlenecks = ttk_columns("Diagram", count), ttk_columns("Bottleneck", count)
+    assert output["columns"] == [*diagrams, *bottlenecks, "FieldName"]
+    assert output["strings"]["FieldName"] == fields
+    for j in range(count):
+        assert_same_array(run.array(name, 0, "row", diagrams[j]), matrix.wasserstein[:, j],
+                          f"{name} {diagrams[j]}")
+        assert_same_array(run.array(name, 0, "row", bottlenecks[j]), matrix.bottleneck[:, j],
+                          f"{name} {bottlenecks[j]}")
+    assert np.all(matrix.wasserstein[~np.eye(count, dtype=bool)] > 0)  # distinct diagrams
+    data = output["field_data"]
+    summary = json.loads(data["ActopoSummary"])
+    assert summary["fields"] == fields
+    assert summary["p"] == matrix.p == case["client"]["options"].get("p", 2)
+    assert summary["pairs"] == matrix.pairs and summary["thresholds"] == matrix.thresholds
+    assert summary["wasserstein"] == matrix.wasserstein.tolist()
+    assert summary["bottleneck"] == matrix.bottleneck.tolist()
+    assert_statistics(run, data, "diagram-distance", case["client"]["session"]["structure"],
+                      name)
+    if "report" in case:  # by default every field of the input, in its order
+        assert run.outputs["properties"][name]["ScalarFields"] == fields
+
+
+@pytest.mark.parametrize("case", TRACKING_CASES, ids=[c["name"] for c in TRACKING_CASES])
+def test_tracking_equals_the_clients(run: Run, expected_series: dict[str, Any],
+                                     case: dict[str, Any]) -> None:
+    """TTK's tracking output as vtkPolyData: the client's points, a VTK_LINE (two points) per
+    link of the summary, from a step to the next; TimeStep, CriticalType, Scalar and VertexId
+    per point, ConnectedComponentId, MatchingIdentifier, Cost and ComponentLength per line,
+    with the server's types and values."""
+    name = case["name"]
+    result = expected_series[name]
+    group = result.group("tracking")
+    fields = case_fields(case)
+    links = result.summary["links"]
+    assert links > 0 and result.summary["fields"] == fields
+    assert len(run.outputs["cases"][name]) == 1
+    output = run.port(name, 0)
+    assert output["type"] == "vtkPolyData"
+    assert output["lines"] == output["cells"] == links
+    assert output["verts"] == 0
+    assert_same_array(run.array(name, 0, "geometry", "Points"), group["Points"],
+                      f"{name} Points")
+    offsets = run.array(name, 0, "geometry", "LineOffsets")
+    np.testing.assert_array_equal(offsets, np.arange(0, 2 * links + 1, 2))  # two points each
+    np.testing.assert_array_equal(offsets, group["Offsets"])
+    connectivity = run.array(name, 0, "geometry", "LineConnectivity")
+    np.testing.assert_array_equal(connectivity, group["Connectivity"])
+    assert output["point_arrays"] == TRACKING_POINT_ARRAYS
+    assert output["cell_arrays"] == TRACKING_CELL_ARRAYS
+    for kind, names in (("point", TRACKING_POINT_ARRAYS), ("cell", TRACKING_CELL_ARRAYS)):
+        for key in names:
+            assert_same_array(run.array(name, 0, kind, key), group[key], f"{name} {key}")
+    lines = connectivity.reshape(-1, 2)
+    steps = run.array(name, 0, "point", "TimeStep")
+    np.testing.assert_array_equal(steps[lines[:, 1]] - steps[lines[:, 0]], 1)
+    assert steps.min() == 0 and steps.max() == len(fields) - 1
+    data = output["field_data"]
+    summary = json.loads(data["ActopoSummary"])
+    assert without_seconds(summary) == without_seconds(result.summary)
+    assert summary["p"] == float(case["client"].get("parameters", {}).get("p", 2))
+    assert_statistics(run, data, "tracking", case["client"]["session"]["structure"], name)
+    if "report" in case:
+        assert run.outputs["properties"][name]["ScalarFields"] == fields
 
 
 def test_the_plugin_uses_paraviews_numpy_and_the_clients_grpc_stack(run: Run) -> None:
@@ -439,4 +636,5 @@ def test_failures_show_the_message_and_pvbatch_goes_on(run: Run, error: dict[str
     assert lines[header - 1].startswith("ERROR: In actopo_plugin.py")
     assert "Traceback" not in run.console  # the message, not a Python stack
     outputs = run.outputs["cases"][error["name"]]
-    assert all(o["points"] == 0 and not o["field_data"] for o in outputs)
+    assert all(o.get("points", 0) == 0 and o.get("rows", 0) == 0 and not o["field_data"]
+               for o in outputs)

@@ -180,3 +180,37 @@ def test_tracking_links_consecutive_members_at_their_optimal_cost(tmp_path):
     assert (cost >= np.abs(scalar[ends[:, 1]] - scalar[ends[:, 0]]) - 1e-12).all()
     assert (length == np.bincount(component)[component]).all()
     assert set(np.unique(lines.point_data["CriticalType"]).tolist()) <= {0, 1, 3}
+
+
+def test_the_matching_behind_an_entry_names_the_pairs_of_both_diagrams(tmp_path):
+    fields = ["velocityMag_02", "velocityMag_03", "velocityMag_30"]
+    r = run_json("--mesh", str(SERIES), "--scalars", ",".join(fields), "--algorithm",
+                 "diagram-distance", "--matching", "2,0")["result"]
+    matching = r["matching"]
+    assert matching["fields"] == [2, 0]
+    run_json("--mesh", str(SERIES), "--scalars", ",".join(fields), "--algorithm",
+             "persistence-diagram", "--structure", "explicit", "--output", str(tmp_path / "d"))
+
+    def pairs(field):  # PairIdentifier -> (type, birth, death) of the finite pairs
+        grid = meshio.read(tmp_path / f"d_{field}_diagram.vtu")
+        cells = {name: np.concatenate(values) for name, values in grid.cell_data.items()}
+        return {int(i): (int(t), b, b + p) for i, t, b, p, f in zip(
+            cells["PairIdentifier"], cells["PairType"], cells["Birth"], cells["Persistence"],
+            cells["IsFinite"], strict=True) if i >= 0 and f == 1}
+
+    a, b = pairs(fields[2]), pairs(fields[0])
+    assert sorted(i for i in matching["pair_a"] if i >= 0) == sorted(a)
+    assert sorted(i for i in matching["pair_b"] if i >= 0) == sorted(b)
+    for kind, i, j, cost in zip(matching["type"], matching["pair_a"], matching["pair_b"],
+                                matching["cost"], strict=True):
+        if i >= 0 and j >= 0:
+            assert a[i][0] == b[j][0] == kind
+            assert cost == pytest.approx(max(abs(a[i][1] - b[j][1]), abs(a[i][2] - b[j][2])))
+        else:
+            point = a[i] if i >= 0 else b[j]
+            assert cost == pytest.approx((point[2] - point[1]) / 2)
+    assert math.sqrt(sum(c * c for c in matching["cost"])) == pytest.approx(
+        r["wasserstein"][2][0], rel=1e-9)
+    proc = bench("--mesh", str(SERIES), "--scalars", ",".join(fields), "--algorithm",
+                 "diagram-distance", "--matching", "0,3", check=False)
+    assert proc.returncode == 1 and "--matching: 0,3 is outside the list of 3 fields" in proc.stderr

@@ -128,12 +128,11 @@ TEST_F(FieldsTest, EveryRejectionHasItsCodeAndTheMeshStaysAsItWas) {
       client().AddFields(mesh,
                          {{.name = "fine", .values = good}, {.name = "wave", .values = good}}),
       StatusCode::kAlreadyExists, "header.fields[1].name: mesh '" + mesh + "' has a field 'wave'"));
-  // The server counts the bytes of all fields together, so its message names the counts, not
-  // a field.
+  // The stream ends inside the field: the message names it and how far its values went.
   EXPECT_TRUE(HasError(client().AddField(mesh, {.name = "short", .values = short_values}),
                        StatusCode::kInvalidArgument,
-                       absl::StrCat("bytes the header announced (1 field(s) of ", wave_.size(),
-                                    " values: one per vertex of the mesh)")));
+                       absl::StrCat("in fields[0] 'short' after ", short_values.size(), " of its ",
+                                    wave_.size(), " values (one per vertex of the mesh)")));
   EXPECT_TRUE(HasError(
       client().AddFields(mesh, {{.name = "fine", .values = good}, {.name = "nan", .values = nan}}),
       StatusCode::kInvalidArgument, "fields[1] 'nan': vertex 17 has value nan"));

@@ -19,6 +19,7 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "absl/strings/str_replace.h"
 #include "absl/strings/str_split.h"
 #include "nlohmann/json.hpp"
 #include "server/algorithms/registry.h"
@@ -68,6 +69,7 @@ struct BenchOptions {
   std::string backend;     // simplification: lts or legacy
   std::string relations;   // topo-relations: ttk or all
   std::string p;           // diagram-distance: the Wasserstein order
+  std::string matching;    // diagram-distance: "I,J", the entry whose matching to report
   bool essential = false;  // diagram-distance: match the infinite pairs too
   std::string output;
   std::string trace;  // Chrome trace-event JSON file
@@ -341,6 +343,7 @@ absl::StatusOr<AlgorithmInput> PrepareInput(
   if (!o.backend.empty()) parameters["backend"] = o.backend;
   if (!o.relations.empty()) parameters["relations"] = o.relations;
   if (!o.p.empty()) parameters["p"] = o.p;
+  if (!o.matching.empty()) parameters["matching"] = o.matching;
   if (o.essential) parameters["essential"] = "true";
   if (absl::Status s = ApplyParameters(parameters, input); !s.ok()) {
     // "parameters.relative_threshold: ..." is the flag --relative-threshold here.
@@ -607,6 +610,9 @@ absl::StatusOr<Json> Run(BenchOptions o) {
                                                       input_corners, trace, first_order_s));
   const RelationSet declared = DeclaredRelations(first), swept = SweptRelations(first);
   const DistanceParameters distance = first.distance;
+  if (absl::Status s = CheckMatchingEntry(distance, loaded.fields.size()); !s.ok()) {
+    return absl::Status(s.code(), absl::StrReplaceAll(s.message(), {{"parameters.", "--"}}));
+  }
   std::vector<FieldDiagram> diagrams(ComparesFields(algorithm) ? loaded.fields.size() : 0);
   FieldRuns runs{
       .count = std::max<size_t>(1, loaded.fields.size()),
@@ -728,6 +734,9 @@ int main(int argc, char** argv) {
             "tracking (over --scalars in time order: the pairs of consecutive fields matched "
             "and chained into trajectories; --output writes PREFIX_tracking.vtp)");
   flags.Add("p", &o.p, "diagram-distance, tracking: the Wasserstein order (default 2)");
+  flags.Add("matching", &o.matching,
+            "diagram-distance: I,J (positions in --scalars, from 0): also report the optimal "
+            "matching behind that entry, pairs by their PairIdentifier in each field's diagram");
   flags.Add("essential", &o.essential,
             "diagram-distance, tracking: match the infinite pairs too (by birth); distances are "
             "infinite where their counts differ");

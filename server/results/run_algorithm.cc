@@ -6,6 +6,7 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
@@ -170,9 +171,20 @@ absl::Status ApplyDistanceParameter(const std::string& name, const std::string& 
     distance.options.essential = value == "true";
     return absl::OkStatus();
   }
-  return absl::InvalidArgumentError(
-      absl::StrCat("parameters: unknown parameter '", name,
-                   "'; available: p, persistence_threshold, relative_threshold, essential"));
+  if (name == "matching") {
+    const std::vector<std::string> parts = absl::StrSplit(value, ',');
+    int32_t i = -1, j = -1;
+    if (parts.size() != 2 || !absl::SimpleAtoi(parts[0], &i) || !absl::SimpleAtoi(parts[1], &j) ||
+        i < 0 || j < 0) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "parameters.matching: '", value, "' is not two field positions 'I,J' (from 0)"));
+    }
+    distance.matching = std::make_pair(i, j);
+    return absl::OkStatus();
+  }
+  return absl::InvalidArgumentError(absl::StrCat(
+      "parameters: unknown parameter '", name,
+      "'; available: p, persistence_threshold, relative_threshold, essential, matching"));
 }
 
 std::span<const uint8_t> InputCornersOf(const AlgorithmInput& input) {

@@ -35,6 +35,8 @@ struct DistanceParameters {
   // with `relative` a fraction of each field's own range. 0 keeps every pair.
   double threshold = 0;
   bool relative = false;
+  // diagram-distance: the matching behind the entry (i, j) of the matrix, when asked.
+  std::optional<std::pair<int32_t, int32_t>> matching;
   // The threshold for a field with these values.
   double ThresholdFor(std::span<const double> values) const;
 };
@@ -68,8 +70,9 @@ struct SimplifiedMorseSmaleResult {
 // morse-smale, which then runs on the simplified field), "backend" = "lts" (default) |
 // "legacy"; diagram-distance and tracking: "p" = the Wasserstein order (default 2),
 // "persistence_threshold" or "relative_threshold" (pairs below it left out, default none),
-// "essential" = "true" | "false" (match the infinite pairs too). Unknown names and values are
-// errors naming them.
+// "essential" = "true" | "false" (match the infinite pairs too), and for diagram-distance
+// "matching" = "I,J" (the matching behind that entry: fields I and J of the list, from 0).
+// Unknown names and values are errors naming them.
 absl::Status ApplyParameters(const std::map<std::string, std::string>& parameters,
                              AlgorithmInput& input);
 

@@ -2,6 +2,8 @@
 
 #include <chrono>
 
+#include "absl/strings/str_cat.h"
+
 namespace actopo {
 namespace {
 
@@ -52,19 +54,50 @@ FieldDistances CompareFieldDiagrams(std::span<const FieldDiagram> diagrams,
     compared.push_back(d.diagram);
   }
   out.matrix = diagrams::ComputeDistanceMatrix(compared, parameters.options, matrix);
+  if (parameters.matching) {
+    diagrams::DistanceOptions with_matching = parameters.options;
+    with_matching.matching = true;
+    const auto [i, j] = *parameters.matching;
+    out.matching = diagrams::ComputeDistance(compared[i], compared[j], with_matching).matching;
+  }
   out.seconds = SecondsSince(start);
   return out;
 }
 
+absl::Status CheckMatchingEntry(const DistanceParameters& parameters, size_t fields) {
+  if (!parameters.matching) return absl::OkStatus();
+  const auto [i, j] = *parameters.matching;
+  if (size_t(i) >= fields || size_t(j) >= fields) {
+    return absl::InvalidArgumentError(absl::StrCat("parameters.matching: ", i, ",", j,
+                                                   " is outside the list of ", fields, " fields"));
+  }
+  return absl::OkStatus();
+}
+
 Json FieldDistancesJson(const FieldDistances& d) {
-  return {{"fields", d.fields},
-          {"p", d.parameters.options.p},
-          {"essential", d.parameters.options.essential},
-          {"wasserstein", Rows(d.matrix.wasserstein, d.matrix.size)},
-          {"bottleneck", Rows(d.matrix.bottleneck, d.matrix.size)},
-          {"pairs", d.pairs},
-          {"thresholds", d.thresholds},
-          {"distance_seconds", d.seconds}};
+  Json out = {{"fields", d.fields},
+              {"p", d.parameters.options.p},
+              {"essential", d.parameters.options.essential},
+              {"wasserstein", Rows(d.matrix.wasserstein, d.matrix.size)},
+              {"bottleneck", Rows(d.matrix.bottleneck, d.matrix.size)},
+              {"pairs", d.pairs},
+              {"thresholds", d.thresholds},
+              {"distance_seconds", d.seconds}};
+  if (d.parameters.matching) {
+    Json type = Json::array(), a = Json::array(), b = Json::array(), cost = Json::array();
+    for (const diagrams::PairMatch& m : d.matching) {
+      type.push_back(m.type);
+      a.push_back(m.pair_a);
+      b.push_back(m.pair_b);
+      cost.push_back(m.cost);
+    }
+    out["matching"] = {{"fields", {d.parameters.matching->first, d.parameters.matching->second}},
+                       {"type", type},
+                       {"pair_a", a},
+                       {"pair_b", b},
+                       {"cost", cost}};
+  }
+  return out;
 }
 
 FieldTracking TrackFieldDiagrams(std::span<const FieldDiagram> diagrams,

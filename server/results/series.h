@@ -39,12 +39,19 @@ struct FieldDiagram {
 FieldDiagram ToFieldDiagram(std::string field, const PersistenceDiagramResult& diagram,
                             std::span<const double> values, const DistanceParameters& parameters);
 
+// parameters.matching's entry is a pair of positions in a list of `fields` fields: an error
+// naming the parameter otherwise.
+absl::Status CheckMatchingEntry(const DistanceParameters& parameters, size_t fields);
+
 struct FieldDistances {
   std::vector<std::string> fields;
   std::vector<int64_t> pairs;       // pairs compared per field
   std::vector<double> thresholds;   // absolute threshold per field
   diagrams::DistanceMatrix matrix;  // Wasserstein-p and bottleneck, n x n
   DistanceParameters parameters;
+  // With parameters.matching (I, J): the optimal Wasserstein-p matching of fields I and J,
+  // pairs named by their index in each field's diagram (its PairIdentifier).
+  std::vector<diagrams::PairMatch> matching;
   double seconds = 0;  // the distances alone, the diagrams not included
 };
 
@@ -55,7 +62,9 @@ FieldDistances CompareFieldDiagrams(std::span<const FieldDiagram> diagrams,
                                     const diagrams::MatrixOptions& matrix);
 
 // {"fields": [...], "p": P, "essential": bool, "wasserstein": n x n, "bottleneck": n x n,
-//  "pairs": [...], "thresholds": [...], "distance_seconds": s}.
+//  "pairs": [...], "thresholds": [...], "distance_seconds": s}, and with a matching asked for
+//  "matching": {"fields": [I, J], "type": [...], "pair_a": [...], "pair_b": [...], "cost": [...]}
+//  (a pair sent to the diagonal has -1 on the other side).
 nlohmann::ordered_json FieldDistancesJson(const FieldDistances& distances);
 
 struct FieldTracking {

@@ -105,10 +105,10 @@ absl::Status FieldDecoder::Append(std::string_view chunk) {
 
 absl::StatusOr<std::vector<PointField>> FieldDecoder::Finish() {
   if (received_ != expected_) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("chunk: the stream ended after ", received_, " of the ", expected_,
-                     " bytes the header announced (", fields_.size(), " field(s) of ", vertices_,
-                     " values: one per vertex of the mesh)"));
+    return absl::InvalidArgumentError(absl::StrCat(
+        "chunk: the stream ended after ", received_, " of the ", expected_,
+        " bytes the header announced, in fields[", field_, "] '", fields_[field_].name, "' after ",
+        vertex_, " of its ", vertices_, " values (one per vertex of the mesh)"));
   }
   if (hash_) {
     const std::string digest = hash_->HexDigest();

@@ -93,7 +93,8 @@ TEST(FieldDecoder, RefusesBadDataNamingFieldAndVertex) {
   d = start(Bytes(good) + Bytes(good));
   ASSERT_TRUE(d.Append(Bytes(good)).ok());
   EXPECT_THAT(d.Finish().status().message(),
-              HasSubstr("chunk: the stream ended after 24 of the 48 bytes"));
+              HasSubstr("chunk: the stream ended after 24 of the 48 bytes the header announced, "
+                        "in fields[1] 'b' after 0 of its 3 values"));
   d = start(Bytes(good) + Bytes(good));
   ASSERT_TRUE(d.Append(Bytes(good) + Bytes(std::vector<double>{1, 2, 4})).ok());
   EXPECT_EQ(d.Finish().status().code(), absl::StatusCode::kDataLoss);

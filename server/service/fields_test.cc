@@ -535,6 +535,11 @@ TEST_F(FieldsTest, BadFieldListsAreNamed) {
        false,
        grpc::INVALID_ARGUMENT,
        "parameters.p: 0.5 is not a Wasserstein order"},
+      {v1::ALGORITHM_DIAGRAM_DISTANCE,
+       {"scalar", "height"},
+       false,
+       grpc::INVALID_ARGUMENT,
+       "parameters.matching: 0,2 is outside the list of 2 fields"},
   };
   for (const Case& c : cases) {
     v1::RunJobRequest request;
@@ -542,8 +547,12 @@ TEST_F(FieldsTest, BadFieldListsAreNamed) {
     request.set_algorithm(c.algorithm);
     for (const std::string& f : c.fields) request.add_fields(f);
     request.set_all_fields(c.all);
-    if (c.message.find("parameters.p") != std::string::npos)
+    if (c.message.find("parameters.p:") != std::string::npos) {
       (*request.mutable_parameters())["p"] = "0.5";
+    }
+    if (c.message.find("parameters.matching") != std::string::npos) {
+      (*request.mutable_parameters())["matching"] = "0,2";
+    }
     auto context = Context();
     const JobRun run = RunJob(*stub_, context.get(), request);
     EXPECT_EQ(run.status.error_code(), c.code) << c.message << ": " << run.status.error_message();

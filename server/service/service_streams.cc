@@ -335,6 +335,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     std::map<std::string, std::string> parameters(request.parameters().begin(),
                                                   request.parameters().end());
     RETURN_IF_ERROR(ApplyParameters(parameters, input_));
+    RETURN_IF_ERROR(CheckMatchingEntry(input_.distance, fields_.size()));
     include_arrays_ = request.include_arrays();
     trace_ = request.trace();
     digests_ = request.digests();
