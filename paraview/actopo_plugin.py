@@ -1,8 +1,8 @@
 """ParaView plugin: TTK's topological filters computed by a running actopo-server.
 
-Five filters take a tetrahedral vtkUnstructuredGrid and a point scalar field, send them to the
-server with the Python client (``actopo``), and return what TTK's filter of the same name returns,
-with TTK's array names:
+Seven filters take a tetrahedral vtkUnstructuredGrid and a point scalar field (the last two:
+several), send them to the server with the Python client (``actopo``), and return what TTK's
+filter of the same name returns, with TTK's array names:
 
 - ACTOPO Critical Points (ScalarFieldCriticalPoints): the critical vertices as vtkPolyData with
   CriticalType, IsOnBoundary, ttkVertexScalarField and the scalar;
@@ -19,12 +19,20 @@ with TTK's array names:
   Embedding "domain" puts the points at the pairs' vertices (no diagonal);
 - ACTOPO Topological Simplification (TopologicalSimplification, LTS, constrained by the
   persistence pairs above a threshold): the input grid with the scalar field replaced by the
-  simplified one and ``<field>_Order``, its vertex order, added.
+  simplified one and ``<field>_Order``, its vertex order, added;
+- ACTOPO Persistence Diagram Distance Matrix (PersistenceDiagramDistanceMatrix, from the fields
+  rather than their diagrams): a vtkTable, a row per field, TTK's columns Diagram00, Diagram01,
+  ... (Wasserstein-p), then Bottleneck00, ... and FieldName;
+- ACTOPO Tracking From Fields (TrackingFromFields): the persistence pairs tracked through the
+  fields taken as time steps, as vtkPolyData lines (a line per link between two consecutive
+  steps) with TimeStep, CriticalType, Scalar, VertexId per point and ConnectedComponentId,
+  MatchingIdentifier, Cost, ComponentLength per line.
 
 Every output carries the session's statistics as field data (ActopoEngineWaitSeconds,
 ActopoEngineHits, ActopoEngineMisses, ActopoMemoryStaticBytes, ..., ActopoSummary as JSON).
-Failures (server unreachable, unknown field, a mesh that is not tetrahedral, ...) are reported in
-ParaView's Output Messages with the server's or the client's message, and the filter fails.
+Failures (server unreachable, unknown field, a mesh that is not tetrahedral, fewer than two fields
+for the last two filters, ...) are reported in ParaView's Output Messages with the server's or the
+client's message, and the filter fails.
 
 Load it with Tools > Manage Plugins > Load New (paraview/README.md: the Python path, and the
 one-line fix ParaView 5.11.0 needs under Python 3.11), or ``paraview.simple.LoadPlugin(path)``.
@@ -79,6 +87,7 @@ from vtkmodules.vtkCommonDataModel import (
     vtkDataObject,
     vtkFieldData,
     vtkPolyData,
+    vtkTable,
     vtkUnstructuredGrid,
 )
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
@@ -97,6 +106,8 @@ BOUNDARY_RULES = ("ttk", "none")
 EMBEDDINGS = ("diagram", "domain")
 DEFAULT_SIMPLIFICATION_THRESHOLD = 0.01
 """ACTOPO Topological Simplification's default: 1% of the scalar field's range, the server's."""
+DEFAULT_WASSERSTEIN_ORDER = 2.0
+"""The distance matrix's and the tracking's p, the server's default (TTK's "p parameter")."""
 
 _HERE = Path(__file__).resolve().parent
 
@@ -187,6 +198,8 @@ class Settings:
         self.embedding = "diagram"
         self.persistence_threshold = 0.0
         self.threshold_is_relative = True
+        self.fields: list[str] = []
+        self.p = DEFAULT_WASSERSTEIN_ORDER
 
     def target(self) -> str:
         return self.server.strip() or os.environ.get("ACTOPO_SERVER") or DEFAULT_SERVER
@@ -214,24 +227,26 @@ def _enumeration(values: Sequence[str]) -> Callable[[Any], Any]:
     return smdomain.xml(f'<EnumerationDomain name="enum">{entries}</EnumerationDomain>')
 
 
-def _threshold_properties(default: float, meaning: str) -> Callable[[type], type]:
-    """Adds Persistence Threshold (default `default`; `meaning` says what it does) and Threshold
-    Is Relative to a filter class, as _connection_properties adds its properties."""
+def _threshold_properties(default: float, meaning: str,
+                          scale: str = "the scalar field's range") -> Callable[[type], type]:
+    """Adds Persistence Threshold (default `default`; `meaning` says what it does; a relative
+    threshold is a fraction of `scale`) and Threshold Is Relative to a filter class, as
+    _connection_properties adds its properties."""
 
     def decorate(cls: type) -> type:
         @smproperty.doublevector(name="PersistenceThreshold", label="Persistence Threshold",
                                  default_values=default)
         @smdomain.doublerange(min=0.0)
-        @_doc(f"{meaning} With Threshold Is Relative, a fraction of the scalar field's range "
-              "(0.01: 1%, at most 1); otherwise a persistence, in the field's units.")
+        @_doc(f"{meaning} With Threshold Is Relative, a fraction of {scale} (0.01: 1%, at "
+              "most 1); otherwise a persistence, in the field's units.")
         def SetPersistenceThreshold(self: ActopoFilter, value: float) -> None:
             self.set_option("persistence_threshold", float(value))
 
         @smproperty.intvector(name="ThresholdIsRelative", label="Threshold Is Relative",
                               default_values=1)
         @smdomain.xml('<BooleanDomain name="bool"/>')
-        @_doc("Persistence Threshold is a fraction of the scalar field's range (checked), or "
-              "an absolute persistence (unchecked).")
+        @_doc(f"Persistence Threshold is a fraction of {scale} (checked), or an absolute "
+              "persistence (unchecked).")
         def SetThresholdIsRelative(self: ActopoFilter, value: int) -> None:
             self.set_option("threshold_is_relative", bool(value))
 
@@ -328,6 +343,24 @@ _SCALAR_PROPERTY = """
 """
 
 
+# The fields of a job over several: every one-component floating-point point array of the input
+# is listed, all checked by default (ParaView lists them once the input has been updated); the
+# proxy calls ClearScalarFields, then AddScalarField once per checked name, in the list's order.
+_FIELDS_PROPERTY = """
+<StringVectorProperty name="ScalarFields" label="Scalar Fields" command="AddScalarField"
+    clean_command="ClearScalarFields" repeat_command="1" number_of_elements_per_command="1"
+    animateable="0">
+  <ArrayListDomain name="array_list" input_domain_name="input_scalars"
+      data_type="VTK_FLOAT VTK_DOUBLE">
+    <RequiredProperties><Property name="Input" function="Input"/></RequiredProperties>
+  </ArrayListDomain>
+  <Hints><ArraySelectionWidget icon_type="point"/></Hints>
+  <Documentation>The point scalar fields (one component, float or double) the job runs over, in
+this order (for tracking, the time steps); at least two. None checked: all of them.</Documentation>
+</StringVectorProperty>
+"""
+
+
 _MENU = '<ShowInMenu category="ACTOPO"/>'
 
 
@@ -341,14 +374,59 @@ def _scalar_name(algorithm: VTKPythonAlgorithmBase, grid: vtkUnstructuredGrid) -
         name = info.Get(vtkDataObject.FIELD_NAME())
         if name:
             return str(name)
-    data = grid.GetPointData()
-    for i in range(data.GetNumberOfArrays()):
-        array = data.GetArray(i)
-        if array is not None and array.GetNumberOfComponents() == 1 \
-                and array.GetDataType() in (VTK_FLOAT, VTK_DOUBLE):
-            return str(array.GetName())
+    names = _float_scalars(grid)
+    if names:
+        return names[0]
     raise PluginError("the input has no one-component floating-point point array to use as "
                       "the scalar field")
+
+
+def _is_float_scalar(array: Any) -> bool:
+    return array is not None and array.GetNumberOfComponents() == 1 \
+        and array.GetDataType() in (VTK_FLOAT, VTK_DOUBLE)
+
+
+def _float_scalars(grid: vtkUnstructuredGrid) -> list[str]:
+    """The input's one-component float and double point arrays, in its order."""
+    data = grid.GetPointData()
+    return [str(data.GetArrayName(i)) for i in range(data.GetNumberOfArrays())
+            if _is_float_scalar(data.GetArray(i))]
+
+
+def _point_array_names(grid: vtkUnstructuredGrid) -> str:
+    data = grid.GetPointData()
+    names = [data.GetArrayName(i) for i in range(data.GetNumberOfArrays())]
+    return ", ".join(repr(n) for n in names) or "none"
+
+
+def _at_least_two(names: Sequence[str], job: str) -> None:
+    if len(names) < 2:
+        listed = ", ".join(repr(n) for n in names) or "none"
+        raise PluginError(f"{job} needs at least two point fields (Scalar Fields), got "
+                          f"{len(names)}: {listed}")
+
+
+def _checked_fields(grid: vtkUnstructuredGrid, selected: Sequence[str], job: str) -> list[str]:
+    """The fields a job over several fields uploads and runs over: those selected, else all the
+    input's floating-point scalars; at least two, each a one-component float or double point
+    array of the input."""
+    names = list(selected) or _float_scalars(grid)
+    _at_least_two(names, job)
+    data = grid.GetPointData()
+    for name in names:
+        array = data.GetAbstractArray(name)
+        if array is None:
+            raise PluginError(f"the input has no point array '{name}'; point arrays: "
+                              f"{_point_array_names(grid)}")
+        if array.GetNumberOfComponents() != 1:
+            raise PluginError(f"point array '{name}' has {array.GetNumberOfComponents()} "
+                              f"components; {job} takes scalar fields (one component)")
+        if not _is_float_scalar(array):
+            kind = array.GetDataTypeAsString() if array.IsA("vtkDataArray") \
+                else array.GetClassName()
+            raise PluginError(f"point array '{name}' holds {kind} values; {job} takes "
+                              "floating-point fields (float or double)")
+    return names
 
 
 def _tetrahedra(grid: vtkUnstructuredGrid) -> np.ndarray:
@@ -365,22 +443,24 @@ def _tetrahedra(grid: vtkUnstructuredGrid) -> np.ndarray:
     return connectivity.reshape(-1, 4)
 
 
-def _upload_arrays(grid: vtkUnstructuredGrid,
-                   scalar: str) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-    """(points, tetrahedra, {scalar: values}) as the client's upload_mesh() takes them."""
-    array = grid.GetPointData().GetArray(scalar)
-    if array is None:
-        names = [grid.GetPointData().GetArrayName(i)
-                 for i in range(grid.GetPointData().GetNumberOfArrays())]
-        raise PluginError(f"the input has no numeric point array '{scalar}'; point arrays: "
-                          f"{', '.join(repr(n) for n in names) or 'none'}")
-    if array.GetNumberOfComponents() != 1:
-        raise PluginError(f"point array '{scalar}' has {array.GetNumberOfComponents()} "
-                          "components; pick a scalar field (one component)")
+def _upload_arrays(grid: vtkUnstructuredGrid, scalars: Sequence[str]
+                   ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """(points, tetrahedra, {scalar: values} for each of `scalars`) as the client's
+    upload_mesh() takes them."""
+    values = {}
+    for scalar in scalars:
+        array = grid.GetPointData().GetArray(scalar)
+        if array is None:
+            raise PluginError(f"the input has no numeric point array '{scalar}'; point arrays: "
+                              f"{_point_array_names(grid)}")
+        if array.GetNumberOfComponents() != 1:
+            raise PluginError(f"point array '{scalar}' has {array.GetNumberOfComponents()} "
+                              "components; pick a scalar field (one component)")
+        values[scalar] = numpy_support.vtk_to_numpy(array)
     if grid.GetPoints() is None:
         raise PluginError("the input has no points")
     points = numpy_support.vtk_to_numpy(grid.GetPoints().GetData())
-    return points, _tetrahedra(grid), {scalar: numpy_support.vtk_to_numpy(array)}
+    return points, _tetrahedra(grid), values
 
 
 def _vtk_array(name: str, values: np.ndarray) -> vtkAbstractArray:
@@ -462,6 +542,60 @@ def diagram_grid(grid: Any, output: vtkUnstructuredGrid) -> None:
         output.GetPointData().AddArray(_vtk_array(name, values))
     for name, values in grid.cell_data.items():
         output.GetCellData().AddArray(_vtk_array(name, values))
+
+
+def matrix_column_names(prefix: str, count: int) -> list[str]:
+    """The columns of a distance matrix as TTK's PersistenceDiagramDistanceMatrix names them:
+    the prefix, then the column's index zero-padded to the width of the last index (12
+    diagrams: Diagram00 ... Diagram11), so that the columns sort in order."""
+    width = len(str(max(count - 1, 0)))
+    return [f"{prefix}{i:0{width}d}" for i in range(count)]
+
+
+def distance_table(matrix: Any, output: vtkTable) -> None:
+    """The client's DistanceMatrix as TTK's distance-matrix table: a row per field; column
+    DiagramJ holds the Wasserstein-p distances to field J, BottleneckJ the bottleneck ones
+    (float64, inf where infinite); FieldName (a string column) names the row's field."""
+    count = len(matrix.fields)
+    for prefix, values in (("Diagram", matrix.wasserstein), ("Bottleneck", matrix.bottleneck)):
+        values = np.asarray(values, dtype=np.float64).reshape(count, count)
+        for j, name in enumerate(matrix_column_names(prefix, count)):
+            output.AddColumn(_vtk_array(name, values[:, j]))
+    names = vtkStringArray()
+    names.SetName("FieldName")
+    for field in matrix.fields:
+        names.InsertNextValue(str(field))
+    output.AddColumn(names)
+
+
+TRACKING_POINT_ARRAYS = ("TimeStep", "CriticalType", "Scalar", "VertexId")
+TRACKING_CELL_ARRAYS = ("ConnectedComponentId", "MatchingIdentifier", "Cost", "ComponentLength")
+
+
+def tracking_polydata(group: Mapping[str, np.ndarray], output: vtkPolyData) -> None:
+    """The tracking group (TTK's TrackingFromFields output): its points, a line per link
+    (Offsets and Connectivity: two points each), the per-point and per-link arrays as point
+    and cell data."""
+    points = np.reshape(group.get("Points", np.zeros((0, 3))), (-1, 3))
+    offsets = np.asarray(group.get("Offsets", np.zeros(1)), dtype=np.int64)
+    connectivity = group.get("Connectivity")
+    if connectivity is None:  # the points of each line in a row, as the separatrices'
+        connectivity = np.arange(offsets[-1] if len(offsets) else 0)
+    output.SetPoints(_points(points))
+    lines = vtkCellArray()
+    lines.SetData(_id_array(offsets), _id_array(np.asarray(connectivity)))
+    output.SetLines(lines)
+    links = max(len(offsets) - 1, 0)
+    for name, values in group.items():
+        if name in ("Points", "Offsets", "Connectivity"):
+            continue
+        on_points = name in TRACKING_POINT_ARRAYS or (
+            name not in TRACKING_CELL_ARRAYS and len(values) == len(points))
+        if len(values) != (len(points) if on_points else links):
+            raise PluginError(f"tracking array {name} has {len(values)} values, for "
+                              f"{len(points)} points and {links} lines")
+        data = output.GetPointData() if on_points else output.GetCellData()
+        data.AddArray(_vtk_array(name, values))
 
 
 def _camel(name: str) -> str:
@@ -564,27 +698,37 @@ class ActopoFilter(VTKPythonAlgorithmBase):
             return 0
         return 1
 
+    def scalars(self, grid: vtkUnstructuredGrid) -> list[str]:
+        """The point fields the job reads, uploaded with the mesh; the first is the session's
+        scalar field (with Server Path, none means the server's first)."""
+        return [_scalar_name(self, grid)]
+
+    def job(self, session: Any, scalars: list[str]) -> Any:
+        """Runs the algorithm on the session; its JobResult."""
+        return session.run(self.algorithm, parameters=self.parameters(), progress=self._progress)
+
     def run(self, grid: vtkUnstructuredGrid) -> tuple[Any, Any]:
         """Uploads (or loads) the mesh, runs the algorithm on a session; (result, stats)."""
         actopo = actopo_client()
         s = self.settings
-        scalar = _scalar_name(self, grid)
+        scalars = self.scalars(grid)
         token = s.token or os.environ.get("ACTOPO_TOKEN") or None
         self.UpdateProgress(0.0)
         with actopo.Client(s.target(), token=token) as client:
             if s.server_path:
                 mesh = client.load_mesh(s.server_path, block_size=s.block_size)
             else:
-                mesh = client.upload_mesh(_upload_arrays(grid, scalar), name=f"paraview:{scalar}",
+                name = scalars[0] if len(scalars) == 1 else f"{len(scalars)} fields"
+                mesh = client.upload_mesh(_upload_arrays(grid, scalars), name=f"paraview:{name}",
                                           block_size=s.block_size)
             try:
                 self.UpdateProgress(0.2)
-                with client.open_session(mesh, scalar=scalar, structure=s.structure,
-                                         consumers=s.consumers, producers=s.producers,
-                                         buffer_ratio=s.buffer_ratio, prefetch=s.prefetch,
+                with client.open_session(mesh, scalar=scalars[0] if scalars else None,
+                                         structure=s.structure, consumers=s.consumers,
+                                         producers=s.producers, buffer_ratio=s.buffer_ratio,
+                                         prefetch=s.prefetch,
                                          precompute=s.precompute) as session:
-                    result = session.run(self.algorithm, parameters=self.parameters(),
-                                         progress=self._progress)
+                    result = self.job(session, scalars)
                     return result, session.stats()
             finally:
                 # A failure here must not hide the run's; the server frees the mesh with its
@@ -750,3 +894,117 @@ class ActopoTopologicalSimplification(ActopoFilter):
         if result.simplified is None:
             raise PluginError(f"job {result.job_id}: the server sent no simplified field")
         vertex_arrays_grid(grid, {"simplified": result.simplified.point_data()}, outputs[0])
+
+
+# --- Filters over several fields ---------------------------------------------------------------
+
+
+def _wasserstein_order_property(cls: type) -> type:
+    """Adds Wasserstein Order (p) to a filter over several fields, as _connection_properties
+    adds its properties."""
+
+    @smproperty.doublevector(name="WassersteinOrder", label="Wasserstein Order",
+                             default_values=DEFAULT_WASSERSTEIN_ORDER)
+    @smdomain.doublerange(min=1.0)
+    @_doc("p of the Wasserstein-p distance between two persistence diagrams (TTK's \"p "
+          "parameter\"): a finite number, at least 1. The bottleneck distance comes with it.")
+    def SetWassersteinOrder(self: ActopoFilter, value: float) -> None:
+        self.set_option("p", float(value))
+
+    cls.SetWassersteinOrder = SetWassersteinOrder  # type: ignore[attr-defined]
+    return cls
+
+
+class ActopoFieldsFilter(ActopoFilter):
+    """Common part of the filters over several point fields of the input (Scalar Fields): the
+    fields go with the upload, and one job runs over them, in the order given."""
+
+    job_name = ""
+    """What the error messages call the job ("tracking")."""
+    include_arrays = True
+
+    def AddScalarField(self, name: str) -> None:
+        self.settings.fields.append(str(name))
+        self.Modified()
+
+    def ClearScalarFields(self) -> None:
+        if self.settings.fields:
+            self.settings.fields = []
+            self.Modified()
+
+    def scalars(self, grid: vtkUnstructuredGrid) -> list[str]:
+        if not self.settings.server_path:
+            return _checked_fields(grid, self.settings.fields, self.job_name)
+        # The server's mesh: the server checks the names; none selected is all of its fields.
+        if self.settings.fields:
+            _at_least_two(self.settings.fields, self.job_name)
+        return list(self.settings.fields)
+
+    def parameters(self) -> dict[str, str]:
+        parameters = {"p": repr(float(self.settings.p))}
+        if self.settings.persistence_threshold != 0:  # 0: every pair
+            parameters.update(self.settings.threshold_parameters())
+        return parameters
+
+    def job(self, session: Any, scalars: list[str]) -> Any:
+        return session.run(self.algorithm, fields=scalars or "all",
+                           parameters=self.parameters(), include_arrays=self.include_arrays,
+                           progress=self._progress)
+
+
+_SERIES_THRESHOLD = ("0: every pair. Above 0, only the persistence pairs at least this "
+                     "persistent are compared.")
+
+
+@smproxy.filter(name="ActopoPersistenceDiagramDistanceMatrix",
+                label="ACTOPO Persistence Diagram Distance Matrix")
+@smhint.xml(_MENU)
+@smproperty.xml(_FIELDS_PROPERTY)
+@smproperty.input(name="Input", port_index=0)
+@smdomain.datatype(dataTypes=["vtkUnstructuredGrid"], composite_data_supported=False)
+@smdomain.xml(_INPUT_ARRAYS)
+@_connection_properties
+@_wasserstein_order_property
+@_threshold_properties(0.0, _SERIES_THRESHOLD, scale="each field's own range")
+class ActopoPersistenceDiagramDistanceMatrix(ActopoFieldsFilter):
+    """TTK PersistenceDiagramDistanceMatrix on the server, from the fields instead of their
+    diagrams (the server computes each field's persistence diagram): a vtkTable with a row per
+    field, TTK's Diagram columns (Wasserstein-p), Bottleneck columns and FieldName."""
+
+    algorithm = "diagram-distance"
+    label = "ACTOPO Persistence Diagram Distance Matrix"
+    output_types = ("vtkTable",)
+    job_name = "the distance matrix"
+    include_arrays = False  # the matrices are in the summary; the diagrams are not needed
+
+    def fill(self, grid: vtkUnstructuredGrid, result: Any, outputs: list[Any]) -> None:
+        if result.distance_matrix is None:
+            raise PluginError(f"job {result.job_id}: the server sent no distance matrix")
+        distance_table(result.distance_matrix, outputs[0])
+
+
+@smproxy.filter(name="ActopoTrackingFromFields", label="ACTOPO Tracking From Fields")
+@smhint.xml(_MENU)
+@smproperty.xml(_FIELDS_PROPERTY)
+@smproperty.input(name="Input", port_index=0)
+@smdomain.datatype(dataTypes=["vtkUnstructuredGrid"], composite_data_supported=False)
+@smdomain.xml(_INPUT_ARRAYS)
+@_connection_properties
+@_wasserstein_order_property
+@_threshold_properties(0.0, _SERIES_THRESHOLD, scale="each field's own range")
+class ActopoTrackingFromFields(ActopoFieldsFilter):
+    """TTK TrackingFromFields on the server: the persistence pairs of consecutive fields (the
+    time steps, in the order given) matched and chained into trajectories, as vtkPolyData
+    lines with TTK's tracking arrays."""
+
+    algorithm = "tracking"
+    label = "ACTOPO Tracking From Fields"
+    output_types = ("vtkPolyData",)
+    job_name = "tracking"
+
+    def fill(self, grid: vtkUnstructuredGrid, result: Any, outputs: list[Any]) -> None:
+        group = result.group("tracking")
+        if not group and result.summary.get("links"):
+            raise PluginError(f"job {result.job_id}: the server sent no tracking arrays")
+        tracking_polydata(group, outputs[0])
+
