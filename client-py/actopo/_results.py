@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from actopo import _convert, _diagram, _distances, _simplified, _vtk
+from actopo import _convert, _diagram, _distances, _simplified, _tracking, _vtk
 from actopo._arrays import dtype_of
 from actopo._diagram import PersistenceDiagram
 from actopo._distances import DistanceMatrix
@@ -20,6 +20,7 @@ from actopo._errors import ActopoError
 from actopo._literals import Algorithm
 from actopo._proto import pb
 from actopo._simplified import SimplifiedField
+from actopo._tracking import Trajectories
 from actopo._types import JobProgress, JobStats
 
 
@@ -116,6 +117,15 @@ class JobResult:
         if self.algorithm != "diagram-distance" or "wasserstein" not in self.summary:
             return None
         return _distances.from_summary(self.summary)
+
+    @cached_property
+    def tracking(self) -> Trajectories | None:
+        """The trajectories of a tracking job (its summary and ``tracking`` arrays) as
+        Trajectories; None for the other jobs and for a tracking job run without arrays."""
+        group = self.group("tracking")
+        if self.algorithm != "tracking" or not group or "trajectories" not in self.summary:
+            return None
+        return _tracking.from_result(self.summary, group)
 
     def save_trace(self, path: str | os.PathLike[str]) -> str:
         """Writes the job's trace (run with ``trace=True``) to `path`, for ui.perfetto.dev or

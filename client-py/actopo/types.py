@@ -14,6 +14,7 @@ from actopo._diagram import DiagramGrid, PersistenceCurve, PersistenceDiagram
 from actopo._distances import DistanceMatrix
 from actopo._results import FieldResult, JobResult
 from actopo._simplified import SimplifiedField
+from actopo._tracking import Trajectories
 from actopo._types import (
     Counter,
     EngineOptions,
@@ -39,5 +40,5 @@ __all__ = [
     "FieldInfo", "FieldResult", "JobResult", "JobStats", "LoadProgress", "MemoryStats",
     "MeshInfo", "PersistenceCurve", "PersistenceDiagram", "QueryBreakdown", "RelationBatch",
     "ServerInfo", "ServerLimits", "SessionInfo", "SessionStats", "SimplexRelation",
-    "SimplifiedField", "StreamItem",
+    "SimplifiedField", "StreamItem", "Trajectories",
 ]

@@ -155,3 +155,33 @@ def test_tracking_over_fields_comes_whole(client, isabel, expected_diagrams):
     for field in result.fields:
         assert field.diagram.pairs_sha256() == \
             expected_diagrams[field.field]["pairs_sha256"]
+
+
+def test_trajectories_as_arrays_polydata_and_a_plot(client, isabel, tmp_path):
+    """result.tracking: the trajectories as numpy arrays, consistent with the summary; a
+    pyvista PolyData with TTK's names; a plot of the trajectories over time."""
+    steps = SOME[:3]
+    with client.open_session(isabel, structure="actopo") as session:
+        result = session.run("tracking", fields=steps)
+        assert session.run("diagram-distance", fields=steps[:2]).tracking is None
+    tracks = result.tracking
+    assert tracks is not None and tracks.fields == steps and tracks.p == 2.0
+    assert len(tracks) == result.summary["trajectories"]
+    assert len(tracks.lines) == len(tracks.cost) == result.summary["links"]
+    np.testing.assert_allclose(tracks.step_wasserstein, result.summary["step_wasserstein"])
+    # A link joins consecutive steps, at least the change of the extremum's value apart.
+    first, second = tracks.lines[:, 0], tracks.lines[:, 1]
+    assert (tracks.time_step[second] == tracks.time_step[first] + 1).all()
+    assert (tracks.cost >= np.abs(tracks.scalar[second] - tracks.scalar[first]) - 1e-12).all()
+    longest = int(np.argmax(tracks.component_length))
+    path = tracks.trajectory(int(tracks.component[longest]))
+    assert len(path) == tracks.component_length[longest] + 1
+    assert tracks.time_step[path].tolist() == list(range(tracks.time_step[path][0],
+                                                         tracks.time_step[path][0] + len(path)))
+    poly = tracks.to_pyvista()
+    assert poly.n_cells == len(tracks.lines) and poly.n_points == len(tracks.points)
+    assert set(poly.point_data.keys()) == {"TimeStep", "CriticalType", "Scalar", "VertexId"}
+    assert set(poly.cell_data.keys()) == {"ConnectedComponentId", "MatchingIdentifier", "Cost",
+                                          "ComponentLength"}
+    written = tracks.plot(tmp_path / "tracks.png", min_length=2)
+    assert (tmp_path / "tracks.png").stat().st_size > 10_000 and written.endswith("tracks.png")
