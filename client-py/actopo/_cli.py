@@ -27,7 +27,7 @@ from typing import Any, TypeAlias, cast
 
 from actopo import _names
 from actopo._bench import Bench, Load
-from actopo._cli_parser import DIAGRAM, DISTANCE, MANY_FIELDS, STRUCTURES, parser
+from actopo._cli_parser import DIAGRAM, MANY_FIELDS, STRUCTURES, TRACKING, parser
 from actopo._client import Client, Session
 from actopo._distances import DistanceMatrix
 from actopo._errors import ActopoError, InvalidArgumentError
@@ -284,9 +284,9 @@ def _run_algorithm(args: argparse.Namespace) -> Algorithm:
     if algorithm in MANY_FIELDS and not args.scalars:
         raise UsageError(f"{algorithm} compares fields: give --scalars F1,F2,... or "
                          "--scalars all")
-    if algorithm == DISTANCE:
+    if algorithm in MANY_FIELDS:
         if args.threshold is not None:
-            raise UsageError(f"--threshold draws on a persistence diagram; {DISTANCE} takes "
+            raise UsageError(f"--threshold draws on a persistence diagram; {algorithm} takes "
                              "--param persistence_threshold=T or --param relative_threshold=F")
     elif args.plot and algorithm != DIAGRAM:
         raise UsageError(f"--plot draws a persistence diagram: run {DIAGRAM}, not {algorithm}")
@@ -403,7 +403,9 @@ def _run_fields(client: Client, args: argparse.Namespace, algorithm: Algorithm,
     --json one object with a "fields" list), and diagram-distance's matrices."""
     fields = "all" if args.scalars == ["all"] else args.scalars
     with _mesh(client, args) as mesh, _open(client, mesh.info, args) as session:
-        job = session.submit(algorithm, parameters=parameters, include_arrays=False,
+        # Only a tracking plot needs arrays: the trajectories.
+        job = session.submit(algorithm, parameters=parameters,
+                             include_arrays=algorithm == TRACKING and bool(args.plot),
                              trace=bool(args.trace), digests=args.digests, fields=fields)
         if not args.json:
             print(f"{algorithm} on {mesh.info.name} ({mesh.info.tetrahedra} tetrahedra, "
@@ -421,6 +423,8 @@ def _run_fields(client: Client, args: argparse.Namespace, algorithm: Algorithm,
         report["trace"] = result.save_trace(args.trace)
     if args.plot and matrix is not None:
         report["plot"] = matrix.plot(args.plot)
+    if args.plot and result.tracking is not None:
+        report["plot"] = result.tracking.plot(args.plot)
     if args.json:
         return _print_json(report)
     print(f"  run {report['times_s']['run']:.3f} s over {len(result.fields)} fields, wait "

@@ -17,7 +17,8 @@ STRUCTURES = list(_names.STRUCTURES)
 ALGORITHMS = list(_names.ALGORITHMS)
 DIAGRAM = "persistence-diagram"
 DISTANCE = "diagram-distance"
-MANY_FIELDS = (DISTANCE, "tracking")
+TRACKING = "tracking"
+MANY_FIELDS = (DISTANCE, TRACKING)
 """The algorithms that compare several fields: they run only with --scalars."""
 SINGLE_FIELD = [a for a in ALGORITHMS if a not in MANY_FIELDS]
 """The algorithms that run on one field: those that `compare` and `bench` time."""
@@ -162,7 +163,8 @@ def _add_run_outputs(c: argparse.ArgumentParser) -> None:
     c.add_argument("--plot", metavar="PATH.png",
                    help=f"{DIAGRAM}: draw the diagram (birth, death) into this image with "
                    f"matplotlib (pip install 'actopo[plot]'); {DISTANCE}: the Wasserstein "
-                   "matrix as a heat map (with a dendrogram when scipy is installed)")
+                   "matrix as a heat map (with a dendrogram when scipy is installed); "
+                   f"{TRACKING}: the trajectories' extremum values over the steps")
     c.add_argument("--threshold", type=_threshold, metavar="T",
                    help="with --plot: draw the line death = birth + T; T is a persistence, or "
                    "a percentage of the scalar field's range such as 1%%")

@@ -110,7 +110,7 @@ class Trajectories:
         ax.set_xticks(range(len(self.fields)), self.fields, rotation=90)
         ax.set_ylabel("scalar at the pair's extremum")
         if labelled:
-            ax.legend(fontsize="small")
+            ax.legend(fontsize="small", loc="upper right")
         ax.set_title(title if title is not None else
                      f"{len(self)} trajectories through {len(self.fields)} steps")
         if figure is not None and path is not None:

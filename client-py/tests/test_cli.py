@@ -414,3 +414,11 @@ def test_run_tracking_prints_its_summary_after_the_fields(cli, isabel):
     assert summary["fields"] == SOME[:2] and summary["links"] > 0
     status, _, err = cli("run", "tracking", "--mesh-id", isabel.mesh_id)
     assert status == 2 and "tracking compares fields: give --scalars" in err
+
+
+def test_run_tracking_plots_the_trajectories(cli, isabel, tmp_path):
+    path = tmp_path / "tracks.png"
+    status, out, err = cli("run", "tracking", "--mesh-id", isabel.mesh_id, "--scalars",
+                           ",".join(SOME[:3]), "--plot", str(path))
+    assert status == 0, err
+    assert f"wrote {path}" in out and path.stat().st_size > 10_000
