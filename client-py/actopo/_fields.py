@@ -21,6 +21,7 @@ from typing import Any, TypeAlias
 import numpy as np
 
 from actopo._errors import InvalidArgumentError
+from actopo._mesh import read_file
 
 FieldsLike: TypeAlias = Any
 """Mapping[str, array-like] | pyvista dataset | meshio.Mesh."""
@@ -73,19 +74,7 @@ def point_fields(data: Any) -> dict[str, np.ndarray]:
 def read_point_fields(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     """The scalar point fields of a local mesh file, read with pyvista, else meshio (as
     uploads read files)."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"no such mesh file: {path}")
-    try:
-        import pyvista as pv
-    except ImportError:
-        try:
-            import meshio
-        except ImportError:
-            raise ImportError("reading a mesh file needs pyvista or meshio: "
-                              "pip install 'actopo[pyvista]' or 'actopo[meshio]'") from None
-        return point_fields(meshio.read(path))
-    return point_fields(pv.read(path))
+    return point_fields(read_file(Path(path)))
 
 
 def _values(name: str, raw: Any, vertices: int) -> np.ndarray:

@@ -91,7 +91,8 @@ def _from_meshio(mesh: Any, name: str) -> MeshArrays:
                     {k: np.asarray(v) for k, v in mesh.point_data.items()})
 
 
-def _from_file(path: Path) -> MeshArrays:
+def read_file(path: Path) -> Any:
+    """A local mesh file as pyvista reads it, else as meshio does (whichever is installed)."""
     if not path.is_file():
         raise FileNotFoundError(f"no such mesh file: {path}")
     try:
@@ -102,8 +103,12 @@ def _from_file(path: Path) -> MeshArrays:
         except ImportError:
             raise ImportError("reading a mesh file needs pyvista or meshio: "
                               "pip install 'actopo[pyvista]' or 'actopo[meshio]'") from None
-        return _from_meshio(meshio.read(path), path.name)
-    return _from_pyvista(pv.read(path), path.name)
+        return meshio.read(path)
+    return pv.read(path)
+
+
+def _from_file(path: Path) -> MeshArrays:
+    return mesh_arrays(read_file(path), path.name)
 
 
 def _from_tuple(arrays: Sequence[Any], name: str) -> MeshArrays:
