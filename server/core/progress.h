@@ -79,6 +79,19 @@ class Progress {
     return Progress(std::move(options));
   }
 
+  // The same stops, with every fraction reported as its place in [begin, end] of this one's:
+  // one part of a longer phase (a series' steps each report their share of "read").
+  Progress Slice(double begin, double end) const {
+    Options options = options_;
+    if (options_.report) {
+      options.report = [first = options_.report, begin, end](std::string_view phase,
+                                                             double fraction) {
+        first(phase, begin + (end - begin) * fraction);
+      };
+    }
+    return Progress(std::move(options));
+  }
+
  private:
   Options options_;
 };

@@ -7,8 +7,10 @@
 #include <cmath>
 #include <filesystem>
 
+#include "absl/strings/ascii.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "server/core/status_macros.h"
 
 namespace actopo::io {
 
@@ -91,6 +93,40 @@ absl::Status AppendSeriesStep(Mesh& series, const std::string& first, Mesh next,
     series.point_fields.push_back(std::move(field));
   }
   return absl::OkStatus();
+}
+
+absl::StatusOr<Mesh> ReadSteps(const std::vector<CollectionStep>& steps, const StepReader& read,
+                               const std::string& series, const Progress& progress) {
+  if (steps.empty()) return absl::InvalidArgumentError(absl::StrCat(series, ": no files"));
+  Mesh joined;
+  const double n = double(steps.size());
+  for (size_t k = 0; k < steps.size(); ++k) {
+    const std::string& file = steps[k].path;
+    if (absl::AsciiStrToLower(std::filesystem::path(file).extension().string()) == ".pvd") {
+      return absl::InvalidArgumentError(
+          absl::StrCat(series, ": step ", k, " is a collection itself (", file, ")"));
+    }
+    const auto named = [&](const absl::Status& status) {
+      return absl::Status(status.code(),
+                          absl::StrCat(series, ": step ", k, ": ", status.message()));
+    };
+    absl::StatusOr<Mesh> step = read(file, int(joined.point_fields.size()),
+                                     progress.Slice(double(k) / n, double(k + 1) / n));
+    if (!step.ok()) return named(step.status());
+    if (k == 0) {
+      joined = *std::move(step);
+      for (PointField& field : joined.point_fields) {
+        field.name = SeriesFieldName(field.name, 0, steps.size());
+        field.time = steps[0].time;
+      }
+    } else if (absl::Status appended = AppendSeriesStep(joined, steps[0].path, *std::move(step),
+                                                        file, k, steps.size(), steps[k].time);
+               !appended.ok()) {
+      return named(appended);
+    }
+    RETURN_IF_ERROR(progress.Update("read", double(k + 1) / n));
+  }
+  return joined;
 }
 
 }  // namespace actopo::io

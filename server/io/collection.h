@@ -9,11 +9,13 @@
 #ifndef ACTOPO_SERVER_IO_COLLECTION_H_
 #define ACTOPO_SERVER_IO_COLLECTION_H_
 
+#include <functional>
 #include <string>
 #include <vector>
 
 #include "absl/status/statusor.h"
 #include "server/core/mesh.h"
+#include "server/core/progress.h"
 
 namespace actopo::io {
 
@@ -33,6 +35,17 @@ std::string SeriesFieldName(const std::string& field, size_t step, size_t steps)
 // the same order; otherwise INVALID_ARGUMENT naming `file` and the first difference.
 absl::Status AppendSeriesStep(Mesh& series, const std::string& first, Mesh next,
                               const std::string& file, size_t index, size_t count, double time);
+
+// Reads a file of a series: io::ReadMesh, or the server's isolated reader. `fields_before` is
+// how many point fields the steps before it brought (the server's budget counts them all).
+using StepReader = std::function<absl::StatusOr<Mesh>(const std::string& file, int fields_before,
+                                                      const Progress& progress)>;
+
+// Every step read with `read` and joined into one mesh (AppendSeriesStep), each step reporting
+// its share of phase "read". Errors start with `series` (the .pvd, or how the caller names a
+// list of files) and the step's index.
+absl::StatusOr<Mesh> ReadSteps(const std::vector<CollectionStep>& steps, const StepReader& read,
+                               const std::string& series, const Progress& progress);
 
 }  // namespace actopo::io
 

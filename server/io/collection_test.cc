@@ -1,10 +1,12 @@
 #include "server/io/collection.h"
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "server/core/status_macros.h"
 #include "server/io/test_data.h"
 #include "server/io/vtk_reader.h"
 
@@ -74,6 +76,40 @@ TEST_F(CollectionTest, FilesThatDifferAreNamed) {
   EXPECT_THAT(ReadCollection((dir / "empty.pvd").string()).status().message(),
               HasSubstr("lists no DataSet"));
   std::filesystem::remove_all(dir);
+}
+
+TEST(ReadSteps, JoinsTheStepsAndReportsReadingOnceFromZeroToOne) {
+  const std::vector<CollectionStep> steps = {{"a.vtu", 0.5}, {"b.vtu", 1.5}, {"c.vtu", 2.5}};
+  std::vector<int> fields_before;
+  const StepReader read = [&](const std::string& file, int before,
+                              const Progress& progress) -> absl::StatusOr<Mesh> {
+    fields_before.push_back(before);
+    for (double f : {0.0, 0.5, 1.0}) RETURN_IF_ERROR(progress.Update("read", f));
+    Mesh mesh;
+    mesh.points = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+    mesh.tetrahedra = {0, 1, 2, 3};
+    mesh.point_fields.push_back({.name = "f", .values = {1, 2, 3, double(file[0])}});
+    return mesh;
+  };
+  std::vector<double> reported;
+  const Progress progress({.report = [&](std::string_view phase, double fraction) {
+    EXPECT_EQ(phase, "read");
+    reported.push_back(fraction);
+  }});
+  const absl::StatusOr<Mesh> joined = ReadSteps(steps, read, "three", progress);
+  ASSERT_TRUE(joined.ok()) << joined.status();
+  ASSERT_EQ(joined->point_fields.size(), 3u);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(joined->point_fields[k].name, "f_" + std::to_string(k));
+    EXPECT_EQ(joined->point_fields[k].time, steps[k].time);
+    EXPECT_EQ(joined->point_fields[k].values[3], double('a' + k));
+  }
+  EXPECT_EQ(fields_before, (std::vector<int>{0, 1, 2}));
+  ASSERT_FALSE(reported.empty());
+  EXPECT_TRUE(std::is_sorted(reported.begin(), reported.end()));
+  EXPECT_EQ(reported.front(), 0);
+  EXPECT_EQ(reported.back(), 1);
+  EXPECT_THAT(ReadSteps({}, read, "none", {}).status().message(), HasSubstr("none: no files"));
 }
 
 TEST(SeriesFieldName, PadsTheStepToTheLastOnesWidth) {

@@ -221,14 +221,21 @@ absl::StatusOr<MeshCounts> ReadMeshCounts(const std::string& path) {
   if (extension == ".pvd") {
     // The first step's counts, with every step's fields.
     ASSIGN_OR_RETURN(const std::vector<CollectionStep> steps, ReadCollection(path));
-    ASSIGN_OR_RETURN(MeshCounts counts, ReadMeshCounts(steps[0].path));
-    for (size_t k = 1; k < steps.size(); ++k) {
-      ASSIGN_OR_RETURN(const MeshCounts step, ReadMeshCounts(steps[k].path));
-      counts.point_fields += step.point_fields;
-    }
-    return counts;
+    std::vector<std::string> files;
+    for (const CollectionStep& step : steps) files.push_back(step.path);
+    return ReadSeriesCounts(files);
   }
   return NoCounts(path, absl::StrCat("unsupported extension '", extension, "'"));
+}
+
+absl::StatusOr<MeshCounts> ReadSeriesCounts(const std::vector<std::string>& files) {
+  if (files.empty()) return absl::InvalidArgumentError("a series of no files");
+  ASSIGN_OR_RETURN(MeshCounts counts, ReadMeshCounts(files[0]));
+  for (size_t k = 1; k < files.size(); ++k) {
+    ASSIGN_OR_RETURN(const MeshCounts step, ReadMeshCounts(files[k]));
+    counts.point_fields += step.point_fields;
+  }
+  return counts;
 }
 
 }  // namespace actopo::io

@@ -17,6 +17,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "absl/status/statusor.h"
 
@@ -29,6 +30,9 @@ struct MeshCounts {
 };
 
 absl::StatusOr<MeshCounts> ReadMeshCounts(const std::string& path);
+
+// A series' counts (collection.h): the first file's points and tetrahedra, every file's fields.
+absl::StatusOr<MeshCounts> ReadSeriesCounts(const std::vector<std::string>& files);
 
 }  // namespace actopo::io
 

@@ -124,33 +124,12 @@ absl::StatusOr<Mesh> ReadXmlImageData(const std::string& path, const Progress& p
 absl::StatusOr<Mesh> ReadSeries(const std::string& path, const ReadOptions& options,
                                 const Progress& progress) {
   ASSIGN_OR_RETURN(const std::vector<CollectionStep> steps, ReadCollection(path));
-  Mesh series;
-  for (size_t k = 0; k < steps.size(); ++k) {
-    const std::string& file = steps[k].path;
-    if (absl::AsciiStrToLower(std::filesystem::path(file).extension().string()) == ".pvd") {
-      return absl::InvalidArgumentError(
-          absl::StrCat(path, ": step ", k, " is a collection itself (", file, ")"));
-    }
-    // Each step reports its share of the read.
-    const Progress step = progress.AlsoReporting([](std::string_view, double) {});
-    absl::StatusOr<Mesh> read = ReadMesh(file, options, step);
-    if (!read.ok()) {
-      return absl::Status(read.status().code(),
-                          absl::StrCat(path, ": step ", k, ": ", read.status().message()));
-    }
-    RETURN_IF_ERROR(progress.Update("read", double(k + 1) / double(steps.size())));
-    if (k == 0) {
-      series = *std::move(read);
-      for (PointField& field : series.point_fields) {
-        field.name = SeriesFieldName(field.name, 0, steps.size());
-        field.time = steps[0].time;
-      }
-      continue;
-    }
-    RETURN_IF_ERROR(AppendSeriesStep(series, steps[0].path, *std::move(read), file, k, steps.size(),
-                                     steps[k].time));
-  }
-  return series;
+  return ReadSteps(
+      steps,
+      [&](const std::string& file, int, const Progress& step) {
+        return ReadMesh(file, options, step);
+      },
+      path, progress);
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 
 #include "gmock/gmock.h"
@@ -487,6 +488,92 @@ TEST_F(FieldsTest, ASeriesLoadsFromAParaViewCollectionAsOneMesh) {
   const grpc::Status escape = stub_->LoadMesh(Context().get(), load, &loaded);
   EXPECT_EQ(escape.error_code(), grpc::INVALID_ARGUMENT);
   EXPECT_THAT(escape.error_message(), HasSubstr("outside the server's data directory"));
+}
+
+TEST_F(FieldsTest, ASeriesLoadsFromAListOfFilesAsOneMesh) {
+  namespace fs = std::filesystem;
+  const fs::path shared = io::testing::DataDir();
+  if (!fs::is_directory(shared / "isabel_series_s2")) {
+    ACTOPO_SKIP() << "the shared data folder " << shared << " is not there";
+  }
+  fs::copy(shared / "isabel_series_s2", data_dir_ / "isabel");
+  fs::copy(shared / "fertility_tet.vtu", data_dir_ / "fertility_tet.vtu");
+  const auto load = [&](const std::vector<std::string>& paths, const std::vector<double>& times,
+                        v1::LoadMeshResponse* loaded) {
+    v1::LoadMeshRequest request;
+    request.mutable_files();  // set, even when empty
+    for (const std::string& path : paths) request.mutable_files()->add_paths(path);
+    for (double time : times) request.mutable_files()->add_times(time);
+    return stub_->LoadMesh(Context().get(), request, loaded);
+  };
+  v1::LoadMeshResponse loaded;
+  const grpc::Status s = load(
+      {"isabel/isabel_04_s2_tet.vtu", "isabel/isabel_02_s2_tet.vtu", "isabel/isabel_05_s2_tet.vtu"},
+      {4.5, 2.5, 5.5}, &loaded);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  ASSERT_EQ(loaded.mesh().fields_size(), 3);
+  const double times[] = {4.5, 2.5, 5.5};
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(loaded.mesh().fields(k).name(), "velocityMag_" + std::to_string(k));
+    EXPECT_EQ(loaded.mesh().fields(k).time(), times[k]);
+  }
+  EXPECT_EQ(loaded.mesh().name(), "isabel_04_s2_tet.vtu +2 files");
+  // Each step's field is that file's: its diagram is TTK's for that member.
+  std::ifstream expected_file(shared / "expected-ttk-series.json");
+  const auto expected = nlohmann::json::parse(expected_file)["isabel_series_s2_tet.vtu"];
+  v1::RunJobRequest request;
+  request.set_session_id(OpenOn(loaded.mesh().mesh_id(), "", v1::STRUCTURE_COMPACT, 1));
+  request.set_algorithm(v1::ALGORITHM_PERSISTENCE_DIAGRAM);
+  request.add_fields("velocityMag_1");
+  request.set_digests(true);
+  auto context = Context();
+  const JobRun run = RunJob(*stub_, context.get(), request);
+  ASSERT_TRUE(run.status.ok()) << run.status.error_message();
+  std::string pairs;
+  for (const v1::RunJobResponse& m : run.messages) {
+    if (m.has_field()) pairs = m.field().result().fields().at("pairs_sha256").string_value();
+  }
+  EXPECT_EQ(pairs, expected["velocityMag_02"]["upstream"]["persistence_diagram"]["pairs_sha256"]);
+
+  struct Case {
+    std::vector<std::string> paths;
+    std::vector<double> times;
+    grpc::StatusCode code;
+    std::string message;
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::vector<Case> cases = {
+      {{}, {}, grpc::INVALID_ARGUMENT, "files.paths: empty"},
+      {{"isabel/isabel_02_s2_tet.vtu"},
+       {1, 2},
+       grpc::INVALID_ARGUMENT,
+       "files.times: 2 values for 1 paths"},
+      {{"isabel/isabel_02_s2_tet.vtu", "isabel/nope.vtu"},
+       {},
+       grpc::NOT_FOUND,
+       "files.paths[1]: 'isabel/nope.vtu' not found in the data directory"},
+      {{"isabel/isabel_02_s2_tet.vtu", "../x.vtu"},
+       {},
+       grpc::INVALID_ARGUMENT,
+       "files.paths[1]: '../x.vtu' is outside the server's data directory"},
+      {{"isabel/isabel_series.pvd"},
+       {},
+       grpc::INVALID_ARGUMENT,
+       "files.paths[0]: 'isabel/isabel_series.pvd' is a collection"},
+      {{"isabel/isabel_02_s2_tet.vtu", "isabel/isabel_03_s2_tet.vtu"},
+       {0, nan},
+       grpc::INVALID_ARGUMENT,
+       "files.times[1]: nan is not finite"},
+      {{"isabel/isabel_02_s2_tet.vtu", "fertility_tet.vtu"},
+       {},
+       grpc::INVALID_ARGUMENT,
+       "files: step 1: fertility_tet.vtu: has 14570 points, not 51597"},
+  };
+  for (const Case& c : cases) {
+    const grpc::Status status = load(c.paths, c.times, &loaded);
+    EXPECT_EQ(status.error_code(), c.code) << c.message << ": " << status.error_message();
+    EXPECT_THAT(status.error_message(), HasSubstr(c.message));
+  }
 }
 
 TEST_F(FieldsTest, BadFieldListsAreNamed) {

@@ -1,10 +1,13 @@
 #include "server/service/mesh_registry.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "absl/strings/str_replace.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
@@ -111,78 +114,147 @@ absl::Status MeshRegistry::CheckCapacity() const {
   return absl::OkStatus();
 }
 
-absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFile(
-    const std::string& path, const PartitionOptions& partition, const Progress& progress) {
-  RETURN_IF_ERROR(CheckCapacity());
+absl::StatusOr<std::filesystem::path> MeshRegistry::Resolve(const std::string& field,
+                                                            const std::string& path) const {
   namespace fs = std::filesystem;
-  if (path.empty()) return absl::InvalidArgumentError("path: empty");
+  if (path.empty()) return absl::InvalidArgumentError(absl::StrCat(field, ": empty"));
   if (options_.data_dir.empty()) {
-    return absl::FailedPreconditionError("path: the server has no data directory (--data-dir)");
+    return absl::FailedPreconditionError(
+        absl::StrCat(field, ": the server has no data directory (--data-dir)"));
   }
   std::error_code ec;
   const fs::path root = fs::weakly_canonical(options_.data_dir, ec);
   const fs::path full = fs::weakly_canonical(root / fs::path(path), ec);
-  const auto [root_end, _] = std::mismatch(root.begin(), root.end(), full.begin(), full.end());
-  if (ec || fs::path(path).is_absolute() || root_end != root.end()) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "path: '", path, "' is outside the server's data directory; give a path relative to it"));
+  if (ec || fs::path(path).is_absolute() || !Within(root, full)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(field, ": '", path,
+                     "' is outside the server's data directory; give a path relative to it"));
   }
   if (!fs::exists(full)) {
-    return absl::NotFoundError(absl::StrCat("path: '", path, "' not found in the data directory"));
+    return absl::NotFoundError(
+        absl::StrCat(field, ": '", path, "' not found in the data directory"));
+  }
+  return full;
+}
+
+bool MeshRegistry::Within(const std::filesystem::path& root, const std::filesystem::path& file) {
+  const auto [end, unused] = std::mismatch(root.begin(), root.end(), file.begin(), file.end());
+  return end == root.end();
+}
+
+absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFile(
+    const std::string& path, const PartitionOptions& partition, const Progress& progress) {
+  RETURN_IF_ERROR(CheckCapacity());
+  namespace fs = std::filesystem;
+  ASSIGN_OR_RETURN(const fs::path full, Resolve("path", path));
+  if (absl::AsciiStrToLower(full.extension().string()) != ".pvd") {
+    return Read({{.path = full.string()}}, /*series=*/false, full.filename().string(),
+                "file:" + path, path, partition, progress);
   }
   // A series' files, like the path itself, must lie under the data directory.
-  if (absl::AsciiStrToLower(full.extension().string()) == ".pvd") {
-    ASSIGN_OR_RETURN(const std::vector<io::CollectionStep> steps, io::ReadCollection(full));
-    for (const io::CollectionStep& step : steps) {
-      const fs::path file = fs::weakly_canonical(step.path, ec);
-      const auto [end, unused] = std::mismatch(root.begin(), root.end(), file.begin(), file.end());
-      if (ec || end != root.end()) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "path: the series '", path, "' lists '", step.path.substr(step.path.rfind('/') + 1),
-            "', which is outside the server's data directory"));
-      }
+  ASSIGN_OR_RETURN(const std::vector<io::CollectionStep> steps, io::ReadCollection(full));
+  std::error_code ec;
+  const fs::path root = fs::weakly_canonical(options_.data_dir, ec);
+  for (const io::CollectionStep& step : steps) {
+    const fs::path file = fs::weakly_canonical(step.path, ec);
+    if (ec || !Within(root, file)) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "path: the series '", path, "' lists '", fs::path(step.path).filename().string(),
+          "', which is outside the server's data directory"));
     }
   }
+  return Read(steps, /*series=*/true, full.filename().string(), "file:" + path, path, partition,
+              progress);
+}
+
+absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFiles(
+    const std::vector<std::string>& paths, const std::vector<double>& times,
+    const PartitionOptions& partition, const Progress& progress) {
+  RETURN_IF_ERROR(CheckCapacity());
+  if (paths.empty())
+    return absl::InvalidArgumentError("files.paths: empty; give the files of the series");
+  if (!times.empty() && times.size() != paths.size()) {
+    return absl::InvalidArgumentError(absl::StrCat("files.times: ", times.size(), " values for ",
+                                                   paths.size(),
+                                                   " paths; give one per path, or none"));
+  }
+  std::vector<io::CollectionStep> steps;
+  for (size_t k = 0; k < paths.size(); ++k) {
+    const std::string field = absl::StrCat("files.paths[", k, "]");
+    ASSIGN_OR_RETURN(const std::filesystem::path full, Resolve(field, paths[k]));
+    if (absl::AsciiStrToLower(full.extension().string()) == ".pvd") {
+      return absl::InvalidArgumentError(absl::StrCat(
+          field, ": '", paths[k], "' is a collection; load it as the path, or list its files"));
+    }
+    const double time = times.empty() ? double(k) : times[k];
+    if (!std::isfinite(time)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("files.times[", k, "]: ", time, " is not finite"));
+    }
+    steps.push_back({.path = full.string(), .time = time});
+  }
+  const std::string name = std::filesystem::path(steps[0].path).filename().string();
+  return Read(steps, /*series=*/true,
+              paths.size() == 1 ? name : absl::StrCat(name, " +", paths.size() - 1, " files"),
+              "files:" + absl::StrJoin(paths, ","), "files", partition, progress);
+}
+
+absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Read(
+    const std::vector<io::CollectionStep>& steps, bool series, std::string name, std::string source,
+    const std::string& shown, const PartitionOptions& partition, const Progress& progress) {
   // The budget is held before anything is read: what the mesh and its encoding will take, by
   // the counts its header announces (reading peaks below that: VTK's copy and ours, about 48
   // bytes per vertex and 57 per tetrahedron); else, for a header without counts, a bound from
   // the file's size (compressed files expand).
-  absl::StatusOr<io::MeshCounts> counts = io::ReadMeshCounts(full.string());
+  std::vector<std::string> files;
+  int64_t file_bytes = 0;
+  for (const io::CollectionStep& step : steps) {
+    std::error_code ec;
+    files.push_back(step.path);
+    file_bytes += int64_t(std::filesystem::file_size(step.path, ec));
+  }
+  absl::StatusOr<io::MeshCounts> counts = io::ReadSeriesCounts(files);
   const int64_t need =
       counts.ok() ? EstimateBytes(counts->vertices, counts->tetrahedra, counts->point_fields)
-                  : int64_t(fs::file_size(full, ec)) * 4;
+                  : file_bytes * 4;
   RETURN_IF_ERROR(budget_->Reserve(
-      need, counts.ok() ? absl::StrCat("loading '", path, "' (", counts->vertices, " vertices and ",
-                                       counts->tetrahedra, " tetrahedra by its header)")
-                        : absl::StrCat("loading '", path, "'")));
+      need, counts.ok()
+                ? absl::StrCat("loading '", shown, "' (", counts->vertices, " vertices and ",
+                               counts->tetrahedra, " tetrahedra by its header)")
+                : absl::StrCat("loading '", shown, "'")));
   Reservation reading(budget_, need);
   const auto start = std::chrono::steady_clock::now();
-  absl::StatusOr<Mesh> read = absl::UnknownError("not read");
-  if (options_.reader.empty()) {
-    read = io::ReadMesh(full.string(), {}, progress);
-  } else {
-    // The child may use the reservation and room for VTK's parser and libraries; what it sends
-    // back is admitted against the budget before this process allocates for it.
+  // One file: read in the isolated child when the server has one (it may use the reservation
+  // and room for VTK's parser and libraries; what it sends back is admitted against the budget
+  // before this process allocates for it), else here.
+  const io::StepReader read_file = [&](const std::string& file, int fields_before,
+                                       const Progress& step) -> absl::StatusOr<Mesh> {
+    if (options_.reader.empty()) return io::ReadMesh(file, {}, step);
     const io::IsolatedReadOptions isolated{
         .reader = options_.reader,
         .memory_limit_bytes = need + kReaderOverheadBytes,
         .admit = [&](const io::MeshShape& shape) {
-          const int64_t bytes = EstimateBytes(shape.vertices, shape.tetrahedra, shape.point_fields);
+          const int64_t bytes =
+              EstimateBytes(shape.vertices, shape.tetrahedra, fields_before + shape.point_fields);
           if (bytes <= reading.bytes()) return absl::OkStatus();
           return reading.Resize(
-              bytes, absl::StrCat("loading '", path, "' (", shape.vertices, " vertices and ",
+              bytes, absl::StrCat("loading '", shown, "' (", shape.vertices, " vertices and ",
                                   shape.tetrahedra, " tetrahedra, more than its header said)"));
         }};
-    read = io::ReadMeshIsolated(full.string(), isolated, progress);
-  }
+    return io::ReadMeshIsolated(file, isolated, step);
+  };
+  absl::StatusOr<Mesh> read = series ? io::ReadSteps(steps, read_file, shown, progress)
+                                     : read_file(steps[0].path, 0, progress);
   if (!read.ok()) {
-    // Name the file as the client did, not by the server's own directory layout.
+    // Name the files as the client did, not by the server's own directory layout.
+    std::error_code ec;
+    const std::string root = std::filesystem::weakly_canonical(options_.data_dir, ec).string();
     return absl::Status(read.status().code(),
-                        absl::StrReplaceAll(read.status().message(), {{full.string(), path}}));
+                        absl::StrReplaceAll(read.status().message(), {{root + "/", ""}}));
   }
   Mesh mesh = std::move(*read);
-  return Add(full.filename().string(), "file:" + path, std::move(mesh), SecondsSince(start),
-             partition, progress, std::move(reading));
+  return Add(std::move(name), std::move(source), std::move(mesh), SecondsSince(start), partition,
+             progress, std::move(reading));
 }
 
 absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadSample(

@@ -8,6 +8,7 @@
 #define ACTOPO_SERVER_SERVICE_MESH_REGISTRY_H_
 
 #include <atomic>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <string>
@@ -20,6 +21,7 @@
 #include "server/core/progress.h"
 #include "server/core/sync.h"
 #include "server/core/topology.h"
+#include "server/io/collection.h"
 #include "server/results/vertex_boundary.h"
 #include "server/service/field_set.h"
 #include "server/service/memory_budget.h"
@@ -90,6 +92,13 @@ class MeshRegistry {
   absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadFile(const std::string& path,
                                                              const PartitionOptions& partition,
                                                              const Progress& progress = {});
+  // A series as a list of files (each relative to the data directory, none a .pvd): read as a
+  // .pvd's steps are (io/collection.h), step k's time `times[k]` (default k). Errors name the
+  // field: files.paths[k], files.times[k].
+  absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadFiles(const std::vector<std::string>& paths,
+                                                              const std::vector<double>& times,
+                                                              const PartitionOptions& partition,
+                                                              const Progress& progress = {});
   absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadSample(const std::string& name,
                                                                const PartitionOptions& partition,
                                                                const Progress& progress = {});
@@ -114,6 +123,16 @@ class MeshRegistry {
 
  private:
   absl::StatusOr<std::shared_ptr<const LoadedMesh>> Insert(std::unique_ptr<LoadedMesh> mesh);
+  // `path` under the data directory, existing; errors name `field`.
+  absl::StatusOr<std::filesystem::path> Resolve(const std::string& field,
+                                                const std::string& path) const;
+  static bool Within(const std::filesystem::path& root, const std::filesystem::path& file);
+  // Reads one file (`series` false) or a series' `steps` under the budget, then Add. Errors
+  // name the files relative to the data directory and the whole as `shown`.
+  absl::StatusOr<std::shared_ptr<const LoadedMesh>> Read(
+      const std::vector<io::CollectionStep>& steps, bool series, std::string name,
+      std::string source, const std::string& shown, const PartitionOptions& partition,
+      const Progress& progress);
 
   const MeshRegistryOptions options_;
   MemoryBudget* budget_;

@@ -384,7 +384,11 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> TopologyServiceImpl::LoadReque
     case v1::LoadMeshRequest::kPath: return meshes_->LoadFile(request.path(), partition, progress);
     case v1::LoadMeshRequest::kSample:
       return meshes_->LoadSample(request.sample(), partition, progress);
-    default: return absl::InvalidArgumentError("source: set path or sample");
+    case v1::LoadMeshRequest::kFiles:
+      return meshes_->LoadFiles({request.files().paths().begin(), request.files().paths().end()},
+                                {request.files().times().begin(), request.files().times().end()},
+                                partition, progress);
+    default: return absl::InvalidArgumentError("source: set path, sample or files");
   }
 }
 

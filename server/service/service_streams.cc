@@ -488,8 +488,8 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     const Progress::Report report = Reporter(start);
     const std::string what = absl::StrCat(
         "job ", job_id_, " (", std::string(AlgorithmName(input_.algorithm)), " over ",
-        fields_.size(), " fields, ", std::string(StructureName(session_->options().structure.kind)),
-        ", ", session_->id(), ")");
+        fields_.size(), fields_.size() == 1 ? " field, " : " fields, ",
+        std::string(StructureName(session_->options().structure.kind)), ", ", session_->id(), ")");
     LogLine(absl::StrCat(what, " started"));
     const absl::Status status = RunEachField(context, report);
     lease_.Release();  // before the client can see the end of the stream
