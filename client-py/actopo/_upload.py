@@ -1,5 +1,6 @@
 """The byte streams of UploadMesh and AddFields: a header, then ~1 MiB chunks of the
-concatenated arrays, with the SHA-256 of those bytes in the header."""
+concatenated arrays, with the SHA-256 of those bytes (in the header of an upload, after the
+chunks of AddFields)."""
 
 from __future__ import annotations
 
@@ -51,16 +52,25 @@ def requests(mesh: MeshArrays, partition: pb.PartitionOptions,
 
 def add_fields_requests(mesh_id: str, fields: Sequence[FieldArray],
                         chunk_bytes: int = CHUNK_BYTES) -> Iterator[pb.AddFieldsRequest]:
-    """The messages of AddFields: the header (the fields in order, with their dtypes, times and
-    the SHA-256 of their values), made before this returns, then the values in chunks as for
-    an upload. Only one chunk is held at a time besides the fields themselves."""
+    """The messages of AddFields: the header (the fields in order, with their dtypes and
+    times), made before this returns, then the values in chunks as for an upload, then the
+    SHA-256 of those bytes (header.sha256_last): each chunk is hashed as it goes, while gRPC
+    sends the ones before it, so the values are read once. Only one chunk is held at a time
+    besides the fields themselves."""
     buffers = [f.values.data.cast("B") for f in fields]
     first = pb.AddFieldsRequest(header=pb.AddFieldsHeader(
-        mesh_id=mesh_id, sha256=_sha256(buffers),
+        mesh_id=mesh_id, sha256_last=True,
         fields=[pb.UploadField(name=f.name, dtype=code_of(f.values.dtype), time=f.time)
                 for f in fields]))
-    return itertools.chain([first], (pb.AddFieldsRequest(chunk=c)
-                                     for c in chunks(buffers, chunk_bytes)))
+
+    def rest() -> Iterator[pb.AddFieldsRequest]:
+        digest = hashlib.sha256()
+        for chunk in chunks(buffers, chunk_bytes):
+            digest.update(chunk)
+            yield pb.AddFieldsRequest(chunk=chunk)
+        yield pb.AddFieldsRequest(sha256=digest.hexdigest())
+
+    return itertools.chain([first], rest())
 
 
 def chunks(buffers: Iterable[memoryview], chunk_bytes: int) -> Iterator[bytes]:

@@ -112,10 +112,13 @@ def test_add_fields_stream_chunks_and_digest():
     messages = list(_upload.add_fields_requests(
         "mesh-1", _arrays({"a": a, "b": b}, 40, times=[None, 7.5]), chunk_bytes=64))
     header = messages[0].header
-    payload = b"".join(m.chunk for m in messages[1:])
+    payload = b"".join(m.chunk for m in messages[1:-1])
     assert payload == a.tobytes() + b.tobytes()
-    assert [len(m.chunk) for m in messages[1:]] == [64] * 7 + [32]  # 160 + 320 bytes, straddled
-    assert header.sha256 == hashlib.sha256(payload).hexdigest()
+    assert [len(m.chunk) for m in messages[1:-1]] == [64] * 7 + [32]  # 160 + 320 bytes, straddled
+    # The digest comes last, hashed as the chunks went.
+    assert header.sha256_last and not header.sha256
+    assert messages[-1].WhichOneof("payload") == "sha256"
+    assert messages[-1].sha256 == hashlib.sha256(payload).hexdigest()
     assert header.mesh_id == "mesh-1"
     assert [(f.name, f.dtype, f.HasField("time")) for f in header.fields] == [
         ("a", pb.DATA_TYPE_FLOAT32, False), ("b", pb.DATA_TYPE_FLOAT64, True)]

@@ -1,7 +1,8 @@
 // AddFields' wire format, checked and decoded as the bytes arrive (no copy of the raw data is
 // kept), without a call or a server so that it can be tested and fuzzed: a header naming the
 // fields (FLOAT32 or FLOAT64, one value per vertex of the mesh) and the SHA-256 of their bytes,
-// then the values of each field in turn, in chunks of any size.
+// then the values of each field in turn, in chunks of any size (then the SHA-256, when the header
+// says it comes last).
 //
 //   ASSIGN_OR_RETURN(FieldDecoder decoder, FieldDecoder::Start(header, mesh_vertices));
 //   for (chunk : chunks) RETURN_IF_ERROR(decoder.Append(chunk));
@@ -12,6 +13,7 @@
 #ifndef ACTOPO_SERVER_SERVICE_FIELD_DECODER_H_
 #define ACTOPO_SERVER_SERVICE_FIELD_DECODER_H_
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -33,12 +35,16 @@ class FieldDecoder {
   size_t received_bytes() const { return received_; }
   // Decodes the next bytes; refuses more than announced and non-finite values.
   absl::Status Append(std::string_view chunk);
+  // The digest sent after the chunks (header.sha256_last), before Finish.
+  absl::Status SetDigest(std::string_view sha256);
   // The fields, once every byte came and hashed as announced.
   absl::StatusOr<std::vector<PointField>> Finish();
 
  private:
   FieldDecoder() = default;
-  absl::Status Take(const char* value);  // one value of the current field
+  // `count` values of the current field (little-endian, of its size, any alignment), which
+  // they do not overrun.
+  absl::Status Take(const char* bytes, int64_t count);
 
   std::vector<PointField> fields_;
   std::vector<int> sizes_;  // bytes per value of each field
@@ -47,7 +53,11 @@ class FieldDecoder {
   size_t field_ = 0;    // the field being filled
   int64_t vertex_ = 0;  // its next vertex
   std::string carry_;   // a value split across chunks
-  std::string sha256_;  // announced; empty: not checked
+  static absl::Status CheckDigest(std::string_view field, std::string_view digest,
+                                  bool may_be_empty);
+
+  std::string sha256_;  // announced; empty: not checked (or not come yet, with digest_last_)
+  bool digest_last_ = false;
   std::unique_ptr<Sha256> hash_;
 };
 

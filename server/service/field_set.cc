@@ -11,9 +11,14 @@ FieldSet::Field FieldSet::Make(PointField field, std::optional<double> time,
                                Reservation reservation) {
   Field out{.field = std::move(field), .time = time, .reservation = std::move(reservation)};
   if (!out.field.values.empty()) {
-    const auto [lo, hi] = std::minmax_element(out.field.values.begin(), out.field.values.end());
-    out.min = *lo;
-    out.max = *hi;
+    // Branch-free, so that it vectorizes (std::minmax_element does not); the values are finite.
+    double lo = out.field.values[0], hi = lo;
+    for (const double v : out.field.values) {
+      lo = v < lo ? v : lo;
+      hi = v > hi ? v : hi;
+    }
+    out.min = lo;
+    out.max = hi;
   }
   return out;
 }

@@ -53,7 +53,8 @@ NewField Float64(std::string name, const std::vector<double>& values,
 class FieldsTest : public ServiceTest {
  protected:
   // AddFields with the fields' bytes in chunks of `chunk`; `sha256` "" checks nothing, "auto"
-  // the right digest, anything else is sent as it is.
+  // the right digest, "last" the right digest after the chunks (header.sha256_last), "last:D"
+  // digest D after them, anything else is sent as it is.
   grpc::Status AddFields(const std::string& mesh_id, const std::vector<NewField>& fields,
                          v1::AddFieldsResponse* response, size_t chunk = 1000,
                          const std::string& sha256 = "auto", int64_t drop_bytes = 0) {
@@ -69,14 +70,24 @@ class FieldsTest : public ServiceTest {
       if (f.time) u->set_time(*f.time);
       data += f.bytes;
     }
-    header.mutable_header()->set_sha256(sha256 == "auto" ? Sha256Hex(data) : sha256);
+    std::string last;
+    if (sha256.starts_with("last")) {
+      header.mutable_header()->set_sha256_last(true);
+      last = sha256 == "last" ? Sha256Hex(data) : sha256.substr(5);
+    } else {
+      header.mutable_header()->set_sha256(sha256 == "auto" ? Sha256Hex(data) : sha256);
+    }
     data.resize(data.size() - size_t(drop_bytes));
-    if (writer->Write(header)) {
-      for (size_t at = 0; at < data.size(); at += chunk) {
-        v1::AddFieldsRequest piece;
-        piece.set_chunk(data.substr(at, chunk));
-        if (!writer->Write(piece)) break;
-      }
+    bool writing = writer->Write(header);
+    for (size_t at = 0; writing && at < data.size(); at += chunk) {
+      v1::AddFieldsRequest piece;
+      piece.set_chunk(data.substr(at, chunk));
+      writing = writer->Write(piece);
+    }
+    if (writing && !last.empty()) {
+      v1::AddFieldsRequest digest;
+      digest.set_sha256(last);
+      writer->Write(digest);
     }
     writer->WritesDone();
     return writer->Finish();
@@ -132,6 +143,27 @@ class FieldsTest : public ServiceTest {
     return "";
   }
 };
+
+TEST_F(FieldsTest, TheDigestMayFollowTheChunks) {
+  const Mesh sample = *io::MakeSample(kSample);
+  const std::string mesh_id = LoadSample(kSample);
+  v1::AddFieldsResponse added;
+  // Chunks of many sizes: each is decoded while the next arrives.
+  for (const size_t chunk : {size_t(13), size_t(4096), size_t(1) << 20}) {
+    const std::string name = "copy" + std::to_string(chunk);
+    const grpc::Status s =
+        AddFields(mesh_id, {Float64(name, sample.point_fields[0].values)}, &added, chunk, "last");
+    ASSERT_TRUE(s.ok()) << s.error_message();
+    const v1::FieldInfo& info = added.mesh().fields(added.mesh().fields_size() - 1);
+    EXPECT_EQ(info.name(), name);
+    EXPECT_EQ(info.min(), *std::min_element(sample.point_fields[0].values.begin(),
+                                            sample.point_fields[0].values.end()));
+  }
+  const std::string session = OpenOn(mesh_id, "scalar");
+  const std::string copied = OpenOn(mesh_id, "copy13");
+  EXPECT_EQ(Summary(Job(session, v1::ALGORITHM_CRITICAL_POINTS)),
+            Summary(Job(copied, v1::ALGORITHM_CRITICAL_POINTS)));
+}
 
 TEST_F(FieldsTest, AnAddedFieldBehavesAsALoadedOne) {
   const Mesh sample = *io::MakeSample(kSample);
@@ -235,6 +267,18 @@ TEST_F(FieldsTest, BadFieldsAreRefusedNamingWhatIsWrongAndAddNothing) {
        grpc::DATA_LOSS,
        "header.sha256: the values hash",
        std::string(64, 'a')},
+      {"corrupted, digest last",
+       mesh_id,
+       {Float64("f", ok)},
+       grpc::DATA_LOSS,
+       "sha256: the values hash",
+       "last:" + std::string(64, 'a')},
+      {"digest last, malformed",
+       mesh_id,
+       {Float64("f", ok)},
+       grpc::INVALID_ARGUMENT,
+       "sha256: expected 64 lowercase hex digits",
+       "last:abc"},
   };
   const std::string session = OpenOn(mesh_id, "height");
   const std::string before = Summary(Job(session, v1::ALGORITHM_CRITICAL_POINTS));

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <deque>
 #include <optional>
+#include <thread>
 
 #include "absl/strings/str_cat.h"
 #include "server/core/process_memory.h"
@@ -144,15 +145,17 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadMeshRequest
 
 // ---------------------------------------------------------------------------------------------
 // AddFields: header, then raw chunks, decoded into the fields as they arrive (FieldDecoder):
-// the call costs what its bytes cost. The fields' bytes are reserved when the header comes,
-// each field its own share, released with its last holder once added (FieldSet).
+// the call costs what its bytes cost. The header is checked on gRPC's thread; then a thread of
+// the call's own hashes and decodes the chunks while gRPC's thread goes on receiving the next
+// ones (gRPC runs reactions on the thread that reads the socket, so decoding there would stop
+// the transfer), at most kQueued chunks ahead. The fields' bytes are reserved when the header
+// comes, each field its own share, released with its last holder once added (FieldSet).
 class AddFieldsReactor final : public grpc::ServerReadReactor<v1::AddFieldsRequest> {
  public:
   AddFieldsReactor(ReactorHost* host, grpc::CallbackServerContext* context,
                    v1::AddFieldsResponse* response)
       : host_(host), response_(response) {
-    const absl::Status admitted = host_->Admit(context);
-    if (!admitted.ok()) {
+    if (const absl::Status admitted = host_->Admit(context); !admitted.ok()) {
       Done(admitted);
       return;
     }
@@ -160,29 +163,85 @@ class AddFieldsReactor final : public grpc::ServerReadReactor<v1::AddFieldsReque
   }
 
   void OnReadDone(bool ok) override {
-    const absl::Status s = ok ? Consume() : Complete();
-    if (!ok || !s.ok()) {
-      Done(s);
+    if (!started_) {  // the header: no worker yet, nothing else runs
+      absl::Status s =
+          ok ? Consume(message_) : absl::InvalidArgumentError("header: the call sent no header");
+      if (!s.ok()) {
+        Done(s);
+        return;
+      }
+      started_ = true;
+      worker_ = std::thread([this] { Work(); });
+      StartRead(&message_);
       return;
     }
-    StartRead(&message_);
+    MutexLock lock(mu_);
+    if (finished_) return;  // a read started before the worker ended the call
+    if (!ok) {
+      ended_ = true;
+    } else {
+      queue_.push_back(std::move(message_));
+      message_.Clear();
+      if (queue_.size() < kQueued) {
+        StartRead(&message_);
+      } else {
+        paused_ = true;  // the worker starts the next read when it takes a chunk
+      }
+    }
+    arrived_.Signal();
   }
 
-  void OnDone() override { delete this; }
+  void OnDone() override {
+    if (worker_.joinable()) worker_.join();
+    delete this;
+  }
 
  private:
-  absl::Status Consume() {
+  static constexpr size_t kQueued = 4;  // chunks received ahead of the decoding
+
+  // The worker: every message after the header, in order, then the fields added; it ends the
+  // call, and touches nothing of the reactor once it has.
+  void Work() {
+    absl::Status status;
+    while (true) {
+      v1::AddFieldsRequest message;
+      {
+        MutexLock lock(mu_);
+        while (queue_.empty() && !ended_) arrived_.Wait(mu_);
+        if (queue_.empty()) break;  // ended: every message is decoded
+        message = std::move(queue_.front());
+        queue_.pop_front();
+        if (paused_) {
+          paused_ = false;
+          StartRead(&message_);
+        }
+      }
+      if (status = Consume(message); !status.ok()) break;
+    }
+    if (status.ok()) status = Complete();
+    {
+      MutexLock lock(mu_);
+      finished_ = true;
+      queue_.clear();
+    }
+    Done(status);
+  }
+
+  // Only the worker (or, for the header, gRPC's thread before the worker starts) decodes.
+  absl::Status Consume(v1::AddFieldsRequest& message) {
     if (!decoder_) {
-      if (message_.payload_case() != v1::AddFieldsRequest::kHeader) {
+      if (message.payload_case() != v1::AddFieldsRequest::kHeader) {
         return absl::InvalidArgumentError(
             "header: the first message of AddFields must be the header");
       }
-      return Start(message_.header());
+      return Start(message.header());
     }
-    if (message_.payload_case() != v1::AddFieldsRequest::kChunk) {
-      return absl::InvalidArgumentError("chunk: only one header per call; then send chunks");
+    switch (message.payload_case()) {
+      case v1::AddFieldsRequest::kChunk: return decoder_->Append(message.chunk());
+      case v1::AddFieldsRequest::kSha256: return decoder_->SetDigest(message.sha256());
+      default:
+        return absl::InvalidArgumentError("chunk: only one header per call; then send chunks");
     }
-    return decoder_->Append(message_.chunk());
   }
 
   absl::Status Start(const v1::AddFieldsHeader& header) {
@@ -211,7 +270,6 @@ class AddFieldsReactor final : public grpc::ServerReadReactor<v1::AddFieldsReque
   }
 
   absl::Status Complete() {
-    if (!decoder_) return absl::InvalidArgumentError("header: the call sent no header");
     ASSIGN_OR_RETURN(std::vector<PointField> decoded, decoder_->Finish());
     std::vector<FieldSet::Field> fields;
     for (size_t i = 0; i < decoded.size(); ++i) {
@@ -235,11 +293,21 @@ class AddFieldsReactor final : public grpc::ServerReadReactor<v1::AddFieldsReque
 
   ReactorHost* host_;
   v1::AddFieldsResponse* response_;
-  v1::AddFieldsRequest message_;
+  v1::AddFieldsRequest message_;  // written by gRPC between StartRead and OnReadDone
+  bool started_ = false;          // the header came; gRPC's thread's alone
+  // Set by the header, then the worker's alone.
   std::shared_ptr<const LoadedMesh> mesh_;
   std::optional<FieldDecoder> decoder_;
   std::vector<Reservation> reservations_;  // one per field
   std::vector<std::optional<double>> times_;
+  std::thread worker_;
+  // Between gRPC's thread and the worker.
+  Mutex mu_;
+  CondVar arrived_;
+  std::deque<v1::AddFieldsRequest> queue_ ABSL_GUARDED_BY(mu_);
+  bool ended_ ABSL_GUARDED_BY(mu_) = false;     // the client sent its last message
+  bool paused_ ABSL_GUARDED_BY(mu_) = false;    // no read outstanding: the queue was full
+  bool finished_ ABSL_GUARDED_BY(mu_) = false;  // the worker ended the call
 };
 
 // ---------------------------------------------------------------------------------------------
