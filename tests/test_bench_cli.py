@@ -184,6 +184,31 @@ def test_errors_name_the_flag_and_value(args, message):
     assert message in proc.stderr
 
 
+def test_block_labels_partition_with_or_without_output(tmp_path):
+    """--block-labels reads its field whether or not --output keeps the fields; a float or
+    unknown field is named by the flag."""
+    meshio = pytest.importorskip("meshio")
+    import numpy as np
+    mesh = meshio.read(DATA / "fertility_tet.vtu")
+    mesh.point_data["part"] = (mesh.points[:, 0] > np.median(mesh.points[:, 0])).astype(np.int32)
+    mesh.point_data["wobble"] = mesh.points[:, 1] * 0.37
+    path = tmp_path / "labelled.vtu"
+    meshio.write(path, mesh)
+    common = ["--mesh", str(path), "--algorithm", "critical-points", "--scalar", "height"]
+    alone = run_json(*common, "--block-labels", "part")
+    written = run_json(*common, "--block-labels", "part", "--output", str(tmp_path / "cp"))
+    assert alone["mesh"]["blocks"] == written["mesh"]["blocks"] == 2
+    assert alone["result"] == written["result"]
+    proc = bench(*common, "--block-labels", "wobble", check=False)
+    assert proc.returncode != 0
+    assert "--block-labels: vertex 0 has label" in proc.stderr
+    assert "not a 32-bit integer" in proc.stderr
+    proc = bench(*common, "--block-labels", "nope", check=False)
+    assert proc.returncode != 0
+    assert "--block-labels: point field 'nope' not found; point fields: " in proc.stderr
+    assert "'part'" in proc.stderr
+
+
 def trace_events(path):
     """The trace's events and its thread names by tid (metadata events set them)."""
     trace = json.loads(Path(path).read_text())

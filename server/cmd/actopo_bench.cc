@@ -268,10 +268,24 @@ absl::StatusOr<Loaded> Load(const BenchOptions& o, Algorithm algorithm,
   ASSIGN_OR_RETURN(out.mesh, o.mesh.empty() ? io::MakeSample(o.sample)
                                             : io::ReadMesh(o.mesh, {.threads = o.threads}));
   if (o.mesh.empty()) RETURN_IF_ERROR(ValidateMesh(out.mesh));  // ReadMesh validated a file's
+  if (!o.block_labels.empty() && out.mesh.FindField(o.block_labels) == nullptr) {
+    std::vector<std::string> names;
+    for (const PointField& field : out.mesh.point_fields) names.push_back("'" + field.name + "'");
+    return absl::NotFoundError(absl::StrCat(
+        "--block-labels: point field '", o.block_labels,
+        "' not found; point fields: ", names.empty() ? "none" : absl::StrJoin(names, ", ")));
+  }
   ASSIGN_OR_RETURN(const std::vector<int> selected, SelectFields(o, out.mesh, algorithm));
   for (int f : selected) out.fields.push_back(out.mesh.point_fields[f]);
-  // Without --output no result file carries the mesh's fields: the ones read are copied above.
-  if (o.output.empty()) std::vector<PointField>().swap(out.mesh.point_fields);
+  // Without --output no result file carries the mesh's fields: the ones read are copied above,
+  // and only the block labels stay, for the partition.
+  if (o.output.empty()) {
+    std::vector<PointField> kept;
+    for (PointField& field : out.mesh.point_fields) {
+      if (!o.block_labels.empty() && field.name == o.block_labels) kept.push_back(std::move(field));
+    }
+    out.mesh.point_fields.swap(kept);
+  }
   out.seconds = Seconds(start);
   Phase(trace, "load", start);
   return out;
@@ -289,8 +303,15 @@ absl::StatusOr<std::shared_ptr<const Topology>> Partition(
   std::vector<int32_t> blocks;
   {
     Trace::Scope span(trace.get(), "blocks", "encode");
-    ASSIGN_OR_RETURN(blocks, ComputeBlocks(mesh, {.bucket_capacity = o.block_size,
-                                                  .block_label_field = o.block_labels}));
+    absl::StatusOr<std::vector<int32_t>> computed =
+        ComputeBlocks(mesh, {.bucket_capacity = o.block_size, .block_label_field = o.block_labels});
+    if (!computed.ok()) {  // named by the flags typed
+      return absl::Status(
+          computed.status().code(),
+          absl::StrReplaceAll(computed.status().message(), {{"block labels: ", "--block-labels: "},
+                                                            {"block size: ", "--block-size: "}}));
+    }
+    blocks = *std::move(computed);
   }
   // Without --output the points have done their part once the blocks are known: free them
   // before the encoding's peak (wavelet128: 48 MiB).

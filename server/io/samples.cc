@@ -42,10 +42,15 @@ constexpr std::array<SampleKind, 2> kSamples = {{
      "(Freudenthal split), fields scalar (smooth, several extrema) and height (z)"},
 }};
 
+// The error names the sample as given and the samples there are, briefly (SampleNames() has
+// their descriptions).
 absl::Status BadSample(std::string_view name, const std::string& why) {
-  return absl::InvalidArgumentError(
-      absl::StrCat("sample '", std::string(name), "': ", why,
-                   "; samples: ", absl::StrJoin(SampleNames(), "; ")));
+  std::vector<std::string> kinds;
+  for (const SampleKind& kind : kSamples) {
+    kinds.push_back(absl::StrCat(kind.name, ":N (", kind.min_n, " <= N <= ", kind.max_n, ")"));
+  }
+  return absl::InvalidArgumentError(absl::StrCat("sample '", std::string(name), "': ", why,
+                                                 "; samples: ", absl::StrJoin(kinds, ", ")));
 }
 
 absl::StatusOr<Mesh> MakeWavelet(int n) {
@@ -151,7 +156,9 @@ Mesh MakeJittered(int n) {
 }
 
 // The kind and N a sample name gives.
+// "sample:" before the name, as LoadMesh's clients write a sample, is accepted.
 absl::StatusOr<std::pair<const SampleKind*, int>> ParseSample(std::string_view name) {
+  if (name.substr(0, 7) == "sample:") name.remove_prefix(7);
   const size_t colon = name.find(':');
   const std::string_view base = name.substr(0, colon);
   for (const SampleKind& kind : kSamples) {
@@ -191,6 +198,8 @@ absl::StatusOr<Mesh> MakeSample(std::string_view name) {
   if (std::string_view(kind->name) == "wavelet") return MakeWavelet(n);
   return MakeJittered(n);
 }
+
+bool IsSampleName(std::string_view name) { return ParseSample(name).ok(); }
 
 absl::StatusOr<MeshCounts> SampleCounts(std::string_view name) {
   absl::StatusOr<std::pair<const SampleKind*, int>> sample = ParseSample(name);

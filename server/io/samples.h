@@ -11,7 +11,8 @@
 //                 point moved by a hashed offset of up to 0.1 spacing per axis (boundary points
 //                 stay on their faces), 6 positively oriented tetrahedra per cube (Freudenthal
 //                 split), fields "scalar" (smooth, several extrema) and "height" (z).
-// The same name always gives the same mesh, bit for bit.
+// The same name always gives the same mesh, bit for bit. A name may be written with the
+// "sample:" prefix clients use to tell a sample from a file ("sample:wavelet:16").
 #ifndef ACTOPO_SERVER_IO_SAMPLES_H_
 #define ACTOPO_SERVER_IO_SAMPLES_H_
 
@@ -29,6 +30,9 @@ namespace actopo::io {
 absl::StatusOr<Mesh> MakeSample(std::string_view name);
 // The size of MakeSample(name), without making it (errors as MakeSample's).
 absl::StatusOr<MeshCounts> SampleCounts(std::string_view name);
+
+// Whether `name` is a sample MakeSample makes ("wavelet:16", "sample:wavelet:16").
+bool IsSampleName(std::string_view name);
 
 // One line per sample, "name:N  description", for --help and server info.
 std::vector<std::string> SampleNames();

@@ -155,6 +155,18 @@ TEST(SamplesTest, BadNamesAreRefused) {
   }
 }
 
+TEST(SamplesTest, TheSamplePrefixIsAcceptedAndErrorsStayShort) {
+  EXPECT_TRUE(SameMesh(Make("sample:jittered:4"), Make("jittered:4")));
+  EXPECT_TRUE(IsSampleName("sample:wavelet:16"));
+  EXPECT_TRUE(IsSampleName("wavelet:16"));
+  EXPECT_FALSE(IsSampleName("wavelet:16.vtu"));
+  EXPECT_FALSE(IsSampleName("fertility_tet.vtu"));
+  const absl::Status unknown = MakeSample("sample:teapot").status();
+  EXPECT_EQ(unknown.message(),
+            "sample 'teapot': unknown sample; samples: wavelet:N (2 <= N <= 512), "
+            "jittered:N (2 <= N <= 400)");
+}
+
 TEST(SamplesTest, Names) {
   const std::vector<std::string> names = SampleNames();
   ASSERT_EQ(names.size(), 2u);

@@ -130,6 +130,12 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
        }},
       {"empty path", C::INVALID_ARGUMENT, "path",
        [](auto* t, auto&, auto&, auto&) { return static_cast<BadInputTest*>(t)->Load(""); }},
+      {"a sample as a path", C::NOT_FOUND,
+       "path: 'jittered:5' not found in the data directory; it names a built-in sample: load it "
+       "as sample:jittered:5",
+       [](auto* t, auto&, auto&, auto&) {
+         return static_cast<BadInputTest*>(t)->Load("jittered:5");
+       }},
       {"unknown sample", C::INVALID_ARGUMENT, "sample 'teapot'",
        [](auto*, auto& stub, auto&, auto&) {
          v1::LoadMeshRequest r;

@@ -132,7 +132,10 @@ absl::StatusOr<std::filesystem::path> MeshRegistry::Resolve(const std::string& f
   }
   if (!fs::exists(full)) {
     return absl::NotFoundError(
-        absl::StrCat(field, ": '", path, "' not found in the data directory"));
+        absl::StrCat(field, ": '", path, "' not found in the data directory",
+                     io::IsSampleName(path)
+                         ? absl::StrCat("; it names a built-in sample: load it as sample:", path)
+                         : ""));
   }
   return full;
 }
