@@ -106,6 +106,9 @@ LOOKUP_TABLE default
             fields=[pb.UploadField(name="f", dtype=pb.DATA_TYPE_FLOAT64, time=2.0)])),
         "delete_field": (7, pb.DeleteFieldRequest(name="f")),
         "stats": (8, pb.GetSessionStatsRequest()),
+        "download": (9, pb.DownloadMeshRequest(fields=["scalar"])),
+        "load_files": (3, pb.LoadMeshRequest(files=pb.FileSeries(paths=["a.vtu", "b.vtu"],
+                                                                 times=[0.5, 1.5]))),
     }
     for name, (kind, message) in requests.items():
         write("request", name, bytes([kind]) + message.SerializeToString())

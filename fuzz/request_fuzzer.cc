@@ -67,7 +67,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const auto fill = [](auto& request) {
     if (request.session_id().empty()) request.set_session_id(fixture->session_id);
   };
-  switch (data[0] % 9) {
+  switch (data[0] % 10) {
     case 0: {
       v1::GetRelationRequest r;
       if (!r.ParseFromArray(bytes, n)) return 0;
@@ -166,6 +166,18 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       if (r.name() == "scalar" || r.name() == "height") return 0;  // the session's and jobs'
       v1::DeleteFieldResponse out;
       (void)stub.DeleteField(Context().get(), r, &out);
+      break;
+    }
+    case 9: {
+      v1::DownloadMeshRequest r;
+      if (!r.ParseFromArray(bytes, n)) return 0;
+      if (r.mesh_id().empty()) r.set_mesh_id(fixture->mesh_id);
+      auto context = Context();
+      auto reader = stub.DownloadMesh(context.get(), r);
+      v1::DownloadMeshResponse message;
+      while (reader->Read(&message)) {
+      }
+      (void)reader->Finish();
       break;
     }
     default: {

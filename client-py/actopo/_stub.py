@@ -41,6 +41,7 @@ class Stub(Protocol):
     LoadMesh: grpc.UnaryUnaryMultiCallable[pb.LoadMeshRequest, pb.LoadMeshResponse]
     LoadMeshWithProgress: grpc.UnaryStreamMultiCallable[pb.LoadMeshWithProgressRequest,
                                                         pb.LoadMeshWithProgressResponse]
+    DownloadMesh: grpc.UnaryStreamMultiCallable[pb.DownloadMeshRequest, pb.DownloadMeshResponse]
     UploadMesh: grpc.StreamUnaryMultiCallable[pb.UploadMeshRequest, pb.UploadMeshResponse]
     ListMeshes: grpc.UnaryUnaryMultiCallable[pb.ListMeshesRequest, pb.ListMeshesResponse]
     GetMesh: grpc.UnaryUnaryMultiCallable[pb.GetMeshRequest, pb.GetMeshResponse]
@@ -70,6 +71,8 @@ class AsyncStub(Protocol):
     LoadMesh: grpc.aio.UnaryUnaryMultiCallable[pb.LoadMeshRequest, pb.LoadMeshResponse]
     LoadMeshWithProgress: grpc.aio.UnaryStreamMultiCallable[pb.LoadMeshWithProgressRequest,
                                                             pb.LoadMeshWithProgressResponse]
+    DownloadMesh: grpc.aio.UnaryStreamMultiCallable[pb.DownloadMeshRequest,
+                                                    pb.DownloadMeshResponse]
     UploadMesh: grpc.aio.StreamUnaryMultiCallable[pb.UploadMeshRequest, pb.UploadMeshResponse]
     ListMeshes: grpc.aio.UnaryUnaryMultiCallable[pb.ListMeshesRequest, pb.ListMeshesResponse]
     GetMesh: grpc.aio.UnaryUnaryMultiCallable[pb.GetMeshRequest, pb.GetMeshResponse]

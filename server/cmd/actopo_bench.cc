@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <iostream>
@@ -813,6 +814,20 @@ int main(int argc, char** argv) {
   if (flags.help_requested()) {
     std::cout << flags.Usage();
     return 0;
+  }
+  // A sample is written sample:NAME everywhere; so it may be here, as the mesh or the sample.
+  if (o.mesh.starts_with("sample:")) std::swap(o.mesh, o.sample);
+  if (o.sample.starts_with("sample:")) o.sample.erase(0, 7);
+  // --output's folder is made before the work, as the CLI does.
+  if (const std::filesystem::path folder = std::filesystem::path(o.output).parent_path();
+      !o.output.empty() && !folder.empty()) {
+    std::error_code error;
+    std::filesystem::create_directories(folder, error);
+    if (error) {
+      std::cerr << "actopo-bench: --output: cannot make the folder '" << folder.string()
+                << "': " << error.message() << "\n";
+      return 1;
+    }
   }
   const absl::StatusOr<actopo::Json> result = actopo::Run(o);
   if (!result.ok()) {

@@ -18,6 +18,7 @@
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
 #include "server/io/test_data.h"
+#include "server/io/vtk_reader.h"
 #include "server/results/series.h"
 #include "server/service/testing/service_fixture.h"
 #include "tests/testing/skip.h"
@@ -615,6 +616,116 @@ TEST_F(FieldsTest, ASeriesLoadsFromAListOfFilesAsOneMesh) {
   };
   for (const Case& c : cases) {
     const grpc::Status status = load(c.paths, c.times, &loaded);
+    EXPECT_EQ(status.error_code(), c.code) << c.message << ": " << status.error_message();
+    EXPECT_THAT(status.error_message(), HasSubstr(c.message));
+  }
+}
+
+TEST_F(FieldsTest, ADownloadGivesTheMeshAsGivenWithTheFieldsAskedFor) {
+  namespace fs = std::filesystem;
+  const fs::path file = fs::path(io::testing::DataDir()) / "fertility_tet.vtu";
+  if (!fs::exists(file)) ACTOPO_SKIP() << file << " is not there";
+  fs::copy(file, data_dir_ / "fertility_tet.vtu");
+  const Mesh given = *io::ReadMesh(file.string());
+  v1::LoadMeshRequest load;
+  load.set_path("fertility_tet.vtu");
+  v1::LoadMeshResponse loaded;
+  ASSERT_TRUE(stub_->LoadMesh(Context().get(), load, &loaded).ok());
+  const std::string mesh_id = loaded.mesh().mesh_id();
+  std::vector<float> narrow(given.points.size() / 3);
+  for (size_t v = 0; v < narrow.size(); ++v) narrow[v] = float(given.points[3 * v]) * 0.5f;
+  v1::AddFieldsResponse added;
+  ASSERT_TRUE(
+      AddFields(mesh_id, {{"narrow", v1::DATA_TYPE_FLOAT32, Bytes(narrow), 7.0}}, &added).ok());
+
+  const auto download = [&](const std::vector<std::string>& fields, bool all,
+                            v1::UploadMeshHeader* header, std::string* bytes) {
+    v1::DownloadMeshRequest request;
+    request.set_mesh_id(mesh_id);
+    for (const std::string& f : fields) request.add_fields(f);
+    request.set_all_fields(all);
+    auto context = Context();
+    auto reader = stub_->DownloadMesh(context.get(), request);
+    v1::DownloadMeshResponse message;
+    int chunks = 0;
+    while (reader->Read(&message)) {
+      if (message.has_header()) *header = message.header();
+      if (message.has_chunk()) {
+        *bytes += message.chunk();
+        ++chunks;
+      }
+    }
+    const grpc::Status status = reader->Finish();
+    EXPECT_TRUE(!status.ok() || chunks >= 2);  // points, tetrahedra: at least one chunk each
+    return status;
+  };
+  v1::UploadMeshHeader header;
+  std::string bytes;
+  const grpc::Status s = download({"narrow", "height"}, false, &header, &bytes);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  const int64_t n = given.num_vertices(), t = given.num_tetrahedra();
+  EXPECT_EQ(header.num_vertices(), n);
+  EXPECT_EQ(header.num_tetrahedra(), t);
+  EXPECT_EQ(header.points_dtype(), v1::DATA_TYPE_FLOAT64);
+  EXPECT_EQ(header.tetrahedra_dtype(), v1::DATA_TYPE_INT32);
+  ASSERT_EQ(header.fields_size(), 2);
+  EXPECT_EQ(header.fields(0).name(), "narrow");
+  EXPECT_EQ(header.fields(0).dtype(), v1::DATA_TYPE_FLOAT32);
+  EXPECT_EQ(header.fields(0).time(), 7.0);
+  EXPECT_EQ(header.fields(1).dtype(), v1::DATA_TYPE_FLOAT64);
+  ASSERT_EQ(bytes.size(), size_t(24 * n + 16 * t + 4 * n + 8 * n));
+  const char* at = bytes.data();
+  EXPECT_EQ(std::memcmp(at, given.points.data(), size_t(24 * n)), 0);
+  at += 24 * n;
+  std::vector<int32_t> tetrahedra(size_t(4 * t));
+  std::memcpy(tetrahedra.data(), at, size_t(16 * t));
+  at += 16 * t;
+  // Every tetrahedron as given: the same vertices in the same order.
+  EXPECT_TRUE(std::equal(tetrahedra.begin(), tetrahedra.end(), given.tetrahedra.begin()));
+  EXPECT_EQ(std::memcmp(at, narrow.data(), size_t(4 * n)), 0);
+  at += 4 * n;
+  EXPECT_EQ(std::memcmp(at, given.FindField("height")->values.data(), size_t(8 * n)), 0);
+
+  bytes.clear();
+  ASSERT_TRUE(download({}, true, &header, &bytes).ok());
+  EXPECT_EQ(header.fields_size(), 3);  // eigenfunction4, height, narrow
+
+  struct Case {
+    std::string mesh;
+    std::vector<std::string> fields;
+    bool all;
+    grpc::StatusCode code;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {"mesh-nope", {}, false, grpc::NOT_FOUND, "mesh_id: no mesh"},
+      {mesh_id,
+       {"height", "nope"},
+       false,
+       grpc::NOT_FOUND,
+       "fields[1]: point field 'nope' not found; point fields: 'eigenfunction4', 'height', "
+       "'narrow'"},
+      {mesh_id,
+       {"height", "height"},
+       false,
+       grpc::INVALID_ARGUMENT,
+       "fields[1]: 'height' is listed twice"},
+      {mesh_id,
+       {"height"},
+       true,
+       grpc::INVALID_ARGUMENT,
+       "fields: give the fields or all_fields, not both"},
+  };
+  for (const Case& c : cases) {
+    v1::DownloadMeshRequest request;
+    request.set_mesh_id(c.mesh);
+    for (const std::string& f : c.fields) request.add_fields(f);
+    request.set_all_fields(c.all);
+    auto context = Context();
+    auto reader = stub_->DownloadMesh(context.get(), request);
+    v1::DownloadMeshResponse message;
+    EXPECT_FALSE(reader->Read(&message)) << c.message;
+    const grpc::Status status = reader->Finish();
     EXPECT_EQ(status.error_code(), c.code) << c.message << ": " << status.error_message();
     EXPECT_THAT(status.error_message(), HasSubstr(c.message));
   }

@@ -198,7 +198,9 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFiles(
   }
   const std::string name = std::filesystem::path(steps[0].path).filename().string();
   return Read(steps, /*series=*/true,
-              paths.size() == 1 ? name : absl::StrCat(name, " +", paths.size() - 1, " files"),
+              paths.size() == 1 ? name
+                                : absl::StrCat(name, " +", paths.size() - 1,
+                                               paths.size() == 2 ? " file" : " files"),
               "files:" + absl::StrJoin(paths, ","), "files", partition, progress);
 }
 

@@ -60,6 +60,8 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService, p
                                      v1::LoadMeshResponse*) override;
   grpc::ServerWriteReactor<v1::LoadMeshWithProgressResponse>* LoadMeshWithProgress(
       grpc::CallbackServerContext*, const v1::LoadMeshWithProgressRequest*) override;
+  grpc::ServerWriteReactor<v1::DownloadMeshResponse>* DownloadMesh(
+      grpc::CallbackServerContext*, const v1::DownloadMeshRequest*) override;
   grpc::ServerReadReactor<v1::UploadMeshRequest>* UploadMesh(grpc::CallbackServerContext*,
                                                              v1::UploadMeshResponse*) override;
   grpc::ServerUnaryReactor* ListMeshes(grpc::CallbackServerContext*, const v1::ListMeshesRequest*,

@@ -14,6 +14,7 @@
 #include "server/core/status_macros.h"
 #include "server/core/sync.h"
 #include "server/service/field_decoder.h"
+#include "server/service/mesh_download.h"
 #include "server/service/offload.h"
 #include "server/service/service.h"
 #include "server/service/upload_decoder.h"
@@ -311,6 +312,61 @@ class AddFieldsReactor final : public grpc::ServerReadReactor<v1::AddFieldsReque
 };
 
 // ---------------------------------------------------------------------------------------------
+// DownloadMesh: the header, then chunks of about 1 MiB made one at a time as the last one is
+// written (MeshDownload), so a download holds one chunk whatever the mesh's size; a client that
+// goes away stops it at its next write.
+class DownloadReactor final : public grpc::ServerWriteReactor<v1::DownloadMeshResponse> {
+ public:
+  DownloadReactor(ReactorHost* host, grpc::CallbackServerContext* context,
+                  const v1::DownloadMeshRequest* request)
+      : host_(host) {
+    absl::StatusOr<MeshDownload> download = Start(context, *request);
+    if (!download.ok()) {
+      End(download.status());
+      return;
+    }
+    download_.emplace(*std::move(download));
+    *message_.mutable_header() = download_->header();
+    StartWrite(&message_);
+  }
+
+  void OnWriteDone(bool ok) override {
+    if (!ok) {
+      End(absl::CancelledError("the client stopped reading"));
+      return;
+    }
+    if (!download_->Next(kChunkBytes, message_.mutable_chunk())) {
+      End(absl::OkStatus());
+      return;
+    }
+    StartWrite(&message_);
+  }
+
+  void OnDone() override { delete this; }
+
+ private:
+  static constexpr size_t kChunkBytes = size_t(1) << 20;
+
+  absl::StatusOr<MeshDownload> Start(grpc::CallbackServerContext* context,
+                                     const v1::DownloadMeshRequest& request) {
+    RETURN_IF_ERROR(host_->Admit(context));
+    ASSIGN_OR_RETURN(std::shared_ptr<const LoadedMesh> mesh,
+                     host_->meshes().Get(request.mesh_id()));
+    return MeshDownload::Start(std::move(mesh), request);
+  }
+
+  void End(const absl::Status& status) {
+    download_.reset();  // the mesh is not held past the call's end
+    host_->Count("DownloadMesh", status);
+    Finish(ToGrpcStatus(status));
+  }
+
+  ReactorHost* host_;
+  std::optional<MeshDownload> download_;
+  v1::DownloadMeshResponse message_;  // ours between StartWrite and OnWriteDone
+};
+
+// ---------------------------------------------------------------------------------------------
 // LoadMeshWithProgress: the load reports to this reactor from its background thread; at most one
 // message is being written at a time, and a report arriving meanwhile replaces the waiting one of
 // its phase, so a slow client sees fewer updates but every phase. The mesh (or the error) ends
@@ -480,6 +536,11 @@ TopologyServiceImpl::LoadMeshWithProgress(grpc::CallbackServerContext* context,
 grpc::ServerReadReactor<v1::UploadMeshRequest>* TopologyServiceImpl::UploadMesh(
     grpc::CallbackServerContext* context, v1::UploadMeshResponse* response) {
   return new UploadReactor(this, context, response);
+}
+
+grpc::ServerWriteReactor<v1::DownloadMeshResponse>* TopologyServiceImpl::DownloadMesh(
+    grpc::CallbackServerContext* context, const v1::DownloadMeshRequest* request) {
+  return new DownloadReactor(this, context, request);
 }
 
 grpc::ServerReadReactor<v1::AddFieldsRequest>* TopologyServiceImpl::AddFields(

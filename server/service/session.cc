@@ -21,6 +21,10 @@ int64_t NanosSince(Clock::time_point start) {
 }
 
 constexpr std::string_view kDimensionNames[4] = {"vertex", "edge", "triangle", "tetrahedron"};
+// "a vertex", "an edge", ...
+std::string WithArticle(int dimension) {
+  return absl::StrCat(dimension == 1 ? "an " : "a ", std::string(kDimensionNames[dimension]));
+}
 
 // Bytes per tetrahedron of the relations an explicit structure stores by default (all but the
 // edge and triangle neighbours; measured on jittered:96 with actopo-bench's structure_bytes -
@@ -143,9 +147,9 @@ absl::StatusOr<SimplexId> Session::ResolveVertices(int dimension, std::span<cons
                                                    FieldRef field) const {
   const Topology& topo = *mesh_->topology;
   if (int(vertices.size()) != dimension + 1) {
-    return absl::InvalidArgumentError(
-        absl::StrCat(field.ToString(), ": a ", std::string(kDimensionNames[dimension]), " has ",
-                     dimension + 1, " vertices, got ", vertices.size()));
+    return absl::InvalidArgumentError(absl::StrCat(field.ToString(), ": ", WithArticle(dimension),
+                                                   " has ", dimension + 1, " vertices, got ",
+                                                   vertices.size()));
   }
   std::array<SimplexId, 4> v{};
   for (int i = 0; i <= dimension; ++i) {
@@ -165,8 +169,8 @@ absl::StatusOr<SimplexId> Session::ResolveVertices(int dimension, std::span<cons
   }
   if (found < 0) {
     return absl::NotFoundError(absl::StrCat(field.ToString(), ": (", absl::StrJoin(vertices, ", "),
-                                            ") is not a ", std::string(kDimensionNames[dimension]),
-                                            " of mesh '", mesh_->id, "'"));
+                                            ") is not ", WithArticle(dimension), " of mesh '",
+                                            mesh_->id, "'"));
   }
   return found;
 }
