@@ -6,6 +6,7 @@ Needs only the grpcio package (Debian's python3-grpcio has no health stubs): the
 (HealthCheckRequest{service}) is encoded and the reply (HealthCheckResponse{status}) decoded by
 hand. Env: ACTOPO_HEALTH_TIMEOUT_S (default 3), ACTOPO_TOKEN (sent as a bearer token if set).
 """
+import argparse
 import os
 import sys
 
@@ -57,8 +58,16 @@ def decode_status(data: bytes) -> int:
 
 
 def main() -> int:
-    target = sys.argv[1] if len(sys.argv) > 1 else "127.0.0.1:50051"
-    service = sys.argv[2] if len(sys.argv) > 2 else ""
+    parser = argparse.ArgumentParser(
+        description="grpc.health.v1 Check: exit 0 iff the server reports SERVING, 1 otherwise "
+                    "(2: a usage error). Env: ACTOPO_HEALTH_TIMEOUT_S (default 3), ACTOPO_TOKEN "
+                    "(sent as a bearer token if set).")
+    parser.add_argument("target", nargs="?", default="127.0.0.1:50051", metavar="HOST:PORT",
+                        help="the server (default 127.0.0.1:50051)")
+    parser.add_argument("service", nargs="?", default="", metavar="SERVICE",
+                        help='the service asked about (default "": the whole server)')
+    args = parser.parse_args()
+    target, service = args.target, args.service
     timeout = float(os.environ.get("ACTOPO_HEALTH_TIMEOUT_S", "3"))
     token = os.environ.get("ACTOPO_TOKEN")
     metadata = [("authorization", f"Bearer {token}")] if token else None

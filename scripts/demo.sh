@@ -67,14 +67,16 @@ with actopo.Client() as client:
 PY
 fi
 
-step "relation queries: the star of vertex 0, the triangles around edge (0,1), vertex 7 on the boundary?"
-"$actopo" relation --mesh-id "$mesh" vertex_star 0
-"$actopo" relation --mesh-id "$mesh" --vertices edge_triangles 0,1
-"$actopo" relation --mesh-id "$mesh" vertex_on_boundary 7
+step "relation queries on a session that outlives the commands: the star of vertex 0, the triangles around edge (0,1), vertex 7 on the boundary?"
+session=$("$actopo" open "$mesh" --structure actopo --json | python3 -c 'import json,sys; print(json.load(sys.stdin)["session_id"])')
+"$actopo" relation --session "$session" vertex_star 0
+"$actopo" relation --session "$session" --vertices edge_triangles 0,1
+"$actopo" relation --session "$session" vertex_on_boundary 7
+
+step "that session's statistics: its three relation queries, their engine requests, its memory"
+"$actopo" stats --session "$session"
+"$actopo" close "$session"
 
 step "the three structures on the same jobs on $compare_sample: what a job costs, time and memory"
 "$actopo" compare --sample "$compare_sample" --algorithm critical-points
 "$actopo" compare --sample "$compare_sample" --algorithm morse-smale
-
-step "statistics of the sessions still open"
-"$actopo" stats

@@ -147,6 +147,10 @@ TRACKING_CELL_ARRAYS = ["ConnectedComponentId", "MatchingIdentifier", "Cost", "C
 # Failing runs: name, filter, properties, what pvbatch's output must say (mesh: fertility;
 # "before": ParaView filters applied to it first).
 ERRORS: list[dict[str, Any]] = [
+    {"name": "error_unknown_scalar_uploaded", "filter": "ACTOPOCriticalPoints",
+     "properties": {"ScalarField": ["POINTS", "nope"]},
+     "message": "the input has no numeric point array 'nope'; point arrays: 'eigenfunction4', "
+                "'height'"},
     {"name": "error_unknown_scalar", "filter": "ACTOPOCriticalPoints",
      "properties": {"ScalarField": ["POINTS", "nope"], "ServerPath": FERTILITY},
      "message": "scalar field 'nope' not found; point fields: 'eigenfunction4', 'height' "

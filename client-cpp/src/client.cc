@@ -1,6 +1,9 @@
 // Client: connection, server info, meshes, fields and sessions (unary calls).
 #include "actopo/client.h"
 
+#include <cmath>
+#include <functional>
+
 #include "absl/strings/str_cat.h"
 #include "src/internal/convert.h"
 #include "src/internal/core.h"
@@ -49,12 +52,17 @@ absl::StatusOr<int64_t> Client::MaxBatchSize() {
 
 namespace {
 
-absl::StatusOr<v1::LoadMeshRequest> LoadRequest(std::string_view path,
-                                                const PartitionOptions& partition) {
+absl::Status CheckPartition(const PartitionOptions& partition) {
   if (partition.block_size < 0) {
     return absl::InvalidArgumentError(
         absl::StrCat("partition.block_size: ", partition.block_size, " is negative"));
   }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<v1::LoadMeshRequest> LoadRequest(std::string_view path,
+                                                const PartitionOptions& partition) {
+  ACTOPO_RETURN_IF_ERROR(CheckPartition(partition));
   constexpr std::string_view kSample = "sample:";
   v1::LoadMeshRequest request;
   if (path.substr(0, kSample.size()) == kSample) {
@@ -66,29 +74,53 @@ absl::StatusOr<v1::LoadMeshRequest> LoadRequest(std::string_view path,
   return request;
 }
 
-}  // namespace
+// The times are checked here as the server checks them, with its words; the paths (empty,
+// missing, outside the data directory) only the server can judge.
+absl::StatusOr<v1::LoadMeshRequest> SeriesRequest(const std::vector<std::string>& paths,
+                                                  const std::vector<double>& times,
+                                                  const PartitionOptions& partition) {
+  ACTOPO_RETURN_IF_ERROR(CheckPartition(partition));
+  if (!times.empty() && times.size() != paths.size()) {
+    return absl::InvalidArgumentError(absl::StrCat("files.times: ", times.size(), " values for ",
+                                                   paths.size(),
+                                                   " paths; give one per path, or none"));
+  }
+  v1::LoadMeshRequest request;
+  v1::FileSeries* files = request.mutable_files();  // set even when empty, for the server to say
+  for (const std::string& path : paths) files->add_paths(path);
+  for (size_t k = 0; k < times.size(); ++k) {
+    if (!std::isfinite(times[k])) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("files.times[", k, "]: ", times[k], " is not finite"));
+    }
+    files->add_times(times[k]);
+  }
+  *request.mutable_partition() = ToProto(partition);
+  return request;
+}
 
-absl::StatusOr<MeshInfo> Client::LoadMesh(std::string_view path,
-                                          const PartitionOptions& partition) {
-  ACTOPO_ASSIGN_OR_RETURN(v1::LoadMeshRequest request, LoadRequest(path, partition));
+absl::StatusOr<MeshInfo> Load(const internal::Core& core, const v1::LoadMeshRequest& request) {
   ACTOPO_ASSIGN_OR_RETURN(
       v1::LoadMeshResponse response,
-      core_->Unary(&v1::TopologyService::Stub::LoadMesh, request, core_->MeshContext()));
+      core.Unary(&v1::TopologyService::Stub::LoadMesh, request, core.MeshContext()));
   return FromProto(response.mesh());
 }
 
-absl::StatusOr<MeshInfo> Client::LoadMeshWithProgress(std::string_view path,
-                                                      const LoadOptions& options) {
+// Calls `f` when LoadOptions::cancel is cancelled, until the result is destroyed: the token's
+// OnCancel, which only a Client may call, passed in by one.
+using OnCancel = std::function<std::shared_ptr<void>(std::function<void()> f)>;
+
+absl::StatusOr<MeshInfo> LoadWithProgress(const internal::Core& core, v1::LoadMeshRequest load,
+                                          const LoadOptions& options, const OnCancel& on_cancel) {
   v1::LoadMeshWithProgressRequest request;
-  ACTOPO_ASSIGN_OR_RETURN(*request.mutable_load(), LoadRequest(path, options.partition));
+  *request.mutable_load() = std::move(load);
   if (options.cancel.cancelled()) return absl::CancelledError("load: cancelled before it started");
   std::unique_ptr<grpc::ClientContext> context =
-      core_->Context(options.timeout.count() > 0 ? options.timeout : core_->options.mesh_timeout);
+      core.Context(options.timeout.count() > 0 ? options.timeout : core.options.mesh_timeout);
   grpc::ClientContext* raw = context.get();
-  std::shared_ptr<CancelToken::Registration> registration =
-      options.cancel.OnCancel([raw] { raw->TryCancel(); });
+  std::shared_ptr<void> registration = on_cancel([raw] { raw->TryCancel(); });
   std::unique_ptr<grpc::ClientReader<v1::LoadMeshWithProgressResponse>> reader =
-      core_->stub->LoadMeshWithProgress(raw, request);
+      core.stub->LoadMeshWithProgress(raw, request);
   std::optional<MeshInfo> mesh;
   v1::LoadMeshWithProgressResponse response;
   try {
@@ -112,6 +144,39 @@ absl::StatusOr<MeshInfo> Client::LoadMeshWithProgress(std::string_view path,
   ACTOPO_RETURN_IF_ERROR(internal::FromGrpc(status));
   if (!mesh) return absl::DataLossError("load: the stream ended without the mesh");
   return *std::move(mesh);
+}
+
+}  // namespace
+
+absl::StatusOr<MeshInfo> Client::LoadMesh(std::string_view path,
+                                          const PartitionOptions& partition) {
+  ACTOPO_ASSIGN_OR_RETURN(v1::LoadMeshRequest request, LoadRequest(path, partition));
+  return Load(*core_, request);
+}
+
+absl::StatusOr<MeshInfo> Client::LoadMeshWithProgress(std::string_view path,
+                                                      const LoadOptions& options) {
+  ACTOPO_ASSIGN_OR_RETURN(v1::LoadMeshRequest request, LoadRequest(path, options.partition));
+  return LoadWithProgress(*core_, std::move(request), options, [&](std::function<void()> f) {
+    return options.cancel.OnCancel(std::move(f));
+  });
+}
+
+absl::StatusOr<MeshInfo> Client::LoadSeries(const std::vector<std::string>& paths,
+                                            const std::vector<double>& times,
+                                            const PartitionOptions& partition) {
+  ACTOPO_ASSIGN_OR_RETURN(v1::LoadMeshRequest request, SeriesRequest(paths, times, partition));
+  return Load(*core_, request);
+}
+
+absl::StatusOr<MeshInfo> Client::LoadSeriesWithProgress(const std::vector<std::string>& paths,
+                                                        const std::vector<double>& times,
+                                                        const LoadOptions& options) {
+  ACTOPO_ASSIGN_OR_RETURN(v1::LoadMeshRequest request,
+                          SeriesRequest(paths, times, options.partition));
+  return LoadWithProgress(*core_, std::move(request), options, [&](std::function<void()> f) {
+    return options.cancel.OnCancel(std::move(f));
+  });
 }
 
 absl::StatusOr<std::vector<MeshInfo>> Client::ListMeshes() {

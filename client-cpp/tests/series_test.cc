@@ -1,7 +1,9 @@
 // Jobs over several fields: each field's result equals a job on that field alone; the
-// diagram-distance matrices of the Isabel series equal actopo-bench's; tracking's summary agrees
-// with its arrays and with the distances.
+// diagram-distance matrices of the Isabel series equal actopo-bench's; a series loaded from a
+// list of files equals its .pvd; tracking's summary agrees with its arrays and with the
+// distances.
 #include <algorithm>
+#include <cmath>
 #include <set>
 
 #include "tests/testing/fixture.h"
@@ -195,6 +197,102 @@ TEST_F(ServerTest, DiagramDistancesOfAllFields) {
   EXPECT_EQ(same->wasserstein, matrix->wasserstein);
   ASSERT_EQ(job->fields.size(), 2u);
   EXPECT_OK(job->fields[1].PersistencePairs());
+}
+
+// A list of files loads as the .pvd of them does (fields, times, ranges; progress as for a
+// path); without times each file's index; each field is its file's loaded alone (the same
+// persistence diagram, digests included); the errors name the file or the times.
+TEST_F(ServerTest, ASeriesLoadsFromAListOfFilesAsFromItsPvd) {
+  std::vector<std::string> files;
+  std::string source = "files:";
+  for (const char* step : {"02", "03", "04", "05"}) {
+    files.push_back(std::string("isabel_series_s2/isabel_") + step + "_s2_tet.vtu");
+    source += (files.size() > 1 ? "," : "") + files.back();
+  }
+  absl::StatusOr<MeshInfo> pvd = client().LoadMesh("isabel_series_s2/isabel_series.pvd");
+  ASSERT_OK(pvd);
+  meshes_.push_back(pvd->mesh_id);
+  std::vector<std::string> phases;
+  double last = 0;
+  LoadOptions options;
+  options.progress = [&](const LoadProgress& p) {
+    if (phases.empty() || phases.back() != p.phase) {
+      phases.push_back(p.phase);
+      last = 0;
+    }
+    EXPECT_GE(p.fraction, last) << p.phase;  // reading too, over the four files
+    last = p.fraction;
+  };
+  absl::StatusOr<MeshInfo> listed = client().LoadSeriesWithProgress(files, {2, 3, 4, 5}, options);
+  ASSERT_OK(listed);
+  meshes_.push_back(listed->mesh_id);
+  EXPECT_EQ(phases, (std::vector<std::string>{"read", "partition", "encode"}));
+  EXPECT_EQ(listed->name, "isabel_02_s2_tet.vtu +3 files");
+  EXPECT_EQ(listed->source, source);
+  EXPECT_EQ(listed->vertices, pvd->vertices);
+  EXPECT_EQ(listed->tetrahedra, pvd->tetrahedra);
+  ASSERT_EQ(listed->fields.size(), 4u);
+  ASSERT_EQ(pvd->fields.size(), 4u);
+  for (size_t k = 0; k < 4; ++k) {
+    const FieldInfo& field = listed->fields[k];
+    EXPECT_EQ(field.name, "velocityMag_" + std::to_string(k));
+    EXPECT_EQ(field.time, std::optional<double>(2.0 + double(k)));
+    EXPECT_EQ(field.name, pvd->fields[k].name);
+    EXPECT_EQ(field.time, pvd->fields[k].time);
+    EXPECT_EQ(field.dtype, pvd->fields[k].dtype);
+    EXPECT_EQ(field.min, pvd->fields[k].min);
+    EXPECT_EQ(field.max, pvd->fields[k].max);
+  }
+
+  absl::StatusOr<MeshInfo> plain = client().LoadSeries({files[0], files[1]});
+  ASSERT_OK(plain);
+  meshes_.push_back(plain->mesh_id);
+  ASSERT_EQ(plain->fields.size(), 2u);
+  absl::StatusOr<JobResult> diagrams =
+      client().RunJob(Open(plain->mesh_id, {.structure = Structure::kCompact}),
+                      "persistence-diagram", {}, {.digests = true, .all_fields = true});
+  ASSERT_OK(diagrams);
+  ASSERT_EQ(diagrams->fields.size(), 2u);
+  for (size_t k = 0; k < 2; ++k) {
+    SCOPED_TRACE(files[k]);
+    const FieldInfo& field = plain->fields[k];
+    EXPECT_EQ(field.name, "velocityMag_" + std::to_string(k));
+    EXPECT_EQ(field.time, std::optional<double>(double(k)));
+    absl::StatusOr<MeshInfo> alone = client().LoadMesh(files[k]);
+    ASSERT_OK(alone);
+    meshes_.push_back(alone->mesh_id);
+    ASSERT_EQ(alone->fields.size(), 1u);
+    EXPECT_EQ(field.dtype, alone->fields[0].dtype);
+    EXPECT_EQ(field.min, alone->fields[0].min);
+    EXPECT_EQ(field.max, alone->fields[0].max);
+    absl::StatusOr<JobResult> single =
+        client().RunJob(Open(alone->mesh_id, {.structure = Structure::kCompact}),
+                        "persistence-diagram", {}, {.digests = true});
+    ASSERT_OK(single);
+    EXPECT_EQ(diagrams->fields[k].field, field.name);
+    EXPECT_EQ(nlohmann::json::parse(diagrams->fields[k].summary_json),
+              nlohmann::json::parse(single->summary_json));
+  }
+
+  EXPECT_TRUE(HasError(client().LoadSeries({files[0], "isabel_series_s2/nope.vtu"}),
+                       StatusCode::kNotFound,
+                       "files.paths[1]: 'isabel_series_s2/nope.vtu' not found"));
+  const LoadOptions quiet;
+  EXPECT_TRUE(HasError(client().LoadSeriesWithProgress({files[0], "../x.vtu"}, {}, quiet),
+                       StatusCode::kInvalidArgument,
+                       "files.paths[1]: '../x.vtu' is outside the server's data directory"));
+  EXPECT_TRUE(HasError(client().LoadSeries({files[0], "fertility_tet.vtu"}),
+                       StatusCode::kInvalidArgument,
+                       "files: step 1: fertility_tet.vtu: has 14570 points, not 51597"));
+  EXPECT_TRUE(
+      HasError(client().LoadSeries({}), StatusCode::kInvalidArgument, "files.paths: empty"));
+  // The times are checked before anything is sent.
+  EXPECT_TRUE(HasError(client().LoadSeries(files, {1.0}), StatusCode::kInvalidArgument,
+                       "files.times: 1 values for 4 paths"));
+  EXPECT_TRUE(HasError(client().LoadSeries({files[0], files[1]}, {0, std::nan("")}),
+                       StatusCode::kInvalidArgument, "files.times[1]: nan is not finite"));
+  EXPECT_TRUE(HasError(client().LoadSeries(files, {}, {.block_size = -1}),
+                       StatusCode::kInvalidArgument, "partition.block_size: -1 is negative"));
 }
 
 // A .pvd collection loads as one mesh with a field per step and its time value; tracking runs

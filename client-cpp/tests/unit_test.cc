@@ -39,6 +39,12 @@ namespace {
   const auto PressureAt = [&](int) { return std::vector<float>(wave.begin(), wave.end()); };
   const std::vector<double> tripled = wave;
   {
+    absl::StatusOr<actopo::client::MeshInfo> series = client->LoadSeries(
+        {"isabel_series_s2/isabel_02_s2_tet.vtu", "isabel_series_s2/isabel_03_s2_tet.vtu"},
+        {2.0, 3.0});                           // velocityMag_0 at time 2, velocityMag_1 at time 3
+    if (!series.ok()) return series.status();  // e.g. NOT_FOUND: files.paths[1]: ...
+  }
+  {
     std::vector<double> doubled(wave.size());
     for (size_t v = 0; v < wave.size(); ++v) doubled[v] = 2 * wave[v];
     std::vector<float> step7 = PressureAt(7);  // one per vertex

@@ -46,7 +46,14 @@ from actopo._progress import (
     make_progress,
 )
 from actopo._proto import pb
-from actopo._requests import FieldsArg, MeshRef, SimplexArg, SimplexIds, distance_parameters
+from actopo._requests import (
+    FieldsArg,
+    MeshRef,
+    MeshSource,
+    SimplexArg,
+    SimplexIds,
+    distance_parameters,
+)
 from actopo._results import Assembler, FieldResult, JobResult, distance_matrix_of
 from actopo._stub import async_stub
 from actopo._types import (
@@ -132,13 +139,15 @@ class AsyncClient:
             await self.server_info()
         return self._max_batch or _requests.DEFAULT_BATCH
 
-    async def load_mesh(self, path: str, *, block_size: int = 0, block_label_field: str = "",
+    async def load_mesh(self, path: MeshSource, *, times: Sequence[float] | None = None,
+                        block_size: int = 0, block_label_field: str = "",
                         progress: LoadProgressArg = None) -> MeshInfo:
-        """See Client.load_mesh(). Cancelling the awaiting task stops the load on the server."""
-        request = _messages.build_load_mesh(path, block_size, block_label_field)
+        """See Client.load_mesh() (a path, or a list of a series' files with `times`).
+        Cancelling the awaiting task stops the load on the server."""
+        request = _messages.build_load_mesh(path, block_size, block_label_field, times)
         if progress:
-            return await self._load_reporting(request,
-                                              make_load_progress(progress, f"load {path}"))
+            return await self._load_reporting(
+                request, make_load_progress(progress, _messages.load_description(request)))
         response = await self._call(self._stub.LoadMesh, request, long=True, mesh=True)
         return _messages.decode_load_mesh(response)
 

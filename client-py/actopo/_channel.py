@@ -36,6 +36,8 @@ from typing import Any, TypeAlias
 import grpc
 import grpc.aio
 
+from actopo._errors import InvalidArgumentError
+
 TlsArg: TypeAlias = bool | grpc.ChannelCredentials
 
 DEFAULT_TIMEOUT = 30.0
@@ -96,7 +98,8 @@ def resolve_target(target: str | None) -> str:
     """`target`, else $ACTOPO_SERVER; "host:port" (a scheme such as dns:/// is kept)."""
     resolved = target or os.environ.get("ACTOPO_SERVER", "")
     if not resolved:
-        raise ValueError("no server given: pass target='HOST:PORT' or set ACTOPO_SERVER")
+        raise InvalidArgumentError("target: no server given: pass target='HOST:PORT' or set "
+                                   "ACTOPO_SERVER")
     return resolved
 
 

@@ -5,8 +5,10 @@
                               | stats | compare | bench
 
 `--server` (or `--target`, before or after the command) defaults to $ACTOPO_SERVER. Every
-listing command takes --json. Exit status: 0 on success, 1 on a service error, 2 on a usage
-error, 130 on Ctrl-C (the running load or job is cancelled on the server). `run` takes the
+listing command takes --json. Exit status: 0 on success, 1 on a service error (or a local file
+that cannot be read), 2 on a usage error (argparse's, a value outside its range, options that do
+not go together), 130 on Ctrl-C (the running load or job is cancelled on the server), 141 when
+the reader of stdout went away (as SIGPIPE ends `cat`; nothing printed). `run` takes the
 algorithm as `--algorithm NAME` or as its first word (`actopo run persistence-diagram ...`),
 and with `--scalars F1,F2,...|all` runs it over several fields, a line per field as each is
 done (`actopo run diagram-distance --scalars all` prints the distance matrices).
@@ -18,6 +20,8 @@ import argparse
 import contextlib
 import json
 import os
+import re
+import signal
 import statistics
 import sys
 import time
@@ -27,10 +31,10 @@ from typing import Any, TypeAlias, cast
 
 from actopo import _names
 from actopo._bench import Bench, Load
-from actopo._cli_parser import DIAGRAM, MANY_FIELDS, STRUCTURES, TRACKING, parser
+from actopo._cli_parser import DIAGRAM, MANY_FIELDS, STRUCTURES, TRACKING, parse_args
 from actopo._client import Client, Session
 from actopo._distances import DistanceMatrix
-from actopo._errors import ActopoError, InvalidArgumentError
+from actopo._errors import ActopoError, InvalidArgumentError, NotFoundError
 from actopo._fields import read_point_fields
 from actopo._literals import Algorithm, Structure
 from actopo._mesh import MeshArrays, mesh_arrays
@@ -75,6 +79,12 @@ class _Mesh:
         self.local = local
 
 
+def _series(paths: list[str]) -> str | list[str]:
+    """The paths of --mesh or `load`: one is a file (or sample:NAME), several the files of a
+    series."""
+    return paths[0] if len(paths) == 1 else paths
+
+
 @contextlib.contextmanager
 def _mesh(client: Client, args: argparse.Namespace) -> Iterator[_Mesh]:
     if args.mesh_id:
@@ -86,7 +96,7 @@ def _mesh(client: Client, args: argparse.Namespace) -> Iterator[_Mesh]:
         local = mesh_arrays(args.upload, Path(args.upload).name)
         info = client.upload_mesh(local, block_size=args.block_size)
     else:
-        source = args.mesh or f"sample:{args.sample}"
+        source = _series(args.mesh) if args.mesh else _sample(args.sample)
         info = client.load_mesh(source, block_size=args.block_size, progress=_progress(args))
     try:
         yield _Mesh(info, local)
@@ -94,6 +104,38 @@ def _mesh(client: Client, args: argparse.Namespace) -> Iterator[_Mesh]:
         if info.mesh_id not in before and not args.keep:
             with contextlib.suppress(ActopoError):
                 client.delete_mesh(info.mesh_id)
+
+
+def _sample(name: str) -> str:
+    """--sample NAME, or --sample sample:NAME, as LoadMesh names a sample: sample:NAME."""
+    return name if name.startswith("sample:") else f"sample:{name}"
+
+
+def _explained(client: Client, error: ActopoError) -> ActopoError:
+    """The server's error about the name of a mesh, with what a user needs next: for a path
+    that is no file, the sample it may mean (a sample is sample:NAME); for a bad sample, the
+    samples' names alone (the server's message describes each at length)."""
+    missing = re.search(r"'([^']*)' not found in the data directory", error.details)
+    sample = re.match(r"(sample '[^']*': .*?); samples: ", error.details)
+    if not ((missing and isinstance(error, NotFoundError)) or sample):
+        return error
+    try:
+        names = [s.split()[0] for s in client.server_info().samples if s.strip()]
+    except ActopoError:
+        return error
+    if sample:
+        return type(error)(f"{sample.group(1)}; samples: {', '.join(names)} (`actopo info` "
+                           "describes them)", error.code)
+    assert missing is not None
+    path = missing.group(1)
+    if path.split(":")[0] in [n.split(":")[0] for n in names]:
+        hint = f"did you mean sample:{path}? (a built-in sample is sample:NAME)"
+    elif not Path(path).suffix:
+        hint = (f"a mesh file has an extension (.vtu, .vtk, .vti, .pvd), and a built-in sample "
+                f"is sample:NAME, of {', '.join(names)}")
+    else:
+        return error
+    return type(error)(f"{error.details}; {hint}", error.code)
 
 
 def _structure(name: str) -> Structure:
@@ -117,10 +159,11 @@ def _geometry(args: argparse.Namespace, mesh: _Mesh) -> Any:
         return mesh.local
     if args.geometry:
         return args.geometry
-    if args.mesh and not args.mesh.startswith("sample:"):
+    # A series' files all hold the same points and tetrahedra: the first one's serve.
+    if args.mesh and not args.mesh[0].startswith("sample:"):
         for root in (Path.cwd(), Path(os.environ.get("ACTOPO_DATA_DIR", "") or "/nonexistent")):
-            if (root / args.mesh).is_file():
-                return root / args.mesh
+            if (root / args.mesh[0]).is_file():
+                return root / args.mesh[0]
     return None
 
 
@@ -158,7 +201,11 @@ def cmd_meshes(client: Client, args: argparse.Namespace) -> None:
 
 
 def cmd_load(client: Client, args: argparse.Namespace) -> None:
-    info = client.load_mesh(args.source, block_size=args.block_size,
+    if args.times is not None and len(args.times) != max(len(args.source), 2):
+        raise UsageError(f"--times: {len(args.times)} values for {len(args.source)} PATH(s); "
+                         "give one per file of a series (two PATHs or more)")
+    source = _series(args.source)
+    info = client.load_mesh(source, times=args.times, block_size=args.block_size,
                             block_label_field=args.block_labels or "", progress=_progress(args))
     _print_json(info) if args.json else _mesh_rows([info])
 
@@ -266,7 +313,7 @@ def _report(mesh: MeshInfo, session: Session, result: JobResult, stats: SessionS
 
 
 def _parameters(args: argparse.Namespace) -> dict[str, str]:
-    parameters = dict(p.split("=", 1) for p in args.param or [])
+    parameters = dict(args.param or [])  # (NAME, VALUE) pairs: _cli_parser._parameter
     if args.boundary_rule:
         parameters["boundary_rule"] = args.boundary_rule
     return parameters
@@ -295,6 +342,14 @@ def _run_algorithm(args: argparse.Namespace) -> Algorithm:
     if args.output and args.scalars:
         raise UsageError("--output writes one field's result: run without --scalars")
     return algorithm
+
+
+def _make_directories(args: argparse.Namespace) -> None:
+    """Creates the missing directories of --output PREFIX, --plot PATH and --trace FILE before
+    the job runs (`--output out/fertility` in a fresh directory writes out/...)."""
+    for path in (args.output, args.plot, args.trace):
+        if path:
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
 
 
 def _pair_counts(counts: dict[str, int]) -> str:
@@ -329,6 +384,7 @@ def cmd_run(client: Client, args: argparse.Namespace) -> None:
     start = time.perf_counter()
     algorithm = _run_algorithm(args)
     parameters = _parameters(args)
+    _make_directories(args)
     if args.scalars:
         return _run_fields(client, args, algorithm, parameters, start)
     with _mesh(client, args) as mesh, _open(client, mesh.info, args) as session:
@@ -637,7 +693,28 @@ COMMANDS: dict[str, Command] = {
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = parser().parse_args(argv)
+    try:
+        status = _main(argv)
+        sys.stdout.flush()  # so that a closed pipe shows here, not as the interpreter exits
+        return status
+    except BrokenPipeError:
+        return _stdout_closed()
+    except KeyboardInterrupt:
+        print("actopo: cancelled", file=sys.stderr)
+        return 130
+
+
+def _stdout_closed() -> int:
+    """The reader of stdout went away (`actopo stats --json | head -1`): the command ends
+    quietly with the status of a program that SIGPIPE stopped, 128 + 13, as `cat` in a shell
+    pipe reports it (a pipeline under `set -o pipefail` sees the same as with `cat`). stdout then
+    points at /dev/null, so the interpreter's last flush does not fail again."""
+    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return 128 + signal.SIGPIPE
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    args = parse_args(argv)
     if not args.server:
         print("actopo: error: no server: pass --server HOST:PORT or set ACTOPO_SERVER",
               file=sys.stderr)
@@ -645,17 +722,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with Client(args.server, token=args.token, tls=args.tls, timeout=args.timeout,
                     affinity_key=args.affinity_key) as client:
-            COMMANDS[args.command](client, args)
+            try:
+                COMMANDS[args.command](client, args)
+            except (NotFoundError, InvalidArgumentError) as e:
+                raise _explained(client, e) from None
     except UsageError as e:
         print(f"actopo: error: {e}", file=sys.stderr)
         return 2
     except ActopoError as e:
         print(f"actopo: error: {e}", file=sys.stderr)
         return 1
+    except BrokenPipeError:
+        raise  # main()'s
     except (ImportError, OSError, ValueError) as e:
         print(f"actopo: error: {e}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print("actopo: cancelled", file=sys.stderr)
-        return 130
     return 0

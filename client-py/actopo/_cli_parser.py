@@ -7,6 +7,8 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import re
+import sys
 from collections.abc import Sequence
 from typing import Any, TypeAlias
 
@@ -23,7 +25,38 @@ MANY_FIELDS = (DISTANCE, TRACKING)
 SINGLE_FIELD = [a for a in ALGORITHMS if a not in MANY_FIELDS]
 """The algorithms that run on one field: those that `compare` and `bench` time."""
 
+SERVER_DEFAULTS = {
+    "--consumers": "one per server core",
+    "--producers": "1",
+    "--buffer-ratio": "0.2",
+    "--query-readers": "one per server core, at most 4",
+    "--block-size": "1000",
+}
+"""What the server takes for an option a command leaves out (the CLI then sends 0): its
+WithDefaults (server/algorithms/structure_options.cc) and its octree's bucket capacity. The help
+texts quote these; tests/test_cli_usage.py compares them with what a session and a mesh opened
+with the defaults report."""
+ENGINE_MAX = 64
+"""The largest consumers, producers and query readers the server takes."""
+INT32_MAX = 2**31 - 1
+NEGATIVE_VALUE_FLAGS = ("--threshold", "--times")
+"""Options whose value may start with '-' but is not a plain negative number ("-1%", "-1,2"),
+which argparse would take for an option: parse_args() joins such a value to its flag."""
+
 Commands: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """parser().parse_args(), with `--threshold -1%` read as `--threshold=-1%` (so the value
+    reaches its check) rather than as a missing value."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    joined: list[str] = []
+    for arg in args:
+        if joined and joined[-1] in NEGATIVE_VALUE_FLAGS and re.match(r"-[\d.]", arg):
+            joined[-1] = f"{joined[-1]}={arg}"
+        else:
+            joined.append(arg)
+    return parser().parse_args(joined)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -48,7 +81,7 @@ def _add_connection(p: argparse.ArgumentParser) -> None:
                    help="sent as x-actopo-session so a load balancer keeps this client on one "
                         "server replica (default: $ACTOPO_AFFINITY_KEY)")
     p.add_argument("--tls", action="store_true", help="use TLS with the system's roots")
-    p.add_argument("--timeout", type=float, default=30.0,
+    p.add_argument("--timeout", type=_positive(float), default=30.0,
                    help="deadline of quick calls in seconds (default 30)")
 
 
@@ -73,10 +106,18 @@ def _add_meshes(commands: Commands) -> None:
 
 def _add_load(commands: Commands) -> None:
     c = _command(commands, "load",
-                 "load a file under the server's data directory, or a sample")
-    c.add_argument("source", help="path under the data directory, or sample:NAME "
-                   "(e.g. sample:jittered:32)")
-    c.add_argument("--block-size", type=int, default=0)
+                 "load a file under the server's data directory, a series given as its files, "
+                 "or a sample")
+    c.add_argument("source", nargs="+", metavar="PATH",
+                   help="path under the data directory, or sample:NAME (e.g. "
+                   "sample:jittered:32); several paths: the files of a series (the same points "
+                   "and tetrahedra), loaded as one mesh whose point fields are <field>_<k>, k "
+                   "the file's index zero-padded to the width of the last (velocityMag_0 ... "
+                   "velocityMag_3)")
+    c.add_argument("--times", type=_list(float), metavar="T1,T2,...",
+                   help="with several paths: each file's time value, in order (default: 0, 1, "
+                   "...)")
+    _add_block_size(c)
     c.add_argument("--block-labels", metavar="FIELD")
     _add_progress(c, "a progress bar per phase (read, partition, encode)")
 
@@ -86,7 +127,7 @@ def _add_upload(commands: Commands) -> None:
                  "upload a local mesh file (read with pyvista or meshio)")
     c.add_argument("file")
     c.add_argument("--name")
-    c.add_argument("--block-size", type=int, default=0)
+    _add_block_size(c)
     c.add_argument("--block-labels", metavar="FIELD")
 
 
@@ -144,7 +185,9 @@ def _add_run(commands: Commands) -> None:
     _add_parameters(c, "an algorithm parameter (repeatable), e.g. embedding=domain "
                     "(persistence-diagram), relative_threshold=0.05 or persistence_threshold=2.5 "
                     "(topological-simplification, morse-smale, and each field's own range with "
-                    f"{DISTANCE}), p=1 and essential=true ({DISTANCE}), relations=all "
+                    f"{DISTANCE}), backend=legacy (TTK's whole-mesh sweeps instead of its "
+                    "localized lts, for a simplification), p=1 and essential=true "
+                    f"({DISTANCE}), relations=all "
                     "(topo-relations: 22 relations instead of TTK's 20)")
     _add_run_outputs(c)
     _add_progress(c, "the load's and the job's progress bars")
@@ -153,13 +196,15 @@ def _add_run(commands: Commands) -> None:
 def _add_parameters(c: argparse.ArgumentParser, param_help: str | None = None) -> None:
     """The algorithm's parameters: --boundary-rule, and --param NAME=VALUE (repeatable)."""
     c.add_argument("--boundary-rule", choices=["ttk", "none"], help="critical-points")
-    c.add_argument("--param", action="append", metavar="NAME=VALUE", help=param_help)
+    c.add_argument("--param", action="append", type=_parameter, metavar="NAME=VALUE",
+                   help=param_help)
 
 
 def _add_run_outputs(c: argparse.ArgumentParser) -> None:
     """What `run` writes besides its report: ParaView files, a plot, a trace."""
     c.add_argument("--output", metavar="PREFIX",
-                   help="write PREFIX_critical_points.vtp, ... for ParaView")
+                   help="write PREFIX_critical_points.vtp, ... for ParaView (PREFIX's directory "
+                   "is created if missing, as --plot's and --trace's are)")
     c.add_argument("--plot", metavar="PATH.png",
                    help=f"{DIAGRAM}: draw the diagram (birth, death) into this image with "
                    f"matplotlib (pip install 'actopo[plot]'); {DISTANCE}: the Wasserstein "
@@ -176,8 +221,8 @@ def _add_run_outputs(c: argparse.ArgumentParser) -> None:
                    "the summary; they cost time on large meshes")
     c.add_argument("--geometry", metavar="FILE",
                    help="the mesh as a local file, for PREFIX_segmentation.vtu and "
-                   "PREFIX_simplified.vtu with --mesh (default: NAME under the current "
-                   "directory or $ACTOPO_DATA_DIR, if there)")
+                   "PREFIX_simplified.vtu with --mesh (default: NAME, a series' first, under "
+                   "the current directory or $ACTOPO_DATA_DIR, if there)")
 
 
 def _add_relation(commands: Commands) -> None:
@@ -204,7 +249,8 @@ def _add_compare(commands: Commands) -> None:
     c.add_argument("--algorithm", required=True, choices=SINGLE_FIELD)
     c.add_argument("--structures", default=",".join(STRUCTURES),
                    help="comma-separated (default: all)")
-    c.add_argument("--repeat", type=int, default=1, help="runs per structure (median)")
+    c.add_argument("--repeat", type=_positive(int), default=1,
+                   help="runs per structure (median)")
     _add_engine(c, structure=False)
     _add_parameters(c)
     _add_progress(c, "the load's and the jobs' progress bars")
@@ -265,16 +311,18 @@ def _add_bench_requests(c: argparse.ArgumentParser) -> None:
 def _add_mesh_source(p: argparse.ArgumentParser, session: bool = False,
                      required: bool = True) -> None:
     g = p.add_mutually_exclusive_group(required=required)
-    g.add_argument("--mesh", metavar="NAME",
-                   help="a file under the server's data directory, or sample:NAME")
+    g.add_argument("--mesh", metavar="NAME", action="append",
+                   help="a file under the server's data directory, or sample:NAME; repeated "
+                   "(--mesh a.vtu --mesh b.vtu): the files of a series, loaded as one mesh "
+                   "whose point fields are <field>_<k>, k the file's index zero-padded, time k")
     g.add_argument("--sample", metavar="NAME",
-                   help="a built-in sample, e.g. wavelet:40 (the same as --mesh sample:NAME)")
+                   help="a built-in sample, e.g. wavelet:40 or sample:wavelet:40 (the same as "
+                   "--mesh sample:wavelet:40); `actopo info` lists them")
     g.add_argument("--upload", metavar="FILE", help="a local mesh file to upload")
     g.add_argument("--mesh-id", metavar="ID", help="a mesh already loaded on the server")
     if session:
         g.add_argument("--session", metavar="ID", help="an open session (see `actopo open`)")
-    p.add_argument("--block-size", type=int, default=0,
-                   help="octree bucket capacity when loading (default: the server's, 1000)")
+    _add_block_size(p)
     p.add_argument("--keep", action="store_true",
                    help="keep the mesh this command loaded (default: delete it at the end)")
 
@@ -283,16 +331,31 @@ def _add_engine(p: argparse.ArgumentParser, structure: bool = True) -> None:
     if structure:
         p.add_argument("--structure", default="actopo", choices=STRUCTURES)
     p.add_argument("--scalar", help="scalar point field (default: first floating-point field)")
-    p.add_argument("--consumers", type=int, default=0, help="algorithm threads (default 1)")
-    p.add_argument("--producers", type=int, default=0,
-                   help="actopo: producers per consumer (default 2)")
-    p.add_argument("--buffer-ratio", type=float, default=0.0,
-                   help="cache/buffer capacity as a fraction of the blocks (default 0.2)")
+    p.add_argument("--consumers", type=_server_default(ENGINE_MAX), default=0,
+                   help=f"algorithm threads, 1 to {ENGINE_MAX} "
+                   f"{_default_help('--consumers')}")
+    p.add_argument("--producers", type=_server_default(ENGINE_MAX), default=0,
+                   help=f"actopo: producers per consumer, 1 to {ENGINE_MAX} "
+                   f"{_default_help('--producers')}")
+    p.add_argument("--buffer-ratio", type=_ratio, default=0.0,
+                   help="cache/buffer capacity as a fraction of the blocks, 0 to 1 "
+                   f"{_default_help('--buffer-ratio')}")
     p.add_argument("--prefetch", default="auto", choices=list(_names.PREFETCH))
     p.add_argument("--precompute", default="auto", choices=list(_names.PRECOMPUTE))
-    p.add_argument("--query-readers", type=int, default=0,
-                   help="relation calls the session answers at once (default: one per server "
-                        "core, at most 4)")
+    p.add_argument("--query-readers", type=_server_default(ENGINE_MAX), default=0,
+                   help=f"relation calls the session answers at once, 1 to {ENGINE_MAX} "
+                   f"{_default_help('--query-readers')}")
+
+
+def _add_block_size(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--block-size", type=_server_default(INT32_MAX), default=0, metavar="N",
+                   help="octree bucket capacity (most vertices per block) when loading "
+                   f"{_default_help('--block-size')}")
+
+
+def _default_help(flag: str) -> str:
+    """The help's "(default: the server's, X)", X from SERVER_DEFAULTS."""
+    return f"(default: the server's, {SERVER_DEFAULTS[flag]})"
 
 
 def _add_progress(p: argparse.ArgumentParser, what: str) -> None:
@@ -314,6 +377,40 @@ def _threshold(text: str) -> tuple[float, bool]:
     if not math.isfinite(value) or value < 0:
         raise argparse.ArgumentTypeError(f"must be a number >= 0, got {text}")
     return value, number != text.strip()
+
+
+def _parameter(text: str) -> tuple[str, str]:
+    """An argparse type: an algorithm parameter NAME=VALUE, as (NAME, VALUE)."""
+    name, equals, value = text.partition("=")
+    if not equals or not name.strip():
+        raise argparse.ArgumentTypeError(f"'{text}' is not NAME=VALUE (e.g. --param "
+                                         "embedding=domain)")
+    return name.strip(), value
+
+
+def _server_default(high: int) -> Any:
+    """An argparse type: an integer from 0 (the server's default) to `high`."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: '{text}'") from None
+        if not 0 <= value <= high:
+            raise argparse.ArgumentTypeError(f"{value} is outside [0, {high}] (0: the server's "
+                                             "default)")
+        return value
+    return parse
+
+
+def _ratio(text: str) -> float:
+    """An argparse type: a fraction from 0 (the server's default) to 1."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: '{text}'") from None
+    if not 0 <= value <= 1:  # NaN too
+        raise argparse.ArgumentTypeError(f"{text} is outside [0, 1] (0: the server's default)")
+    return value
 
 
 def _list(convert: Any, choices: Sequence[str] | None = None) -> Any:

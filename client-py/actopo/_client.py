@@ -34,7 +34,14 @@ from actopo._progress import (
     make_progress,
 )
 from actopo._proto import pb
-from actopo._requests import FieldsArg, MeshRef, SimplexArg, SimplexIds, distance_parameters
+from actopo._requests import (
+    FieldsArg,
+    MeshRef,
+    MeshSource,
+    SimplexArg,
+    SimplexIds,
+    distance_parameters,
+)
 from actopo._results import Assembler, FieldResult, JobResult, distance_matrix_of
 from actopo._stub import ResponseStream, sync_stub
 from actopo._types import (
@@ -144,10 +151,22 @@ class Client:
 
     # Meshes.
 
-    def load_mesh(self, path: str, *, block_size: int = 0, block_label_field: str = "",
+    def load_mesh(self, path: MeshSource, *, times: Sequence[float] | None = None,
+                  block_size: int = 0, block_label_field: str = "",
                   progress: LoadProgressArg = None) -> MeshInfo:
-        """Loads a file under the server's data directory ("sample:NAME" loads a sample).
+        """Loads a file under the server's data directory ("sample:NAME" loads a sample), or a
+        series given as the list of its files.
 
+        path: a file (a .pvd collection too) relative to the data directory; "sample:NAME";
+        or a list of files with the same points and tetrahedra in the same order, in step
+        order, which load as one mesh, as a .pvd of them would: each file's point fields
+        become ``<field>_<k>``, k the file's index zero-padded to the width of the last
+        (``velocityMag_0`` ... ``velocityMag_3``; with 12 files ``_00`` ... ``_11``). The
+        server's errors name the file as ``files.paths[k]`` (NotFoundError for a missing one),
+        or as ``files: step k`` for one whose points or tetrahedra differ from the first's
+        (InvalidMeshError).
+        times: with a list, each file's time value (``FieldInfo.time``; default: k); a length
+        other than the list's raises InvalidArgumentError naming ``times``.
         block_size: octree bucket capacity (max vertices per block; 0: the server's 1000);
         block_label_field: partition by this integer point field instead.
         progress: True for a bar on stderr per phase of the load ("read", "partition",
@@ -160,10 +179,16 @@ class Client:
         >>> list(dict.fromkeys(r.phase for r in reports))  # the phases, in order
         ['read', 'partition', 'encode']
         >>> client.delete_mesh(info)
+        >>> series = client.load_mesh(["isabel_series_s2/isabel_02_s2_tet.vtu",
+        ...                            "isabel_series_s2/isabel_03_s2_tet.vtu"], times=[2, 3])
+        >>> [(f.name, f.time) for f in series.fields]
+        [('velocityMag_0', 2.0), ('velocityMag_1', 3.0)]
+        >>> client.delete_mesh(series)
         """
-        request = _messages.build_load_mesh(path, block_size, block_label_field)
+        request = _messages.build_load_mesh(path, block_size, block_label_field, times)
         if progress:
-            return self._load_reporting(request, make_load_progress(progress, f"load {path}"))
+            return self._load_reporting(
+                request, make_load_progress(progress, _messages.load_description(request)))
         response = self._call(self._stub.LoadMesh, request, long=True, mesh=True)
         return _messages.decode_load_mesh(response)
 

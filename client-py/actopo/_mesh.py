@@ -31,6 +31,10 @@ _SURFACE = {"vertex", "poly_vertex", "line", "polyline", "triangle", "triangle_s
             "pixel", "quad", "quadratic_edge", "quadratic_triangle", "quadratic_quad"}
 _FIELD_DTYPES = {"f": np.float64, "i": np.int64, "u": np.int64, "b": np.int32}
 
+ACCEPTED_FILES = ("give a tetrahedral mesh in a file VTK writes (.vtu, a legacy .vtk unstructured "
+                  "grid) or one meshio reads (e.g. .msh, .mesh, .inp, .xdmf)")
+"""The files an upload takes, as its errors say."""
+
 MeshLike = Any
 """pyvista dataset | meshio.Mesh | str | os.PathLike | (points, tetrahedra[, point_data])."""
 
@@ -103,8 +107,22 @@ def read_file(path: Path) -> Any:
         except ImportError:
             raise ImportError("reading a mesh file needs pyvista or meshio: "
                               "pip install 'actopo[pyvista]' or 'actopo[meshio]'") from None
-        return meshio.read(path)
-    return pv.read(path)
+        try:
+            return meshio.read(path)
+        except meshio.ReadError as e:
+            raise _unreadable(path, f" ({e})") from None
+    try:
+        return pv.read(path)
+    except OSError as e:
+        if e.errno is not None:  # the file's own trouble: permissions, ...
+            raise
+        # "This file was not able to be automatically read by pyvista.", after meshio tried too
+        raise _unreadable(path) from None
+
+
+def _unreadable(path: Path, reason: str = "") -> InvalidMeshError:
+    return InvalidMeshError(f"{path}: not a mesh file that pyvista or meshio reads{reason}; "
+                            f"{ACCEPTED_FILES}")
 
 
 def _from_file(path: Path) -> MeshArrays:

@@ -12,14 +12,14 @@ decode_stream_relations() (StreamRelations, one simplex a message), _batches.Col
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import Any, cast
 
 import numpy as np
 
 from actopo import _convert, _names, _upload
 from actopo._arrays import to_numpy
-from actopo._errors import ActopoError, error_for_number
+from actopo._errors import ActopoError, InvalidArgumentError, error_for_number
 from actopo._fields import FieldsLike, TimesArg, field_arrays
 from actopo._literals import Algorithm, Precompute, Prefetch, Relation, Structure
 from actopo._mesh import MeshLike, mesh_arrays
@@ -28,9 +28,11 @@ from actopo._requests import (
     DEFAULT_BATCH,
     FieldsArg,
     MeshRef,
+    MeshSource,
     SessionRef,
     SimplexArg,
     engine_count,
+    file_series,
     job_fields,
     mesh_id,
     partition,
@@ -69,13 +71,33 @@ def max_batch(info: ServerInfo) -> int:
 # Meshes.
 
 
-def build_load_mesh(source: str, block_size: int = 0,
-                    block_label_field: str = "") -> pb.LoadMeshRequest:
-    """`source`: a path under the server's data directory, or "sample:NAME"."""
+def build_load_mesh(source: MeshSource, block_size: int = 0, block_label_field: str = "",
+                    times: Sequence[float] | None = None) -> pb.LoadMeshRequest:
+    """`source`: a path under the server's data directory, "sample:NAME", or a list of paths,
+    the files of a series (`times`: one per file; None: the files' indices)."""
     options = partition(block_size, block_label_field)
+    if not isinstance(source, str):
+        return pb.LoadMeshRequest(files=file_series(source, times), partition=options)
+    if times is not None:
+        raise InvalidArgumentError("times: only with a list of paths (the files of a "
+                                   "series); a .pvd gives its own")
     if source.startswith("sample:"):
         return pb.LoadMeshRequest(sample=source[len("sample:"):], partition=options)
     return pb.LoadMeshRequest(path=source, partition=options)
+
+
+def load_description(request: pb.LoadMeshRequest) -> str:
+    """What the progress bars of a load say: "load PATH", "load sample:NAME", or a series' first
+    file and how many more ("load a.vtu +3 files", as the server names the mesh)."""
+    which = request.WhichOneof("source")
+    if which == "sample":
+        return f"load sample:{request.sample}"
+    if which != "files":
+        return f"load {request.path}"
+    paths = request.files.paths
+    others = len(paths) - 1
+    more = f" +{others} file{'s' if others > 1 else ''}" if others > 0 else ""
+    return f"load {paths[0] if paths else 'no files'}{more}"
 
 
 def decode_load_mesh(response: pb.LoadMeshResponse) -> MeshInfo:

@@ -3,6 +3,7 @@ partitions and engine counts (no I/O). _messages builds the requests from them."
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any, Literal, Protocol, TypeAlias, TypedDict
 
@@ -18,6 +19,9 @@ from actopo._types import MeshInfo
 
 MeshRef: TypeAlias = MeshInfo | str
 """A mesh: its MeshInfo or its id."""
+MeshSource: TypeAlias = str | Sequence[str]
+"""What Client.load_mesh() loads: a path under the server's data directory, "sample:NAME", or
+the paths of a series' files (a list)."""
 
 Id: TypeAlias = int | np.integer[Any]
 """One simplex id, or one vertex id of a tuple."""
@@ -58,6 +62,28 @@ def partition(block_size: int = 0, block_label_field: str = "") -> pb.PartitionO
     if block_size < 0:
         raise InvalidArgumentError(f"block_size: {block_size} is negative")
     return pb.PartitionOptions(block_size=block_size, block_label_field=block_label_field or "")
+
+
+def file_series(paths: Sequence[str], times: Sequence[float] | None) -> pb.FileSeries:
+    """A series' files (LoadMeshRequest.files): the paths in step order, and a time value per
+    path, or none (the server then gives each file its index)."""
+    names = list(paths)
+    for k, name in enumerate(names):
+        if not isinstance(name, str):
+            raise InvalidArgumentError(f"path[{k}]: {name!r} is not a path (a string)")
+    if times is None:
+        return pb.FileSeries(paths=names)
+    values = list(times)
+    if len(values) != len(names):
+        raise InvalidArgumentError(f"times: {len(values)} values for {len(names)} paths; give "
+                                   "one per path, or none")
+    for k, value in enumerate(values):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer,
+                                                             np.floating)):
+            raise InvalidArgumentError(f"times[{k}]: {value!r} is not a number")
+        if not math.isfinite(value):
+            raise InvalidArgumentError(f"times[{k}]: {value} is not finite")
+    return pb.FileSeries(paths=names, times=[float(v) for v in values])
 
 
 def engine_count(what: str, value: int) -> int:

@@ -186,3 +186,13 @@ def start_cli(*args: str) -> subprocess.Popen[str]:
     """Starts `actopo ARGS...` in a new Python process, its output as text on pipes."""
     return subprocess.Popen([sys.executable, "-c", _CLI_WITH_SIGINT, *args],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def run_cli(server: str, *args: str, cwd: str | os.PathLike[str] | None = None,
+            timeout: float = 300, env: dict[str, str] | None = None
+            ) -> subprocess.CompletedProcess[str]:
+    """`actopo ARGS...` run to its end in a new Python process as a user types it, after the
+    README's `export ACTOPO_SERVER=...` (`server`): its exit status, stdout and stderr."""
+    return subprocess.run([sys.executable, "-m", "actopo", *args], capture_output=True,
+                          text=True, timeout=timeout, cwd=cwd,
+                          env={**os.environ, "ACTOPO_SERVER": server, **(env or {})})

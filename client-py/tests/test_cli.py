@@ -124,6 +124,30 @@ def test_load_progress_goes_to_stderr(cli):
     assert cli("delete", row.split()[0], mesh["mesh_id"])[0] == 0
 
 
+def test_a_series_loads_from_several_paths(cli):
+    """`load A B ... --times T1,T2,...` and the loading commands' `--mesh A --mesh B ...`: the
+    files of a series as one mesh, a field <field>_<k> per file; --times only with several
+    paths, one per path."""
+    steps = [f"isabel_series_s2/isabel_0{t}_s2_tet.vtu" for t in (2, 3, 4)]
+    mesh = _json(cli, "load", *steps, "--times", "2,3,4.5")
+    assert [(f["name"], f["time"]) for f in mesh["fields"]] == [
+        ("velocityMag_0", 2.0), ("velocityMag_1", 3.0), ("velocityMag_2", 4.5)]
+    assert mesh["name"] == "isabel_02_s2_tet.vtu +2 files"
+    assert cli("delete", mesh["mesh_id"])[0] == 0
+    report = _json(cli, "run", "critical-points", "--mesh", steps[0], "--mesh", steps[1],
+                   "--scalars", "all", "--structure", "compact")
+    assert report["mesh"]["name"] == "isabel_02_s2_tet.vtu +1 file"
+    assert report["config"]["scalars"] == ["velocityMag_0", "velocityMag_1"]
+    one = _json(cli, "run", "critical-points", "--mesh", steps[1], "--structure", "compact")
+    assert one["mesh"]["name"] == "isabel_03_s2_tet.vtu"  # one --mesh: the file, as before
+    assert report["fields"][1]["result"] == one["result"]
+    for paths, times in ((steps[:1], "2"), (steps, "2,3")):
+        status, _, err = cli("load", *paths, "--times", times)
+        assert status == 2 and "actopo: error: --times:" in err
+    status, _, err = cli("load", steps[0], "isabel_series_s2/nope.vtu")
+    assert status == 1 and "files.paths[1]" in err and "NOT_FOUND" in err
+
+
 def test_commands_show_the_load_of_their_mesh(cli):
     report = _json(cli, "run", "--sample", "jittered:6", "--algorithm", "critical-points")
     status, out, err = cli("run", "--sample", "jittered:6", "--algorithm", "critical-points",

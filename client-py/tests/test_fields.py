@@ -1,9 +1,11 @@
 """Fields added to and deleted from loaded meshes, and jobs over many fields, against a real
 server: an added field gives the jobs of the same values uploaded with the mesh (and of TTK on
-the series' members), every rejection of AddFields with its code and the field named, a deleted
-field left to the sessions that read it, a job over fields equal to single-field jobs field by
-field on every structure, run_fields in order and cancelled when closed early, and both
-clients alike. The distances between diagrams are in test_distances.py."""
+the series' members), every rejection of AddFields with its code and the field named, a series
+loaded from a list of files as from the .pvd of them and field by field as each file alone (its
+rejections naming the file), a deleted field left to the sessions that read it, a job over
+fields equal to single-field jobs field by field on every structure, run_fields in order and
+cancelled when closed early, and both clients alike. The distances between diagrams are in
+test_distances.py."""
 
 from __future__ import annotations
 
@@ -106,6 +108,114 @@ def test_series_members_added_from_their_files_give_ttks_diagrams(client, data_d
                 (ttk["pairs_sha256"], ttk["counts_by_type"]), name
     finally:
         client.delete_mesh(mesh)
+
+
+# A series given as a list of files (LoadMeshRequest.files).
+
+ISABEL = "isabel_series_s2"
+STEPS = [f"{ISABEL}/isabel_0{t}_s2_tet.vtu" for t in (2, 3, 4, 5)]
+
+
+def test_a_list_of_files_loads_as_the_pvd_of_them(server, client, data_dir):
+    """The four Isabel files with the .pvd's time steps: the fields of the .pvd (names, times,
+    dtypes, ranges), by both clients, with the load's progress as for a path; without times,
+    each file's index."""
+    pvd = client.load_mesh(f"{ISABEL}/isabel_series.pvd")
+    reports: list[actopo.LoadProgress] = []
+    listed = client.load_mesh(STEPS, times=[2, 3, 4, 5], progress=reports.append)
+    plain = client.load_mesh(STEPS[:2])
+
+    async def load_async():
+        async with actopo.AsyncClient(server) as aclient:
+            return await aclient.load_mesh(STEPS, times=np.arange(2.0, 6.0))
+
+    awaited = asyncio.run(load_async())
+    try:
+        assert [(f.name, f.time) for f in pvd.fields] == [
+            ("velocityMag_0", 2.0), ("velocityMag_1", 3.0), ("velocityMag_2", 4.0),
+            ("velocityMag_3", 5.0)]
+        assert listed.fields == pvd.fields and awaited.fields == pvd.fields
+        assert (listed.vertices, listed.tetrahedra) == (pvd.vertices, pvd.tetrahedra)
+        assert listed.name == "isabel_02_s2_tet.vtu +3 files"
+        assert listed.source == "files:" + ",".join(STEPS)
+        assert [(f.name, f.time) for f in plain.fields] == [("velocityMag_0", 0.0),
+                                                            ("velocityMag_1", 1.0)]
+        assert list(dict.fromkeys(r.phase for r in reports)) == ["read", "partition", "encode"]
+        read = [r.fraction for r in reports if r.phase == "read"]
+        assert read == sorted(read) and read[-1] == pytest.approx(1.0)
+    finally:
+        for mesh in (pvd, listed, plain, awaited):
+            client.delete_mesh(mesh)
+
+
+def test_each_field_of_a_list_is_its_file_loaded_alone(client, data_dir):
+    """Field k of the list is file k's velocityMag: described alike, the same persistence
+    diagram and simplification (one job over the list's fields, a job on each file alone), and
+    the simplified field differs from the file's values exactly where the simplification
+    changed them."""
+    listed = client.load_mesh(STEPS)
+    alone = [client.load_mesh(path) for path in STEPS]
+    simplify = {"persistence_threshold": "0.5"}
+    try:
+        with client.open_session(listed, structure="compact") as session:
+            diagrams = session.run("persistence-diagram", fields="all", digests=True)
+            simplified = session.run("topological-simplification", fields="all",
+                                     parameters=simplify, digests=True)
+        assert [r.field for r in simplified.fields] == [f.name for f in listed.fields]
+        for k, (path, mesh) in enumerate(zip(STEPS, alone, strict=True)):
+            field = listed.fields[k]
+            assert field.name == f"velocityMag_{k}" and field.time == float(k)
+            assert dataclasses.replace(field, name="velocityMag", time=None) == mesh.fields[0]
+            with client.open_session(mesh, structure="compact") as session:
+                diagram = session.run("persistence-diagram", digests=True)
+                single = session.run("topological-simplification", parameters=simplify,
+                                     digests=True)
+            assert diagrams.fields[k].summary == diagram.summary, path
+            assert simplified.fields[k].summary == single.summary, path
+            ours, theirs = simplified.fields[k].simplified, single.simplified
+            assert ours is not None and theirs is not None
+            np.testing.assert_array_equal(ours.values, theirs.values, err_msg=path)
+            np.testing.assert_array_equal(ours.order, theirs.order, err_msg=path)
+            values = meshio.read(data_dir / path).point_data["velocityMag"]
+            assert np.count_nonzero(ours.values != values) == single.summary["changed_values"]
+    finally:
+        for mesh in (listed, *alone):
+            client.delete_mesh(mesh)
+
+
+def test_a_bad_list_is_rejected_naming_the_file(client, shared_server):
+    with _raises(actopo.NotFoundError, grpc.StatusCode.NOT_FOUND, "files.paths[1]",
+                 "'isabel_series_s2/nope.vtu' not found"):
+        client.load_mesh([STEPS[0], f"{ISABEL}/nope.vtu"])
+    with _raises(actopo.InvalidMeshError, grpc.StatusCode.INVALID_ARGUMENT, "files.paths[1]",
+                 "outside the server's data directory"):
+        client.load_mesh([STEPS[0], "../x.vtu"])
+    with _raises(actopo.InvalidMeshError, grpc.StatusCode.INVALID_ARGUMENT, "files.paths[0]",
+                 "is a collection"):
+        client.load_mesh([f"{ISABEL}/isabel_series.pvd"])
+    with _raises(actopo.InvalidMeshError, grpc.StatusCode.INVALID_ARGUMENT,
+                 "files: step 1: fertility_tet.vtu: has 14570 points, not 51597"):
+        client.load_mesh([STEPS[0], "fertility_tet.vtu"], progress=lambda report: None)
+    with _raises(actopo.InvalidMeshError, grpc.StatusCode.INVALID_ARGUMENT, "files.paths: empty"):
+        client.load_mesh([])
+    # What the client checks itself is not sent; the server checks it too.
+    before = Counter(shared_server.requests("LoadMesh"))
+    for kwargs, message in [({"times": [1.0]}, "times: 1 values for 2 paths"),
+                            ({"times": [1.0, float("nan")]}, "times[1]: nan is not finite"),
+                            ({"times": [1.0, "2"]}, "times[1]: '2' is not a number")]:
+        with pytest.raises(actopo.InvalidArgumentError) as e:
+            client.load_mesh(STEPS[:2], **kwargs)
+        assert message in str(e.value) and e.value.code is None
+    with pytest.raises(actopo.InvalidArgumentError, match="times: only with a list of paths"):
+        client.load_mesh(STEPS[0], times=[2.0])
+    with pytest.raises(actopo.InvalidArgumentError, match=r"path\[1\]: 3 is not a path"):
+        client.load_mesh([STEPS[0], 3])
+    assert Counter(shared_server.requests("LoadMesh")) == before
+    request = pb.LoadMeshRequest(files=pb.FileSeries(paths=STEPS[:1], times=[1.0, 2.0]))
+    with _raises(actopo.InvalidMeshError, grpc.StatusCode.INVALID_ARGUMENT,
+                 "files.times: 2 values for 1 paths"):
+        with translated(mesh=True):
+            client._stub.LoadMesh(request, timeout=30, metadata=client._metadata)
 
 
 @pytest.fixture

@@ -212,6 +212,24 @@ def test_load_stream_reports_progress_and_keeps_the_mesh():
     assert stream.mesh().mesh_id == "m1" and stream.mesh().tetrahedra == 2
 
 
+def test_a_load_request_of_a_path_a_sample_or_a_list_of_files():
+    request = _messages.build_load_mesh("a.vtu", block_size=10)
+    assert request.WhichOneof("source") == "path" and request.partition.block_size == 10
+    assert _messages.load_description(request) == "load a.vtu"
+    request = _messages.build_load_mesh("sample:jittered:4")
+    assert request.sample == "jittered:4"
+    assert _messages.load_description(request) == "load sample:jittered:4"
+    for paths, times in ((["a.vtu", "b.vtu"], None), (("a.vtu", "b.vtu"), np.array([2, 3.5]))):
+        request = _messages.build_load_mesh(paths, times=times)
+        assert request.WhichOneof("source") == "files"
+        assert list(request.files.paths) == ["a.vtu", "b.vtu"]
+        assert list(request.files.times) == ([] if times is None else [2.0, 3.5])
+        assert _messages.load_description(request) == "load a.vtu +1 file"
+    request = _messages.build_load_mesh([])
+    assert request.HasField("files") and not request.files.paths  # the server says: empty
+    assert _messages.load_description(request) == "load no files"
+
+
 def test_load_progress_choices(monkeypatch, capsys):
     reports = []
     for progress in (None, False, reports.append):
@@ -260,9 +278,12 @@ def test_job_progress_choices(monkeypatch, capsys):
 
 
 def test_client_needs_a_target(monkeypatch):
+    """As every failure of the package: an ActopoError (InvalidArgumentError, a ValueError)."""
     monkeypatch.delenv("ACTOPO_SERVER", raising=False)
-    with pytest.raises(ValueError, match="ACTOPO_SERVER"):
-        actopo.Client()
+    for client in (actopo.Client, actopo.AsyncClient):
+        with pytest.raises(actopo.InvalidArgumentError, match="ACTOPO_SERVER") as error:
+            client()
+        assert isinstance(error.value, ValueError) and error.value.code is None
 
 
 def test_unreachable_server_is_unavailable():

@@ -159,7 +159,8 @@ struct FieldInfo {
   DataType dtype = DataType::kUnspecified;  // as loaded
   double min = 0;
   double max = 0;
-  // The time value of a series member: a .pvd collection's step, or the one given to AddFields.
+  // The time value of a series member: a .pvd collection's step, a LoadSeries file's, or the one
+  // given to AddFields.
   std::optional<double> time;
 };
 
@@ -167,7 +168,7 @@ struct FieldInfo {
 struct MeshInfo {
   std::string mesh_id;
   std::string name;    // file or sample name
-  std::string source;  // "file:PATH", "sample:NAME" or "upload"
+  std::string source;  // "file:PATH", "files:PATH,PATH,..." (LoadSeries), "sample:NAME", "upload"
   int64_t vertices = 0;
   // Unset until the server has built them: it loads a mesh without its edges and triangles and
   // builds them for the first job, relation query or explicit session that reads them (critical
@@ -741,6 +742,25 @@ class Client {
   //       },
   //       .cancel = cancel});
   absl::StatusOr<MeshInfo> LoadMeshWithProgress(std::string_view path, const LoadOptions& options);
+  // Loads a series (or an ensemble) given as its files under the server's data directory, in
+  // step order, each with the same points and tetrahedra in the same order: one mesh, as a .pvd
+  // collection of them loads, whose point fields are every file's, named "<field>_<k>" with k the
+  // file's index zero-padded to the width of the last ("velocityMag_0" ... "velocityMag_3"; with
+  // 12 files "_00" ... "_11"). `times`: each file's FieldInfo::time, one per path; empty: k. A
+  // count other than the paths' or a non-finite time is INVALID_ARGUMENT naming files.times
+  // before anything is sent. The server's errors name the file: "files.paths[k]: ..." (NOT_FOUND
+  // for a missing one), or "files: step k: ..." for one whose points or tetrahedra differ.
+  //
+  //   auto series = client->LoadSeries(
+  //       {"isabel_series_s2/isabel_02_s2_tet.vtu", "isabel_series_s2/isabel_03_s2_tet.vtu"},
+  //       {2.0, 3.0});   // velocityMag_0 at time 2, velocityMag_1 at time 3
+  absl::StatusOr<MeshInfo> LoadSeries(const std::vector<std::string>& paths,
+                                      const std::vector<double>& times = {},
+                                      const PartitionOptions& partition = {});
+  // The same, reporting progress and cancellable as LoadMeshWithProgress.
+  absl::StatusOr<MeshInfo> LoadSeriesWithProgress(const std::vector<std::string>& paths,
+                                                  const std::vector<double>& times,
+                                                  const LoadOptions& options);
   // Uploads a mesh: `points` holds x, y, z per vertex, `tetrahedra` 4 vertex ids (0-based
   // indices into the points) per tetrahedron, each field one value per vertex. Shapes are
   // checked before anything is sent; the data goes as a header with its SHA-256 and chunks.
