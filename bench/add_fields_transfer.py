@@ -7,9 +7,9 @@ process, answering AddFields without parsing). Alternated, medians of --repeats.
     # over a 1 Gb/s link: a network namespace behind a veth pair shaped by tc (root)
     ip netns add far && ip link add v0 type veth peer name v1 && ip link set v1 netns far
     ip addr add 10.77.0.1/24 dev v0 && ip link set v0 up
-    ip netns exec far sh -c 'ip addr add 10.77.0.2/24 dev v1 && ip link set v1 up && ip link set lo up'
+    ip netns exec far sh -c 'ip addr add 10.77.0.2/24 dev v1 && ip link set v1 up \
+        && ip link set lo up && tc qdisc add dev v1 root tbf rate 1gbit burst 256kb latency 50ms'
     tc qdisc add dev v0 root tbf rate 1gbit burst 256kb latency 50ms
-    ip netns exec far tc qdisc add dev v1 root tbf rate 1gbit burst 256kb latency 50ms
     .venv/bin/python bench/add_fields_transfer.py --netns far --host 10.77.0.2 --repeats 5
 
 Prints JSON: add_field_s (checks, SHA-256, send, the server's decode, range and insert),
