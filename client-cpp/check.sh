@@ -80,6 +80,17 @@ echo "$out"
 grep -q '^minimum: [1-9]' <<< "$out"
 "$build/client-examples/query_relations" "$target" > /dev/null
 "$build/client-examples/stream_batch" "$target" jittered:12 > /dev/null
+# A sample is sample:NAME everywhere; stream_batch also takes the bare name above, and a mesh
+# argument that names a sample is answered with the exact spelling.
+"$build/client-examples/stream_batch" "$target" sample:jittered:12 > /dev/null
+out=$("$build/client-examples/critical_points" "$target" fertility_tet.vtu)
+grep -q '^minimum: [1-9]' <<< "$out"
+if out=$("$build/client-examples/critical_points" "$target" jittered:16 2>&1); then
+  echo "critical_points with a bare sample name should fail" >&2
+  exit 1
+fi
+grep -q "load it as sample:jittered:16" <<< "$out" ||
+  { echo "$out"; echo "no sample:NAME hint" >&2; exit 1; }
 out=$("$build/client-examples/series" "$target" sample:jittered:12 2> /dev/null)
 echo "$out"
 grep -q '^ 1 height ' <<< "$out"

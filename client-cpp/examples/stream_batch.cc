@@ -4,7 +4,8 @@
 // throughput.
 //
 //   stream_batch [HOST:PORT] [SAMPLE] [STRUCTURE] [CLIENTS]
-//   (defaults: jittered:24, actopo, 1 thread asking one per call)
+//   (defaults: sample:jittered:24, actopo, 1 thread asking one per call; SAMPLE may be written
+//   with or without its "sample:")
 #include <algorithm>
 #include <chrono>
 #include <cstdlib>
@@ -32,8 +33,9 @@ int main(int argc, char** argv) {
     return 1;
   }
   actopo::client::Client& client = **connected;
-  const std::string sample = argc > 2 ? argv[2] : "jittered:24";
-  absl::StatusOr<actopo::client::MeshInfo> mesh = client.LoadMesh("sample:" + sample);
+  std::string sample = argc > 2 ? argv[2] : "sample:jittered:24";
+  if (!sample.starts_with("sample:")) sample = "sample:" + sample;
+  absl::StatusOr<actopo::client::MeshInfo> mesh = client.LoadMesh(sample);
   if (!mesh.ok()) {
     std::cerr << mesh.status() << "\n";
     return 1;
