@@ -44,6 +44,15 @@ struct RunContext {
 
   // What stops the run (cancel flag and deadline), to test with stopped() or status(phase).
   Progress stop() const { return Progress({.cancel = cancel, .deadline = deadline}); }
+
+  // The same run, for a part of it: progress reported as its place in [from, to] of this one's.
+  RunContext Slice(double from, double to) const {
+    RunContext part = *this;
+    if (progress) {
+      part.progress = [whole = progress, from, to](double f) { whole(from + (to - from) * f); };
+    }
+    return part;
+  }
 };
 
 struct BlockRange {
@@ -81,8 +90,8 @@ absl::Status RunOnConsumers(const RunContext& context, const Topology& topology,
 // Items 0 .. n-1 handed out in ascending chunks to whichever consumer asks first: for work whose
 // items vary in cost and do not follow blocks (a saddle's wall, a separatrix). Chunks are
 // `chunk` items until the items left are fewer than 2 * chunk per party, then shrink to that
-// share (at least 1), so the parties finish together: with fixed chunks of 1/32 of a gradient
-// sweep, one consumer of two ran 80 ms alone at its end (wavelet128).
+// share (at least 1), so the parties finish together: with fixed chunks, the last chunk of a
+// gradient sweep would leave one consumer running alone at its end.
 class ItemQueue {
  public:
   ItemQueue(int64_t items, int64_t chunk, int parties = 1)

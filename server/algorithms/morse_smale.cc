@@ -57,8 +57,7 @@ bool Contains(std::span<const SimplexId, 4> tv, SimplexId b, SimplexId c) {
 // Which edges and triangles are critical, one bit each. The gradient keeps only the pairings
 // the paths follow (GradientArrays::kPaths: vertex -> edge, edge -> triangle; kPersistence adds
 // tetrahedron -> triangle, for a caller's gradient); a triangle's edge comes from its edges'
-// pairings (DownEdge). The arrays left out are 4 bytes per edge and 8 per triangle: 259 MB on
-// wavelet128.vtu.
+// pairings (DownEdge). The arrays left out are 4 bytes per edge and 8 per triangle.
 class CriticalSaddles {
  public:
   CriticalSaddles(const Topology& topo, const std::array<std::vector<SimplexId>, 4>& critical)
@@ -115,8 +114,7 @@ class Builder {
       Separatrix s{SeparatrixType::kSaddleConnector, {1, s1}, {2, s2}, {}};
       // Ends at s2: a triangle (odd length: an edge first, then triangle and edge in turn).
       if (PathThroughWall(s1, s.path) && s.path.size() % 2 == 0 && s.path.back() == s2) {
-        // The result holds every path to the end: without the slack of their growth (part_5M,
-        // 4.9M cells in 84k separatrices, most of them saddle connectors).
+        // The result holds every path to the end, so none keeps the slack of its growth.
         s.path.shrink_to_fit();
         out.push_back(std::move(s));
       }
@@ -128,8 +126,8 @@ class Builder {
   // triangle is on the boundary) for each tetrahedron t paired with a triangle whose lowest
   // vertex is a. That triangle's star lies in a's. Every paired triangle has one lowest vertex,
   // so a pass over every vertex sets each non-critical tetrahedron's entry once, and a block's
-  // pass reads only its own vertices' stars (part_5M.vtu, actopo: following each tetrahedron's
-  // triangle to its lowest vertex, in whichever block, computed VT 7,283 times over 3,631 blocks).
+  // pass reads only its own vertices' stars (following each tetrahedron's triangle to its lowest
+  // vertex, in whichever block, would compute other blocks' VT again).
   SimplexId ScanStar(SimplexId a, std::span<SimplexId> up) {
     const auto star = r_.vertex_star(a);
     if (star.empty()) return -1;
@@ -162,9 +160,8 @@ class Builder {
   // together (TriangleTetrahedraInRun), so no relation is read when they are all of f's (on a
   // mesh where a triangle has at most two). Only when some are missing (their lowest vertex is
   // below a) is a's star read: a vertex star costs a quarter of a triangle star to compute per
-  // block (part_5M, compact: the triangle stars were computed 13,500 times over 880 blocks in
-  // the walls' phase). The run saves few block computations (part_5M, actopo: 350 of 17,700),
-  // as a block's star is computed once any of its triangles misses.
+  // block, and walls would compute a block's triangle stars many times over. The run saves few
+  // block computations, as a block's star is computed once any of its triangles misses.
   std::span<const SimplexId> TriangleStar(SimplexId f) {
     triangle_star_.clear();
     std::array<SimplexId, 2> in_run;
@@ -206,10 +203,10 @@ class Builder {
   }
 
   // The wall of s2 and, for the paths through it, which wall triangles lie around each edge.
-  // Walls wander across many blocks (part_5M: compact computed each block's edge-triangles ten
-  // times over in this phase), so nothing here reads a block relation: a triangle's edges come
-  // from the static encoding (FindEdge), and the wall's own (edge, triangle) pairs stand in for
-  // the edge-triangle relation restricted to the wall. A triangle's own down edge (the one
+  // Walls wander across many blocks (a structure computing by block would compute each block's
+  // edge-triangles many times over), so nothing here reads a block relation: a triangle's edges
+  // come from the static encoding (FindEdge), and the wall's own (edge, triangle) pairs stand in
+  // for the edge-triangle relation restricted to the wall. A triangle's own down edge (the one
   // paired with it) gets no pair: a path comes down that edge from the triangle, never up it.
   void DescendingWall(SimplexId s2) {
     for (SimplexId f : wall_) in_wall_[f] = false;  // the previous wall's marks
@@ -337,8 +334,8 @@ class Builder {
   std::vector<std::array<SimplexId, 4>> star_tuples_;  // ScanStar's star, decoded
 };
 
-// The segmentations' passes cost little per item (wavelet128: 2.1M vertices, 10.2M
-// tetrahedra; one thread took 0.19 s of them): ranges of this many items on the run's threads.
+// The segmentations' passes cost little per item but cover every vertex and tetrahedron, too
+// much for one thread: ranges of this many items on the run's threads.
 constexpr int64_t kRange = 1 << 15;
 
 std::vector<SimplexId> ToInputOrder(const Topology& topo, const std::vector<SimplexId>& by_internal,
@@ -558,112 +555,60 @@ absl::StatusOr<std::vector<uint8_t>> InputCorners(const Topology& topology,
   return corners;
 }
 
+// What the ascending paths read of the vertex stars, when the gradient's sweep did not record
+// it (AscendingLinks): in one pass over the blocks, while their stars are at hand (ScanStar,
+// TriangleStar), each vertex's first tetrahedron into `vertex_label`, each tetrahedron's next
+// one up into `up`, each 2-saddle's tetrahedra into `saddle_tets` (two slots, -1 when on the
+// boundary). The separatrices then read no relation: tracing them through vertex stars would
+// compute each block's stars again, once per wall through it.
 template <class Structure>
-absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
-                                               std::span<const SimplexId> order,
-                                               std::span<const uint8_t> input_corners,
-                                               const RunContext& context,
-                                               std::optional<DiscreteGradientResult> gradient) {
+absl::Status ReadAscendingLinks(Structure& structure, const GradientField& g,
+                                const CriticalSaddles& critical_saddles,
+                                std::span<const uint8_t> input_corners,
+                                const std::vector<SimplexId>& saddles, std::vector<SimplexId>& up,
+                                std::vector<SimplexId>& vertex_label,
+                                std::vector<SimplexId>& saddle_tets, const RunContext& context) {
   const Topology& topo = structure.topology();
-  if (input_corners.size() != size_t(topo.num_tetrahedra())) {
-    return absl::InvalidArgumentError(absl::StrCat("morse-smale: input corners of ",
-                                                   input_corners.size(), " tetrahedra for ",
-                                                   topo.num_tetrahedra()));
-  }
-  // Progress: the gradient is the first half, the separatrices and segmentations the rest.
-  const auto phase = [&context](double from, double to) {
-    RunContext c = context;
-    if (context.progress) {
-      c.progress = [&context, from, to](double f) { context.progress(from + (to - from) * f); };
-    }
-    return c;
-  };
-  // The passes after the consumers' phases (segmentations) run on as many threads.
-  const int threads = std::max(context.consumers, 1);
-  MorseSmaleResult result;
-  // Per tetrahedron its next one up (-1 for the critical ones until they are labelled), per
-  // vertex its first tetrahedron (in vertex_label until the labels are known), per 2-saddle its
-  // tetrahedra (two slots, -1 when on the boundary): what the ascending separatrices and
-  // segmentation read of the vertex stars. The gradient's sweep records them (AscendingLinks)
-  // when this run computes the gradient, else a pass over the blocks reads them below.
-  std::vector<SimplexId> up(topo.num_tetrahedra(), -1);
-  std::vector<SimplexId> vertex_label(topo.num_vertices(), -1);
-  std::vector<SimplexId> saddle_tets;
-  const bool linked = !gradient && !topo.has_crowded_triangles();
-  AscendingLinks links{up, vertex_label, {}};
-  links.saddles.resize(size_t(threads));
-  if (gradient) {
-    result.gradient = std::move(*gradient);
-  } else {
-    const GradientArrays arrays = linked ? GradientArrays::kPaths : GradientArrays::kPersistence;
-    ASSIGN_OR_RETURN(result.gradient, RunDiscreteGradient(structure, order, phase(0.0, 0.5), arrays,
-                                                          nullptr, linked ? &links : nullptr));
-  }
-  GradientField& g = result.gradient.gradient;
-  // What the paths do not follow (a caller's gradient may have every array), and the gradient's
-  // buffered relations (the end of its sweep; VE and VF, which nothing below reads), freed
-  // before the arrays below are allocated, and with them what the caller's phases freed (a
-  // simplification's kept neighbours). wavelet128.vtu, actopo: the peak was here, 100 MiB of
-  // buffer beside `up` and the labels.
-  for (auto* unused : {&g.up[2], &g.down[1], &g.down[2]}) Pairings().swap(*unused);
-  EndPhase(structure);
-  const CriticalSaddles critical_saddles(topo, result.gradient.critical);
-  DescendingSeparatrices(topo, g, result.gradient.critical[1], result.separatrices);
-
-  const std::vector<SimplexId>& saddles = result.gradient.critical[2];
-  absl::Status status;
-  if (linked) {
-    ASSIGN_OR_RETURN(saddle_tets, SaddleTetrahedra(links, saddles));
-  } else {
-    saddle_tets.assign(2 * saddles.size(), -1);
-    // In one pass over the blocks, while their vertex stars are at hand (ScanStar, TriangleStar).
-    // The separatrices then read no relation (part_5M.vtu, actopo: tracing them through vertex
-    // stars recomputed VT 10,066 times over 3,631 blocks), and the ascending segmentation
-    // resolves `up`.
-    status = RunOnConsumers(
-        phase(0.5, 0.6), topo, topo.num_blocks(), [&](int, BlockRange range, WorkTracker& tracker) {
-          auto reader = structure.NewReader();
-          Builder builder(reader, g, critical_saddles, input_corners);
-          for (int32_t b = range.begin; b < range.end; ++b) {
-            for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1);
-                 ++v) {
-              vertex_label[v] = builder.ScanStar(v, up);
-            }
-            for (auto i =
-                     std::lower_bound(saddles.begin(), saddles.end(), topo.block_triangle_begin(b));
-                 i != saddles.end() && *i < topo.block_triangle_begin(b + 1); ++i) {
-              const auto star = builder.TriangleStar(*i);
-              std::copy(star.begin(), star.end(), saddle_tets.begin() + 2 * (i - saddles.begin()));
-            }
-            reader.Finished(b);  // both read the stars of b's own vertices
-            if (!tracker.Done()) return;
+  saddle_tets.assign(2 * saddles.size(), -1);
+  return RunOnConsumers(
+      context, topo, topo.num_blocks(), [&](int, BlockRange range, WorkTracker& tracker) {
+        auto reader = structure.NewReader();
+        Builder builder(reader, g, critical_saddles, input_corners);
+        for (int32_t b = range.begin; b < range.end; ++b) {
+          for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
+            vertex_label[v] = builder.ScanStar(v, up);
           }
-        });
-  }
-  if (!status.ok()) return status;
-  // The maxima labelled 0.. in ascending input tetrahedron id, in `up` (LabelCode), where the
-  // ascending paths below find their ends. Nothing reads the tetrahedron -> triangle pairing
-  // from here on (4 bytes per tetrahedron: wavelet128 41 MB).
-  std::vector<SimplexId> maxima = result.gradient.critical[3];
-  std::sort(maxima.begin(), maxima.end(), [&](SimplexId a, SimplexId b) {
-    return topo.tetrahedron_input_id(a) < topo.tetrahedron_input_id(b);
-  });
-  for (size_t i = 0; i < maxima.size(); ++i) up[maxima[i]] = LabelCode(SimplexId(i));
-  Pairings().swap(g.down[3]);
+          for (auto i =
+                   std::lower_bound(saddles.begin(), saddles.end(), topo.block_triangle_begin(b));
+               i != saddles.end() && *i < topo.block_triangle_begin(b + 1); ++i) {
+            const auto star = builder.TriangleStar(*i);
+            std::copy(star.begin(), star.end(), saddle_tets.begin() + 2 * (i - saddles.begin()));
+          }
+          reader.Finished(b);  // both read the stars of b's own vertices
+          if (!tracker.Done()) return;
+        }
+      });
+}
 
-  // Per 2-saddle, in ascending id: its ascending separatrices and its saddle connectors, on
-  // every consumer. Walls differ in size, so saddles go to whichever consumer is free, in runs
-  // of ascending ids: a wall's ties in TTK's triangle order read vertex stars around it, and
-  // runs keep each consumer on blocks of its own instead of both computing every block
-  // (part_5M.vtu, actopo: 6,417 -> 4,520 vertex stars computed in this phase).
+// Per 2-saddle, in ascending id: its ascending separatrices and its saddle connectors, on every
+// consumer, appended to `separatrices` in that order (all ascending ones, then all connectors).
+// Walls differ in size, so saddles go to whichever consumer is free, in runs of ascending ids: a
+// wall's ties in TTK's triangle order read vertex stars around it, and runs keep each consumer
+// on blocks of its own instead of both computing every block.
+template <class Structure>
+absl::Status AppendWalls(Structure& structure, const GradientField& g,
+                         const CriticalSaddles& critical_saddles,
+                         std::span<const uint8_t> input_corners, std::span<const SimplexId> up,
+                         const std::vector<SimplexId>& saddles,
+                         const std::vector<SimplexId>& saddle_tets, const RunContext& context,
+                         std::vector<Separatrix>& separatrices) {
   const int64_t chunk = std::max<int64_t>(
       1, int64_t(saddles.size()) / (16 * int64_t(std::max(context.consumers, 1))));
   std::vector<std::vector<Separatrix>> ascending(saddles.size()), connectors(saddles.size());
   // Reads follow walls, not blocks: actopo's producers would only compete with the consumers.
   std::optional<PrefetchOff<Structure>> prefetch_off(structure);
-  status = RunOnConsumersShared(
-      phase(0.6, 0.95), int64_t(saddles.size()), chunk,
-      [&](int, ItemQueue& queue, WorkTracker& tracker) {
+  const absl::Status status = RunOnConsumersShared(
+      context, int64_t(saddles.size()), chunk, [&](int, ItemQueue& queue, WorkTracker& tracker) {
         auto reader = structure.NewReader();
         Builder builder(reader, g, critical_saddles, input_corners, up);
         int64_t begin, end;
@@ -677,35 +622,35 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
         }
       });
   prefetch_off.reset();
-  if (!status.ok()) return status;
-  // Nothing below reads a relation: the walls' blocks go, and what the phases freed.
-  EndPhase(structure);
-  size_t total = result.separatrices.size();
+  RETURN_IF_ERROR(status);
+  size_t total = separatrices.size();
   for (auto* per_saddle : {&ascending, &connectors}) {
     for (const auto& list : *per_saddle) total += list.size();
   }
-  result.separatrices.reserve(total);  // no doubling slack, no old copy beside the new one
+  separatrices.reserve(total);  // no doubling slack, no old copy beside the new one
   for (auto* per_saddle : {&ascending, &connectors}) {
     for (auto& list : *per_saddle) {
-      std::move(list.begin(), list.end(), std::back_inserter(result.separatrices));
+      std::move(list.begin(), list.end(), std::back_inserter(separatrices));
     }
     // Moved-from shells: freed before the segmentations allocate, where the peak is.
     std::vector<std::vector<Separatrix>>().swap(*per_saddle);
   }
-  std::vector<SimplexId>().swap(saddle_tets);
+  return absl::OkStatus();
+}
 
-  Trace::Scope span(context.trace.get(), "segmentations", "phase");
+// The segmentations, once the paths are traced: descending from the gradient (the last reader
+// of its pairings, which go before the last arrays come), ascending from `up` (each
+// tetrahedron's path up to a maximum's label, -1 if it leaves through the boundary; a vertex
+// takes the label of the tetrahedron of its star with the lowest input id, found through
+// `vertex_label`), then their product.
+void Segment(const Topology& topo, GradientField& g, std::vector<SimplexId>& up,
+             std::vector<SimplexId>& vertex_label, size_t maxima, int threads,
+             MorseSmaleResult& result) {
   result.descending =
       DescendingSegmentation(topo, g, result.gradient.critical[0], result.minimum_sizes, threads);
-  // The last reader of the pairings: the result keeps the critical cells' lists, and the arrays
-  // (4 bytes per vertex, edge and tetrahedron; part_5M 48 MB) go before the last arrays come.
   for (auto& pairings : {&g.up, &g.down}) {
     for (Pairings& a : *pairings) Pairings().swap(a);
   }
-
-  // Ascending: each tetrahedron follows its path up to a maximum's label (-1 if it leaves
-  // through the boundary); a vertex takes the label of the tetrahedron of its star with the
-  // lowest input id.
   ResolveAscendingLabels(up, threads);
   ParallelForRanges(int64_t(vertex_label.size()), kRange, threads, [&](int64_t begin, int64_t end) {
     for (int64_t v = begin; v < end; ++v) {
@@ -713,10 +658,83 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
     }
   });
   std::vector<SimplexId>().swap(up);  // 4 bytes per tetrahedron, before the last arrays
-  result.maximum_sizes = LabelSizes(vertex_label, maxima.size());
+  result.maximum_sizes = LabelSizes(vertex_label, maxima);
   result.ascending = ToInputOrder(topo, vertex_label, threads);
   result.morse_smale = FinalSegmentation(result.descending, result.ascending,
                                          int64_t(result.maximum_sizes.size()), threads);
+}
+
+template <class Structure>
+absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
+                                               std::span<const SimplexId> order,
+                                               std::span<const uint8_t> input_corners,
+                                               const RunContext& context,
+                                               std::optional<DiscreteGradientResult> gradient) {
+  const Topology& topo = structure.topology();
+  if (input_corners.size() != size_t(topo.num_tetrahedra())) {
+    return absl::InvalidArgumentError(absl::StrCat("morse-smale: input corners of ",
+                                                   input_corners.size(), " tetrahedra for ",
+                                                   topo.num_tetrahedra()));
+  }
+  // Progress: the gradient is the first half, the separatrices and segmentations the rest.
+  // The passes after the consumers' phases (segmentations) run on as many threads.
+  const int threads = std::max(context.consumers, 1);
+  MorseSmaleResult result;
+  // Per tetrahedron its next one up (-1 for the critical ones until they are labelled), per
+  // vertex its first tetrahedron (in vertex_label until the labels are known), per 2-saddle its
+  // tetrahedra: what the ascending separatrices and segmentation read of the vertex stars. The
+  // gradient's sweep records them (AscendingLinks) when this run computes the gradient, else
+  // ReadAscendingLinks reads them.
+  std::vector<SimplexId> up(topo.num_tetrahedra(), -1);
+  std::vector<SimplexId> vertex_label(topo.num_vertices(), -1);
+  std::vector<SimplexId> saddle_tets;
+  const bool linked = !gradient && !topo.has_crowded_triangles();
+  AscendingLinks links{up, vertex_label, {}};
+  links.saddles.resize(size_t(threads));
+  if (gradient) {
+    result.gradient = std::move(*gradient);
+  } else {
+    const GradientArrays arrays = linked ? GradientArrays::kPaths : GradientArrays::kPersistence;
+    ASSIGN_OR_RETURN(result.gradient,
+                     RunDiscreteGradient(structure, order, context.Slice(0.0, 0.5), arrays, nullptr,
+                                         linked ? &links : nullptr));
+  }
+  GradientField& g = result.gradient.gradient;
+  // What the paths do not follow (a caller's gradient may have every array), and the gradient's
+  // buffered relations (the end of its sweep; VE and VF, which nothing below reads), freed
+  // before the arrays below are allocated, and with them what the caller's phases freed (a
+  // simplification's kept neighbours): the peak would be here, the buffer beside `up` and the
+  // labels.
+  for (auto* unused : {&g.up[2], &g.down[1], &g.down[2]}) Pairings().swap(*unused);
+  EndPhase(structure);
+  const CriticalSaddles critical_saddles(topo, result.gradient.critical);
+  DescendingSeparatrices(topo, g, result.gradient.critical[1], result.separatrices);
+
+  const std::vector<SimplexId>& saddles = result.gradient.critical[2];
+  if (linked) {
+    ASSIGN_OR_RETURN(saddle_tets, SaddleTetrahedra(links, saddles));
+  } else {
+    RETURN_IF_ERROR(ReadAscendingLinks(structure, g, critical_saddles, input_corners, saddles, up,
+                                       vertex_label, saddle_tets, context.Slice(0.5, 0.6)));
+  }
+  // The maxima labelled 0.. in ascending input tetrahedron id, in `up` (LabelCode), where the
+  // ascending paths below find their ends. Nothing reads the tetrahedron -> triangle pairing
+  // from here on (4 bytes per tetrahedron).
+  std::vector<SimplexId> maxima = result.gradient.critical[3];
+  std::sort(maxima.begin(), maxima.end(), [&](SimplexId a, SimplexId b) {
+    return topo.tetrahedron_input_id(a) < topo.tetrahedron_input_id(b);
+  });
+  for (size_t i = 0; i < maxima.size(); ++i) up[maxima[i]] = LabelCode(SimplexId(i));
+  Pairings().swap(g.down[3]);
+
+  RETURN_IF_ERROR(AppendWalls(structure, g, critical_saddles, input_corners, up, saddles,
+                              saddle_tets, context.Slice(0.6, 0.95), result.separatrices));
+  // Nothing below reads a relation: the walls' blocks go, and what the phases freed.
+  EndPhase(structure);
+  std::vector<SimplexId>().swap(saddle_tets);
+
+  Trace::Scope span(context.trace.get(), "segmentations", "phase");
+  Segment(topo, g, up, vertex_label, maxima.size(), threads, result);
   if (context.progress) context.progress(1.0);
   return result;
 }

@@ -40,12 +40,10 @@ uint8_t ExtremumFlags(std::span<const SimplexId> neighbors, SimplexId v,
 
 // What the removal passes read: every vertex's neighbours (VV). The passes go back over the same
 // components (growth, segment, local orders, flags) in the order of their extrema, which is no
-// order in space: through a localized structure, one consumer computed most blocks' VV again
-// and again while its leader prefetched blocks in id order (part_5M at 1%: 4,321 block
-// computations on the consumer and 5,777 on the leader for 3,631 blocks; 0.49 s against
-// explicit's 0.07 s). On compact and actopo the rows are therefore those the diagram's gradient
-// kept while it held each block's VE (VertexNeighbors: 4 bytes per neighbour and per vertex);
-// the explicit structure's own rows are read in place.
+// order in space: through a localized structure, one consumer would compute most blocks' VV
+// again and again while its leader prefetched blocks in id order. On compact and actopo the rows
+// are therefore those the diagram's gradient kept while it held each block's VE (VertexNeighbors:
+// 2 bytes per near neighbour, 4 per vertex); the explicit structure's own rows are read in place.
 template <class Structure>
 class NeighborRows {
  public:
@@ -79,9 +77,8 @@ class NeighborRows {
 
 // Per vertex, a value that is -1 until set, in memory of which only the pages written become
 // resident: anonymous zero pages, a value x stored as x + 1 (reading an unwritten page maps the
-// shared zero page). A removal pass reaches a few percent of the vertices (wavelet128.vtu at
-// 1%: 8,345 of 2.1M flattened), and its four arrays over all of them, filled with -1, were
-// 32 MB of the simplified complex's peak.
+// shared zero page). A removal pass reaches a few percent of the vertices, and its four arrays
+// over all of them, filled with -1, would add to the simplified complex's peak.
 class SparseVertexValues {
  public:
   class Ref {
@@ -527,8 +524,8 @@ absl::Status LegacySweeps(Reader& reader, const std::vector<bool>& authorized,
 // neighbour whose lower link it reordered. A vertex's lower-star pairing reads nothing but how its
 // lower neighbours compare with each other (the cells' keys), so a vertex whose lower neighbours
 // are the same in both orders, in the same sequence, pairs as before. Around a flattened maximum
-// the neighbours left outside lie below it in both orders and keep their stars: on part_5M at
-// 1% this is 50k stars to pair again instead of 103k, on wavelet128 10k instead of 27k.
+// the neighbours left outside lie below it in both orders and keep their stars, so far fewer
+// stars are paired again than the moved vertices and all their neighbours.
 // Ascending, distinct; `moved` must be distinct.
 template <class Reader>
 std::vector<SimplexId> ChangedLowerStars(Reader& reader, std::span<const SimplexId> before,
@@ -612,16 +609,70 @@ absl::Status ValidateSimplificationOptions(const SimplificationOptions& options)
   return absl::OkStatus();
 }
 
+// TTK's localized sweeps (LTS): the maxima that are not constraints removed, then the minima,
+// each component flattened to its saddle's value, the maxima's components first, as TTK.
+template <class Rows>
+absl::Status LocalizedSweeps(const Topology& topo, Rows& rows, std::span<const SimplexId> order,
+                             const std::vector<bool>& authorized, std::vector<uint8_t>& flags,
+                             std::vector<SimplexId>& new_order, SimplificationResult& result,
+                             const RunContext& context) {
+  const SimplexId n = topo.num_vertices();
+  // TTK decides which passes to run from the first neighbour of each constraint.
+  bool has_maxima = false, has_minima = false;
+  for (SimplexId v = 0; v < n && !(has_maxima && has_minima); ++v) {
+    if (!authorized[v]) continue;
+    const auto neighbors = rows.vertex_neighbors(v);
+    if (neighbors.empty()) continue;
+    (order[v] > order[neighbors[0]] ? has_maxima : has_minima) = true;
+  }
+  std::vector<std::pair<SimplexId, std::vector<SimplexId>>> segments;
+  if (has_maxima) {
+    Trace::Scope pass(context.trace.get(), "remove maxima", "phase");
+    MaximaRemoval removal(rows, new_order, Unauthorized(flags, kMaximum, authorized));
+    RETURN_IF_ERROR(removal.Run());
+    result.stats.removed_maxima = removal.removed();
+    segments = removal.TakeSegments();
+    RefreshFlags(rows, new_order, segments, flags);
+    for (const auto& [saddle, segment] : segments) {
+      result.reordered.insert(result.reordered.end(), segment.begin(), segment.end());
+    }
+  }
+  if (context.progress) context.progress(0.9);
+  if (has_minima) {
+    Trace::Scope pass(context.trace.get(), "remove minima", "phase");
+    Invert(new_order);
+    MaximaRemoval removal(rows, new_order, Unauthorized(flags, kMinimum, authorized));
+    RETURN_IF_ERROR(removal.Run());
+    Invert(new_order);
+    result.stats.removed_minima = removal.removed();
+    auto minima_segments = removal.TakeSegments();
+    RefreshFlags(rows, new_order, minima_segments, flags);
+    for (const auto& [saddle, segment] : minima_segments) {
+      result.reordered.insert(result.reordered.end(), segment.begin(), segment.end());
+    }
+    // Values: the maxima's components first, then the minima's, as TTK.
+    for (const auto& [saddle, segment] : segments) {
+      for (SimplexId v : segment) {
+        result.scalars[topo.vertex_input_id(v)] = result.scalars[topo.vertex_input_id(saddle)];
+      }
+    }
+    segments = std::move(minima_segments);
+  }
+  for (const auto& [saddle, segment] : segments) {
+    for (SimplexId v : segment) {
+      result.scalars[topo.vertex_input_id(v)] = result.scalars[topo.vertex_input_id(saddle)];
+    }
+  }
+  return absl::OkStatus();
+}
+
 template <class Structure>
 absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
     Structure& structure, std::span<const SimplexId> order, std::span<const double> scalars,
     const SimplificationOptions& options, const RunContext& context) {
   RETURN_IF_ERROR(ValidateSimplificationOptions(options));
   const Topology& topo = structure.topology();
-  RunContext diagram_context = context;
-  if (context.progress) {
-    diagram_context.progress = [&context](double f) { context.progress(0.8 * f); };
-  }
+  const RunContext diagram_context = context.Slice(0, 0.8);
   SimplificationResult result;
   std::optional<VertexNeighbors> kept;
   if constexpr (!NeighborRows<Structure>::kInPlace) kept.emplace(topo);
@@ -632,8 +683,8 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
                                          kept ? &*kept : nullptr, GradientArrays::kPersistence));
   // The passes below read the kept neighbours and the gradient update a few stars: neither needs
   // the blocks the diagram left buffered, nor the memory its gradient and pairs freed, which the
-  // allocator keeps in the consumers' arenas while the passes allocate on this thread.
-  // wavelet128.vtu, actopo: the simplified Morse-Smale job's peak 933 -> 868 MiB.
+  // allocator keeps in the consumers' arenas while the passes allocate on this thread: handing
+  // it back here lowers the simplified Morse-Smale job's peak.
   EndPhase(structure);
   const auto [lo, hi] = std::minmax_element(scalars.begin(), scalars.end());
   result.threshold = options.relative ? options.threshold * (*hi - *lo) : options.threshold;
@@ -672,52 +723,8 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
           LegacySweeps(rows, authorized, flags, new_order, values, result.stats, context));
       for (SimplexId v = 0; v < n; ++v) result.scalars[topo.vertex_input_id(v)] = values[v];
     } else {
-      // TTK decides which passes to run from the first neighbour of each constraint.
-      bool has_maxima = false, has_minima = false;
-      for (SimplexId v = 0; v < n && !(has_maxima && has_minima); ++v) {
-        if (!authorized[v]) continue;
-        const auto neighbors = rows.vertex_neighbors(v);
-        if (neighbors.empty()) continue;
-        (order[v] > order[neighbors[0]] ? has_maxima : has_minima) = true;
-      }
-      std::vector<std::pair<SimplexId, std::vector<SimplexId>>> segments;
-      if (has_maxima) {
-        Trace::Scope pass(context.trace.get(), "remove maxima", "phase");
-        MaximaRemoval removal(rows, new_order, Unauthorized(flags, kMaximum, authorized));
-        RETURN_IF_ERROR(removal.Run());
-        result.stats.removed_maxima = removal.removed();
-        segments = removal.TakeSegments();
-        RefreshFlags(rows, new_order, segments, flags);
-        for (const auto& [saddle, segment] : segments) {
-          result.reordered.insert(result.reordered.end(), segment.begin(), segment.end());
-        }
-      }
-      if (context.progress) context.progress(0.9);
-      if (has_minima) {
-        Trace::Scope pass(context.trace.get(), "remove minima", "phase");
-        Invert(new_order);
-        MaximaRemoval removal(rows, new_order, Unauthorized(flags, kMinimum, authorized));
-        RETURN_IF_ERROR(removal.Run());
-        Invert(new_order);
-        result.stats.removed_minima = removal.removed();
-        auto minima_segments = removal.TakeSegments();
-        RefreshFlags(rows, new_order, minima_segments, flags);
-        for (const auto& [saddle, segment] : minima_segments) {
-          result.reordered.insert(result.reordered.end(), segment.begin(), segment.end());
-        }
-        // Values: the maxima's components first, then the minima's, as TTK.
-        for (const auto& [saddle, segment] : segments) {
-          for (SimplexId v : segment) {
-            result.scalars[topo.vertex_input_id(v)] = result.scalars[topo.vertex_input_id(saddle)];
-          }
-        }
-        segments = std::move(minima_segments);
-      }
-      for (const auto& [saddle, segment] : segments) {
-        for (SimplexId v : segment) {
-          result.scalars[topo.vertex_input_id(v)] = result.scalars[topo.vertex_input_id(saddle)];
-        }
-      }
+      RETURN_IF_ERROR(
+          LocalizedSweeps(topo, rows, order, authorized, flags, new_order, result, context));
     }
     std::sort(result.reordered.begin(), result.reordered.end());
     result.reordered.erase(std::unique(result.reordered.begin(), result.reordered.end()),

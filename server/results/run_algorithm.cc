@@ -128,15 +128,6 @@ absl::StatusOr<double> ParseThreshold(const std::string& name, const std::string
 // The default threshold of topological-simplification: 1% of the field's range.
 constexpr SimplificationOptions kDefaultSimplification{.threshold = 0.01, .relative = true};
 
-// `context` reporting progress in [from, to] of the whole.
-RunContext Phase(const RunContext& context, double from, double to) {
-  RunContext c = context;
-  if (context.progress) {
-    c.progress = [&context, from, to](double f) { context.progress(from + (to - from) * f); };
-  }
-  return c;
-}
-
 // One of diagram-distance's parameters (ApplyParameters).
 absl::Status ApplyDistanceParameter(const std::string& name, const std::string& value,
                                     DistanceParameters& distance) {
@@ -316,8 +307,8 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
       break;
     }
     case Algorithm::kDiscreteGradient: {
-      // The job reports counts, critical cells and digests, which the persistence arrays give:
-      // 259 MB less on wavelet128.vtu than all six.
+      // The job reports counts, critical cells and digests, which the persistence arrays give
+      // without the other three (GradientArrays).
       ASSIGN_OR_RETURN(out.result, RunDiscreteGradient(structure, in.order, context,
                                                        GradientArrays::kPersistence));
       break;
@@ -333,19 +324,19 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
       SimplifiedMorseSmaleResult r;
       ASSIGN_OR_RETURN(r.simplification,
                        RunTopologicalSimplification(structure, in.order, in.scalars,
-                                                    *in.simplification, Phase(context, 0, 0.5)));
-      // The complex's gradient: the diagram's, paired again where LTS moved the order
-      // (part_5M.vtu at 1%: 4% of the vertices flattened); legacy sweeps may move every vertex.
+                                                    *in.simplification, context.Slice(0, 0.5)));
+      // The complex's gradient: the diagram's, paired again where LTS moved the order (a few
+      // percent of the vertices); legacy sweeps may move every vertex.
       std::optional<DiscreteGradientResult> gradient;
       if (!r.simplification.legacy) {
         ASSIGN_OR_RETURN(gradient, UpdateDiscreteGradient(
                                        structure, std::move(r.simplification.diagram.gradient),
                                        r.simplification.internal_order, r.simplification.reordered,
-                                       Phase(context, 0.5, 0.75), r.simplification.changed_stars));
+                                       context.Slice(0.5, 0.75), r.simplification.changed_stars));
       }
       ASSIGN_OR_RETURN(r.morse_smale,
                        RunMorseSmale(structure, r.simplification.internal_order, InputCornersOf(in),
-                                     Phase(context, 0.5, 1), std::move(gradient)));
+                                     context.Slice(0.5, 1), std::move(gradient)));
       out.result = std::move(r);
       break;
     }
