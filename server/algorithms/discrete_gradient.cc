@@ -65,8 +65,8 @@ class RankSet {
 // keys after it, comparing as the order does); its triangles by their two edges' indices, higher
 // first, which are also their faces; its tetrahedra by their highest triangle's index and their
 // lowest edge's, their three triangles found by search among the sorted ones. One merge of the
-// three lists then ranks every cell. (With keys of orders in 128 bits sorted together and faces
-// found by scanning the star, wavelet128's Morse-Smale ran 2.49 s against 2.07 on actopo.)
+// three lists then ranks every cell, so the pairing works on small ranks with no indirection
+// instead of sorting wide keys of orders together and scanning the star for faces.
 class LowerStarPairing {
  public:
   LowerStarPairing(GradientField& gradient, const Topology& topology)
@@ -92,10 +92,9 @@ class LowerStarPairing {
   // The same for a gradient being updated to a new order: first forgets what the gradient held
   // for the star's cells (critical cells are left unwritten). With `from_tetrahedra`, the star is
   // read from VT alone and the static encoding's lookups (FindEdge, FindTriangle), for structures
-  // that compute relations by block: an update pairs a few stars of each block it visits
-  // (part_5M.vtu at 1%: 50k stars in 1,786 blocks, 12% of their vertices), and a block's VE and
-  // VF cost more than its VT. There the update took 0.42 s on actopo, 0.25 s from VT alone;
-  // explicit, which holds VE and VF, stays faster reading them (0.17 s against 0.20 s).
+  // that compute relations by block: an update pairs a few stars of each block it visits, and a
+  // block's VE and VF cost more than its VT. Explicit, which holds VE and VF, stays faster
+  // reading them.
   template <class Reader>
   void Repair(Reader& reader, SimplexId x, std::span<const SimplexId> order, bool from_tetrahedra) {
     if (from_tetrahedra) {
@@ -119,8 +118,8 @@ class LowerStarPairing {
   static uint64_t Pack(int32_t high, int32_t low) { return uint64_t(high) << 32 | uint32_t(low); }
 
   // A list of Keyed whose storage stays from star to star. Each is written field by field into
-  // room made for a whole relation row (through push_back, a cell went through a temporary on
-  // the stack and a stalled reload: a sixth of Build's samples, perf on wavelet128).
+  // room made for a whole relation row (through push_back, a cell would go through a temporary
+  // on the stack and a stalled reload, a large share of Build's time).
   class KeyedList {
    public:
     void Clear(size_t room) {
@@ -689,7 +688,7 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
   // different blocks write disjoint entries. Each counts what it pairs and lists what it leaves
   // critical, so no pass over every cell follows. Blocks go out in runs to whichever consumer
   // is free: a block's cost depends on the structure (on actopo, on what its producers had
-  // ready), and equal halves left one consumer 0.55 s behind the other (part_5M.vtu).
+  // ready), so equal halves would leave one consumer well behind the other.
   const int consumers = std::max(context.consumers, 1);
   std::vector<std::array<std::vector<SimplexId>, 4>> critical(consumers);
   std::vector<std::array<int64_t, 3>> pairs(consumers);

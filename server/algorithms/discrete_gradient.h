@@ -25,8 +25,8 @@ namespace actopo {
 
 // The gradient as pairings, in internal ids: up[d][c] is the (d+1)-cell paired with d-cell c,
 // down[d][c] the (d-1)-cell paired with d-cell c, -1 when none. The arrays are filled in
-// parallel when allocated (the pages first touched on every thread: wavelet128's Morse-Smale
-// holds 100 MB of them), hence FilledVector.
+// parallel when allocated (the pages first touched on every thread: they are among the largest
+// arrays of a Morse-Smale run), hence FilledVector.
 using Pairings = FilledVector<SimplexId>;
 struct GradientField {
   std::array<Pairings, 4> up;    // d = 0, 1, 2 used
@@ -61,17 +61,16 @@ RelationSet DiscreteGradientDeclared();
 
 // Which pairings the result keeps. The persistence pairs follow vertex -> edge, edge -> triangle
 // and tetrahedron -> triangle only: without the other three arrays (up[2], down[1], down[2]) the
-// gradient of 10M tetrahedra takes 210 MB less, and IsCritical answers for d = 0 and 3 only
-// (`critical` lists every dimension's critical cells). The Morse-Smale complex, whose sweep
+// gradient takes 4 bytes per edge and 8 per triangle less, and IsCritical answers for d = 0 and 3
+// only (`critical` lists every dimension's critical cells). The Morse-Smale complex, whose sweep
 // records AscendingLinks, follows vertex -> edge and edge -> triangle only (kPaths: IsCritical
 // answers for d = 0; `links->up` takes the place of the tetrahedron -> triangle array).
 enum class GradientArrays : uint8_t { kAll, kPersistence, kPaths };
 
 // What the ascending paths (the Morse-Smale complex's separatrices and segmentation, the
 // persistence diagram's saddle-maximum pairs) read of the vertex stars, recorded by the
-// gradient's sweep while it holds each star. After the sweep, a pass
-// would read every vertex star again: on compact and actopo that computes each block's VT a
-// second time (part_5M.vtu: 3,680 blocks, 0.2 s on two consumers). Meshes with crowded
+// gradient's sweep while it holds each star. After the sweep, a pass would read every vertex star
+// again: on compact and actopo that computes each block's VT a second time. Meshes with crowded
 // triangles (three tetrahedra or more) are not supported (Topology::has_crowded_triangles).
 struct AscendingLinks {
   // Per tetrahedron paired with a triangle: the other tetrahedron of that triangle, -1 when the

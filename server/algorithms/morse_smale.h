@@ -41,8 +41,7 @@ struct Separatrix {
   Cell destination;  // the extremum (2-saddle for connectors)
   // The V-path's cell ids, source first. Its cells' dimensions alternate: the source's at even
   // positions, one below it (descending) or above it (ascending, connectors) at odd ones, so
-  // only the ids are kept (part_5M.vtu: 4.9M cells, 4 bytes each instead of 8); cell(i) gives
-  // both.
+  // only the ids are kept (4 bytes each instead of 8); cell(i) gives both.
   std::vector<SimplexId> path;
 
   int8_t dimension(size_t i) const {

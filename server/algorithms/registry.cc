@@ -95,7 +95,7 @@ bool NeedsScalarValues(Algorithm a) {
 
 Prefetch DefaultPrefetch(Algorithm) {
   // Every algorithm reads relations block by block on every consumer (Morse-Smale's
-  // separatrices touch few blocks): linear beat spatial on Morse-Smale too, 0.93x wall.
+  // separatrices touch few blocks): linear beats spatial on Morse-Smale too.
   return Prefetch::kLinear;
 }
 

@@ -69,11 +69,11 @@ class VertexNeighbors {
   }
 
  private:
-  // A neighbour u of v is kept as u - v in 16 bits when it fits (97% of them on wavelet128.vtu:
-  // vertices are numbered block by block, and most neighbours lie in the same block or one
-  // numbered close to it), else as kFar and u's two halves. About 2.1 bytes a neighbour instead
-  // of 4, held from the diagram's gradient to the simplification's end: wavelet128's simplified
-  // Morse-Smale peaked at 812 MiB with whole ids, 772 MiB with this (actopo).
+  // A neighbour u of v is kept as u - v in 16 bits when it fits (nearly all of them: vertices are
+  // numbered block by block, and most neighbours lie in the same block or one numbered close to
+  // it), else as kFar and u's two halves. About 2 bytes a neighbour instead of 4, held from the
+  // diagram's gradient to the simplification's end, which lowers the simplified Morse-Smale
+  // complex's peak.
   static constexpr int16_t kFar = INT16_MIN;
   static void Append(SimplexId v, SimplexId u, std::vector<int16_t>& codes) {
     const int64_t d = int64_t(u) - int64_t(v);

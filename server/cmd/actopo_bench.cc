@@ -315,7 +315,7 @@ absl::StatusOr<std::shared_ptr<const Topology>> Partition(
     blocks = *std::move(computed);
   }
   // Without --output the points have done their part once the blocks are known: free them
-  // before the encoding's peak (wavelet128: 48 MiB).
+  // before the encoding's peak (24 bytes per vertex).
   if (o.output.empty()) std::vector<double>().swap(mesh.points);
   // Morse-Smale's corners are taken while the tetrahedra are encoded. Without --output the
   // encoding may give the mesh's tetrahedra back page by page as it reads them, and they are

@@ -107,7 +107,7 @@ int main(int argc, char** argv) {
                received == SIGTERM ? "SIGTERM" : "SIGINT");
   // Draining first, for a moment, before gRPC stops taking calls: meanwhile new calls get
   // UNAVAILABLE (which clients retry elsewhere) and health checks see NOT_SERVING. Stopping at
-  // once, calls arriving in the same instant were cancelled by gRPC instead.
+  // once, gRPC would cancel the calls arriving in the same instant instead.
   (*server)->Drain();
   std::this_thread::sleep_for(std::chrono::milliseconds(std::min(grace_s * 1000 / 4, 1000)));
   (*server)->Shutdown(absl::Seconds(grace_s));

@@ -13,8 +13,8 @@
 // P producers. On a miss, the leader re-targets the workers to the neighbourhood of the missed
 // block; workers compute (block, relation) pairs speculatively. The missed relation itself is
 // computed at once, by the leader (MissPolicy::kLeader, the paper's protocol: the consumer waits
-// for the hand-off) or by the consumer (kConsumer, the default: on 2 cores it ran topo-relations
-// 1.6x and Morse-Smale 1.4x faster, see bench/RESULTS.md); either way never twice at once.
+// for the hand-off) or by the consumer (kConsumer, the default: no thread hand-off to wait for,
+// faster on topo-relations and Morse-Smale, see bench/RESULTS.md); either way never twice at once.
 // While no request is pending the leader prefetches too (one task at a time, so a new request
 // waits at most one block computation): when the consumer reads faster than one producer
 // computes, which is the common case, an idle leader would waste a core.
@@ -102,10 +102,10 @@ std::string_view MissPolicyName(MissPolicy p);
 
 // The CPU priority of the producer threads. A producer's work is speculative: when every core
 // runs a consumer, a producer at normal priority takes its cycles from a consumer, and the
-// relations it prefetches are ones that consumer would have computed anyway (on 2 cores with 2
-// consumers, critical points ran 1.5x longer than without producers). At idle priority
-// (Linux's SCHED_IDLE) a producer runs only on a core no consumer wants: while its consumer
-// waits, in a phase with fewer consumers than cores, or on a machine with cores to spare.
+// relations it prefetches are ones that consumer would have computed anyway, so the run takes
+// longer than without producers. At idle priority (Linux's SCHED_IDLE) a producer runs only on a
+// core no consumer wants: while its consumer waits, in a phase with fewer consumers than cores,
+// or on a machine with cores to spare.
 // While other threads hold every core (other sessions' consumers, other processes) it gets
 // almost no cycles, so a consumer whose miss such a producer is computing waits only as long as
 // a computation of that relation takes (its mean CPU time so far), then computes its own copy
@@ -149,7 +149,7 @@ class ActopoStructure {
     Prefetch prefetch = Prefetch::kLinear;
     Precompute precompute = Precompute::kRequested;
     RelationSet declared = RelationSet::All();       // used by Precompute::kDeclared
-    MissPolicy miss_policy = MissPolicy::kConsumer;  // measured faster; kLeader: the paper
+    MissPolicy miss_policy = MissPolicy::kConsumer;  // the faster; kLeader: the paper
     ProducerPriority producer_priority = ProducerPriority::kNormal;
     // Tests only: called by a producer before each computation, outside every lock (a test
     // holds a producer there to stand for one that gets no cycles).

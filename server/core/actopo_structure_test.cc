@@ -192,7 +192,7 @@ TEST(ActopoStructure, OneBlockBufferManyProducers) {
     // does not): a one-block buffer evicts, and every miss was computed by someone. Beyond the
     // one block (and the one coming in), eviction spares the blocks the consumer's reader pins
     // (one per relation slot) and those with a relation being computed (one per producer and
-    // the consumer): 25 blocks were seen once under ASan where pins alone would allow 24.
+    // the consumer), so pins alone do not bound it.
     const EngineStats s = structure->stats();
     EXPECT_GT(s.access.evictions, 0);
     EXPECT_GE(s.leader_relations + s.worker_relations + s.consumer_relations, s.access.misses);
@@ -342,12 +342,11 @@ TEST(ActopoStructure, IdleProducersRunUnderSchedIdleAndStayExact) {
   }
 }
 
-// A producer at idle priority gets almost no cycles while other threads hold every core
-// (wavelet128.vtu critical points beside two busy loops: 55 s, against 9.4 s at normal priority,
-// before consumers stopped waiting on it). Here the leader is held inside its prefetch of block 1
-// on purpose. At idle priority the consumer that misses block 1 waits about one computation's
-// time, then computes it itself and reads exact rows while the leader is still held; at normal
-// priority it waits for the leader, which is let go after a while.
+// A producer at idle priority gets almost no cycles while other threads hold every core, so a
+// consumer that waited on it for as long as it took would stall with it. Here the leader is held
+// inside its prefetch of block 1 on purpose. At idle priority the consumer that misses block 1
+// waits about one computation's time, then computes it itself and reads exact rows while the
+// leader is still held; at normal priority it waits for the leader, which is let go after a while.
 TEST(ActopoStructure, ConsumerComputesWhatAStalledIdleProducerHolds) {
   auto topo = Build(testing::Lattice(8, 8, 8, 1), 16);
   ASSERT_GT(topo->num_blocks(), 2);

@@ -179,7 +179,7 @@ class BlockComputer {
   template <class Fn>
   void ForEachLowestCandidate(Fn&& fn) {
     // Each such vertex is in several external tetrahedra: made unique through a table first,
-    // then sorted (sorting every occurrence took 3% of part_5M's Morse-Smale on actopo).
+    // then sorted, so that the sort does not pay for every occurrence.
     const auto external = topo_.external_tetrahedra(b_);
     LinkVertexIndex& unique = s_.link_vertices;
     unique.Reset(external.size());

@@ -37,8 +37,7 @@ absl::Status ValidateMesh(const Mesh& mesh) {
   if (nv == 0) return absl::InvalidArgumentError("points: the mesh has no vertices");
   if (nt == 0) return absl::InvalidArgumentError("tetrahedra: the mesh has no tetrahedra");
   // Every vertex and tetrahedron is checked in parallel chunks without a branch per item; only
-  // a chunk found bad is walked again, item by item, for the message naming the first culprit
-  // (wavelet128, 2.1M vertices and 10.2M tetrahedra: 0.11 s on one thread before).
+  // a chunk found bad is walked again, item by item, for the message naming the first culprit.
   constexpr int64_t kChunk = 1 << 16;
   const int64_t chunks =
       (std::max<int64_t>(3 * int64_t(nv), 4 * int64_t(nt)) + kChunk - 1) / kChunk;

@@ -23,9 +23,9 @@ inline int DefaultThreads() { return std::max(1u, std::thread::hardware_concurre
 // the point: a producer computes while its consumer waits and sleeps while its buffer is full;
 // with a consumer on every core the producers run at idle priority (DefaultProducerPriority in
 // server/algorithms/structure_options.h), so they take no cycles a consumer wants.
-// Measured on 2 cores, whole process on wavelet128 (bench/RESULTS.md): 2 consumers with 1
-// producer each against 1 with 1: topo-relations 0.66x the time, discrete gradient 0.86x,
-// Morse-Smale 0.88x, critical points 1.04x (its run is 1.7 s of 5), same peak memory.
+// On 2 cores (bench/RESULTS.md, "Threads and the engine's defaults"), 2 consumers with 1
+// producer each take less time than 1 with 1 on the algorithms that read many relations, at the
+// same peak memory; critical points, whose run is a small part of its process, gains nothing.
 struct ThreadPlan {
   int consumers = 1;
   int producers = 0;  // per consumer; 0 for explicit and compact

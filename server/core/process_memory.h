@@ -27,8 +27,8 @@ void ReleasePages(const void* begin, const void* end);
 // MALLOC_ARENA_MAX environment variable already sets it). Call first thing in main. glibc gives
 // threads up to 8 arenas per core, and a relation block freed by a consumer stays in the arena of
 // the producer that computed it: each arena then keeps a buffer's worth of freed blocks of its
-// own (wavelet128, actopo, discrete gradient: 77 MiB above compact's peak with the same buffer
-// peak). With one arena per core, threads that run at once still rarely share one.
+// own, so actopo's peak would exceed compact's with the same buffer peak. With one arena per
+// core, threads that run at once still rarely share one.
 void LimitAllocatorArenas(int cores);
 
 }  // namespace actopo

@@ -475,8 +475,8 @@ void Topology::Encoder::BucketTetrahedra() {
 // encodes them (NarrowTetrahedra), handing the tuples' pages back a stretch of blocks at a time.
 void Topology::Encoder::SortBlockTetrahedra() {
   // One task per stretch of consecutive blocks of about 64k tetrahedra, which hands the
-  // stretch's tuples back once sorted: one madvise per block cost more than the sort (TLB
-  // shootdowns; wavelet128: 0.05 s).
+  // stretch's tuples back once sorted: one madvise per block would cost more than the sort (TLB
+  // shootdowns).
   constexpr SimplexId kStretch = 1 << 16;
   std::vector<int32_t> stretch_first = {0};
   for (int32_t b = 1; b < num_blocks; ++b) {
@@ -878,9 +878,9 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   // written straight to its place in 8 bytes, then within each block by the lowest vertex,
   // encoded in 8 bytes as they are placed. Each step hands back what it has read as it goes (the
   // mesh's tetrahedra when release_tetrahedra, then the bucketed tuples), so no two copies are
-  // resident in full. (A single bucket sort by lowest vertex, straight into the encoding, was
-  // tried: its writes scatter over every page at once, and on a mesh whose cells come in no
-  // spatial order the peak rose by 15 MiB; by block, far fewer pages are written at a time.)
+  // resident in full. (Not a single bucket sort by lowest vertex straight into the encoding: its
+  // writes would scatter over every page at once, raising the peak on a mesh whose cells come in
+  // no spatial order; by block, far fewer pages are written at a time.)
   {
     auto span = step("bucket tetrahedra");
     encoder.BucketTetrahedra();

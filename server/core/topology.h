@@ -26,9 +26,8 @@
 // (RunStarts: 8 bits per 16 for an edge's triangles, 16 per 64 otherwise), and an edge's lowest
 // vertex and a triangle's edge come from a RunLookup (1 byte per face). Tetrahedra are sorted
 // tuples of 16-bit differences, 8 bytes each (NarrowTetrahedra); a block's external tetrahedra
-// are 16-bit gaps (AscendingIdLists). About 29.5 bytes per tetrahedron in all on wavelet128 (37.8
-// with 32-bit run starts, lookups of 16 bits and 32-bit external tetrahedra, 44 with 16-byte
-// tetrahedra as well, 65 with explicit tuples), 16.3 without faces.
+// are 16-bit gaps (AscendingIdLists). About 30 bytes per tetrahedron in all, about 16 without
+// faces (bench/RESULTS.md, "Static encoding").
 #ifndef ACTOPO_SERVER_CORE_TOPOLOGY_H_
 #define ACTOPO_SERVER_CORE_TOPOLOGY_H_
 
@@ -67,7 +66,7 @@ inline void SortVertexIds(SimplexId* s, int n) {
 
 // A vector whose resize leaves the new elements uninitialized, for the arrays the encoding then
 // writes in full on every thread: their pages are first touched by the threads that fill them,
-// not zeroed on one thread before (jittered:256, 99M tetrahedra: 1.6 GB of tetrahedron tuples).
+// not zeroed on one thread first (the tetrahedron tuples are the encoding's largest array).
 template <class T>
 struct UninitializedAllocator : std::allocator<T> {
   template <class U>
@@ -95,8 +94,8 @@ struct TopologyOptions {
   // finished, but its vertices and tetrahedra are: their ids, sorted tuples and both
   // permutations, so what else a caller needs of the input tetrahedra (e.g. InputCorners) can be
   // taken there. A caller may then free them (Build reads the mesh's tetrahedra, nothing else),
-  // so they and the whole encoding are never resident together: wavelet128, 156 MiB off the
-  // peak of a critical points job, and of a server's load.
+  // so they and the whole encoding are never resident together, which lowers the peak of a
+  // critical points job, and of a server's load.
   std::function<void(const Topology&)> tetrahedra_read;
   // Per internal tetrahedron, the order its corners came in, when set: bits 2k..2k+1 of its byte
   // are the position in the input tetrahedron of corner k of its sorted tuple (what Morse-Smale
@@ -106,10 +105,10 @@ struct TopologyOptions {
   // Lets Build hand the pages of mesh.tetrahedra back to the system as it reads them for the last
   // time (ReleasePages in process_memory.h). The caller must then not read them again, only free
   // them (in tetrahedra_read, say): the input tetrahedra and their encoded copy are then never
-  // resident together, which was the peak of a critical points run (wavelet128: 164 MB).
+  // resident together, which would otherwise be the peak of a critical points run.
   bool release_tetrahedra = false;
-  // Whether to build the edges and triangles (the "faces" step: on wavelet128 about 70% of the
-  // encoding's time and half its bytes). Without them the topology holds vertices, tetrahedra and
+  // Whether to build the edges and triangles (the "faces" step: most of the encoding's time and
+  // about half its bytes). Without them the topology holds vertices, tetrahedra and
   // blocks: enough for the relations VV, VT, TV and VB and for critical points
   // (NeedsFaces in server/algorithms/registry.h); every edge and triangle accessor then must not
   // be called until Topology::EnsureFaces has built them (has_faces() says which).
@@ -398,7 +397,7 @@ class NarrowTetrahedra {
 
  private:
   static constexpr uint16_t kWhole = 0xffff;
-  // A lowest vertex per 4096 tetrahedra: a few kB that stay in cache, where one per 64 was a
+  // A lowest vertex per 4096 tetrahedra: a few kB that stay in cache, where one per 64 would be a
   // second cache miss per random read (a 16-bit difference spans 4096 tetrahedra's lowest
   // vertices, about 700 vertices, with room to spare).
   static constexpr int kLowestShift = 12;
@@ -485,9 +484,8 @@ class Topology {
   // false), as Build would have: once, whoever asks first; a concurrent caller waits for that
   // build and returns at once after it. Thread-safe beside readers of the rest of the topology,
   // which the build does not touch. Reports phase "faces" and stops when `progress` says so
-  // (CANCELLED or DEADLINE_EXCEEDED, nothing kept: the next call starts over). wavelet128: about
-  // 0.9 s on 2 cores and 207 MB, which sessions that never read an edge or a triangle (critical
-  // points) then never pay.
+  // (CANCELLED or DEADLINE_EXCEEDED, nothing kept: the next call starts over). Sessions that
+  // never read an edge or a triangle (critical points) then never pay its time or its memory.
   absl::Status EnsureFaces(const Progress& progress = {}, const FacesOptions& options = {}) const;
 
   SimplexId num_vertices() const { return num_vertices_; }

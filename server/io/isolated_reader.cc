@@ -35,9 +35,9 @@ namespace {
 //        uint8 is_integer, int8 source_bytes).
 // The arrays go through a memory file (memfd) the parent passes as descriptor kArraysFd and the
 // child fills before it sends 'm': the points (3 doubles per vertex), the tetrahedra (4 int32
-// each), each field's values (a double per vertex), back to back. Through the pipe they cost
-// a wake-up per pipe buffer on both sides (0.4-0.6 s for a 10M-tetrahedra mesh here); through
-// the memory file, one copy in and one out (0.3 s).
+// each), each field's values (a double per vertex), back to back. Through the pipe they would
+// cost a wake-up per pipe buffer on both sides; through the memory file, one copy in and one
+// out.
 constexpr char kProgress = 'p', kError = 'e', kMesh = 'm';
 constexpr int kArraysFd = 3;
 

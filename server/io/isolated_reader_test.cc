@@ -108,7 +108,8 @@ TEST_F(DataTest, AdmitSeesTheCountsBeforeAnythingIsAllocated) {
 }
 
 TEST_F(DataTest, AReaderOverItsMemoryLimitIsResourceExhausted) {
-  // isabel02 needs about 10 MiB; 1 MiB beyond the reader's start-up use cannot hold it.
+  // 1 MiB beyond the reader's start-up use cannot hold isabel02: its arrays alone (points,
+  // tetrahedra and two fields) exceed it.
   absl::StatusOr<Mesh> mesh =
       ReadMeshIsolated(DataFile("isabel02_s2_tet.vtu"), Isolated(int64_t(1) << 20));
   if (!IsolatedReadLimitsMemory()) {

@@ -143,8 +143,8 @@ absl::Status Write(vtkXMLWriter& writer, const std::string& path) {
   writer.SetDataModeToAppended();
   writer.EncodeAppendedDataOff();  // raw bytes, not base64: smaller and faster
   writer.SetCompressorTypeToZLib();
-  // Level 1 halves the write time of VTK's default (5) on 10M tetrahedra for ~3% larger files:
-  // float coordinates and fields barely compress at any level.
+  // Level 1 writes much faster than VTK's default (5) for files barely larger: float
+  // coordinates and fields barely compress at any level.
   writer.SetCompressionLevel(1);
   writer.SetHeaderTypeToUInt64();  // UInt32 block headers cap arrays at 4 GiB
   internal::VtkErrorCollector errors(&writer);

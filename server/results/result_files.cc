@@ -127,9 +127,8 @@ void AddMorseSmaleOutputs(const ResultContext& c, const MorseSmaleResult& r, Res
   out.poly_data.push_back({"critical_points", CriticalCellPoints(c, cells, &manifold_size)});
 
   // One polyline per separatrix through its cells' barycentres, in order: the points are sized
-  // up front (grown by doubling, part_5M's 4.96M points, 119 MB, were held up to three times
-  // while the last growth copied them) and placed by every core, each separatrix at its line's
-  // offset.
+  // up front (grown by doubling, the points would be held up to three times while the last
+  // growth copied them) and placed by every core, each separatrix at its line's offset.
   const size_t num_lines = r.separatrices.size();
   PolyData seps;
   seps.line_offsets.resize(num_lines + 1);

@@ -17,15 +17,15 @@ namespace actopo {
 
 // Whether a vertex (internal id) is on the boundary (VB), computed for its block when first
 // asked and kept (a byte per vertex at most). Outputs ask it for their critical cells' highest
-// vertices only, so only the blocks holding those are computed; computing every block took
-// 0.5-0.8 s on 5-10M tetrahedra. Thread-safe.
+// vertices only, so only the blocks holding those are computed, not every block of the mesh.
+// Thread-safe.
 class VertexBoundary {
  public:
   explicit VertexBoundary(const Topology& topology);
   bool operator()(SimplexId v) const;
   // Computes the blocks of `vertices` (internal ids) not computed yet on `threads` threads, so
   // that asking for those vertices then only reads. A Morse-Smale result's critical cells lie in
-  // most blocks of the mesh: part_5M, 83 ms of VB on one thread.
+  // most blocks of the mesh, too many to compute on one thread.
   void Prepare(std::span<const SimplexId> vertices, int threads) const;
   int32_t blocks_computed() const;
 

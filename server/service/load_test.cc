@@ -31,7 +31,7 @@ class Gate {
     changed_.notify_all();
     changed_.wait(lock, [&] { return open_; });
   }
-  // Whether the held work arrived (60 s only bound a hang).
+  // Whether the held work arrived (the wait's limit only bounds a hang).
   bool WaitEntered() {
     std::unique_lock<std::mutex> lock(mu_);
     return changed_.wait_for(lock, std::chrono::seconds(60), [&] { return entered_; });
@@ -124,7 +124,7 @@ TEST_F(LoadTest, ProgressGoesThroughThePhasesThenGivesTheMesh) {
 
 TEST_F(LoadTest, EveryPhaseReachesTheClientOfATinyLoad) {
   // A tiny load ends while its earlier reports are still being written: the waiting reports go
-  // out before the mesh, whatever the timing (a race lost the last phase's report once in CI).
+  // out before the mesh, whatever the timing (a race could lose the last phase's report).
   for (int load = 0; load < 40; ++load) {
     auto context = Context();
     auto reader = StartLoad(context.get(), "jittered:3");

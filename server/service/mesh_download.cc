@@ -27,15 +27,14 @@ absl::StatusOr<MeshDownload> MeshDownload::Start(std::shared_ptr<const LoadedMes
       return absl::InvalidArgumentError(
           absl::StrCat("fields[", i, "]: '", name, "' is listed twice"));
     }
-    const auto found = std::find_if(all.begin(), all.end(), [&](const FieldSet::Ref& f) {
-      return f->field.name == name;
-    });
+    const auto found = std::find_if(all.begin(), all.end(),
+                                    [&](const FieldSet::Ref& f) { return f->field.name == name; });
     if (found == all.end()) {
       std::vector<std::string> names;
       for (const FieldSet::Ref& f : all) names.push_back("'" + f->field.name + "'");
-      return absl::NotFoundError(absl::StrCat(
-          "fields[", i, "]: point field '", name, "' not found; point fields: ",
-          names.empty() ? std::string("none") : absl::StrJoin(names, ", ")));
+      return absl::NotFoundError(
+          absl::StrCat("fields[", i, "]: point field '", name, "' not found; point fields: ",
+                       names.empty() ? std::string("none") : absl::StrJoin(names, ", ")));
     }
     d.fields_.push_back(*found);
   }
@@ -85,7 +84,8 @@ bool MeshDownload::Next(size_t max_bytes, std::string* chunk) {
   }
   if (array_ == 2 + fields_.size()) return false;
   const int size = value_bytes(array_);
-  const int64_t n = std::min(count(array_) - next_, std::max<int64_t>(1, int64_t(max_bytes) / size));
+  const int64_t n =
+      std::min(count(array_) - next_, std::max<int64_t>(1, int64_t(max_bytes) / size));
   chunk->resize(size_t(n) * size_t(size));
   char* out = chunk->data();
   if (array_ == 0) {

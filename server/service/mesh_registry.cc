@@ -56,9 +56,9 @@ absl::Status LoadedMesh::EnsureFaces(const Progress& progress, Trace* trace) con
       faces_done_.WaitFor(faces_mu_, std::chrono::milliseconds(20));
     }
     if (topology->has_faces()) return absl::OkStatus();
-    // Measured: edges and triangles take 13.2 bytes per tetrahedron on wavelet128 (135 MB) once
-    // built; while they are built, their run starts in 32 bits (about 5 more) and the window
-    // being appended add to that. What they hold is what stays reserved.
+    // Edges and triangles take about 13 bytes per tetrahedron once built; while they are built,
+    // their run starts in 32 bits (about 5 more) and the window being appended add to that, which
+    // the reservation below covers. What they hold is what stays reserved.
     if (MemoryBudget* budget = reservation.budget(); budget != nullptr) {
       faces_reservation_ = Reservation(budget);
       RETURN_IF_ERROR(
@@ -93,14 +93,13 @@ MeshRegistry::MeshRegistry(MeshRegistryOptions options, MemoryBudget* budget)
     : options_(std::move(options)), budget_(budget) {}
 
 int64_t MeshRegistry::EstimateBytes(int64_t vertices, int64_t tetrahedra, int point_fields) {
-  // Measured: the static encoding is about 30 bytes per tetrahedron with its faces (wavelet128,
-  // part_5M; 49 when the peak below was taken), 16 without, the mesh itself 24 + 8 per field per
-  // vertex and 16 per tetrahedron. jittered:256 (99.5M tetrahedra) peaked at 67 bytes per
-  // tetrahedron besides its vertices when the mesh's tetrahedra were kept and its faces built in
-  // the load; 80 covers it with a margin. Now the tetrahedra are freed as they are encoded (a byte
-  // per tetrahedron stays) and the faces wait for a session that reads them
-  // (LoadedMesh::EnsureFaces, reserved then): once loaded, a mesh's reservation shrinks to what it
-  // holds (Add).
+  // The static encoding is about 30 bytes per tetrahedron with its faces, 16 without, the mesh
+  // itself 24 + 8 per field per vertex and 16 per tetrahedron. 80 per tetrahedron besides the
+  // vertices covers, with a margin, a load that would keep the mesh's tetrahedra and build its
+  // faces; a load does neither (the tetrahedra are freed as they are encoded, a byte per
+  // tetrahedron stays, and the faces wait for a session that reads them: LoadedMesh::EnsureFaces,
+  // reserved then), so the estimate is an upper bound, and once loaded a mesh's reservation
+  // shrinks to what it holds (Add).
   return vertices * (48 + 8 * std::max(point_fields - 3, 0)) + tetrahedra * 80;
 }
 
@@ -321,8 +320,8 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Add(
   loaded->block_size = effective.block_label_field.empty() ? effective.bucket_capacity : 0;
   loaded->created = absl::Now();
   loaded->load_seconds = load_seconds;
-  // The estimate covered the load's peak; what stays is what the mesh holds (wavelet128: 606
-  // of 916 MB), so other loads and sessions get the rest. Shrinking never fails.
+  // The estimate covered the load's peak; what stays is what the mesh holds, less than that
+  // peak, so other loads and sessions get the rest. Shrinking never fails.
   if (const int64_t held = loaded->bytes(); held < loaded->reservation.bytes()) {
     loaded->reservation.Resize(held, "").IgnoreError();
   }

@@ -33,7 +33,7 @@ struct LoadedMesh {
   std::string name;
   std::string source;  // "file:PATH", "sample:NAME" or "upload"
   // Input ids, as loaded: the points. Its tetrahedra are freed once encoded (the topology holds
-  // them, sorted, with their input ids; wavelet128: 156 MiB less per mesh), and its point
+  // them, sorted, with their input ids, so a mesh does not keep them twice), and its point
   // fields move to `fields`.
   Mesh mesh;
   // The point fields: those loaded, then those added (AddFields), less those deleted. The one

@@ -28,7 +28,7 @@ namespace actopo::service {
 namespace {
 
 constexpr size_t kChunkBytes = 1 << 20;
-// A job's trace keeps its first events only (about 14 MiB in memory, 40 MiB of JSON).
+// A job's trace keeps its first events only, which bounds its memory and the JSON sent back.
 constexpr int64_t kMaxJobTraceEvents = 250'000;
 
 // ---------------------------------------------------------------------------------------------
@@ -669,8 +669,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
   // Arrays go in pieces of up to kChunkBytes, each with the array's name, type and shape
   // (`header`) and its own bytes copied from `bytes`, which stay where the result keeps them:
   // with PushPiece, a result is not copied whole a second time. (Copying the whole array into
-  // each piece before cutting it down made sending quadratic: part_5M's 119 MB of separatrix
-  // points took 13 s.)
+  // each piece before cutting it down would make sending quadratic in the array's size.)
   absl::Status SendArray(const v1::Array& header, std::string_view bytes) {
     size_t offset = 0;
     do {

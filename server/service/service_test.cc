@@ -915,8 +915,8 @@ TEST_F(ServiceTest, MemoryBudgetRefusesWhatWouldNotFit) {
   const grpc::Status s = stub_->LoadMesh(Context().get(), big, &loaded);
   EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
   EXPECT_NE(s.error_message().find("memory budget"), std::string::npos);
-  // Small ones still fit (jittered:24, 73K tetrahedra, about 7 MB); an explicit session on it,
-  // all relations stored (about 29 MB), does not.
+  // Small ones still fit (jittered:24, 73K tetrahedra, estimated at about 7 MB); an explicit
+  // session on it, all relations stored (estimated at about 29 MB), does not.
   const std::string mesh = LoadSample("jittered:24");
   v1::OpenSessionRequest open;
   open.set_mesh_id(mesh);

@@ -138,7 +138,7 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::GetMesh(grpc::CallbackServerConte
     Fill(*mesh, sessions_->SessionsOnMesh(mesh->id), out->mutable_mesh());
     return absl::OkStatus();
   };
-  // Building the faces takes about a second per 10M tetrahedra: not on gRPC's threads.
+  // Building the faces takes seconds on a large mesh: not on gRPC's threads.
   if (in->count_faces()) return Offload(background_, c, "GetMesh", describe);
   return Unary(c, "GetMesh", [&] { return describe(Progress()); });
 }

@@ -27,8 +27,8 @@ std::string WithArticle(int dimension) {
 }
 
 // Bytes per tetrahedron of the relations an explicit structure stores by default (all but the
-// edge and triangle neighbours; measured on jittered:96 with actopo-bench's structure_bytes -
-// static_bytes). With those two it would be 540.
+// edge and triangle neighbours), as actopo-bench's structure_bytes - static_bytes gives them on
+// jittered:96. With those two it would be 540.
 constexpr int64_t kAllRelationsBytesPerTet = 380;
 
 }  // namespace

@@ -133,8 +133,8 @@ TEST(WireMapping, UnspecifiedMeansTheDefaults) {
   EXPECT_EQ(set->structure.precompute, Precompute::kDeclared);
 }
 
-// The summary built from the result equals, value for value, the one the service used to send:
-// actopo-bench's JSON parsed into a Struct.
+// The summary built from the result equals, value for value, actopo-bench's JSON of the same
+// run parsed into a Struct.
 TEST(WireSummary, EqualsTheBenchJsonForEveryAlgorithm) {
   const Mesh mesh = *io::MakeSample("jittered:6");
   auto topology = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 40}));

@@ -533,7 +533,7 @@ absl::StatusOr<std::optional<Mesh>> ReadAppendedVtu(const std::string& path, int
   if (!ok) return std::nullopt;
   // In file order, so that the pages of the file already read leave the resident set window by
   // window: VTK writes the point data first, and read last, those few pages would keep the
-  // whole file resident until the end (part_5M.vtu: the load's peak 191 -> 127 MiB).
+  // whole file resident until the end, raising the load's peak.
   std::sort(blocks.begin(), blocks.end(),
             [](const Block& a, const Block& b) { return a.source < b.source; });
   mesh.points.resize(3 * np);
