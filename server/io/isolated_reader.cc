@@ -333,6 +333,39 @@ int ServeMeshRead(const std::string& path, int64_t memory_limit_bytes, int fd, i
   return out.ok() ? 0 : 1;
 }
 
+namespace {
+
+// The arrays the child wrote into the memory file `fd`, in order: points, tetrahedra, each
+// field's values. False when the file is shorter than `shape` says.
+bool ReadArrays(int fd, const MeshShape& shape, Mesh& mesh) {
+  int64_t offset = 0;
+  // Through a small buffer, so that the arrays' pages are written once (resize() would zero
+  // them first).
+  std::vector<char> chunk(size_t(1) << 20);
+  const auto take = [&](auto& v, int64_t count) {
+    using T = std::decay_t<decltype(v[0])>;
+    v.clear();
+    v.reserve(size_t(count));
+    for (int64_t left = count * int64_t(sizeof(T)); left > 0;) {
+      const size_t want = size_t(std::min<int64_t>(left, int64_t(chunk.size())));
+      const ssize_t r = ::pread(fd, chunk.data(), want, offset);
+      if (r < 0 && errno == EINTR) continue;
+      if (r <= 0 || size_t(r) % sizeof(T) != 0) return false;
+      const T* begin = reinterpret_cast<const T*>(chunk.data());
+      v.insert(v.end(), begin, begin + size_t(r) / sizeof(T));
+      offset += r;
+      left -= r;
+    }
+    return true;
+  };
+  bool complete =
+      take(mesh.points, 3 * shape.vertices) && take(mesh.tetrahedra, 4 * shape.tetrahedra);
+  for (PointField& f : mesh.point_fields) complete = complete && take(f.values, shape.vertices);
+  return complete;
+}
+
+}  // namespace
+
 absl::StatusOr<Mesh> ReadMeshIsolated(const std::string& path, const IsolatedReadOptions& options,
                                       const Progress& progress) {
   RETURN_IF_ERROR(progress.status("read"));
@@ -422,29 +455,7 @@ absl::StatusOr<Mesh> ReadMeshIsolated(const std::string& path, const IsolatedRea
     if (has_time != 0) f.time = time;
   }
   // The child has written the arrays and is exiting; they are read back from the memory file.
-  int64_t offset = 0;
-  // Through a small buffer, so that the arrays' pages are written once (resize() would zero
-  // them first).
-  std::vector<char> chunk(size_t(1) << 20);
-  const auto take = [&](auto& v, int64_t count) {
-    using T = std::decay_t<decltype(v[0])>;
-    v.clear();
-    v.reserve(size_t(count));
-    for (int64_t left = count * int64_t(sizeof(T)); left > 0;) {
-      const size_t want = size_t(std::min<int64_t>(left, int64_t(chunk.size())));
-      const ssize_t r = ::pread(arrays.fd, chunk.data(), want, offset);
-      if (r < 0 && errno == EINTR) continue;
-      if (r <= 0 || size_t(r) % sizeof(T) != 0) return false;
-      const T* begin = reinterpret_cast<const T*>(chunk.data());
-      v.insert(v.end(), begin, begin + size_t(r) / sizeof(T));
-      offset += r;
-      left -= r;
-    }
-    return true;
-  };
-  bool complete =
-      take(mesh.points, 3 * shape.vertices) && take(mesh.tetrahedra, 4 * shape.tetrahedra);
-  for (PointField& f : mesh.point_fields) complete = complete && take(f.values, shape.vertices);
+  const bool complete = ReadArrays(arrays.fd, shape, mesh);
   if (!complete) {
     child.Wait(/*kill=*/true);
     return absl::InternalError(

@@ -6,6 +6,69 @@
 
 namespace actopo::testing {
 
+namespace {
+
+using Rows = std::array<std::vector<std::vector<SimplexId>>, kNumRelations>;
+using EdgeIds = std::map<std::array<SimplexId, 2>, SimplexId>;
+using TriangleIds = std::map<std::array<SimplexId, 3>, SimplexId>;
+
+// VL, EL, FL: each in the order of the star it comes from (VT, ET, FT, already filled).
+void Links(const std::vector<std::array<SimplexId, 4>>& tets,
+           const std::vector<std::array<SimplexId, 2>>& edges,
+           const std::vector<std::array<SimplexId, 3>>& triangles, EdgeIds& edge_id,
+           TriangleIds& triangle_id, Rows& R) {
+  auto without = [&](SimplexId t, std::initializer_list<SimplexId> drop) {
+    std::vector<SimplexId> rest;
+    for (SimplexId v : tets[t])
+      if (std::find(drop.begin(), drop.end(), v) == drop.end()) rest.push_back(v);
+    return rest;
+  };
+  const auto& vt = R[Index(Relation::kVT)];
+  const auto& et = R[Index(Relation::kET)];
+  const auto& ft = R[Index(Relation::kFT)];
+  auto& vl = R[Index(Relation::kVL)];
+  auto& el = R[Index(Relation::kEL)];
+  auto& fl = R[Index(Relation::kFL)];
+  for (SimplexId v = 0; v < SimplexId(vt.size()); ++v) {
+    for (SimplexId t : vt[v]) {
+      auto r = without(t, {v});
+      vl[v].push_back(triangle_id[{r[0], r[1], r[2]}]);
+    }
+  }
+  for (SimplexId e = 0; e < SimplexId(edges.size()); ++e) {
+    for (SimplexId t : et[e]) {
+      auto r = without(t, {edges[e][0], edges[e][1]});
+      el[e].push_back(edge_id[{r[0], r[1]}]);
+    }
+  }
+  for (SimplexId f = 0; f < SimplexId(triangles.size()); ++f) {
+    for (SimplexId t : ft[f]) {
+      fl[f].push_back(without(t, {triangles[f][0], triangles[f][1], triangles[f][2]})[0]);
+    }
+  }
+}
+
+// VB, EB, FB: triangles in exactly one tetrahedron, and their faces (FT, FV, FE filled).
+void Boundary(Rows& R) {
+  const auto& ft = R[Index(Relation::kFT)];
+  const auto& fv = R[Index(Relation::kFV)];
+  const auto& fe = R[Index(Relation::kFE)];
+  auto& vb = R[Index(Relation::kVB)];
+  auto& eb = R[Index(Relation::kEB)];
+  auto& fb = R[Index(Relation::kFB)];
+  for (auto& row : vb) row = {0};
+  for (auto& row : eb) row = {0};
+  for (SimplexId f = 0; f < SimplexId(ft.size()); ++f) {
+    const bool boundary = ft[f].size() == 1;
+    fb[f] = {boundary ? 1 : 0};
+    if (!boundary) continue;
+    for (SimplexId v : fv[f]) vb[v] = {1};
+    for (SimplexId e : fe[f]) eb[e] = {1};
+  }
+}
+
+}  // namespace
+
 RelationOracle::RelationOracle(const Topology& topology) {
   const SimplexId nv = topology.num_vertices();
   const SimplexId nt = topology.num_tetrahedra();
@@ -51,12 +114,12 @@ RelationOracle::RelationOracle(const Topology& topology) {
   auto& te = sized(Relation::kTE, nt);
   auto& tf = sized(Relation::kTF, nt);
   auto& tt = sized(Relation::kTT, nt);
-  auto& vl = sized(Relation::kVL, nv);
-  auto& el = sized(Relation::kEL, ne);
-  auto& fl = sized(Relation::kFL, nf);
-  auto& vb = sized(Relation::kVB, nv);
-  auto& eb = sized(Relation::kEB, ne);
-  auto& fb = sized(Relation::kFB, nf);
+  sized(Relation::kVL, nv);  // filled by Links
+  sized(Relation::kEL, ne);  // filled by Links
+  sized(Relation::kFL, nf);  // filled by Links
+  sized(Relation::kVB, nv);  // filled by Boundary
+  sized(Relation::kEB, ne);  // filled by Boundary
+  sized(Relation::kFB, nf);  // filled by Boundary
   auto& ee = sized(Relation::kEE, ne);
   auto& ff = sized(Relation::kFF, nf);
 
@@ -112,40 +175,8 @@ RelationOracle::RelationOracle(const Topology& topology) {
         if (other != t) tt_set[t].insert(other);
     tt[t].assign(tt_set[t].begin(), tt_set[t].end());
   }
-  // Links, in the order of the star they come from.
-  auto without = [&](SimplexId t, std::initializer_list<SimplexId> drop) {
-    std::vector<SimplexId> rest;
-    for (SimplexId v : tets[t])
-      if (std::find(drop.begin(), drop.end(), v) == drop.end()) rest.push_back(v);
-    return rest;
-  };
-  for (SimplexId v = 0; v < nv; ++v) {
-    for (SimplexId t : vt[v]) {
-      auto r = without(t, {v});
-      vl[v].push_back(triangle_id[{r[0], r[1], r[2]}]);
-    }
-  }
-  for (SimplexId e = 0; e < ne; ++e) {
-    for (SimplexId t : et[e]) {
-      auto r = without(t, {edges_[e][0], edges_[e][1]});
-      el[e].push_back(edge_id[{r[0], r[1]}]);
-    }
-  }
-  for (SimplexId f = 0; f < nf; ++f) {
-    for (SimplexId t : ft[f]) {
-      fl[f].push_back(without(t, {triangles_[f][0], triangles_[f][1], triangles_[f][2]})[0]);
-    }
-  }
-  // Boundary: triangles in exactly one tetrahedron, and their faces.
-  for (SimplexId v = 0; v < nv; ++v) vb[v] = {0};
-  for (SimplexId e = 0; e < ne; ++e) eb[e] = {0};
-  for (SimplexId f = 0; f < nf; ++f) {
-    const bool boundary = ft[f].size() == 1;
-    fb[f] = {boundary ? 1 : 0};
-    if (!boundary) continue;
-    for (SimplexId v : fv[f]) vb[v] = {1};
-    for (SimplexId e : fe[f]) eb[e] = {1};
-  }
+  Links(tets, edges_, triangles_, edge_id, triangle_id, R);
+  Boundary(R);
 }
 
 }  // namespace actopo::testing
