@@ -10,6 +10,7 @@
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/link_edges.h"
+#include "server/core/structures.h"
 
 namespace actopo {
 namespace {
@@ -140,7 +141,7 @@ std::string CriticalPointsResult::VerticesDigest() const {
 RelationSet CriticalPointsDeclared() { return {Relation::kVT, Relation::kVB}; }
 RelationSet CriticalPointsSwept() { return {Relation::kVT}; }
 
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<CriticalPointsResult> RunCriticalPoints(Structure& structure,
                                                        std::span<const SimplexId> order,
                                                        const CriticalPointsOptions& options,
@@ -171,17 +172,10 @@ absl::StatusOr<CriticalPointsResult> RunCriticalPoints(Structure& structure,
   return result;
 }
 
-template absl::StatusOr<CriticalPointsResult> RunCriticalPoints(ExplicitStructure&,
-                                                                std::span<const SimplexId>,
-                                                                const CriticalPointsOptions&,
-                                                                const RunContext&);
-template absl::StatusOr<CriticalPointsResult> RunCriticalPoints(CompactStructure&,
-                                                                std::span<const SimplexId>,
-                                                                const CriticalPointsOptions&,
-                                                                const RunContext&);
-template absl::StatusOr<CriticalPointsResult> RunCriticalPoints(ActopoStructure&,
-                                                                std::span<const SimplexId>,
-                                                                const CriticalPointsOptions&,
-                                                                const RunContext&);
+#define ACTOPO_INSTANTIATE(S)                                      \
+  template absl::StatusOr<CriticalPointsResult> RunCriticalPoints( \
+      S&, std::span<const SimplexId>, const CriticalPointsOptions&, const RunContext&);
+ACTOPO_FOR_EACH_STRUCTURE(ACTOPO_INSTANTIATE)
+#undef ACTOPO_INSTANTIATE
 
 }  // namespace actopo

@@ -22,6 +22,7 @@
 #include "absl/status/statusor.h"
 #include "server/algorithms/consumers.h"
 #include "server/core/relation.h"
+#include "server/core/structures.h"
 
 namespace actopo {
 
@@ -69,7 +70,7 @@ RelationSet CriticalPointsSwept();
 
 // `order` is VertexOrder() of the scalar field (by internal id). Defined for the explicit,
 // compact and actopo structures.
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<CriticalPointsResult> RunCriticalPoints(Structure& structure,
                                                        std::span<const SimplexId> order,
                                                        const CriticalPointsOptions& options,

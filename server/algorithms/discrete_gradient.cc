@@ -14,6 +14,7 @@
 #include "server/core/explicit_structure.h"
 #include "server/core/parallel.h"
 #include "server/core/status_macros.h"
+#include "server/core/structures.h"
 
 namespace actopo {
 namespace {
@@ -664,7 +665,7 @@ absl::StatusOr<std::vector<SimplexId>> SaddleTetrahedra(const AscendingLinks& li
 
 RelationSet DiscreteGradientDeclared() { return {Relation::kVE, Relation::kVF, Relation::kVT}; }
 
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
     Structure& structure, std::span<const SimplexId> order, const RunContext& context,
     GradientArrays arrays, VertexNeighbors* neighbors, AscendingLinks* links) {
@@ -777,7 +778,7 @@ absl::Status ForEachVertexByBlock(Structure& structure, std::span<const SimplexI
 
 }  // namespace
 
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(Structure& structure,
                                                               DiscreteGradientResult previous,
                                                               std::span<const SimplexId> order,
@@ -824,7 +825,7 @@ absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(Structure& structu
   // Localized structures read only VT (LowerStarPairing::Repair), of the dirty stars' blocks: a
   // sparse subset in ascending order, where prefetching the next blocks' declared relations
   // computes VE and VF nobody reads, and VT of blocks no dirty star lies in.
-  constexpr bool kFromTetrahedra = !std::is_same_v<Structure, ExplicitStructure>;
+  constexpr bool kFromTetrahedra = !Structure::kRelationsInPlace;
   std::vector<std::optional<LowerStarPairing>> pairings(consumers);
   PrefetchOff<Structure> off(structure);
   RETURN_IF_ERROR(
@@ -855,24 +856,18 @@ absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(Structure& structu
   return result;
 }
 
-template absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(
-    ExplicitStructure&, DiscreteGradientResult, std::span<const SimplexId>,
-    std::span<const SimplexId>, const RunContext&, std::span<const SimplexId>);
-template absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(
-    CompactStructure&, DiscreteGradientResult, std::span<const SimplexId>,
-    std::span<const SimplexId>, const RunContext&, std::span<const SimplexId>);
-template absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(
-    ActopoStructure&, DiscreteGradientResult, std::span<const SimplexId>,
-    std::span<const SimplexId>, const RunContext&, std::span<const SimplexId>);
+#define ACTOPO_INSTANTIATE(S)                                                             \
+  template absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(                 \
+      S&, DiscreteGradientResult, std::span<const SimplexId>, std::span<const SimplexId>, \
+      const RunContext&, std::span<const SimplexId>);
+ACTOPO_FOR_EACH_STRUCTURE(ACTOPO_INSTANTIATE)
+#undef ACTOPO_INSTANTIATE
 
-template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
-    ExplicitStructure&, std::span<const SimplexId>, const RunContext&, GradientArrays,
-    VertexNeighbors*, AscendingLinks*);
-template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
-    CompactStructure&, std::span<const SimplexId>, const RunContext&, GradientArrays,
-    VertexNeighbors*, AscendingLinks*);
-template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
-    ActopoStructure&, std::span<const SimplexId>, const RunContext&, GradientArrays,
-    VertexNeighbors*, AscendingLinks*);
+#define ACTOPO_INSTANTIATE(S)                                                              \
+  template absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(                     \
+      S&, std::span<const SimplexId>, const RunContext&, GradientArrays, VertexNeighbors*, \
+      AscendingLinks*);
+ACTOPO_FOR_EACH_STRUCTURE(ACTOPO_INSTANTIATE)
+#undef ACTOPO_INSTANTIATE
 
 }  // namespace actopo

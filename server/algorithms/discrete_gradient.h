@@ -19,6 +19,7 @@
 #include "server/algorithms/consumers.h"
 #include "server/algorithms/vertex_neighbors.h"
 #include "server/core/relation.h"
+#include "server/core/structures.h"
 #include "server/core/topology.h"
 
 namespace actopo {
@@ -93,7 +94,7 @@ absl::StatusOr<std::vector<SimplexId>> SaddleTetrahedra(const AscendingLinks& li
 // With `neighbors`, each consumer also keeps its blocks' vertex neighbours there, read from the
 // VE rows the pairing has just read (a caller whose next passes read VV in no order in space).
 // With `links`, the sweep records them.
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
     Structure& structure, std::span<const SimplexId> order, const RunContext& context,
     GradientArrays arrays = GradientArrays::kAll, VertexNeighbors* neighbors = nullptr,
@@ -112,7 +113,7 @@ absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
 // (SimplificationResult::changed_stars): `reordered` and those of their neighbours whose lower
 // neighbours moved. Only those stars are paired again, and no VE is read to find them. Without
 // it, every neighbour of a reordered vertex is paired again.
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<DiscreteGradientResult> UpdateDiscreteGradient(
     Structure& structure, DiscreteGradientResult previous, std::span<const SimplexId> order,
     std::span<const SimplexId> reordered, const RunContext& context,

@@ -15,6 +15,7 @@
 #include "server/core/explicit_structure.h"
 #include "server/core/parallel.h"
 #include "server/core/status_macros.h"
+#include "server/core/structures.h"
 #include "server/core/sync.h"
 #include "server/core/trace.h"
 
@@ -561,7 +562,7 @@ absl::StatusOr<std::vector<uint8_t>> InputCorners(const Topology& topology,
 // one up into `up`, each 2-saddle's tetrahedra into `saddle_tets` (two slots, -1 when on the
 // boundary). The separatrices then read no relation: tracing them through vertex stars would
 // compute each block's stars again, once per wall through it.
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::Status ReadAscendingLinks(Structure& structure, const GradientField& g,
                                 const CriticalSaddles& critical_saddles,
                                 std::span<const uint8_t> input_corners,
@@ -595,7 +596,7 @@ absl::Status ReadAscendingLinks(Structure& structure, const GradientField& g,
 // Walls differ in size, so saddles go to whichever consumer is free, in runs of ascending ids: a
 // wall's ties in TTK's triangle order read vertex stars around it, and runs keep each consumer
 // on blocks of its own instead of both computing every block.
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::Status AppendWalls(Structure& structure, const GradientField& g,
                          const CriticalSaddles& critical_saddles,
                          std::span<const uint8_t> input_corners, std::span<const SimplexId> up,
@@ -664,7 +665,7 @@ void Segment(const Topology& topo, GradientField& g, std::vector<SimplexId>& up,
                                          int64_t(result.maximum_sizes.size()), threads);
 }
 
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
                                                std::span<const SimplexId> order,
                                                std::span<const uint8_t> input_corners,
@@ -739,17 +740,11 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
   return result;
 }
 
-template absl::StatusOr<MorseSmaleResult> RunMorseSmale(ExplicitStructure&,
-                                                        std::span<const SimplexId>,
-                                                        std::span<const uint8_t>, const RunContext&,
-                                                        std::optional<DiscreteGradientResult>);
-template absl::StatusOr<MorseSmaleResult> RunMorseSmale(CompactStructure&,
-                                                        std::span<const SimplexId>,
-                                                        std::span<const uint8_t>, const RunContext&,
-                                                        std::optional<DiscreteGradientResult>);
-template absl::StatusOr<MorseSmaleResult> RunMorseSmale(ActopoStructure&,
-                                                        std::span<const SimplexId>,
-                                                        std::span<const uint8_t>, const RunContext&,
-                                                        std::optional<DiscreteGradientResult>);
+#define ACTOPO_INSTANTIATE(S)                                                      \
+  template absl::StatusOr<MorseSmaleResult> RunMorseSmale(                         \
+      S&, std::span<const SimplexId>, std::span<const uint8_t>, const RunContext&, \
+      std::optional<DiscreteGradientResult>);
+ACTOPO_FOR_EACH_STRUCTURE(ACTOPO_INSTANTIATE)
+#undef ACTOPO_INSTANTIATE
 
 }  // namespace actopo

@@ -24,6 +24,7 @@
 #include "server/algorithms/consumers.h"
 #include "server/algorithms/discrete_gradient.h"
 #include "server/core/relation.h"
+#include "server/core/structures.h"
 
 namespace actopo {
 
@@ -88,7 +89,7 @@ absl::StatusOr<std::vector<uint8_t>> InputCorners(const Topology& topology,
 // computed otherwise. The result's gradient keeps the critical cells, not the pairing arrays.
 // Everything that reads relations runs on all consumers: the gradient and the
 // ascending segmentation by blocks, the separatrices by 2-saddle.
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<MorseSmaleResult> RunMorseSmale(
     Structure& structure, std::span<const SimplexId> order, std::span<const uint8_t> input_corners,
     const RunContext& context, std::optional<DiscreteGradientResult> gradient = std::nullopt);

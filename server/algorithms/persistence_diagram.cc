@@ -14,6 +14,7 @@
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/status_macros.h"
+#include "server/core/structures.h"
 
 namespace actopo {
 namespace {
@@ -146,7 +147,7 @@ class EdgeChain {
   std::priority_queue<ChainEdge> heap_;
 };
 
-template <class Structure>
+template <TopologicalStructure Structure>
 class DiagramBuilder {
  public:
   // `up` and `saddle_tets`: the gradient's AscendingLinks, the 2-saddles' tetrahedra two slots
@@ -472,7 +473,7 @@ PersistenceCurve ComputePersistenceCurve(const PersistenceDiagramResult& diagram
 
 RelationSet PersistenceDiagramDeclared() { return {Relation::kVE, Relation::kVF, Relation::kVT}; }
 
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(
     Structure& structure, std::span<const SimplexId> order, std::span<const double> scalars,
     const RunContext& context, VertexNeighbors* neighbors, GradientArrays arrays) {
@@ -534,14 +535,11 @@ absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(
   return result;
 }
 
-template absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(
-    ExplicitStructure&, std::span<const SimplexId>, std::span<const double>, const RunContext&,
-    VertexNeighbors*, GradientArrays);
-template absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(
-    CompactStructure&, std::span<const SimplexId>, std::span<const double>, const RunContext&,
-    VertexNeighbors*, GradientArrays);
-template absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(
-    ActopoStructure&, std::span<const SimplexId>, std::span<const double>, const RunContext&,
-    VertexNeighbors*, GradientArrays);
+#define ACTOPO_INSTANTIATE(S)                                                     \
+  template absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(        \
+      S&, std::span<const SimplexId>, std::span<const double>, const RunContext&, \
+      VertexNeighbors*, GradientArrays);
+ACTOPO_FOR_EACH_STRUCTURE(ACTOPO_INSTANTIATE)
+#undef ACTOPO_INSTANTIATE
 
 }  // namespace actopo

@@ -30,6 +30,7 @@
 #include "server/algorithms/consumers.h"
 #include "server/algorithms/discrete_gradient.h"
 #include "server/core/relation.h"
+#include "server/core/structures.h"
 
 namespace actopo {
 
@@ -81,7 +82,7 @@ RelationSet PersistenceDiagramDeclared();
 // gradient keeps, kPaths (vertex -> edge, edge -> triangle), or kPersistence for a caller that
 // goes on with the gradient (a simplified complex updates it, then follows its tetrahedron ->
 // triangle pairs).
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<PersistenceDiagramResult> RunPersistenceDiagram(
     Structure& structure, std::span<const SimplexId> order, std::span<const double> scalars,
     const RunContext& context, VertexNeighbors* neighbors = nullptr,

@@ -1,9 +1,9 @@
-// Phase controls of an actopo structure, no-ops on the others. PrefetchOff switches its
-// prefetching off for a scope: for phases whose reads follow V-paths and walls across blocks, not
-// blocks in order, where speculative block computations only compete with the consumers.
-// DropBufferedRelations empties its buffers between phases (compact's caches belong to readers,
-// which end with their phase; explicit's relations are the structure); EndPhase also returns
-// the memory freed to the system.
+// Phase controls of a structure that prefetches (kPrefetches: actopo), no-ops on the others.
+// PrefetchOff switches its prefetching off for a scope: for phases whose reads follow V-paths and
+// walls across blocks, not blocks in order, where speculative block computations only compete with
+// the consumers. DropBufferedRelations empties its buffers between phases (compact's caches belong
+// to readers, which end with their phase; explicit's relations are the structure); EndPhase also
+// returns the memory freed to the system.
 //
 //   {
 //     PrefetchOff<Structure> off(structure);
@@ -13,33 +13,30 @@
 #ifndef ACTOPO_SERVER_ALGORITHMS_PREFETCH_OFF_H_
 #define ACTOPO_SERVER_ALGORITHMS_PREFETCH_OFF_H_
 
-#include <type_traits>
-
-#include "server/core/actopo_structure.h"
 #include "server/core/process_memory.h"
+#include "server/core/structures.h"
 
 namespace actopo {
 
-template <class Structure>
+template <TopologicalStructure Structure>
 class PrefetchOff {
  public:
   explicit PrefetchOff(Structure& structure) : structure_(structure) {
-    if constexpr (kActopo) structure_.SetPrefetching(false);
+    if constexpr (Structure::kPrefetches) structure_.SetPrefetching(false);
   }
   ~PrefetchOff() {
-    if constexpr (kActopo) structure_.SetPrefetching(true);
+    if constexpr (Structure::kPrefetches) structure_.SetPrefetching(true);
   }
   PrefetchOff(const PrefetchOff&) = delete;
   PrefetchOff& operator=(const PrefetchOff&) = delete;
 
  private:
-  static constexpr bool kActopo = std::is_same_v<Structure, ActopoStructure>;
   Structure& structure_;
 };
 
-template <class Structure>
+template <TopologicalStructure Structure>
 void DropBufferedRelations(Structure& structure) {
-  if constexpr (std::is_same_v<Structure, ActopoStructure>) structure.DropBufferedRelations();
+  if constexpr (Structure::kPrefetches) structure.DropBufferedRelations();
 }
 
 // Between two phases of an algorithm on any structure: drops actopo's buffered relations and,
@@ -48,7 +45,7 @@ void DropBufferedRelations(Structure& structure) {
 // in their arenas otherwise, beside the next phase's arrays, which other threads allocate.
 // malloc_trim walks every arena and stalls other sessions' allocations meanwhile: not worth it
 // on the small meshes a server may run many jobs a second on.
-template <class Structure>
+template <TopologicalStructure Structure>
 void EndPhase(Structure& structure) {
   DropBufferedRelations(structure);
   constexpr SimplexId kWorthReturning = 1 << 20;  // tetrahedra

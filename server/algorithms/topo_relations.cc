@@ -6,6 +6,7 @@
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
+#include "server/core/structures.h"
 
 namespace actopo {
 namespace {
@@ -74,7 +75,7 @@ std::span<const Relation> TopoRelationsSweeps(bool all) {
 // read (explicit_structure.h), so they need not be stored.
 RelationSet TopoRelationsDeclared() { return ExplicitStructure::DefaultRelations(); }
 
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<TopoRelationsResult> RunTopoRelations(Structure& structure,
                                                      const RunContext& context,
                                                      TopoRelationsOptions options) {
@@ -101,11 +102,10 @@ absl::StatusOr<TopoRelationsResult> RunTopoRelations(Structure& structure,
   return result;
 }
 
-template absl::StatusOr<TopoRelationsResult> RunTopoRelations(ExplicitStructure&, const RunContext&,
-                                                              TopoRelationsOptions);
-template absl::StatusOr<TopoRelationsResult> RunTopoRelations(CompactStructure&, const RunContext&,
-                                                              TopoRelationsOptions);
-template absl::StatusOr<TopoRelationsResult> RunTopoRelations(ActopoStructure&, const RunContext&,
-                                                              TopoRelationsOptions);
+#define ACTOPO_INSTANTIATE(S)                                                          \
+  template absl::StatusOr<TopoRelationsResult> RunTopoRelations(S&, const RunContext&, \
+                                                                TopoRelationsOptions);
+ACTOPO_FOR_EACH_STRUCTURE(ACTOPO_INSTANTIATE)
+#undef ACTOPO_INSTANTIATE
 
 }  // namespace actopo

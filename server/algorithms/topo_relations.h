@@ -21,6 +21,7 @@
 #include "absl/status/statusor.h"
 #include "server/algorithms/consumers.h"
 #include "server/core/relation.h"
+#include "server/core/structures.h"
 
 namespace actopo {
 
@@ -48,7 +49,7 @@ RelationSet TopoRelationsDeclared();
 
 // Runs on any structure with NewReader(); defined for the explicit, compact and actopo
 // structures. The actopo engine's `auto` mode uses linear prefetch of the requested relation.
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<TopoRelationsResult> RunTopoRelations(Structure& structure,
                                                      const RunContext& context,
                                                      TopoRelationsOptions options = {});

@@ -22,6 +22,7 @@
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/status_macros.h"
+#include "server/core/structures.h"
 
 namespace actopo {
 namespace {
@@ -44,10 +45,10 @@ uint8_t ExtremumFlags(std::span<const SimplexId> neighbors, SimplexId v,
 // again and again while its leader prefetched blocks in id order. On compact and actopo the rows
 // are therefore those the diagram's gradient kept while it held each block's VE (VertexNeighbors:
 // 2 bytes per near neighbour, 4 per vertex); the explicit structure's own rows are read in place.
-template <class Structure>
+template <TopologicalStructure Structure>
 class NeighborRows {
  public:
-  static constexpr bool kInPlace = std::is_same_v<Structure, ExplicitStructure>;
+  static constexpr bool kInPlace = Structure::kRelationsInPlace;
 
   // `kept`: filled for every block, unless kInPlace (then unused, may be null). As a reader's,
   // a row is valid until the next vertex_neighbors call.
@@ -666,7 +667,7 @@ absl::Status LocalizedSweeps(const Topology& topo, Rows& rows, std::span<const S
   return absl::OkStatus();
 }
 
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
     Structure& structure, std::span<const SimplexId> order, std::span<const double> scalars,
     const SimplificationOptions& options, const RunContext& context) {
@@ -746,14 +747,11 @@ absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
   return result;
 }
 
-template absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
-    ExplicitStructure&, std::span<const SimplexId>, std::span<const double>,
-    const SimplificationOptions&, const RunContext&);
-template absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
-    CompactStructure&, std::span<const SimplexId>, std::span<const double>,
-    const SimplificationOptions&, const RunContext&);
-template absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
-    ActopoStructure&, std::span<const SimplexId>, std::span<const double>,
-    const SimplificationOptions&, const RunContext&);
+#define ACTOPO_INSTANTIATE(S)                                                                \
+  template absl::StatusOr<SimplificationResult> RunTopologicalSimplification(                \
+      S&, std::span<const SimplexId>, std::span<const double>, const SimplificationOptions&, \
+      const RunContext&);
+ACTOPO_FOR_EACH_STRUCTURE(ACTOPO_INSTANTIATE)
+#undef ACTOPO_INSTANTIATE
 
 }  // namespace actopo

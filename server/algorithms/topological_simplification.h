@@ -27,6 +27,7 @@
 #include "server/algorithms/consumers.h"
 #include "server/algorithms/persistence_diagram.h"
 #include "server/core/relation.h"
+#include "server/core/structures.h"
 
 namespace actopo {
 
@@ -89,7 +90,7 @@ absl::Status ValidateSimplificationOptions(const SimplificationOptions& options)
 
 // `order` and `scalars` as for RunPersistenceDiagram. The diagram runs on every consumer; the
 // propagations, one after another, on one.
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<SimplificationResult> RunTopologicalSimplification(
     Structure& structure, std::span<const SimplexId> order, std::span<const double> scalars,
     const SimplificationOptions& options, const RunContext& context);

@@ -34,6 +34,7 @@
 #include "server/core/partition.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
+#include "server/core/structures.h"
 #include "server/core/topology.h"
 #include "server/core/trace.h"
 #include "server/io/samples.h"
@@ -139,7 +140,7 @@ struct FieldRuns {
 };
 
 // Runs field i's algorithm on `structure` and summarizes it.
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<FieldOutput> RunAndSummarize(Structure& structure, const AlgorithmInput& input,
                                             const RunContext& context, const BenchOptions& o,
                                             const FieldRuns& runs, size_t i) {
@@ -383,7 +384,7 @@ absl::StatusOr<AlgorithmInput> PrepareInput(
 }
 
 // Every field's run on one structure: the vertex order, the algorithm, its summary.
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<std::vector<FieldOutput>> RunFields(Structure& structure, const FieldRuns& runs,
                                                    const RunContext& context,
                                                    const BenchOptions& o) {

@@ -236,6 +236,10 @@ class ActopoStructure {
     int32_t last_block_ = -1;
   };
 
+  // Traits (structures.h): producers compute relations ahead into the shared buffer.
+  static constexpr bool kRelationsInPlace = false;
+  static constexpr bool kPrefetches = true;
+
   // Binds the calling thread's reader to a free consumer; at most `consumers` at once (more is a
   // programming error and aborts).
   Reader NewReader();

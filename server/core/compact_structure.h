@@ -87,6 +87,10 @@ class CompactStructure {
     std::shared_ptr<Trace> trace_;  // the structure's when the reader was made
   };
 
+  // Traits (structures.h): relations computed on demand into each reader's cache; no producers.
+  static constexpr bool kRelationsInPlace = false;
+  static constexpr bool kPrefetches = false;
+
   Reader NewReader() { return Reader(this); }
   const Topology& topology() const { return *topology_; }
   // Capacity of each reader's cache, in blocks.

@@ -83,6 +83,10 @@ class ExplicitStructure {
     std::vector<SimplexId> edge_neighbors_, triangle_neighbors_;
   };
 
+  // Traits (structures.h): every relation precomputed, rows read in place; no producers.
+  static constexpr bool kRelationsInPlace = true;
+  static constexpr bool kPrefetches = false;
+
   Reader NewReader() const { return Reader(this); }
   const Topology& topology() const { return *topology_; }
   RelationSet relations() const { return relations_; }

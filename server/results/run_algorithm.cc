@@ -12,6 +12,7 @@
 #include "server/core/explicit_structure.h"
 #include "server/core/process_memory.h"
 #include "server/core/status_macros.h"
+#include "server/core/structures.h"
 
 namespace actopo {
 namespace {
@@ -275,7 +276,7 @@ RelationSet SweptRelations(const AlgorithmInput& input) {
   return relations;
 }
 
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const AlgorithmInput& in,
                                               const RunContext& context) {
   const auto start = std::chrono::steady_clock::now();
@@ -283,10 +284,10 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
   struct Recording {
     Structure& structure;
     explicit Recording(Structure& s, const std::shared_ptr<Trace>& trace) : structure(s) {
-      if constexpr (requires { s.SetTrace(trace); }) s.SetTrace(trace);
+      if constexpr (kTraces<Structure>) s.SetTrace(trace);
     }
     ~Recording() {
-      if constexpr (requires { structure.SetTrace(nullptr); }) structure.SetTrace(nullptr);
+      if constexpr (kTraces<Structure>) structure.SetTrace(nullptr);
     }
   } recording(structure, context.trace);
   if (NeedsFaces(in.algorithm) && !structure.topology().has_faces()) {
@@ -362,12 +363,11 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
   return out;
 }
 
-template absl::StatusOr<AlgorithmOutcome> RunAlgorithm(ExplicitStructure&, const AlgorithmInput&,
-                                                       const RunContext&);
-template absl::StatusOr<AlgorithmOutcome> RunAlgorithm(CompactStructure&, const AlgorithmInput&,
-                                                       const RunContext&);
-template absl::StatusOr<AlgorithmOutcome> RunAlgorithm(ActopoStructure&, const AlgorithmInput&,
-                                                       const RunContext&);
+#define ACTOPO_INSTANTIATE(S)                                                       \
+  template absl::StatusOr<AlgorithmOutcome> RunAlgorithm(S&, const AlgorithmInput&, \
+                                                         const RunContext&);
+ACTOPO_FOR_EACH_STRUCTURE(ACTOPO_INSTANTIATE)
+#undef ACTOPO_INSTANTIATE
 
 Json Summarize(const AlgorithmResult& result, const Topology& topology,
                const SummaryOptions& options) {

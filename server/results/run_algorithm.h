@@ -24,6 +24,7 @@
 #include "server/algorithms/registry.h"
 #include "server/algorithms/topo_relations.h"
 #include "server/algorithms/topological_simplification.h"
+#include "server/core/structures.h"
 #include "server/diagrams/distance.h"
 
 namespace actopo {
@@ -95,7 +96,7 @@ RelationSet DeclaredRelations(const AlgorithmInput& input);
 RelationSet SweptRelations(const AlgorithmInput& input);
 
 // Defined for the explicit, compact and actopo structures.
-template <class Structure>
+template <TopologicalStructure Structure>
 absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const AlgorithmInput& input,
                                               const RunContext& context);
 

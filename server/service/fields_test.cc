@@ -731,6 +731,53 @@ TEST_F(FieldsTest, ADownloadGivesTheMeshAsGivenWithTheFieldsAskedFor) {
   }
 }
 
+TEST_F(FieldsTest, ADownloadedFieldKeepsItsTypeUnlessItsValuesDoNotFit) {
+  std::ofstream(data_dir_ / "unsigned.vtu") << R"(<?xml version="1.0"?>
+<VTKFile type="UnstructuredGrid" version="0.1" byte_order="LittleEndian">
+<UnstructuredGrid><Piece NumberOfPoints="5" NumberOfCells="2">
+<PointData>
+<DataArray type="UInt32" Name="small" format="ascii">7 1 3 0 2</DataArray>
+<DataArray type="UInt32" Name="large" format="ascii">4000000000 1 3 0 2</DataArray>
+<DataArray type="Float32" Name="narrow" format="ascii">0.5 0.25 1.5 -2 3.125</DataArray>
+</PointData>
+<Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">
+0 0 0  1 0 0  0 1 0  0 0 1  1 1 1</DataArray></Points>
+<Cells>
+<DataArray type="Int64" Name="connectivity" format="ascii">3 1 0 2  2 4 1 3</DataArray>
+<DataArray type="Int64" Name="offsets" format="ascii">4 8</DataArray>
+<DataArray type="UInt8" Name="types" format="ascii">10 10</DataArray>
+</Cells>
+</Piece></UnstructuredGrid></VTKFile>
+)";
+  v1::LoadMeshRequest load;
+  load.set_path("unsigned.vtu");
+  v1::LoadMeshResponse loaded;
+  const grpc::Status s = stub_->LoadMesh(Context().get(), load, &loaded);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  v1::DownloadMeshRequest request;
+  request.set_mesh_id(loaded.mesh().mesh_id());
+  request.set_all_fields(true);
+  auto context = Context();
+  auto reader = stub_->DownloadMesh(context.get(), request);
+  v1::DownloadMeshResponse message;
+  v1::UploadMeshHeader header;
+  std::string bytes;
+  while (reader->Read(&message)) {
+    if (message.has_header()) header = message.header();
+    bytes += message.chunk();
+  }
+  ASSERT_TRUE(reader->Finish().ok());
+  ASSERT_EQ(header.fields_size(), 3);
+  EXPECT_EQ(header.fields(0).dtype(), v1::DATA_TYPE_INT32);  // its values fit
+  EXPECT_EQ(header.fields(1).dtype(), v1::DATA_TYPE_INT64);  // 4e9 does not
+  EXPECT_EQ(header.fields(2).dtype(), v1::DATA_TYPE_FLOAT32);
+  const size_t large = size_t(5 * 24 + 2 * 16 + 5 * 4);
+  ASSERT_EQ(bytes.size(), large + 5 * 8 + 5 * 4);
+  int64_t first = 0;
+  std::memcpy(&first, bytes.data() + large, 8);
+  EXPECT_EQ(first, 4000000000);
+}
+
 TEST_F(FieldsTest, BadFieldListsAreNamed) {
   const std::string mesh_id = LoadSample(kSample);
   const std::string session = OpenOn(mesh_id, "scalar");

@@ -10,6 +10,22 @@
 
 namespace actopo::service {
 
+// The dtype a field goes back as: the one it came with, unless its values do not fit it (an
+// unsigned integer array read as signed); then the next wider one that holds them all.
+v1::DataType MeshDownload::DtypeOf(const PointField& field) {
+  const auto fits = [&](double lo, double hi) {
+    return std::all_of(field.values.begin(), field.values.end(),
+                       [&](double v) { return v >= lo && v <= hi; });
+  };
+  if (field.is_integer) {
+    if (field.source_bytes == 4 && fits(-2147483648.0, 2147483647.0)) return v1::DATA_TYPE_INT32;
+    // Below 2^63 in magnitude: every double there converts to int64 exactly.
+    if (fits(-9223372036854775808.0, 9223372036854774784.0)) return v1::DATA_TYPE_INT64;
+    return v1::DATA_TYPE_FLOAT64;
+  }
+  return field.source_bytes == 4 ? v1::DATA_TYPE_FLOAT32 : v1::DATA_TYPE_FLOAT64;
+}
+
 absl::StatusOr<MeshDownload> MeshDownload::Start(std::shared_ptr<const LoadedMesh> mesh,
                                                  const v1::DownloadMeshRequest& request) {
   MeshDownload d;
@@ -48,9 +64,7 @@ absl::StatusOr<MeshDownload> MeshDownload::Start(std::shared_ptr<const LoadedMes
   for (const FieldSet::Ref& f : d.fields_) {
     v1::UploadField* out = d.header_.add_fields();
     out->set_name(f->field.name);
-    const bool narrow = f->field.source_bytes == 4;
-    out->set_dtype(f->field.is_integer ? (narrow ? v1::DATA_TYPE_INT32 : v1::DATA_TYPE_INT64)
-                                       : (narrow ? v1::DATA_TYPE_FLOAT32 : v1::DATA_TYPE_FLOAT64));
+    out->set_dtype(DtypeOf(f->field));
     if (f->time) out->set_time(*f->time);
   }
   d.mesh_ = std::move(mesh);
@@ -66,7 +80,8 @@ int64_t MeshDownload::count(size_t array) const {
 int MeshDownload::value_bytes(size_t array) const {
   if (array == 0) return 3 * 8;
   if (array == 1) return wide_ids_ ? 4 * 8 : 4 * 4;
-  return fields_[array - 2]->field.source_bytes;
+  const v1::DataType dtype = header_.fields(int(array - 2)).dtype();
+  return dtype == v1::DATA_TYPE_INT32 || dtype == v1::DATA_TYPE_FLOAT32 ? 4 : 8;
 }
 
 int64_t MeshDownload::total_bytes() const {
@@ -93,7 +108,7 @@ bool MeshDownload::Next(size_t max_bytes, std::string* chunk) {
   } else if (array_ == 1) {
     WriteTetrahedra(next_, n, out);
   } else {
-    WriteField(fields_[array_ - 2]->field, next_, n, out);
+    WriteField(fields_[array_ - 2]->field, header_.fields(int(array_ - 2)).dtype(), next_, n, out);
   }
   next_ += n;
   return true;
@@ -122,23 +137,27 @@ void MeshDownload::WriteTetrahedra(int64_t first, int64_t count, char* out) cons
   }
 }
 
-void MeshDownload::WriteField(const PointField& field, int64_t first, int64_t count,
-                              char* out) const {
+void MeshDownload::WriteField(const PointField& field, v1::DataType dtype, int64_t first,
+                              int64_t count, char* out) const {
   const double* values = field.values.data() + first;
-  if (field.source_bytes == 8 && !field.is_integer) {
-    std::memcpy(out, values, size_t(count) * 8);
-    return;
-  }
   for (int64_t i = 0; i < count; ++i) {
-    if (field.is_integer && field.source_bytes == 4) {
-      const int32_t v = int32_t(values[i]);
-      std::memcpy(out + 4 * i, &v, 4);
-    } else if (field.is_integer) {
-      const int64_t v = int64_t(values[i]);
-      std::memcpy(out + 8 * i, &v, 8);
-    } else {
-      const float v = float(values[i]);
-      std::memcpy(out + 4 * i, &v, 4);
+    switch (dtype) {
+      case v1::DATA_TYPE_INT32: {
+        const int32_t v = int32_t(values[i]);
+        std::memcpy(out + 4 * i, &v, 4);
+        break;
+      }
+      case v1::DATA_TYPE_INT64: {
+        const int64_t v = int64_t(values[i]);
+        std::memcpy(out + 8 * i, &v, 8);
+        break;
+      }
+      case v1::DATA_TYPE_FLOAT32: {
+        const float v = float(values[i]);
+        std::memcpy(out + 4 * i, &v, 4);
+        break;
+      }
+      default: std::memcpy(out + 8 * i, &values[i], 8);
     }
   }
 }

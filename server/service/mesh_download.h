@@ -10,7 +10,8 @@
 // The points are the input points; each tetrahedron is the input one, its vertices in the order
 // they were given (the topology keeps them sorted, and LoadedMesh::input_corners says where each
 // came from), as INT32 when every vertex id fits, else INT64; a field keeps the dtype it was
-// loaded or added with. Errors: NOT_FOUND for an unknown field, INVALID_ARGUMENT for a field
+// loaded or added with, unless its values do not fit it (an unsigned integer array: the next
+// wider type that holds them). Errors: NOT_FOUND for an unknown field, INVALID_ARGUMENT for a field
 // named twice or fields together with all_fields.
 #ifndef ACTOPO_SERVER_SERVICE_MESH_DOWNLOAD_H_
 #define ACTOPO_SERVER_SERVICE_MESH_DOWNLOAD_H_
@@ -46,7 +47,9 @@ class MeshDownload {
   int64_t count(size_t array) const;
   int value_bytes(size_t array) const;
   void WriteTetrahedra(int64_t first, int64_t count, char* out) const;
-  void WriteField(const PointField& field, int64_t first, int64_t count, char* out) const;
+  void WriteField(const PointField& field, v1::DataType dtype, int64_t first, int64_t count,
+                  char* out) const;
+  static v1::DataType DtypeOf(const PointField& field);
 
   std::shared_ptr<const LoadedMesh> mesh_;
   std::vector<FieldSet::Ref> fields_;
