@@ -34,14 +34,16 @@ from actopo._channel import (
     resolve_target,
 )
 from actopo._distances import DistanceMatrix
+from actopo._download import MeshStream
 from actopo._errors import ActopoError, translate, translated
 from actopo._fields import FieldsLike, TimesArg
 from actopo._literals import Algorithm, Precompute, Prefetch, Relation, Structure
-from actopo._mesh import MeshLike
+from actopo._mesh import MeshArrays, MeshLike
 from actopo._progress import (
     LoadProgressArg,
     Progress,
     ProgressArg,
+    make_fraction_progress,
     make_load_progress,
     make_progress,
 )
@@ -180,6 +182,23 @@ class AsyncClient:
             response = await self._stub.UploadMesh(requests, timeout=self._mesh_timeout,
                                                    metadata=self._metadata)
         return _messages.decode_upload_mesh(response)
+
+    async def download_mesh(self, mesh: MeshRef, fields: FieldsArg = None, *,
+                            progress: ProgressArg = None) -> MeshArrays:
+        """See Client.download_mesh(). Cancelling the awaiting task stops the download."""
+        request = _messages.build_download_mesh(mesh, fields)
+        bar = make_fraction_progress(progress, _messages.download_description(mesh))
+        stream = MeshStream(bar.update)
+        call = self._stub.DownloadMesh(request, timeout=self._mesh_timeout,
+                                       metadata=self._metadata)
+        try:
+            with translated():
+                async for response in call:
+                    stream.feed(response)
+        finally:
+            call.cancel()  # stops the download after cancellation or a raising callback
+            bar.close()
+        return stream.mesh()
 
     async def list_meshes(self) -> list[MeshInfo]:
         """See Client.list_meshes()."""

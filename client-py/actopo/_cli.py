@@ -31,10 +31,17 @@ from typing import Any, TypeAlias, cast
 
 from actopo import _names
 from actopo._bench import Bench, Load
-from actopo._cli_parser import DIAGRAM, MANY_FIELDS, STRUCTURES, TRACKING, parse_args
+from actopo._cli_parser import (
+    DIAGRAM,
+    MANY_FIELDS,
+    PER_VERTEX,
+    STRUCTURES,
+    TRACKING,
+    parse_args,
+)
 from actopo._client import Client, Session
 from actopo._distances import DistanceMatrix
-from actopo._errors import ActopoError, InvalidArgumentError, NotFoundError
+from actopo._errors import ActopoError, InvalidArgumentError, InvalidMeshError, NotFoundError
 from actopo._fields import read_point_fields
 from actopo._literals import Algorithm, Structure
 from actopo._mesh import MeshArrays, mesh_arrays
@@ -152,19 +159,77 @@ def _open(client: Client, mesh: MeshInfo, args: argparse.Namespace,
                                precompute=args.precompute, query_readers=args.query_readers)
 
 
-def _geometry(args: argparse.Namespace, mesh: _Mesh) -> Any:
-    """The local geometry for the segmentation and simplified field files, when there is
-    one."""
+# The geometry of `run --output`'s per-vertex files (PREFIX_segmentation.vtu,
+# PREFIX_simplified.vtu): --upload's mesh, --geometry FILE, the file of --mesh NAME found
+# locally, else the points and tetrahedra downloaded from the server.
+
+
+def _mismatch(local: MeshArrays, info: MeshInfo) -> str | None:
+    """How a local file's mesh differs from the server's in its counts, or None."""
+    for what, here, there in (("vertices", len(local.points), info.vertices),
+                              ("tetrahedra", len(local.tetrahedra), info.tetrahedra)):
+        if here != there:
+            return f"{here} {what}, but the mesh {info.name} on the server has {there}"
+    return None
+
+
+def _given_geometry(args: argparse.Namespace, mesh: _Mesh,
+                    algorithm: Algorithm) -> MeshArrays | None:
+    """The geometry the command has before the job: --upload's mesh, or the --geometry file
+    read and checked against the mesh when the job writes per-vertex files (a file of another
+    mesh stops the command here, before the job runs)."""
     if mesh.local is not None:
         return mesh.local
-    if args.geometry:
-        return args.geometry
-    # A series' files all hold the same points and tetrahedra: the first one's serve.
-    if args.mesh and not args.mesh[0].startswith("sample:"):
-        for root in (Path.cwd(), Path(os.environ.get("ACTOPO_DATA_DIR", "") or "/nonexistent")):
-            if (root / args.mesh[0]).is_file():
-                return root / args.mesh[0]
+    if not (args.output and args.geometry and algorithm in PER_VERTEX):
+        return None
+    try:
+        local = mesh_arrays(args.geometry)
+    except (InvalidMeshError, FileNotFoundError) as e:
+        raise InvalidArgumentError(f"--geometry: {e}") from None
+    mismatch = _mismatch(local, mesh.info)
+    if mismatch:
+        raise InvalidArgumentError(f"--geometry {args.geometry}: {mismatch}; give the same "
+                                   "mesh's file, or leave --geometry out to download the "
+                                   "geometry from the server")
+    return local
+
+
+def _found_geometry(args: argparse.Namespace, info: MeshInfo) -> MeshArrays | None:
+    """The file of --mesh NAME (a series' first: its files all hold the same points and
+    tetrahedra) under the current directory or $ACTOPO_DATA_DIR, when it is there and holds
+    the server's mesh; a file of another mesh by that name is passed over."""
+    if not args.mesh or args.mesh[0].startswith("sample:"):
+        return None
+    roots = [Path.cwd()]
+    if os.environ.get("ACTOPO_DATA_DIR"):
+        roots.append(Path(os.environ["ACTOPO_DATA_DIR"]))
+    for root in roots:
+        if (root / args.mesh[0]).is_file():
+            try:
+                local = mesh_arrays(root / args.mesh[0])
+            except (ActopoError, OSError, ImportError):
+                return None
+            return local if _mismatch(local, info) is None else None
     return None
+
+
+def _write_output(client: Client, args: argparse.Namespace, mesh: _Mesh, result: JobResult,
+                  geometry: MeshArrays | None) -> list[str]:
+    """Writes --output's files; the per-vertex ones on `geometry`, else on the mesh's file
+    found locally, else on the points and tetrahedra downloaded from the server (the arrays
+    on them are the job's). Only a failed download leaves them out, with a warning."""
+    per_vertex = [what for what, group in (("simplified field", result.group("simplified")),
+                                           ("segmentation", result.segmentation)) if group]
+    if per_vertex and geometry is None:
+        geometry = _found_geometry(args, mesh.info)
+    if per_vertex and geometry is None:
+        try:
+            geometry = client.download_mesh(mesh.info, progress=_progress(args))
+        except ActopoError as e:
+            print(f"actopo: {' and '.join(per_vertex)} not written: downloading the mesh's "
+                  f"geometry failed ({e}); pass --geometry FILE (the same mesh, local)",
+                  file=sys.stderr)
+    return result.write(args.output, geometry)
 
 
 # Commands.
@@ -387,30 +452,25 @@ def cmd_run(client: Client, args: argparse.Namespace) -> None:
     _make_directories(args)
     if args.scalars:
         return _run_fields(client, args, algorithm, parameters, start)
-    with _mesh(client, args) as mesh, _open(client, mesh.info, args) as session:
-        result = session.run(algorithm, parameters=parameters,
-                             include_arrays=bool(args.output or args.plot),
-                             trace=bool(args.trace), digests=args.digests,
-                             progress=_progress(args))
-        stats = session.stats()
-        # Described again: edges and triangles are counted once a job has built them (as in
-        # actopo-bench's report, null when it needed none).
-        report = _report(client.get_mesh(mesh.info), session, result, stats, parameters,
-                         time.perf_counter() - start)
-        if args.trace:
-            report["trace"] = result.save_trace(args.trace)
-        if args.plot:
-            report["plot"] = _save_plot(args.plot, args.threshold, mesh.info,
-                                   session.info.scalar_field, result)
-        if args.output:
-            geometry = _geometry(args, mesh)
-            report["files"] = result.write(args.output, geometry)
-            per_vertex = (("simplified field", result.group("simplified")),
-                          ("segmentation", result.segmentation))
-            unwritten = [what for what, group in per_vertex if group and geometry is None]
-            if unwritten:
-                print(f"actopo: {' and '.join(unwritten)} not written: the mesh geometry is on "
-                      "the server; pass --geometry FILE (the same mesh, local)", file=sys.stderr)
+    with _mesh(client, args) as mesh:
+        geometry = _given_geometry(args, mesh, algorithm)
+        with _open(client, mesh.info, args) as session:
+            result = session.run(algorithm, parameters=parameters,
+                                 include_arrays=bool(args.output or args.plot),
+                                 trace=bool(args.trace), digests=args.digests,
+                                 progress=_progress(args))
+            stats = session.stats()
+            # Described again: edges and triangles are counted once a job has built them (as
+            # in actopo-bench's report, null when it needed none).
+            report = _report(client.get_mesh(mesh.info), session, result, stats, parameters,
+                             time.perf_counter() - start)
+            if args.trace:
+                report["trace"] = result.save_trace(args.trace)
+            if args.plot:
+                report["plot"] = _save_plot(args.plot, args.threshold, mesh.info,
+                                            session.info.scalar_field, result)
+            if args.output:
+                report["files"] = _write_output(client, args, mesh, result, geometry)
     if args.json:
         return _print_json(report)
     print(f"{report['algorithm']} on {mesh.info.name} ({mesh.info.tetrahedra} tetrahedra, "

@@ -22,6 +22,9 @@ DISTANCE = "diagram-distance"
 TRACKING = "tracking"
 MANY_FIELDS = (DISTANCE, TRACKING)
 """The algorithms that compare several fields: they run only with --scalars."""
+PER_VERTEX = ("morse-smale", "topological-simplification")
+"""The algorithms whose --output files hold one value per vertex on the mesh
+(PREFIX_segmentation.vtu, PREFIX_simplified.vtu): they need its geometry."""
 SINGLE_FIELD = [a for a in ALGORITHMS if a not in MANY_FIELDS]
 """The algorithms that run on one field: those that `compare` and `bench` time."""
 
@@ -204,7 +207,10 @@ def _add_run_outputs(c: argparse.ArgumentParser) -> None:
     """What `run` writes besides its report: ParaView files, a plot, a trace."""
     c.add_argument("--output", metavar="PREFIX",
                    help="write PREFIX_critical_points.vtp, ... for ParaView (PREFIX's directory "
-                   "is created if missing, as --plot's and --trace's are)")
+                   "is created if missing, as --plot's and --trace's are); the segmentation and "
+                   "the simplified field (PREFIX_segmentation.vtu, PREFIX_simplified.vtu) go "
+                   "on the mesh: --upload's, --geometry's, --mesh NAME's file if found locally, "
+                   "else its points and tetrahedra downloaded from the server")
     c.add_argument("--plot", metavar="PATH.png",
                    help=f"{DIAGRAM}: draw the diagram (birth, death) into this image with "
                    f"matplotlib (pip install 'actopo[plot]'); {DISTANCE}: the Wasserstein "
@@ -221,8 +227,11 @@ def _add_run_outputs(c: argparse.ArgumentParser) -> None:
                    "the summary; they cost time on large meshes")
     c.add_argument("--geometry", metavar="FILE",
                    help="the mesh as a local file, for PREFIX_segmentation.vtu and "
-                   "PREFIX_simplified.vtu with --mesh (default: NAME, a series' first, under "
-                   "the current directory or $ACTOPO_DATA_DIR, if there)")
+                   "PREFIX_simplified.vtu (with its point fields); a file whose vertex or "
+                   "tetrahedron count differs from the mesh's is refused before the job runs "
+                   "(default: --mesh NAME, a series' first, under the current directory or "
+                   "$ACTOPO_DATA_DIR if it is there and the same mesh, else the geometry "
+                   "downloaded from the server)")
 
 
 def _add_relation(commands: Commands) -> None:

@@ -2,8 +2,8 @@
 
 Accepted: a pyvista dataset (UnstructuredGrid, or anything castable to one), a meshio.Mesh, a
 local file path (read with pyvista, else meshio), or a tuple (points, tetrahedra[, point_data])
-of numpy arrays. Anything that is not made only of tetrahedra is rejected here, before a byte is
-sent, naming the cell types found.
+of numpy arrays, or MeshArrays (what Client.download_mesh() gives). Anything that is not made only
+of tetrahedra is rejected here, before a byte is sent, naming the cell types found.
 """
 
 from __future__ import annotations
@@ -36,17 +36,57 @@ ACCEPTED_FILES = ("give a tetrahedral mesh in a file VTK writes (.vtu, a legacy 
 """The files an upload takes, as its errors say."""
 
 MeshLike = Any
-"""pyvista dataset | meshio.Mesh | str | os.PathLike | (points, tetrahedra[, point_data])."""
+"""pyvista dataset | meshio.Mesh | str | os.PathLike | (points, tetrahedra[, point_data]) |
+MeshArrays."""
 
 
-@dataclass
+@dataclass(eq=False)
 class MeshArrays:
-    """A tetrahedral mesh as little-endian arrays, ready to upload."""
+    """A tetrahedral mesh as little-endian numpy arrays: what an upload sends, and what
+    Client.download_mesh() gives back (which upload_mesh() takes as it is).
+
+    Attributes:
+        name: the mesh's name.
+        points: (n, 3) float32 or float64, in input order.
+        tetrahedra: (t, 4) int32 or int64 vertex ids, each tetrahedron's vertices in the order
+            they were given.
+        point_data: scalar point fields by name, (n,) each: float32, float64, int32 or int64.
+        times: the time value of each field that has one (a series member); an upload does not
+            send them (the server takes times from AddFields only).
+    """
 
     name: str
-    points: np.ndarray  # (n, 3) float32 or float64
-    tetrahedra: np.ndarray  # (t, 4) int32 or int64
-    point_data: dict[str, np.ndarray] = field(default_factory=dict)  # (n,) each
+    points: np.ndarray
+    tetrahedra: np.ndarray
+    point_data: dict[str, np.ndarray] = field(default_factory=dict)
+    times: dict[str, float] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return (f"MeshArrays({self.name!r}, {len(self.points)} vertices, "
+                f"{len(self.tetrahedra)} tetrahedra, fields {list(self.point_data)})")
+
+    def to_pyvista(self) -> Any:
+        """A pyvista.UnstructuredGrid of the tetrahedra with the point fields (needs the
+        ``pyvista`` extra)."""
+        try:
+            import pyvista as pv
+        except ImportError:
+            raise ImportError("to_pyvista() needs pyvista: pip install 'actopo[pyvista]'") \
+                from None
+        grid = pv.UnstructuredGrid({pv.CellType.TETRA: self.tetrahedra}, self.points)
+        for key, values in self.point_data.items():
+            grid.point_data[key] = values
+        return grid
+
+    def to_meshio(self) -> Any:
+        """A meshio.Mesh of one "tetra" block with the point fields (needs the ``meshio``
+        extra)."""
+        try:
+            import meshio
+        except ImportError:
+            raise ImportError("to_meshio() needs meshio: pip install 'actopo[meshio]'") from None
+        return meshio.Mesh(self.points, [("tetra", self.tetrahedra)],
+                           point_data=dict(self.point_data))
 
 
 def _hint(cells: Mapping[str, int]) -> str:
@@ -177,9 +217,10 @@ def _checked(name: str, points: np.ndarray, tets: np.ndarray,
 
 def mesh_arrays(mesh: MeshLike, name: str | None = None) -> MeshArrays:
     """Any accepted mesh as MeshArrays; raises InvalidMeshError for what the service rejects."""
-    if isinstance(mesh, MeshArrays):
-        return mesh
-    if isinstance(mesh, (str, os.PathLike)):
+    if isinstance(mesh, MeshArrays):  # checked too: it may have been made by hand
+        arrays = _checked(mesh.name, mesh.points, mesh.tetrahedra, mesh.point_data)
+        arrays.times = dict(mesh.times)
+    elif isinstance(mesh, (str, os.PathLike)):
         arrays = _from_file(Path(mesh))
     elif isinstance(mesh, (tuple, list)):
         arrays = _from_tuple(mesh, name or "arrays")

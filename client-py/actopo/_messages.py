@@ -6,8 +6,9 @@ only in how they make the call, blocking or awaited::
     return _messages.decode_get_mesh(self._call(stub.GetMesh, _messages.build_get_mesh(mesh)))
 
 Streamed responses are decoded one message at a time: LoadStream (LoadMeshWithProgress),
-decode_stream_relations() (StreamRelations, one simplex a message), _batches.Collector
-(StreamRelations, arrays of simplices) and _results.Assembler (RunJob).
+_download.MeshStream (DownloadMesh), decode_stream_relations() (StreamRelations, one simplex a
+message), _batches.Collector (StreamRelations, arrays of simplices) and _results.Assembler
+(RunJob).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from actopo._requests import (
     MeshSource,
     SessionRef,
     SimplexArg,
+    download_fields,
     engine_count,
     file_series,
     job_fields,
@@ -139,6 +141,17 @@ def build_upload_mesh(mesh: MeshLike, name: str | None, block_size: int = 0,
 
 def decode_upload_mesh(response: pb.UploadMeshResponse) -> MeshInfo:
     return _convert.mesh_info(response.mesh)
+
+
+def build_download_mesh(mesh: MeshRef, fields: FieldsArg) -> pb.DownloadMeshRequest:
+    """`fields`: names, "all", or None for the points and tetrahedra alone."""
+    return pb.DownloadMeshRequest(mesh_id=mesh_id(mesh), **download_fields(fields))
+
+
+def download_description(mesh: MeshRef) -> str:
+    """What the progress bar of a download says: "download NAME" (the id for a mesh given by
+    id)."""
+    return f"download {mesh.name if isinstance(mesh, MeshInfo) else mesh}"
 
 
 def build_list_meshes() -> pb.ListMeshesRequest:

@@ -174,6 +174,12 @@ def make_progress(progress: ProgressArg, description: str) -> Progress[JobProgre
     return _choose(progress, lambda: _PhaseBars(lambda phase: _job_label(description, phase)))
 
 
+def make_fraction_progress(progress: ProgressArg, description: str) -> Progress[float]:
+    """Of a call that reports one fraction (a download): nothing, a bar named `description`,
+    or the caller's callable(fraction)."""
+    return _choose(progress, lambda: _bar(description))
+
+
 def make_load_progress(progress: LoadProgressArg, description: str) -> Progress[LoadProgress]:
     """Of a load: nothing, a bar per phase, or the caller's callable(LoadProgress)."""
     return _choose(progress,

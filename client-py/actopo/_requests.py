@@ -166,6 +166,14 @@ def job_fields(fields: FieldsArg) -> JobFields:
     return {"fields": names}
 
 
+def download_fields(fields: FieldsArg) -> JobFields:
+    """The ``fields`` or ``all_fields`` of a DownloadMeshRequest: names, or "all" (every point
+    field, integer ones too); {} for none (None or an empty list)."""
+    if fields is None or (not isinstance(fields, str) and len(fields) == 0):
+        return {}
+    return job_fields(fields)
+
+
 def _number(what: str, value: float) -> str:
     """A number parameter as the server reads it (the shortest text that round-trips)."""
     if isinstance(value, bool):

@@ -81,11 +81,7 @@ def _mesh_grid(pv: Any, mesh: Any) -> Any:
     """A new UnstructuredGrid of the local mesh with its point fields, for one group."""
     if isinstance(mesh, pv.UnstructuredGrid):
         return mesh.copy()
-    local = mesh_arrays(mesh)
-    grid = pv.UnstructuredGrid({pv.CellType.TETRA: local.tetrahedra}, local.points)
-    for key, values in local.point_data.items():
-        grid.point_data[key] = values
-    return grid
+    return mesh_arrays(mesh).to_pyvista()
 
 
 def _write_meshio(groups: Groups, prefix: str, mesh: Any) -> list[str]:

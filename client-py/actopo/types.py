@@ -12,6 +12,7 @@ JobResult); the rest are here only:
 
 from actopo._diagram import DiagramGrid, PersistenceCurve, PersistenceDiagram
 from actopo._distances import DistanceMatrix
+from actopo._mesh import MeshArrays
 from actopo._results import FieldResult, JobResult
 from actopo._simplified import SimplifiedField
 from actopo._tracking import Trajectories
@@ -38,7 +39,7 @@ from actopo._types import (
 __all__ = [
     "Counter", "DiagramGrid", "DistanceMatrix", "EngineOptions", "EngineStats", "FailedItem",
     "FieldInfo", "FieldResult", "JobResult", "JobStats", "LoadProgress", "MemoryStats",
-    "MeshInfo", "PersistenceCurve", "PersistenceDiagram", "QueryBreakdown", "RelationBatch",
-    "ServerInfo", "ServerLimits", "SessionInfo", "SessionStats", "SimplexRelation",
-    "SimplifiedField", "StreamItem", "Trajectories",
+    "MeshArrays", "MeshInfo", "PersistenceCurve", "PersistenceDiagram", "QueryBreakdown",
+    "RelationBatch", "ServerInfo", "ServerLimits", "SessionInfo", "SessionStats",
+    "SimplexRelation", "SimplifiedField", "StreamItem", "Trajectories",
 ]

@@ -12,6 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import grpc
 import matplotlib.image
 import meshio
 import numpy as np
@@ -21,6 +22,7 @@ from harness import start_cli, wait_for
 from meshes import lattice
 from references import ENTRY, check_summary, ttk, ttk_simplification
 
+import actopo
 from actopo._cli import COMMANDS, main
 from actopo._cli_parser import parser
 
@@ -202,14 +204,76 @@ def test_run_writes_files_for_paraview(cli, data_dir, tmp_path, monkeypatch):
         "mc0_critical_points.vtp", "mc0_separatrices.vtp", "mc0_segmentation.vtu"]
     for f in report["files"]:
         assert b"VTKFile" in Path(f).read_bytes()[:200]
-    status, out, err = cli("run", "--mesh", "manifoldCheck0_tet.vtu", "--algorithm",
-                           "critical-points", "--output", str(tmp_path / "cp"))
+    status, out, _ = cli("run", "--mesh", "manifoldCheck0_tet.vtu", "--algorithm",
+                         "critical-points", "--output", str(tmp_path / "cp"))
     assert status == 0 and "wrote" in out and (tmp_path / "cp_critical_points.vtp").exists()
+    # Without a local copy of the mesh: its geometry comes from the server.
     monkeypatch.delenv("ACTOPO_DATA_DIR", raising=False)  # else the CLI finds the file there
     monkeypatch.chdir(tmp_path)
-    status, out, err = cli("run", "--mesh", "manifoldCheck0_tet.vtu", "--algorithm",
-                           "morse-smale", "--output", str(tmp_path / "nogeo"))
-    assert status == 0 and "segmentation not written" in err
+    downloaded = _json(cli, "run", "--mesh", "manifoldCheck0_tet.vtu", "--algorithm",
+                       "morse-smale", "--output", str(tmp_path / "server"))
+    assert [Path(f).name for f in downloaded["files"]] == [
+        "server_critical_points.vtp", "server_separatrices.vtp", "server_segmentation.vtu"]
+    local = meshio.read(data_dir / "manifoldCheck0_tet.vtu")
+    ours, theirs = (meshio.read(tmp_path / f"{p}_segmentation.vtu") for p in ("server", "mc0"))
+    for written in (ours, theirs):
+        np.testing.assert_array_equal(written.points, local.points)
+        np.testing.assert_array_equal(written.cells_dict["tetra"], local.cells_dict["tetra"])
+    # The job's arrays alike; the local file's own field comes only with the file.
+    assert set(theirs.point_data) - set(ours.point_data) == {"height"}
+    for name, values in ours.point_data.items():
+        np.testing.assert_array_equal(values, theirs.point_data[name], err_msg=name)
+
+
+def test_run_output_geometry_of_another_mesh_is_refused_before_the_job(cli, server, data_dir,
+                                                                      tmp_path, shared_server):
+    """--geometry FILE whose counts differ from the mesh's: an error naming --geometry and both
+    counts, and no job."""
+    jobs = sum(shared_server.requests("RunJob").values())
+    other = str(data_dir / "manifoldCheck1_tet.vtu")
+    status, out, err = cli("run", "morse-smale", "--mesh", "manifoldCheck0_tet.vtu", "--output",
+                           str(tmp_path / "x"), "--geometry", other)
+    assert status == 1 and out == ""
+    assert err == (f"actopo: error: --geometry {other}: 24 vertices, but the mesh "
+                   "manifoldCheck0_tet.vtu on the server has 29; give the same mesh's file, or "
+                   "leave --geometry out to download the geometry from the server\n")
+    status, _, err = cli("run", "topological-simplification", "--mesh", "manifoldCheck0_tet.vtu",
+                         "--output", str(tmp_path / "x"), "--geometry", str(tmp_path / "no.vtu"))
+    assert status == 1 and f"--geometry: no such mesh file: {tmp_path / 'no.vtu'}" in err
+    status, _, err = cli("run", "morse-smale", "--mesh", "manifoldCheck0_tet.vtu", "--output",
+                         str(tmp_path / "x"), "--geometry", str(data_dir / "happi_tas_tri.vtu"))
+    assert status == 1 and "--geometry: happi_tas_tri.vtu: only tetrahedral meshes" in err
+    assert sum(shared_server.requests("RunJob").values()) == jobs
+    assert not list(tmp_path.iterdir())
+    # Algorithms that write no per-vertex file do not read it.
+    status, _, err = cli("run", "critical-points", "--mesh", "manifoldCheck0_tet.vtu",
+                         "--output", str(tmp_path / "cp"), "--geometry", other)
+    assert status == 0, err
+
+
+def test_run_output_warns_only_when_the_download_fails(cli, tmp_path, monkeypatch):
+    """A local file of the same name but another mesh is passed over for the server's
+    geometry; when downloading that fails, the files that need it are left out, with a
+    warning, and the others written."""
+    monkeypatch.delenv("ACTOPO_DATA_DIR", raising=False)
+    monkeypatch.chdir(tmp_path)
+    points, tets, fields = lattice(3)  # 27 vertices; the server's file has 29
+    meshio.Mesh(points, [("tetra", tets)], point_data=fields).write("manifoldCheck0_tet.vtu")
+    status, out, err = cli("run", "morse-smale", "--mesh", "manifoldCheck0_tet.vtu",
+                           "--output", "a")
+    assert status == 0 and err == "" and "wrote a_segmentation.vtu" in out
+    assert len(meshio.read("a_segmentation.vtu").points) == 29
+
+    def unavailable(*args, **kwargs):
+        raise actopo.UnavailableError("the server went away", grpc.StatusCode.UNAVAILABLE)
+
+    monkeypatch.setattr(actopo.Client, "download_mesh", unavailable)
+    status, out, err = cli("run", "morse-smale", "--mesh", "manifoldCheck0_tet.vtu", "--param",
+                           "persistence_threshold=0.1", "--output", "b")
+    assert status == 0 and "wrote b_critical_points.vtp" in out and "b_segm" not in out
+    assert err == ("actopo: simplified field and segmentation not written: downloading the "
+                   "mesh's geometry failed (the server went away [UNAVAILABLE]); pass "
+                   "--geometry FILE (the same mesh, local)\n")
 
 
 def test_compare_structures(cli):

@@ -13,6 +13,7 @@ import pyvista as pv
 
 import actopo
 from actopo import _batches, _mesh, _messages, _names, _requests, _upload
+from actopo._download import MeshStream
 from actopo._errors import error_for, error_for_number, translate
 from actopo._progress import make_load_progress, make_progress
 from actopo._proto import pb
@@ -210,6 +211,121 @@ def test_load_stream_reports_progress_and_keeps_the_mesh():
     stream.feed(pb.LoadMeshWithProgressResponse(mesh=pb.MeshInfo(mesh_id="m1", tetrahedra=2)))
     assert reports == [actopo.LoadProgress(phase="read", fraction=0.5, elapsed_seconds=0.25)]
     assert stream.mesh().mesh_id == "m1" and stream.mesh().tetrahedra == 2
+
+
+def _download_stream(mesh: _mesh.MeshArrays, chunk_bytes: int) -> list[pb.DownloadMeshResponse]:
+    """DownloadMesh's answer for `mesh` as a server could send it, in chunks of `chunk_bytes`
+    (the upload's byte stream, so chunks end inside values and straddle arrays)."""
+    mesh = _mesh.mesh_arrays(mesh)
+    header = _upload.header(mesh, pb.PartitionOptions())
+    header.ClearField("sha256")
+    header.ClearField("partition")
+    for f in header.fields:
+        if f.name in mesh.times:
+            f.time = mesh.times[f.name]
+    buffers = [a.data.cast("B") for a in (mesh.points, mesh.tetrahedra,
+                                          *mesh.point_data.values())]
+    return [pb.DownloadMeshResponse(header=header),
+            *(pb.DownloadMeshResponse(chunk=c) for c in _upload.chunks(buffers, chunk_bytes))]
+
+
+@pytest.mark.parametrize("chunk_bytes", [1, 7, 1000])
+def test_a_download_stream_decodes_into_the_arrays_it_announced(chunk_bytes):
+    sent = _mesh.MeshArrays(
+        "two", POINTS, TETS[:, ::-1].astype(np.int32),
+        {"h": POINTS[:, 2].astype(np.float32), "label": np.arange(5, dtype=np.int64),
+         "i": np.arange(5, dtype=np.int32), "x": POINTS[:, 0]}, {"x": 2.5})
+    reports: list[float] = []
+    stream = MeshStream(reports.append)
+    for response in _download_stream(sent, chunk_bytes):
+        stream.feed(response)
+    mesh = stream.mesh()
+    assert (mesh.name, mesh.times, list(mesh.point_data)) == ("two", {"x": 2.5},
+                                                              ["h", "label", "i", "x"])
+    np.testing.assert_array_equal(mesh.points, POINTS)
+    np.testing.assert_array_equal(mesh.tetrahedra, TETS[:, ::-1])
+    assert mesh.tetrahedra.dtype == np.int32
+    for name, values in sent.point_data.items():
+        assert mesh.point_data[name].dtype == values.dtype
+        np.testing.assert_array_equal(mesh.point_data[name], values)
+    total = 5 * 24 + 2 * 16 + 5 * (4 + 8 + 4 + 8)
+    assert len(reports) == -(-total // chunk_bytes) and reports[-1] == 1.0
+    assert reports == sorted(reports)
+    assert repr(mesh) == "MeshArrays('two', 5 vertices, 2 tetrahedra, fields ['h', 'label', " \
+        "'i', 'x'])"
+
+
+def test_a_broken_download_stream_is_an_error():
+    sent = _mesh.MeshArrays("two", POINTS, TETS.astype(np.int32), {"h": POINTS[:, 2]})
+    header, *chunks = _download_stream(sent, 64)
+    stream = MeshStream(lambda fraction: None)
+    with pytest.raises(actopo.ActopoError, match="a chunk before the header"):
+        stream.feed(chunks[0])
+    with pytest.raises(actopo.ActopoError, match="ended without its header"):
+        stream.mesh()
+    stream.feed(header)
+    with pytest.raises(actopo.ActopoError, match="a second header"):
+        stream.feed(header)
+    for chunk in chunks[:-1]:
+        stream.feed(chunk)
+    with pytest.raises(actopo.ActopoError, match=r"ended after 128 of the 192 bytes"):
+        stream.mesh()
+    stream.feed(chunks[-1])
+    with pytest.raises(actopo.ActopoError, match="more than the 192 bytes the header announced"):
+        stream.feed(pb.DownloadMeshResponse(chunk=b"\0"))
+    for field, value, message in (("points_dtype", pb.DATA_TYPE_INT32, "points of dtype int32"),
+                                  ("tetrahedra_dtype", pb.DATA_TYPE_FLOAT64,
+                                   "tetrahedra of dtype float64"),
+                                  ("num_vertices", -1, "-1 vertices")):
+        bad = pb.DownloadMeshResponse()
+        bad.CopyFrom(header)
+        setattr(bad.header, field, value)
+        with pytest.raises(actopo.ActopoError, match=message):
+            MeshStream(lambda fraction: None).feed(bad)
+    twice = pb.DownloadMeshResponse()
+    twice.CopyFrom(header)
+    twice.header.fields.append(twice.header.fields[0])
+    with pytest.raises(actopo.ActopoError, match="a field named twice"):
+        MeshStream(lambda fraction: None).feed(twice)
+
+
+def test_a_download_request_names_its_fields():
+    assert _messages.build_download_mesh("m1", None) == pb.DownloadMeshRequest(mesh_id="m1")
+    assert _messages.build_download_mesh("m1", []) == pb.DownloadMeshRequest(mesh_id="m1")
+    assert _messages.build_download_mesh("m1", "all") == \
+        pb.DownloadMeshRequest(mesh_id="m1", all_fields=True)
+    assert list(_messages.build_download_mesh("m1", ("b", "a")).fields) == ["b", "a"]
+    with pytest.raises(actopo.InvalidArgumentError, match=r"for that field alone: \['h'\]"):
+        _messages.build_download_mesh("m1", "h")
+    with pytest.raises(actopo.InvalidArgumentError, match="is not a field name"):
+        _messages.build_download_mesh("m1", ["h", 3])  # type: ignore[list-item]
+    assert _messages.download_description("m1") == "download m1"
+
+
+def test_mesh_arrays_are_checked_as_a_tuple_is():
+    """A MeshArrays made by hand uploads as the same arrays as a tuple would: made contiguous
+    and little-endian, its ids checked; its times kept."""
+    made = _mesh.MeshArrays("two", POINTS.astype(">f8"), TETS, {"x": POINTS[:, 0]}, {"x": 1.0})
+    mesh = _mesh.mesh_arrays(made)
+    assert mesh.points.dtype == np.dtype("<f8") and mesh.tetrahedra.dtype == np.dtype("<i4")
+    assert mesh.point_data["x"].flags.c_contiguous and mesh.times == {"x": 1.0}
+    with pytest.raises(actopo.InvalidMeshError, match=r"two: tetrahedra reference vertex 9"):
+        _mesh.mesh_arrays(_mesh.MeshArrays("two", POINTS, TETS + 5))
+
+
+def test_mesh_arrays_as_pyvista_and_meshio(monkeypatch):
+    mesh = _mesh.MeshArrays("two", POINTS, TETS, {"h": POINTS[:, 2]})
+    grid = mesh.to_pyvista()
+    np.testing.assert_array_equal(grid.points, POINTS)
+    np.testing.assert_array_equal(grid.cells_dict[pv.CellType.TETRA], TETS)
+    np.testing.assert_array_equal(grid.point_data["h"], POINTS[:, 2])
+    converted = mesh.to_meshio()
+    np.testing.assert_array_equal(converted.cells_dict["tetra"], TETS)
+    np.testing.assert_array_equal(converted.point_data["h"], POINTS[:, 2])
+    for module, method in (("pyvista", mesh.to_pyvista), ("meshio", mesh.to_meshio)):
+        monkeypatch.setitem(sys.modules, module, None)  # as if it were not installed
+        with pytest.raises(ImportError, match=f"pip install 'actopo\\[{module}\\]'"):
+            method()
 
 
 def test_a_load_request_of_a_path_a_sample_or_a_list_of_files():

@@ -354,11 +354,27 @@ def test_cli_runs_a_simplification(cli, data_dir, reference, tmp_path, monkeypat
     check_summary(SIMPLIFICATION, report["result"],
                   reference("fertility_tet.vtu", "height", "0.05"), digests=True)
     assert report["files"] == [f"{prefix}_simplified.vtu"]
+    # Without a local copy of the mesh: the simplified field on the server's geometry, the
+    # same values as on the file's (which brings its other field along).
     monkeypatch.delenv("ACTOPO_DATA_DIR", raising=False)  # else the CLI finds the file there
     monkeypatch.chdir(tmp_path)
-    status, _, err = cli("run", "morse-smale", "--mesh", "manifoldCheck0_tet.vtu", "--param",
-                         "persistence_threshold=0.1", "--output", str(tmp_path / "nogeo"))
-    assert status == 0 and "simplified field and segmentation not written" in err
+    status, out, err = cli("run", SIMPLIFICATION, "--mesh", "fertility_tet.vtu", "--scalar",
+                           "height", "--param", "relative_threshold=0.05", "--output",
+                           "out/server")
+    assert status == 0 and err == "" and "wrote out/server_simplified.vtu" in out
+    ours, theirs = pv.read("out/server_simplified.vtu"), pv.read(f"{prefix}_simplified.vtu")
+    np.testing.assert_array_equal(ours.points, theirs.points)
+    np.testing.assert_array_equal(ours.cell_connectivity, theirs.cell_connectivity)
+    assert sorted(ours.point_data.keys()) == ["height", "height_Order"]
+    assert sorted(theirs.point_data.keys()) == ["eigenfunction4", "height", "height_Order"]
+    for name in ("height", "height_Order"):
+        assert ours.point_data[name].dtype == theirs.point_data[name].dtype
+        np.testing.assert_array_equal(ours.point_data[name], theirs.point_data[name])
+    status, out, err = cli("run", "morse-smale", "--mesh", "manifoldCheck0_tet.vtu", "--param",
+                           "persistence_threshold=0.1", "--output", str(tmp_path / "server"))
+    assert status == 0 and err == "", err
+    assert [line.rsplit("_", 1)[1] for line in out.splitlines() if "wrote" in line] == [
+        "points.vtp", "separatrices.vtp", "simplified.vtu", "segmentation.vtu"]
     status, _, err = cli("run", SIMPLIFICATION, "--mesh", "manifoldCheck0_tet.vtu", "--param",
                          "relative_threshold=2")
     assert status == 1 and "parameters.relative_threshold: threshold: 2 is not a fraction" in err

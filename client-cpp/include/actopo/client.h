@@ -1,15 +1,15 @@
 // actopo/client.h: the C++ client of the ACTOPO topology service (proto package actopo.v1).
 //
-// A `Client` talks to an actopo-server over gRPC. It loads or uploads tetrahedral meshes and adds
-// point fields to them, opens sessions (a topological data structure on a mesh and a scalar
-// field), asks relation queries (one simplex, a batch, or a stream) and runs TTK-compatible
-// algorithm jobs, on the session's field or over several fields, whose results come as named
-// arrays (a persistence diagram's also as pairs: JobResult::PersistencePairs) and, comparing
-// fields, as distance matrices (JobResult::Distances) or tracked pairs (JobResult::Tracking).
-// Every fallible call returns absl::Status or absl::StatusOr<T> carrying the server's gRPC code
-// and message unchanged (NOT_FOUND for an unknown mesh, OUT_OF_RANGE for a simplex id past the
-// end, ...); problems the client finds itself (an unknown relation name, a ragged array) are
-// INVALID_ARGUMENT before anything is sent.
+// A `Client` talks to an actopo-server over gRPC. It loads, uploads or downloads tetrahedral
+// meshes and adds point fields to them, opens sessions (a topological data structure on a mesh and
+// a scalar field), asks relation queries (one simplex, a batch, or a stream) and runs
+// TTK-compatible algorithm jobs, on the session's field or over several fields, whose results come
+// as named arrays (a persistence diagram's also as pairs: JobResult::PersistencePairs) and,
+// comparing fields, as distance matrices (JobResult::Distances) or tracked pairs
+// (JobResult::Tracking). Every fallible call returns absl::Status or absl::StatusOr<T> carrying the
+// server's gRPC code and message unchanged (NOT_FOUND for an unknown mesh, OUT_OF_RANGE for a
+// simplex id past the end, ...); problems the client finds itself (an unknown relation name, a
+// ragged array) are INVALID_ARGUMENT before anything is sent.
 //
 // Everything here is in namespace actopo::client; the server's own types (its EngineStats,
 // PartitionOptions, ...) are in actopo, so one program may link the client and the server's
@@ -225,6 +225,42 @@ struct AddFieldsOptions {
   // values before they are sent; empty: none, the server checks nothing. Give the digest known
   // at the data's source to have the whole way checked.
   std::optional<std::string> sha256;
+};
+
+// A point field of a downloaded mesh (MeshArrays).
+struct MeshField {
+  std::string name;
+  // The dtype it was loaded or added with: kFloat32, kFloat64, kInt32 or kInt64; `values` holds
+  // it widened to double (exact: the server keeps every field as doubles).
+  DataType dtype = DataType::kUnspecified;
+  std::vector<double> values;  // one per vertex
+  std::optional<double> time;  // a series member's (FieldInfo::time)
+};
+
+// A loaded mesh as the server holds it (Client::DownloadMesh), in the upload's terms: it uploads
+// again as the same mesh.
+//
+//   auto mesh = client->DownloadMesh(mesh_id, {"height"});
+//   auto copy = client->UploadMesh(mesh->points, mesh->tetrahedra,
+//                                  {{"height", mesh->fields[0].values}});
+struct MeshArrays {
+  std::string name;
+  std::vector<double> points;       // x, y, z per vertex, in input order
+  std::vector<int64_t> tetrahedra;  // 4 input vertex ids per tetrahedron, in the order given
+  std::vector<MeshField> fields;    // the fields asked for, in that order
+
+  int64_t vertices() const { return int64_t(points.size() / 3); }
+  // The field `name`, or nullptr.
+  const MeshField* Field(std::string_view name) const;
+};
+
+// Options of Client::DownloadMesh.
+struct DownloadOptions {
+  // Every point field of the mesh, in its order (GetMesh's), instead of the ones named.
+  bool all_fields = false;
+  // Called with the fraction of the bytes received (0 to 1) after each chunk, on
+  // DownloadMesh's thread.
+  std::function<void(double fraction)> progress;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -798,6 +834,21 @@ class Client {
                                      const AddFieldsOptions& options = {});
   absl::StatusOr<MeshInfo> AddField(std::string_view mesh_id, const FieldValues& field,
                                     const AddFieldsOptions& options = {});
+  // A loaded mesh back as the server holds it (DownloadMesh): its points in input order, each
+  // tetrahedron's vertices in the order they were given, and the point fields named in `fields`
+  // in that order (or every one, with options.all_fields), in the dtype each was loaded or
+  // added with. The bytes arrive in chunks of about 1 MiB, each converted into the vectors as
+  // it comes, so the mesh is held once. NOT_FOUND for an unknown mesh or field ("fields[i]:
+  // point field 'x' not found; point fields: ..."), INVALID_ARGUMENT for a field named twice or
+  // for fields together with all_fields (before anything is sent); DATA_LOSS if the stream
+  // does not hold what its header announced.
+  //
+  //   absl::StatusOr<actopo::client::MeshArrays> mesh =
+  //       client->DownloadMesh(mesh_id, {}, {.all_fields = true});
+  //   if (mesh.ok()) std::cout << mesh->vertices() << " vertices, " << mesh->fields.size() << "\n";
+  absl::StatusOr<MeshArrays> DownloadMesh(std::string_view mesh_id,
+                                          const std::vector<std::string>& fields = {},
+                                          const DownloadOptions& options = {});
   // Deletes a point field of a mesh; sessions and jobs reading it keep it until they are done.
   // NOT_FOUND for an unknown mesh or field. Returns the mesh with its remaining fields.
   absl::StatusOr<MeshInfo> DeleteField(std::string_view mesh_id, std::string_view name);
