@@ -18,6 +18,7 @@
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
+#include "server/core/testing/status.h"
 #include "server/io/test_data.h"
 #include "server/io/vtk_reader.h"
 #include "tests/morse_smale_checks.h"
@@ -65,10 +66,11 @@ struct Loaded {
 Loaded Load(const std::string& file, const std::string& field) {
   auto mesh = io::ReadMesh(io::testing::DataDir() + "/" + file);
   EXPECT_TRUE(mesh.ok()) << mesh.status();
-  const int f = *SelectScalarField(*mesh, field);
-  auto topo = *Topology::Build(*mesh, OctreeBlocks(mesh->points, {.bucket_capacity = 1000}));
+  const int f = OkValue(SelectScalarField(*mesh, field));
+  auto topo =
+      OkValue(Topology::Build(*mesh, OctreeBlocks(mesh->points, {.bucket_capacity = 1000})));
   return {topo, VertexOrder(*topo, mesh->point_fields[f].values),
-          *InputCorners(*topo, mesh->tetrahedra), mesh->point_fields[f].values};
+          OkValue(InputCorners(*topo, mesh->tetrahedra)), mesh->point_fields[f].values};
 }
 
 class MatchesTtk : public io::testing::DataTest {};
@@ -101,7 +103,7 @@ TEST_F(MatchesTtk, EveryExpectedDatasetIsTested) {
 // 1 to 3 producers and two buffer ratios): results must not depend on any of them.
 template <class Check>
 void ForEveryStructureAndThreadCount(const Loaded& in, Prefetch prefetch, Check&& check) {
-  auto explicit_structure = *ExplicitStructure::Build(in.topology, {});
+  auto explicit_structure = OkValue(ExplicitStructure::Build(in.topology, {}));
   for (int consumers : {1, 2, 3}) {
     const RunContext context{.consumers = consumers};
     const std::string c = " C=" + std::to_string(consumers);
@@ -110,10 +112,10 @@ void ForEveryStructureAndThreadCount(const Loaded& in, Prefetch prefetch, Check&
     check("compact" + c, compact, context);
     const int producers = 1 + (consumers + 1) % 3;
     auto actopo =
-        *ActopoStructure::Create(in.topology, {.consumers = consumers,
-                                               .producers = producers,
-                                               .buffer_ratio = consumers == 2 ? 0.05 : 0.2,
-                                               .prefetch = prefetch});
+        OkValue(ActopoStructure::Create(in.topology, {.consumers = consumers,
+                                                      .producers = producers,
+                                                      .buffer_ratio = consumers == 2 ? 0.05 : 0.2,
+                                                      .prefetch = prefetch}));
     check("actopo P=" + std::to_string(producers) + c, *actopo, context);
   }
 }
@@ -128,7 +130,7 @@ TEST_P(MatchesTtkOn, CriticalPointsAndDiscreteGradient) {
       in, Prefetch::kLinear,
       [&](const std::string& label, auto& structure, const RunContext& context) {
         SCOPED_TRACE(label);
-        const CriticalPointsResult r = *RunCriticalPoints(structure, in.order, {}, context);
+        const CriticalPointsResult r = OkValue(RunCriticalPoints(structure, in.order, {}, context));
         EXPECT_EQ(r.counts[int(CriticalType::kMinimum)], cp["counts"]["minimum"].get<int64_t>());
         EXPECT_EQ(r.counts[int(CriticalType::kSaddle1)], cp["counts"]["saddle1"].get<int64_t>());
         EXPECT_EQ(r.counts[int(CriticalType::kSaddle2)], cp["counts"]["saddle2"].get<int64_t>());
@@ -137,7 +139,7 @@ TEST_P(MatchesTtkOn, CriticalPointsAndDiscreteGradient) {
                   cp["counts"]["degenerate"].get<int64_t>());
         EXPECT_EQ(r.VerticesDigest(), cp["vertices_sha256"].get<std::string>());
 
-        const DiscreteGradientResult g = *RunDiscreteGradient(structure, in.order, context);
+        const DiscreteGradientResult g = OkValue(RunDiscreteGradient(structure, in.order, context));
         if constexpr (std::is_same_v<std::decay_t<decltype(structure)>, ExplicitStructure>) {
           testing::ExpectValidGradient(g, structure);  // the digests below cover the others
         }
@@ -159,7 +161,7 @@ TEST_P(MatchesTtkOn, MorseSmale) {
       in, Prefetch::kLinear,
       [&](const std::string& label, auto& structure, const RunContext& context) {
         SCOPED_TRACE(label);
-        const MorseSmaleResult r = *RunMorseSmale(structure, in.order, in.corners, context);
+        const MorseSmaleResult r = OkValue(RunMorseSmale(structure, in.order, in.corners, context));
         testing::ExpectMorseSmaleEquals(r, ms);
       });
 }
@@ -203,13 +205,13 @@ TEST_F(MatchesTtk, GradientInvariantsOnOtherMeshes) {
                                     std::pair{"isabel02_s2_tet.vtu", "velocityMag"}}) {
     SCOPED_TRACE(file);
     const Loaded in = Load(file, field);
-    auto explicit_structure = *ExplicitStructure::Build(in.topology, {});
+    auto explicit_structure = OkValue(ExplicitStructure::Build(in.topology, {}));
     const DiscreteGradientResult reference =
-        *RunDiscreteGradient(*explicit_structure, in.order, {});
+        OkValue(RunDiscreteGradient(*explicit_structure, in.order, {}));
     testing::ExpectValidGradient(reference, *explicit_structure);
-    auto actopo =
-        *ActopoStructure::Create(in.topology, {.producers = 2, .prefetch = Prefetch::kAdaptive});
-    const DiscreteGradientResult r = *RunDiscreteGradient(*actopo, in.order, {});
+    auto actopo = OkValue(
+        ActopoStructure::Create(in.topology, {.producers = 2, .prefetch = Prefetch::kAdaptive}));
+    const DiscreteGradientResult r = OkValue(RunDiscreteGradient(*actopo, in.order, {}));
     EXPECT_EQ(r.PairsDigest(*in.topology), reference.PairsDigest(*in.topology));
   }
 }

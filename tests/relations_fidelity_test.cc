@@ -10,6 +10,7 @@
 #include "server/core/partition.h"
 #include "server/core/testing/oracle.h"
 #include "server/core/testing/relation_checks.h"
+#include "server/core/testing/status.h"
 #include "server/io/samples.h"
 #include "server/io/test_data.h"
 #include "server/io/vtk_reader.h"
@@ -30,7 +31,7 @@ void ExpectExactRelations(const Mesh& mesh, const std::string& name) {
     auto topo = Partitioned(mesh, block_size);
     testing::RelationOracle oracle(*topo);
     const std::string label = name + " block size " + std::to_string(block_size);
-    auto explicit_structure = *ExplicitStructure::Build(topo, {});
+    auto explicit_structure = OkValue(ExplicitStructure::Build(topo, {}));
     auto explicit_reader = explicit_structure->NewReader();
     EXPECT_EQ(testing::CompareWithOracle(explicit_reader, oracle, label + " explicit"), 0);
     CompactStructure compact(topo, {.cache_ratio = 0.2});
@@ -53,8 +54,8 @@ INSTANTIATE_TEST_SUITE_P(ManifoldCheck, SmallMeshes,
                                            "manifoldCheck2_tet.vtu"));
 
 TEST(Samples, AnalyticAndIrregularMatchOracle) {
-  ExpectExactRelations(*io::MakeSample("wavelet:7"), "wavelet:7");
-  ExpectExactRelations(*io::MakeSample("jittered:7"), "jittered:7");
+  ExpectExactRelations(OkValue(io::MakeSample("wavelet:7")), "wavelet:7");
+  ExpectExactRelations(OkValue(io::MakeSample("jittered:7")), "jittered:7");
 }
 
 struct Expected {
@@ -113,8 +114,8 @@ TEST_P(LargerMeshes, CountsIdentitiesAndStructuresAgree) {
   EXPECT_EQ(topo->num_tetrahedra(), x.t);
   EXPECT_EQ(int64_t(x.v) - x.e + x.f - x.t, x.euler);
 
-  auto explicit_structure = *ExplicitStructure::Build(topo, {});
-  const TopoRelationsResult e = *RunTopoRelations(*explicit_structure, {.consumers = 2});
+  auto explicit_structure = OkValue(ExplicitStructure::Build(topo, {}));
+  const TopoRelationsResult e = OkValue(RunTopoRelations(*explicit_structure, {.consumers = 2}));
   auto total = [&](Relation r) { return e.totals[Index(r)]; };
   const int64_t E = x.e, F = x.f, T = x.t;
   EXPECT_EQ(total(Relation::kVT), 4 * T);
@@ -131,7 +132,7 @@ TEST_P(LargerMeshes, CountsIdentitiesAndStructuresAgree) {
   EXPECT_EQ(boundary, x.boundary);
 
   CompactStructure compact(topo, {.cache_ratio = 0.2, .consumers = 2});
-  const TopoRelationsResult c = *RunTopoRelations(compact, {.consumers = 2});
+  const TopoRelationsResult c = OkValue(RunTopoRelations(compact, {.consumers = 2}));
   EXPECT_EQ(c.totals, e.totals);
   EXPECT_EQ(c.checksum, e.checksum);
 

@@ -15,6 +15,7 @@
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
+#include "server/core/testing/status.h"
 #include "server/io/test_data.h"
 #include "server/io/vtk_reader.h"
 #include "tests/morse_smale_checks.h"
@@ -98,9 +99,10 @@ TEST_P(SimplificationMatchesTtk, ValuesOrderAndMorseSmale) {
   const Json& expected = all[c.file][c.field][c.fraction];
   auto mesh = io::ReadMesh(io::testing::DataDir() + "/" + c.file);
   ASSERT_TRUE(mesh.ok()) << mesh.status();
-  const int f = *SelectScalarField(*mesh, c.field);
+  const int f = OkValue(SelectScalarField(*mesh, c.field));
   const std::vector<double>& scalars = mesh->point_fields[f].values;
-  auto topo = *Topology::Build(*mesh, OctreeBlocks(mesh->points, {.bucket_capacity = 1000}));
+  auto topo =
+      OkValue(Topology::Build(*mesh, OctreeBlocks(mesh->points, {.bucket_capacity = 1000})));
   const std::vector<SimplexId> order = VertexOrder(*topo, scalars);
   const SimplificationOptions options{
       .threshold = std::stod(c.fraction), .relative = true, .legacy = c.legacy};
@@ -122,19 +124,20 @@ TEST_P(SimplificationMatchesTtk, ValuesOrderAndMorseSmale) {
     }
     EXPECT_EQ(r->ScalarsDigest(), expected["scalars_sha256"].get<std::string>());
     EXPECT_EQ(r->OrderDigest(), expected["order_sha256"].get<std::string>());
-    const auto ms = RunMorseSmale(structure, r->internal_order,
-                                  *InputCorners(structure.topology(), mesh->tetrahedra), context);
+    const auto ms =
+        RunMorseSmale(structure, r->internal_order,
+                      OkValue(InputCorners(structure.topology(), mesh->tetrahedra)), context);
     ASSERT_TRUE(ms.ok()) << ms.status();
     testing::ExpectMorseSmaleEquals(*ms, expected["morse_smale"]);
   };
-  auto explicit_structure = *ExplicitStructure::Build(topo, {});
+  auto explicit_structure = OkValue(ExplicitStructure::Build(topo, {}));
   for (int consumers : {1, 2}) {
     const RunContext context{.consumers = consumers};
     const std::string n = " C=" + std::to_string(consumers);
     check("explicit" + n, *explicit_structure, context);
     CompactStructure compact(topo, {.cache_ratio = 0.1, .consumers = consumers});
     check("compact" + n, compact, context);
-    auto actopo = *ActopoStructure::Create(topo, {.consumers = consumers, .producers = 2});
+    auto actopo = OkValue(ActopoStructure::Create(topo, {.consumers = consumers, .producers = 2}));
     check("actopo" + n, *actopo, context);
   }
 }

@@ -17,13 +17,14 @@
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
 #include "server/core/testing/oracle.h"
+#include "server/core/testing/status.h"
 #include "server/core/testing/test_meshes.h"
 
 namespace actopo {
 namespace {
 
 std::shared_ptr<const Topology> Build(const Mesh& m, int capacity) {
-  return *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = capacity}));
+  return OkValue(Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = capacity})));
 }
 
 // A field with many exact ties, to exercise the (scalar, id) tie-break.
@@ -64,8 +65,9 @@ TEST(VertexOrder, BreaksTiesByInputId) {
 TEST(CriticalPoints, IdenticalOnEveryStructureAndMode) {
   for (const Fixture& f : Fixtures()) {
     auto explicit_structure =
-        *ExplicitStructure::Build(f.topo, {.relations = CriticalPointsDeclared()});
-    const CriticalPointsResult reference = *RunCriticalPoints(*explicit_structure, f.order, {}, {});
+        OkValue(ExplicitStructure::Build(f.topo, {.relations = CriticalPointsDeclared()}));
+    const CriticalPointsResult reference =
+        OkValue(RunCriticalPoints(*explicit_structure, f.order, {}, {}));
     ASSERT_FALSE(reference.points.empty());
     const std::string digest = reference.VerticesDigest();
     for (int consumers : {1, 2}) {
@@ -77,12 +79,13 @@ TEST(CriticalPoints, IdenticalOnEveryStructureAndMode) {
                 digest);
       for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
         for (Precompute q : {Precompute::kRequested, Precompute::kDeclared}) {
-          auto actopo = *ActopoStructure::Create(f.topo, {.consumers = consumers,
-                                                          .producers = 2,
-                                                          .buffer_ratio = 0.1,
-                                                          .prefetch = p,
-                                                          .precompute = q,
-                                                          .declared = CriticalPointsDeclared()});
+          auto actopo =
+              OkValue(ActopoStructure::Create(f.topo, {.consumers = consumers,
+                                                       .producers = 2,
+                                                       .buffer_ratio = 0.1,
+                                                       .prefetch = p,
+                                                       .precompute = q,
+                                                       .declared = CriticalPointsDeclared()}));
           EXPECT_EQ(
               RunCriticalPoints(*actopo, f.order, {}, {.consumers = consumers})->VerticesDigest(),
               digest)
@@ -95,9 +98,10 @@ TEST(CriticalPoints, IdenticalOnEveryStructureAndMode) {
 
 TEST(CriticalPoints, BoundaryRuleOnlyAddsBoundarySaddles) {
   for (const Fixture& f : Fixtures()) {
-    auto s = *ExplicitStructure::Build(f.topo, {.relations = CriticalPointsDeclared()});
-    const auto ttk = *RunCriticalPoints(*s, f.order, {}, {});
-    const auto none = *RunCriticalPoints(*s, f.order, {.boundary_rule = BoundaryRule::kNone}, {});
+    auto s = OkValue(ExplicitStructure::Build(f.topo, {.relations = CriticalPointsDeclared()}));
+    const auto ttk = OkValue(RunCriticalPoints(*s, f.order, {}, {}));
+    const auto none =
+        OkValue(RunCriticalPoints(*s, f.order, {.boundary_rule = BoundaryRule::kNone}, {}));
     // Extrema and interior points agree; with the rule, extra saddles all lie on the boundary.
     EXPECT_EQ(ttk.counts[int(CriticalType::kMinimum)], none.counts[int(CriticalType::kMinimum)]);
     EXPECT_EQ(ttk.counts[int(CriticalType::kMaximum)], none.counts[int(CriticalType::kMaximum)]);
@@ -132,9 +136,9 @@ TEST(CriticalPoints, BoundaryRuleEqualsItsDefinitionOverTheOraclesVertexBoundary
     const auto& vb = oracle.rows(Relation::kVB);
     const auto& vv = oracle.rows(Relation::kVV);
     auto explicit_structure =
-        *ExplicitStructure::Build(f.topo, {.relations = CriticalPointsDeclared()});
-    const auto none = *RunCriticalPoints(*explicit_structure, f.order,
-                                         {.boundary_rule = BoundaryRule::kNone}, {});
+        OkValue(ExplicitStructure::Build(f.topo, {.relations = CriticalPointsDeclared()}));
+    const auto none = OkValue(RunCriticalPoints(*explicit_structure, f.order,
+                                                {.boundary_rule = BoundaryRule::kNone}, {}));
     std::map<SimplexId, CriticalType> expected;  // by input id
     for (const CriticalPoint& p : none.points) expected[p.vertex] = p.type;
     for (SimplexId v = 0; v < f.topo->num_vertices(); ++v) {
@@ -149,16 +153,16 @@ TEST(CriticalPoints, BoundaryRuleEqualsItsDefinitionOverTheOraclesVertexBoundary
       rule_saddles += upper != lower;
     }
     CompactStructure compact(f.topo, {.cache_ratio = 0.1});
-    auto actopo = *ActopoStructure::Create(
-        f.topo, {.precompute = Precompute::kDeclared, .declared = CriticalPointsSwept()});
+    auto actopo = OkValue(ActopoStructure::Create(
+        f.topo, {.precompute = Precompute::kDeclared, .declared = CriticalPointsSwept()}));
     const auto check = [&](const CriticalPointsResult& r, const char* structure) {
       std::map<SimplexId, CriticalType> found;
       for (const CriticalPoint& p : r.points) found[p.vertex] = p.type;
       EXPECT_EQ(found, expected) << structure;
     };
-    check(*RunCriticalPoints(*explicit_structure, f.order, {}, {}), "explicit");
-    check(*RunCriticalPoints(compact, f.order, {}, {}), "compact");
-    check(*RunCriticalPoints(*actopo, f.order, {}, {}), "actopo");
+    check(OkValue(RunCriticalPoints(*explicit_structure, f.order, {}, {})), "explicit");
+    check(OkValue(RunCriticalPoints(compact, f.order, {}, {})), "compact");
+    check(OkValue(RunCriticalPoints(*actopo, f.order, {}, {})), "actopo");
   }
   EXPECT_GT(rule_saddles, 0);  // else the rule would not be seen at work
 }
@@ -178,10 +182,10 @@ TEST(CriticalPoints, OnBoundaryIsTheOraclesVertexBoundary) {
     const testing::RelationOracle oracle(*f.topo);
     const auto& vb = oracle.rows(Relation::kVB);
     auto explicit_structure =
-        *ExplicitStructure::Build(f.topo, {.relations = CriticalPointsDeclared()});
+        OkValue(ExplicitStructure::Build(f.topo, {.relations = CriticalPointsDeclared()}));
     CompactStructure compact(f.topo, {.cache_ratio = 0.1});
-    auto actopo = *ActopoStructure::Create(
-        f.topo, {.precompute = Precompute::kDeclared, .declared = CriticalPointsSwept()});
+    auto actopo = OkValue(ActopoStructure::Create(
+        f.topo, {.precompute = Precompute::kDeclared, .declared = CriticalPointsSwept()}));
     const auto check = [&](const CriticalPointsResult& r, const char* structure) {
       ASSERT_FALSE(r.points.empty());
       for (const CriticalPoint& p : r.points) {
@@ -189,14 +193,14 @@ TEST(CriticalPoints, OnBoundaryIsTheOraclesVertexBoundary) {
             << structure << ": input vertex " << p.vertex;
       }
     };
-    check(*RunCriticalPoints(*explicit_structure, f.order, {}, {}), "explicit");
-    check(*RunCriticalPoints(compact, f.order, {}, {}), "compact");
-    check(*RunCriticalPoints(*actopo, f.order, {}, {}), "actopo");
+    check(OkValue(RunCriticalPoints(*explicit_structure, f.order, {}, {})), "explicit");
+    check(OkValue(RunCriticalPoints(compact, f.order, {}, {})), "compact");
+    check(OkValue(RunCriticalPoints(*actopo, f.order, {}, {})), "actopo");
   }
   // The centre is the open bipyramid's minimum, on the boundary.
   const Fixture& open = fixtures.back();
-  auto s = *ExplicitStructure::Build(open.topo, {.relations = CriticalPointsDeclared()});
-  const CriticalPointsResult r = *RunCriticalPoints(*s, open.order, {}, {});
+  auto s = OkValue(ExplicitStructure::Build(open.topo, {.relations = CriticalPointsDeclared()}));
+  const CriticalPointsResult r = OkValue(RunCriticalPoints(*s, open.order, {}, {}));
   ASSERT_FALSE(r.points.empty());
   EXPECT_EQ(r.points[0].vertex, 0);
   EXPECT_EQ(r.points[0].type, CriticalType::kMinimum);
@@ -205,9 +209,10 @@ TEST(CriticalPoints, OnBoundaryIsTheOraclesVertexBoundary) {
 
 TEST(CriticalPoints, MinimaAgreeWithTheGradient) {
   for (const Fixture& f : Fixtures()) {
-    auto s = *ExplicitStructure::Build(f.topo, {});
-    const auto points = *RunCriticalPoints(*s, f.order, {.boundary_rule = BoundaryRule::kNone}, {});
-    const auto gradient = *RunDiscreteGradient(*s, f.order, {});
+    auto s = OkValue(ExplicitStructure::Build(f.topo, {}));
+    const auto points =
+        OkValue(RunCriticalPoints(*s, f.order, {.boundary_rule = BoundaryRule::kNone}, {}));
+    const auto gradient = OkValue(RunDiscreteGradient(*s, f.order, {}));
     EXPECT_EQ(points.counts[int(CriticalType::kMinimum)], gradient.critical_cells[0]);
   }
 }
@@ -380,25 +385,27 @@ TEST(DiscreteGradient, EqualsTheLowerStarPairingByDefinition) {
     cases.push_back({topo, reversed(order), name + ", centre last"});
   }
   for (const Case& c : cases) {
-    auto explicit_structure = *ExplicitStructure::Build(c.topo, {});
+    auto explicit_structure = OkValue(ExplicitStructure::Build(c.topo, {}));
     const ReferenceGradient want = PairLowerStarsByDefinition(*explicit_structure, c.order);
-    ExpectEqualsReference(*RunDiscreteGradient(*explicit_structure, c.order, {}), want,
+    ExpectEqualsReference(OkValue(RunDiscreteGradient(*explicit_structure, c.order, {})), want,
                           c.label + ", explicit");
     // Paired again from the gradient of another order, every vertex reordered.
     CompactStructure compact(c.topo, {.cache_ratio = 0.1, .consumers = 2});
     std::vector<SimplexId> every(c.order.size());
     std::iota(every.begin(), every.end(), 0);
     const std::vector<SimplexId> other = reversed(c.order);
-    ExpectEqualsReference(*UpdateDiscreteGradient(compact, *RunDiscreteGradient(compact, other, {}),
-                                                  c.order, every, {.consumers = 2}),
-                          want, c.label + ", compact update");
+    ExpectEqualsReference(
+        OkValue(UpdateDiscreteGradient(compact, *RunDiscreteGradient(compact, other, {}), c.order,
+                                       every, {.consumers = 2})),
+        want, c.label + ", compact update");
   }
 }
 
 TEST(DiscreteGradient, ValidAndIdenticalOnEveryStructureAndMode) {
   for (const Fixture& f : Fixtures()) {
-    auto explicit_structure = *ExplicitStructure::Build(f.topo, {});
-    const DiscreteGradientResult reference = *RunDiscreteGradient(*explicit_structure, f.order, {});
+    auto explicit_structure = OkValue(ExplicitStructure::Build(f.topo, {}));
+    const DiscreteGradientResult reference =
+        OkValue(RunDiscreteGradient(*explicit_structure, f.order, {}));
     testing::ExpectValidGradient(reference, *explicit_structure);
     const std::string pairs = reference.PairsDigest(*f.topo);
     const std::string critical = reference.CriticalCellsDigest(*f.topo);
@@ -408,21 +415,22 @@ TEST(DiscreteGradient, ValidAndIdenticalOnEveryStructureAndMode) {
       EXPECT_EQ(r.CriticalCellsDigest(*f.topo), critical) << label;
     };
     // The persistence arrays only: the same pairs, read from down[3] for d = 2.
-    const auto kept =
-        *RunDiscreteGradient(*explicit_structure, f.order, {}, GradientArrays::kPersistence);
+    const auto kept = OkValue(
+        RunDiscreteGradient(*explicit_structure, f.order, {}, GradientArrays::kPersistence));
     EXPECT_TRUE(kept.gradient.up[2].empty());
     check(kept, "explicit, persistence arrays");
     for (int consumers : {1, 2}) {
       CompactStructure compact(f.topo, {.cache_ratio = 0.1, .consumers = consumers});
-      check(*RunDiscreteGradient(compact, f.order, {.consumers = consumers}), "compact");
+      check(OkValue(RunDiscreteGradient(compact, f.order, {.consumers = consumers})), "compact");
       for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
-        auto actopo = *ActopoStructure::Create(f.topo, {.consumers = consumers,
-                                                        .producers = 3,
-                                                        .buffer_ratio = 0.05,
-                                                        .prefetch = p,
-                                                        .precompute = Precompute::kDeclared,
-                                                        .declared = DiscreteGradientDeclared()});
-        check(*RunDiscreteGradient(*actopo, f.order, {.consumers = consumers}),
+        auto actopo =
+            OkValue(ActopoStructure::Create(f.topo, {.consumers = consumers,
+                                                     .producers = 3,
+                                                     .buffer_ratio = 0.05,
+                                                     .prefetch = p,
+                                                     .precompute = Precompute::kDeclared,
+                                                     .declared = DiscreteGradientDeclared()}));
+        check(OkValue(RunDiscreteGradient(*actopo, f.order, {.consumers = consumers})),
               std::string(PrefetchName(p)));
       }
     }

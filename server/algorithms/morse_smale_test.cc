@@ -10,6 +10,7 @@
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
+#include "server/core/testing/status.h"
 #include "server/core/testing/test_meshes.h"
 
 namespace actopo {
@@ -23,9 +24,10 @@ struct Input {
 };
 
 Input Make(Mesh mesh, int block_size) {
-  auto topo = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = block_size}));
+  auto topo =
+      OkValue(Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = block_size})));
   auto order = VertexOrder(*topo, mesh.point_fields[0].values);
-  auto corners = *InputCorners(*topo, mesh.tetrahedra);
+  auto corners = OkValue(InputCorners(*topo, mesh.tetrahedra));
   return {std::move(mesh), topo, std::move(order), std::move(corners)};
 }
 
@@ -117,9 +119,9 @@ TEST(MorseSmaleResult, RegionsCountsDistinctLabelsDenseOrSparse) {
 
 TEST(MorseSmale, InvariantsAndStructureIndependence) {
   for (Input in : {Make(testing::Lattice(10, 9, 8, 31), 23), Make(testing::TwoComponents(), 9)}) {
-    auto explicit_structure = *ExplicitStructure::Build(in.topo, {});
+    auto explicit_structure = OkValue(ExplicitStructure::Build(in.topo, {}));
     const MorseSmaleResult reference =
-        *RunMorseSmale(*explicit_structure, in.order, in.corners, {});
+        OkValue(RunMorseSmale(*explicit_structure, in.order, in.corners, {}));
     ExpectInvariants(reference, *in.topo);
     EXPECT_GT(reference.gradient.critical_cells[1], 0);  // the field has saddles to trace
     const auto digests = [](const MorseSmaleResult& r) {
@@ -138,33 +140,35 @@ TEST(MorseSmale, InvariantsAndStructureIndependence) {
     };
     const auto expected = digests(reference);
     for (int consumers : {1, 2, 3}) {
-      EXPECT_EQ(digests(*RunMorseSmale(*explicit_structure, in.order, in.corners,
-                                       {.consumers = consumers})),
+      EXPECT_EQ(digests(OkValue(RunMorseSmale(*explicit_structure, in.order, in.corners,
+                                              {.consumers = consumers}))),
                 expected)
           << consumers << " consumers";
       CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = consumers});
-      EXPECT_EQ(digests(*RunMorseSmale(compact, in.order, in.corners, {.consumers = consumers})),
-                expected)
+      EXPECT_EQ(
+          digests(OkValue(RunMorseSmale(compact, in.order, in.corners, {.consumers = consumers}))),
+          expected)
           << consumers << " consumers";
     }
     // A gradient given (a simplification's): the stars are scanned in a pass of their own
     // instead of during the gradient's sweep, to the same result.
     for (int consumers : {1, 2}) {
       CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = consumers});
-      auto gradient =
-          *RunDiscreteGradient(*explicit_structure, in.order, {}, GradientArrays::kPersistence);
-      EXPECT_EQ(digests(*RunMorseSmale(compact, in.order, in.corners, {.consumers = consumers},
-                                       std::move(gradient))),
+      auto gradient = OkValue(
+          RunDiscreteGradient(*explicit_structure, in.order, {}, GradientArrays::kPersistence));
+      EXPECT_EQ(digests(OkValue(RunMorseSmale(compact, in.order, in.corners,
+                                              {.consumers = consumers}, std::move(gradient)))),
                 expected)
           << consumers << " consumers, gradient given";
     }
     for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
-      auto actopo = *ActopoStructure::Create(in.topo, {.consumers = 3,
-                                                       .producers = 2,
-                                                       .buffer_ratio = 0.05,
-                                                       .prefetch = p,
-                                                       .declared = MorseSmaleDeclared()});
-      EXPECT_EQ(digests(*RunMorseSmale(*actopo, in.order, in.corners, {.consumers = 3})), expected)
+      auto actopo = OkValue(ActopoStructure::Create(in.topo, {.consumers = 3,
+                                                              .producers = 2,
+                                                              .buffer_ratio = 0.05,
+                                                              .prefetch = p,
+                                                              .declared = MorseSmaleDeclared()}));
+      EXPECT_EQ(digests(OkValue(RunMorseSmale(*actopo, in.order, in.corners, {.consumers = 3}))),
+                expected)
           << PrefetchName(p);
     }
   }
@@ -176,12 +180,13 @@ TEST(MorseSmale, InvariantsAndStructureIndependence) {
 TEST(MorseSmale, CrowdedTrianglesTakeTheStarPass) {
   Input in = Make(testing::NonManifold(), 4);
   ASSERT_TRUE(in.topo->has_crowded_triangles());
-  auto explicit_structure = *ExplicitStructure::Build(in.topo, {});
-  const MorseSmaleResult r = *RunMorseSmale(*explicit_structure, in.order, in.corners, {});
+  auto explicit_structure = OkValue(ExplicitStructure::Build(in.topo, {}));
+  const MorseSmaleResult r = OkValue(RunMorseSmale(*explicit_structure, in.order, in.corners, {}));
   EXPECT_EQ(r.descending.size(), size_t(in.topo->num_vertices()));
   EXPECT_EQ(r.CountSeparatrices(SeparatrixType::kDescending), 2 * r.gradient.critical_cells[1]);
   CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = 2});
-  const MorseSmaleResult c = *RunMorseSmale(compact, in.order, in.corners, {.consumers = 2});
+  const MorseSmaleResult c =
+      OkValue(RunMorseSmale(compact, in.order, in.corners, {.consumers = 2}));
   EXPECT_EQ(c.morse_smale, r.morse_smale);
   EXPECT_EQ(c.ascending, r.ascending);
   EXPECT_EQ(c.separatrices.size(), r.separatrices.size());
@@ -192,8 +197,8 @@ TEST(MorseSmale, DoesNotDependOnTheBlockSize) {
   std::set<std::string> seen;
   for (int block_size : {1, 7, 100, 1000}) {
     Input in = Make(mesh, block_size);
-    auto s = *ExplicitStructure::Build(in.topo, {});
-    const MorseSmaleResult r = *RunMorseSmale(*s, in.order, in.corners, {});
+    auto s = OkValue(ExplicitStructure::Build(in.topo, {}));
+    const MorseSmaleResult r = OkValue(RunMorseSmale(*s, in.order, in.corners, {}));
     seen.insert(MorseSmaleResult::SegmentationDigest(r.morse_smale) + " " +
                 std::to_string(r.CountSeparatrices(SeparatrixType::kSaddleConnector)) + " " +
                 std::to_string(r.Segments()));
@@ -203,7 +208,7 @@ TEST(MorseSmale, DoesNotDependOnTheBlockSize) {
 
 TEST(MorseSmale, RejectsMismatchedTetrahedra) {
   Input in = Make(testing::SingleTetrahedron(), 10);
-  auto s = *ExplicitStructure::Build(in.topo, {});
+  auto s = OkValue(ExplicitStructure::Build(in.topo, {}));
   const std::vector<uint8_t> two = {0, 0};
   EXPECT_EQ(RunMorseSmale(*s, in.order, two, {}).status().code(),
             absl::StatusCode::kInvalidArgument);
@@ -217,8 +222,8 @@ TEST(MorseSmale, RejectsMismatchedTetrahedra) {
 // Each byte says where each corner of the sorted tuple was in the tetrahedron as given.
 TEST(MorseSmale, InputCornersGiveTheOrderAsGiven) {
   Mesh mesh = testing::Lattice(4, 4, 3, 5);  // shuffled ids: tuples as given are not sorted
-  auto topo = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 9}));
-  const std::vector<uint8_t> corners = *InputCorners(*topo, mesh.tetrahedra);
+  auto topo = OkValue(Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 9})));
+  const std::vector<uint8_t> corners = OkValue(InputCorners(*topo, mesh.tetrahedra));
   ASSERT_EQ(corners.size(), size_t(topo->num_tetrahedra()));
   for (SimplexId t = 0; t < topo->num_tetrahedra(); ++t) {
     const auto sorted = topo->tetrahedron(t);
@@ -232,7 +237,7 @@ TEST(MorseSmale, InputCornersGiveTheOrderAsGiven) {
 
 TEST(MorseSmale, StopsWhenCancelled) {
   Input in = Make(testing::Lattice(9, 9, 9, 2), 20);
-  auto s = *ExplicitStructure::Build(in.topo, {});
+  auto s = OkValue(ExplicitStructure::Build(in.topo, {}));
   std::atomic<bool> cancel{true};
   EXPECT_EQ(RunMorseSmale(*s, in.order, in.corners, {.cancel = &cancel}).status().code(),
             absl::StatusCode::kCancelled);
@@ -240,7 +245,7 @@ TEST(MorseSmale, StopsWhenCancelled) {
 
 TEST(MorseSmale, StopsOnceItsDeadlinePassed) {
   Input in = Make(testing::Lattice(9, 9, 9, 2), 20);
-  auto s = *ExplicitStructure::Build(in.topo, {});
+  auto s = OkValue(ExplicitStructure::Build(in.topo, {}));
   const RunContext context{.deadline = Progress::Clock::now() - std::chrono::milliseconds(1)};
   EXPECT_EQ(RunMorseSmale(*s, in.order, in.corners, context).status().code(),
             absl::StatusCode::kDeadlineExceeded);

@@ -11,6 +11,7 @@
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
+#include "server/core/testing/status.h"
 #include "server/core/testing/test_meshes.h"
 
 namespace actopo {
@@ -27,7 +28,8 @@ struct Input {
 };
 
 Input Make(Mesh mesh, int block_size, int field = 0) {
-  auto topo = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = block_size}));
+  auto topo =
+      OkValue(Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = block_size})));
   std::vector<double> scalars = mesh.point_fields[field].values;
   auto order = VertexOrder(*topo, scalars);
   return {std::move(mesh), topo, std::move(order), std::move(scalars)};
@@ -190,7 +192,7 @@ TEST(PersistenceDiagram, EqualsTheFullBoundaryMatrixReduction) {
                   Named{"two components", testing::TwoComponents(), {2, 0, 0}}}) {
     SCOPED_TRACE(m.name);
     const Input in = Make(std::move(m.mesh), 17);
-    auto structure = *ExplicitStructure::Build(in.topo, {});
+    auto structure = OkValue(ExplicitStructure::Build(in.topo, {}));
     const auto r = RunPersistenceDiagram(*structure, in.order, in.scalars, {});
     ASSERT_TRUE(r.ok()) << r.status();
     ExpectConsistent(*r, in.scalars);
@@ -206,7 +208,7 @@ TEST(PersistenceDiagram, EqualsTheFullBoundaryMatrixReduction) {
 TEST(PersistenceDiagram, CrowdedTrianglesReadVertexStars) {
   const Input in = Make(testing::NonManifold(), 4);
   ASSERT_TRUE(in.topo->has_crowded_triangles());
-  auto structure = *ExplicitStructure::Build(in.topo, {});
+  auto structure = OkValue(ExplicitStructure::Build(in.topo, {}));
   const auto r = RunPersistenceDiagram(*structure, in.order, in.scalars, {});
   ASSERT_TRUE(r.ok()) << r.status();
   ExpectConsistent(*r, in.scalars);
@@ -218,8 +220,9 @@ TEST(PersistenceDiagram, CrowdedTrianglesReadVertexStars) {
 
 TEST(PersistenceDiagram, DoesNotDependOnTheStructureOrThreads) {
   const Input in = Make(Carved(7, 5, [](int i, int j, int) { return i == 3 && j == 2; }), 23);
-  auto explicit_structure = *ExplicitStructure::Build(in.topo, {});
-  const auto reference = *RunPersistenceDiagram(*explicit_structure, in.order, in.scalars, {});
+  auto explicit_structure = OkValue(ExplicitStructure::Build(in.topo, {}));
+  const auto reference =
+      OkValue(RunPersistenceDiagram(*explicit_structure, in.order, in.scalars, {}));
   ASSERT_GT(reference.finite[1], 0);  // saddle-saddle pairs to reduce
   const auto pairs = [](const PersistenceDiagramResult& r) {
     std::vector<PairTuple> out;  // in the result's order, which is part of the contract
@@ -229,31 +232,35 @@ TEST(PersistenceDiagram, DoesNotDependOnTheStructureOrThreads) {
   const auto expected = pairs(reference);
   for (int consumers : {1, 2, 3}) {
     const RunContext context{.consumers = consumers};
-    EXPECT_EQ(pairs(*RunPersistenceDiagram(*explicit_structure, in.order, in.scalars, context)),
-              expected);
+    EXPECT_EQ(
+        pairs(OkValue(RunPersistenceDiagram(*explicit_structure, in.order, in.scalars, context))),
+        expected);
     CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = consumers});
-    EXPECT_EQ(pairs(*RunPersistenceDiagram(compact, in.order, in.scalars, context)), expected);
+    EXPECT_EQ(pairs(OkValue(RunPersistenceDiagram(compact, in.order, in.scalars, context))),
+              expected);
     for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial}) {
-      auto actopo = *ActopoStructure::Create(in.topo, {.consumers = consumers,
-                                                       .producers = 2,
-                                                       .buffer_ratio = 0.05,
-                                                       .prefetch = p,
-                                                       .declared = PersistenceDiagramDeclared()});
-      EXPECT_EQ(pairs(*RunPersistenceDiagram(*actopo, in.order, in.scalars, context)), expected)
+      auto actopo =
+          OkValue(ActopoStructure::Create(in.topo, {.consumers = consumers,
+                                                    .producers = 2,
+                                                    .buffer_ratio = 0.05,
+                                                    .prefetch = p,
+                                                    .declared = PersistenceDiagramDeclared()}));
+      EXPECT_EQ(pairs(OkValue(RunPersistenceDiagram(*actopo, in.order, in.scalars, context))),
+                expected)
           << consumers << " consumers, " << PrefetchName(p);
     }
   }
   // The block size changes internal ids, not the diagram.
   const Input other = Make(Carved(7, 5, [](int i, int j, int) { return i == 3 && j == 2; }), 3);
-  auto s = *ExplicitStructure::Build(other.topo, {});
+  auto s = OkValue(ExplicitStructure::Build(other.topo, {}));
   EXPECT_EQ(RunPersistenceDiagram(*s, other.order, other.scalars, {})->PairsDigest(),
             reference.PairsDigest());
 }
 
 TEST(PersistenceDiagram, PairsAreSortedByBirthAndTheCurveCountsSurvivors) {
   const Input in = Make(Carved(6, 3, [](int, int, int) { return false; }), 50);
-  auto structure = *ExplicitStructure::Build(in.topo, {});
-  const auto r = *RunPersistenceDiagram(*structure, in.order, in.scalars, {});
+  auto structure = OkValue(ExplicitStructure::Build(in.topo, {}));
+  const auto r = OkValue(RunPersistenceDiagram(*structure, in.order, in.scalars, {}));
   for (size_t i = 1; i < r.pairs.size(); ++i) {
     EXPECT_LE(in.scalars[r.pairs[i - 1].birth], in.scalars[r.pairs[i].birth]);
   }
@@ -273,7 +280,7 @@ TEST(PersistenceDiagram, PairsAreSortedByBirthAndTheCurveCountsSurvivors) {
 
 TEST(PersistenceDiagram, RejectsScalarsOfAnotherMesh) {
   const Input in = Make(testing::Lattice(4, 4, 4), 10);
-  auto structure = *ExplicitStructure::Build(in.topo, {});
+  auto structure = OkValue(ExplicitStructure::Build(in.topo, {}));
   const std::vector<double> short_field(3, 0.0);
   const auto r = RunPersistenceDiagram(*structure, in.order, short_field, {});
   EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument);

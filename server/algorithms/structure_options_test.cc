@@ -7,27 +7,28 @@
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "server/core/testing/status.h"
 
 namespace actopo {
 namespace {
 
 TEST(StructureOptions, NamesRoundTrip) {
-  for (StructureKind s : AllStructures()) EXPECT_EQ(*ParseStructure(StructureName(s)), s);
+  for (StructureKind s : AllStructures()) EXPECT_EQ(OkValue(ParseStructure(StructureName(s))), s);
   for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
-    EXPECT_EQ(*ParsePrefetch(PrefetchName(p)), p);
+    EXPECT_EQ(OkValue(ParsePrefetch(PrefetchName(p))), p);
   }
   for (Precompute p : {Precompute::kRequested, Precompute::kDeclared}) {
-    EXPECT_EQ(*ParsePrecompute(PrecomputeName(p)), p);
+    EXPECT_EQ(OkValue(ParsePrecompute(PrecomputeName(p))), p);
   }
   for (MissPolicy p : {MissPolicy::kLeader, MissPolicy::kConsumer}) {
-    EXPECT_EQ(*ParseMissPolicy(MissPolicyName(p)), p);
+    EXPECT_EQ(OkValue(ParseMissPolicy(MissPolicyName(p))), p);
   }
   for (ProducerPriority p : {ProducerPriority::kNormal, ProducerPriority::kIdle}) {
-    EXPECT_EQ(*ParseProducerPriority(ProducerPriorityName(p)), p);
+    EXPECT_EQ(OkValue(ParseProducerPriority(ProducerPriorityName(p))), p);
   }
-  EXPECT_EQ(*ParseProducerPriority("auto"), std::nullopt);
-  EXPECT_EQ(*ParsePrefetch("auto"), std::nullopt);
-  EXPECT_EQ(*ParsePrecompute("auto"), std::nullopt);
+  EXPECT_EQ(OkValue(ParseProducerPriority("auto")), std::nullopt);
+  EXPECT_EQ(OkValue(ParsePrefetch("auto")), std::nullopt);
+  EXPECT_EQ(OkValue(ParsePrecompute("auto")), std::nullopt);
 }
 
 TEST(StructureOptions, UnknownNamesListWhatIsAccepted) {

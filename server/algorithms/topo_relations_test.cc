@@ -8,19 +8,20 @@
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
 #include "server/core/testing/oracle.h"
+#include "server/core/testing/status.h"
 #include "server/core/testing/test_meshes.h"
 
 namespace actopo {
 namespace {
 
 std::shared_ptr<const Topology> Build(const Mesh& m, int capacity) {
-  return *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = capacity}));
+  return OkValue(Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = capacity})));
 }
 
 TopoRelationsResult RunExplicit(std::shared_ptr<const Topology> topo, int consumers,
                                 TopoRelationsOptions options = {}) {
-  auto structure = *ExplicitStructure::Build(topo, {.relations = TopoRelationsDeclared()});
-  return *RunTopoRelations(*structure, {.consumers = consumers}, options);
+  auto structure = OkValue(ExplicitStructure::Build(topo, {.relations = TopoRelationsDeclared()}));
+  return OkValue(RunTopoRelations(*structure, {.consumers = consumers}, options));
 }
 
 TEST(TopoRelations, TotalsMatchOracleAndIdentities) {
@@ -86,7 +87,7 @@ TEST(TopoRelations, IdenticalAcrossStructuresConsumersAndCacheSizes) {
       for (double ratio : {0.0, 0.2, 1.0}) {
         CompactStructure compact(topo, {.cache_ratio = ratio, .consumers = consumers});
         const TopoRelationsResult c =
-            *RunTopoRelations(compact, {.consumers = consumers}, {.all = true});
+            OkValue(RunTopoRelations(compact, {.consumers = consumers}, {.all = true}));
         EXPECT_EQ(c.totals, reference.totals);
         EXPECT_EQ(c.checksum, reference.checksum)
             << "compact, consumers " << consumers << ", ratio " << ratio;
@@ -137,13 +138,13 @@ TEST(TopoRelations, ActopoMatchesExplicitInEveryMode) {
       for (int producers : {1, 2, 4}) {
         for (int consumers : {1, 2}) {
           for (double ratio : {0.01, 0.2, 1.0}) {
-            auto structure = *ActopoStructure::Create(topo, {.consumers = consumers,
-                                                             .producers = producers,
-                                                             .buffer_ratio = ratio,
-                                                             .prefetch = p,
-                                                             .precompute = q});
+            auto structure = OkValue(ActopoStructure::Create(topo, {.consumers = consumers,
+                                                                    .producers = producers,
+                                                                    .buffer_ratio = ratio,
+                                                                    .prefetch = p,
+                                                                    .precompute = q}));
             const TopoRelationsResult r =
-                *RunTopoRelations(*structure, {.consumers = consumers}, {.all = true});
+                OkValue(RunTopoRelations(*structure, {.consumers = consumers}, {.all = true}));
             EXPECT_EQ(r.totals, reference.totals);
             EXPECT_EQ(r.checksum, reference.checksum)
                 << PrefetchName(p) << " " << PrecomputeName(q) << " P=" << producers
@@ -162,7 +163,7 @@ TEST(TopoRelations, ActopoMatchesExplicitInEveryMode) {
 
 TEST(TopoRelations, CancelStopsActopoRun) {
   auto topo = Build(testing::Lattice(10, 10, 10, 3), 8);
-  auto structure = *ActopoStructure::Create(topo, {.consumers = 2, .producers = 2});
+  auto structure = OkValue(ActopoStructure::Create(topo, {.consumers = 2, .producers = 2}));
   std::atomic<bool> cancel{false};
   int calls = 0;
   RunContext context{.consumers = 2,

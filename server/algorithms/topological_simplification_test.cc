@@ -12,6 +12,7 @@
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
+#include "server/core/testing/status.h"
 #include "server/core/testing/test_meshes.h"
 
 namespace actopo {
@@ -32,8 +33,8 @@ Input Noisy(int n, uint64_t seed, int block_size = 40) {
   in.scalars = in.mesh.point_fields[0].values;
   for (double& v : in.scalars) v += noise(rng);
   in.mesh.point_fields[0].values = in.scalars;
-  in.topo =
-      *Topology::Build(in.mesh, OctreeBlocks(in.mesh.points, {.bucket_capacity = block_size}));
+  in.topo = OkValue(
+      Topology::Build(in.mesh, OctreeBlocks(in.mesh.points, {.bucket_capacity = block_size})));
   in.order = VertexOrder(*in.topo, in.scalars);
   return in;
 }
@@ -61,7 +62,7 @@ std::pair<std::set<SimplexId>, std::set<SimplexId>> Extrema(const Input& in, aut
 // pairs' vertices (saddle-saddle pairs are not controlled); the rest is flattened to saddles.
 TEST(TopologicalSimplification, KeepsExactlyTheExtremaOfTheKeptPairs) {
   const Input in = Noisy(9, 5);
-  auto structure = *ExplicitStructure::Build(in.topo, {});
+  auto structure = OkValue(ExplicitStructure::Build(in.topo, {}));
   std::vector<SimplexId> input_order(in.order.size());
   for (SimplexId v = 0; v < in.topo->num_vertices(); ++v) {
     input_order[in.topo->vertex_input_id(v)] = in.order[v];
@@ -117,8 +118,8 @@ TEST(TopologicalSimplification, KeepsExactlyTheExtremaOfTheKeptPairs) {
 // gradient pairs away inside a lower star (no pair stands for them), and keeps every other.
 TEST(TopologicalSimplification, ThresholdZeroKeepsEveryPair) {
   const Input in = Noisy(6, 3);
-  auto structure = *ExplicitStructure::Build(in.topo, {});
-  const auto r = *RunTopologicalSimplification(*structure, in.order, in.scalars, {}, {});
+  auto structure = OkValue(ExplicitStructure::Build(in.topo, {}));
+  const auto r = OkValue(RunTopologicalSimplification(*structure, in.order, in.scalars, {}, {}));
   EXPECT_EQ(r.stats.removed_pairs, 0);
   EXPECT_EQ(r.stats.kept_pairs, int64_t(r.diagram.pairs.size()));
   EXPECT_EQ(r.stats.minima, r.diagram.gradient.critical_cells[0]);
@@ -128,9 +129,9 @@ TEST(TopologicalSimplification, ThresholdZeroKeepsEveryPair) {
 TEST(TopologicalSimplification, DoesNotDependOnTheStructureThreadsOrBlocks) {
   const Input in = Noisy(8, 11);
   const SimplificationOptions options{.threshold = 0.05, .relative = true};
-  auto explicit_structure = *ExplicitStructure::Build(in.topo, {});
+  auto explicit_structure = OkValue(ExplicitStructure::Build(in.topo, {}));
   const auto reference =
-      *RunTopologicalSimplification(*explicit_structure, in.order, in.scalars, options, {});
+      OkValue(RunTopologicalSimplification(*explicit_structure, in.order, in.scalars, options, {}));
   const auto digests = [](const SimplificationResult& r) {
     return std::make_pair(r.ScalarsDigest(), r.OrderDigest());
   };
@@ -138,22 +139,23 @@ TEST(TopologicalSimplification, DoesNotDependOnTheStructureThreadsOrBlocks) {
   for (int consumers : {1, 2, 3}) {
     const RunContext context{.consumers = consumers};
     CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = consumers});
-    EXPECT_EQ(
-        digests(*RunTopologicalSimplification(compact, in.order, in.scalars, options, context)),
-        digests(reference));
-    auto actopo =
-        *ActopoStructure::Create(in.topo, {.consumers = consumers,
-                                           .producers = 2,
-                                           .buffer_ratio = 0.05,
-                                           .declared = TopologicalSimplificationDeclared()});
-    EXPECT_EQ(
-        digests(*RunTopologicalSimplification(*actopo, in.order, in.scalars, options, context)),
-        digests(reference));
+    EXPECT_EQ(digests(OkValue(
+                  RunTopologicalSimplification(compact, in.order, in.scalars, options, context))),
+              digests(reference));
+    auto actopo = OkValue(
+        ActopoStructure::Create(in.topo, {.consumers = consumers,
+                                          .producers = 2,
+                                          .buffer_ratio = 0.05,
+                                          .declared = TopologicalSimplificationDeclared()}));
+    EXPECT_EQ(digests(OkValue(
+                  RunTopologicalSimplification(*actopo, in.order, in.scalars, options, context))),
+              digests(reference));
   }
   const Input other = Noisy(8, 11, /*block_size=*/7);
-  auto s = *ExplicitStructure::Build(other.topo, {});
-  EXPECT_EQ(digests(*RunTopologicalSimplification(*s, other.order, other.scalars, options, {})),
-            digests(reference));
+  auto s = OkValue(ExplicitStructure::Build(other.topo, {}));
+  EXPECT_EQ(
+      digests(OkValue(RunTopologicalSimplification(*s, other.order, other.scalars, options, {}))),
+      digests(reference));
 }
 
 void ExpectSameGradient(const DiscreteGradientResult& got, const DiscreteGradientResult& want) {
@@ -169,11 +171,11 @@ void ExpectSameGradient(const DiscreteGradientResult& got, const DiscreteGradien
 // LTS moves only the vertices it flattens: every two others compare as in the input order.
 TEST(TopologicalSimplification, ReorderedHoldsEveryVertexWhoseOrderMoved) {
   const Input in = Noisy(9, 5);
-  auto structure = *ExplicitStructure::Build(in.topo, {});
+  auto structure = OkValue(ExplicitStructure::Build(in.topo, {}));
   for (double fraction : {0.02, 0.1, 0.3}) {
     SCOPED_TRACE(fraction);
-    const auto r = *RunTopologicalSimplification(*structure, in.order, in.scalars,
-                                                 {.threshold = fraction, .relative = true}, {});
+    const auto r = OkValue(RunTopologicalSimplification(
+        *structure, in.order, in.scalars, {.threshold = fraction, .relative = true}, {}));
     ASSERT_FALSE(r.reordered.empty());
     EXPECT_TRUE(std::is_sorted(r.reordered.begin(), r.reordered.end()));
     std::vector<SimplexId> kept;  // the others, by input order
@@ -209,8 +211,8 @@ TEST(TopologicalSimplification, ReorderedHoldsEveryVertexWhoseOrderMoved) {
     EXPECT_EQ(r.changed_stars, changed);
     EXPECT_GT(r.changed_stars.size(), r.reordered.size());
   }
-  const auto legacy = *RunTopologicalSimplification(
-      *structure, in.order, in.scalars, {.threshold = 0.1, .relative = true, .legacy = true}, {});
+  const auto legacy = OkValue(RunTopologicalSimplification(
+      *structure, in.order, in.scalars, {.threshold = 0.1, .relative = true, .legacy = true}, {}));
   EXPECT_TRUE(legacy.reordered.empty());
 }
 
@@ -219,46 +221,48 @@ TEST(TopologicalSimplification, ReorderedHoldsEveryVertexWhoseOrderMoved) {
 // arrays.
 TEST(TopologicalSimplification, UpdatedGradientEqualsTheSimplifiedOrdersGradient) {
   const Input in = Noisy(10, 17, /*block_size=*/25);
-  auto explicit_structure = *ExplicitStructure::Build(in.topo, {});
+  auto explicit_structure = OkValue(ExplicitStructure::Build(in.topo, {}));
   for (double fraction : {0.0, 0.02, 0.1, 0.3}) {
     SCOPED_TRACE(fraction);
-    const auto r = *RunTopologicalSimplification(*explicit_structure, in.order, in.scalars,
-                                                 {.threshold = fraction, .relative = true}, {});
+    const auto r = OkValue(RunTopologicalSimplification(
+        *explicit_structure, in.order, in.scalars, {.threshold = fraction, .relative = true}, {}));
     const std::vector<SimplexId>& order = r.internal_order;
-    const auto want = *RunDiscreteGradient(*explicit_structure, order, {});
+    const auto want = OkValue(RunDiscreteGradient(*explicit_structure, order, {}));
     // The diagram's gradient keeps the persistence arrays, and so does its update.
     const auto want_kept =
-        *RunDiscreteGradient(*explicit_structure, order, {}, GradientArrays::kPersistence);
+        OkValue(RunDiscreteGradient(*explicit_structure, order, {}, GradientArrays::kPersistence));
     if (fraction > 0) {
       ASSERT_LT(r.reordered.size(), size_t(in.topo->num_vertices()) / 2);
       ASSERT_NE(want.gradient.up[0], r.diagram.gradient.gradient.up[0]);  // something to update
     }
+    ExpectSameGradient(OkValue(UpdateDiscreteGradient(*explicit_structure, r.diagram.gradient,
+                                                      order, r.reordered, {})),
+                       want_kept);
+    const auto full_before = OkValue(RunDiscreteGradient(*explicit_structure, in.order, {}));
     ExpectSameGradient(
-        *UpdateDiscreteGradient(*explicit_structure, r.diagram.gradient, order, r.reordered, {}),
-        want_kept);
-    const auto full_before = *RunDiscreteGradient(*explicit_structure, in.order, {});
-    ExpectSameGradient(
-        *UpdateDiscreteGradient(*explicit_structure, full_before, order, r.reordered, {}), want);
+        OkValue(UpdateDiscreteGradient(*explicit_structure, full_before, order, r.reordered, {})),
+        want);
     for (int consumers : {1, 2, 3}) {
       SCOPED_TRACE(consumers);
       const RunContext context{.consumers = consumers};
       CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = consumers});
       ExpectSameGradient(
-          *UpdateDiscreteGradient(compact, r.diagram.gradient, order, r.reordered, context),
+          OkValue(UpdateDiscreteGradient(compact, r.diagram.gradient, order, r.reordered, context)),
           want_kept);
-      auto actopo = *ActopoStructure::Create(in.topo, {.consumers = consumers,
-                                                       .producers = 2,
-                                                       .buffer_ratio = 0.05,
-                                                       .declared = DiscreteGradientDeclared()});
+      auto actopo =
+          OkValue(ActopoStructure::Create(in.topo, {.consumers = consumers,
+                                                    .producers = 2,
+                                                    .buffer_ratio = 0.05,
+                                                    .declared = DiscreteGradientDeclared()}));
       ExpectSameGradient(
-          *UpdateDiscreteGradient(*actopo, r.diagram.gradient, order, r.reordered, context),
+          OkValue(UpdateDiscreteGradient(*actopo, r.diagram.gradient, order, r.reordered, context)),
           want_kept);
       // Only the changed stars, given instead of read.
-      ExpectSameGradient(*UpdateDiscreteGradient(*actopo, r.diagram.gradient, order, r.reordered,
-                                                 context, r.changed_stars),
+      ExpectSameGradient(OkValue(UpdateDiscreteGradient(*actopo, r.diagram.gradient, order,
+                                                        r.reordered, context, r.changed_stars)),
                          want_kept);
-      ExpectSameGradient(*UpdateDiscreteGradient(*actopo, full_before, order, r.reordered, context,
-                                                 r.changed_stars),
+      ExpectSameGradient(OkValue(UpdateDiscreteGradient(*actopo, full_before, order, r.reordered,
+                                                        context, r.changed_stars)),
                          want);
     }
   }
@@ -268,7 +272,7 @@ TEST(TopologicalSimplification, UpdatedGradientEqualsTheSimplifiedOrdersGradient
 // whichever consumer read which block.
 TEST(TopologicalSimplification, GradientPassKeepsEveryVertexsNeighbours) {
   const Input in = Noisy(9, 31, /*block_size=*/20);
-  auto explicit_structure = *ExplicitStructure::Build(in.topo, {});
+  auto explicit_structure = OkValue(ExplicitStructure::Build(in.topo, {}));
   auto want = explicit_structure->NewReader();
   const auto expect_rows = [&](const VertexNeighbors& kept) {
     std::vector<SimplexId> decoded;
@@ -289,8 +293,8 @@ TEST(TopologicalSimplification, GradientPassKeepsEveryVertexsNeighbours) {
         RunDiscreteGradient(compact, in.order, context, GradientArrays::kPersistence, &from_compact)
             .ok());
     expect_rows(from_compact);
-    auto actopo = *ActopoStructure::Create(
-        in.topo, {.consumers = consumers, .producers = 2, .buffer_ratio = 0.05});
+    auto actopo = OkValue(ActopoStructure::Create(
+        in.topo, {.consumers = consumers, .producers = 2, .buffer_ratio = 0.05}));
     VertexNeighbors from_actopo(*in.topo);
     ASSERT_TRUE(
         RunDiscreteGradient(*actopo, in.order, context, GradientArrays::kAll, &from_actopo).ok());
@@ -302,9 +306,9 @@ TEST(TopologicalSimplification, GradientPassKeepsEveryVertexsNeighbours) {
 // so every x-neighbour is about half the mesh away) are kept whole, the others as differences.
 TEST(TopologicalSimplification, KeptNeighboursFarInIdDecodeWhole) {
   Mesh mesh = testing::Lattice(41, 41, 41);  // 68,921 vertices: x-neighbours 34k apart
-  auto topo = *Topology::Build(mesh, *LabelBlocks(testing::SliceLabels(mesh, 2)));
+  auto topo = OkValue(Topology::Build(mesh, *LabelBlocks(testing::SliceLabels(mesh, 2))));
   ASSERT_EQ(topo->num_blocks(), 2);
-  auto explicit_structure = *ExplicitStructure::Build(topo, {});
+  auto explicit_structure = OkValue(ExplicitStructure::Build(topo, {}));
   auto want = explicit_structure->NewReader();
   VertexNeighbors kept(*topo);
   for (int32_t b = 0; b < topo->num_blocks(); ++b) kept.FillBlock(b, want);
@@ -325,8 +329,8 @@ TEST(TopologicalSimplification, KeptNeighboursFarInIdDecodeWhole) {
 // rarely change side): vertices moved to random ranks, the others keeping their order.
 TEST(TopologicalSimplification, UpdatedGradientFollowsAnyReordering) {
   const Input in = Noisy(9, 23, /*block_size=*/30);
-  auto structure = *ExplicitStructure::Build(in.topo, {});
-  const auto before = *RunDiscreteGradient(*structure, in.order, {});
+  auto structure = OkValue(ExplicitStructure::Build(in.topo, {}));
+  const auto before = OkValue(RunDiscreteGradient(*structure, in.order, {}));
   std::mt19937_64 rng(7);
   for (double share : {0.01, 0.05, 0.3}) {
     SCOPED_TRACE(share);
@@ -341,11 +345,11 @@ TEST(TopologicalSimplification, UpdatedGradientFollowsAnyReordering) {
     std::vector<SimplexId> order(n);
     for (SimplexId r = 0; r < n; ++r) order[rest[r]] = r;
     std::sort(moved.begin(), moved.end());
-    const auto want = *RunDiscreteGradient(*structure, order, {});
-    ExpectSameGradient(*UpdateDiscreteGradient(*structure, before, order, moved, {}), want);
+    const auto want = OkValue(RunDiscreteGradient(*structure, order, {}));
+    ExpectSameGradient(OkValue(UpdateDiscreteGradient(*structure, before, order, moved, {})), want);
     CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = 2});
-    ExpectSameGradient(*UpdateDiscreteGradient(compact, before, order, moved, {.consumers = 2}),
-                       want);
+    ExpectSameGradient(
+        OkValue(UpdateDiscreteGradient(compact, before, order, moved, {.consumers = 2})), want);
   }
 }
 

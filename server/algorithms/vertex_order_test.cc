@@ -6,6 +6,7 @@
 
 #include "gtest/gtest.h"
 #include "server/core/partition.h"
+#include "server/core/testing/status.h"
 #include "server/core/testing/test_meshes.h"
 
 namespace actopo {
@@ -18,8 +19,8 @@ TEST(VertexOrder, RanksByValueThenInputId) {
   const Mesh mesh = testing::Lattice(80, 70, 60, 3);  // 336,000 vertices: 5 runs of 65,536+
   // Vertices and their permutation are all VertexOrder reads: no faces (a third of the build's
   // time, and most of this test's under TSan).
-  auto topo =
-      *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 500}), {.faces = false});
+  auto topo = OkValue(
+      Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 500}), {.faces = false}));
   std::mt19937_64 rng(1);
   std::uniform_int_distribution<int> level(-500, 499);
   std::vector<double> scalars(mesh.num_vertices());

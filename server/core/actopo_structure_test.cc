@@ -22,13 +22,14 @@
 #include "server/core/process_memory.h"
 #include "server/core/testing/oracle.h"
 #include "server/core/testing/relation_checks.h"
+#include "server/core/testing/status.h"
 #include "server/core/testing/test_meshes.h"
 
 namespace actopo {
 namespace {
 
 std::shared_ptr<const Topology> Build(const Mesh& m, int capacity) {
-  return *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = capacity}));
+  return OkValue(Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = capacity})));
 }
 
 std::unique_ptr<ActopoStructure> Create(std::shared_ptr<const Topology> topo,

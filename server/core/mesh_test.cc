@@ -6,6 +6,7 @@
 #include "absl/strings/str_cat.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "server/core/testing/status.h"
 #include "server/core/testing/test_meshes.h"
 
 namespace actopo {
@@ -103,10 +104,10 @@ TEST(SelectScalarField, ByNameAndDefault) {
   Mesh m = testing::SingleTetrahedron();
   m.point_fields.insert(m.point_fields.begin(), PointField{"BlockLabel", {0, 0, 1, 1}, true});
   m.point_fields.push_back({"other", {1, 2, 3, 4}});
-  EXPECT_EQ(*SelectScalarField(m, ""), 1);  // integer arrays are skipped
-  EXPECT_EQ(*SelectScalarField(m, "other"), 2);
+  EXPECT_EQ(OkValue(SelectScalarField(m, "")), 1);  // integer arrays are skipped
+  EXPECT_EQ(OkValue(SelectScalarField(m, "other")), 2);
   m.point_fields[0].is_integer = false;
-  EXPECT_EQ(*SelectScalarField(m, "", "BlockLabel"), 1);
+  EXPECT_EQ(OkValue(SelectScalarField(m, "", "BlockLabel")), 1);
   const auto missing = SelectScalarField(m, "pressure");
   EXPECT_EQ(missing.status().code(), absl::StatusCode::kNotFound);
   EXPECT_THAT(missing.status().message(),

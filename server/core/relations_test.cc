@@ -12,6 +12,7 @@
 #include "server/core/partition.h"
 #include "server/core/testing/oracle.h"
 #include "server/core/testing/relation_checks.h"
+#include "server/core/testing/status.h"
 #include "server/core/testing/test_meshes.h"
 
 namespace actopo {
@@ -34,8 +35,8 @@ class RelationsTest : public ::testing::TestWithParam<int> {};
 TEST_P(RelationsTest, ExplicitMatchesOracle) {
   const int capacity = GetParam();
   for (const Case& c : Meshes()) {
-    auto topo =
-        *Topology::Build(c.mesh, OctreeBlocks(c.mesh.points, {.bucket_capacity = capacity}));
+    auto topo = OkValue(
+        Topology::Build(c.mesh, OctreeBlocks(c.mesh.points, {.bucket_capacity = capacity})));
     testing::RelationOracle oracle(*topo);
     // Edge and triangle neighbours composed at read time (the default), and stored.
     for (RelationSet relations : {ExplicitStructure::DefaultRelations(), RelationSet::All()}) {
@@ -53,8 +54,8 @@ TEST_P(RelationsTest, ExplicitMatchesOracle) {
 TEST_P(RelationsTest, CompactMatchesOracle) {
   const int capacity = GetParam();
   for (const Case& c : Meshes()) {
-    auto topo =
-        *Topology::Build(c.mesh, OctreeBlocks(c.mesh.points, {.bucket_capacity = capacity}));
+    auto topo = OkValue(
+        Topology::Build(c.mesh, OctreeBlocks(c.mesh.points, {.bucket_capacity = capacity})));
     testing::RelationOracle oracle(*topo);
     for (double ratio : {0.0, 0.2, 1.0}) {
       CompactStructure structure(topo, {.cache_ratio = ratio});
@@ -74,10 +75,10 @@ TEST_P(RelationsTest, WithoutFacesVertexRelationsMatchOracle) {
   const int capacity = GetParam();
   for (const Case& c : Meshes()) {
     const std::vector<int32_t> blocks = OctreeBlocks(c.mesh.points, {.bucket_capacity = capacity});
-    testing::RelationOracle oracle(**Topology::Build(c.mesh, blocks));
+    testing::RelationOracle oracle(*OkValue(Topology::Build(c.mesh, blocks)));
     Mesh no_points = c.mesh;
     no_points.points.clear();
-    auto topo = *Topology::Build(no_points, blocks, {.faces = false});
+    auto topo = OkValue(Topology::Build(no_points, blocks, {.faces = false}));
     ASSERT_FALSE(topo->has_faces());
     EXPECT_EQ(topo->num_edges(), 0);
     EXPECT_EQ(topo->bytes().edges + topo->bytes().triangles, 0);
@@ -116,8 +117,8 @@ TEST(BlockRelations, ManyNeighboursVertexRelationsMatchOracle) {
     const Mesh m = testing::Bipyramid(kRing, closed);
     for (int capacity : {1, 10, 1000}) {
       const std::vector<int32_t> blocks = OctreeBlocks(m.points, {.bucket_capacity = capacity});
-      testing::RelationOracle oracle(**Topology::Build(m, blocks));
-      auto topo = *Topology::Build(m, blocks, {.faces = false});
+      testing::RelationOracle oracle(*OkValue(Topology::Build(m, blocks)));
+      auto topo = OkValue(Topology::Build(m, blocks, {.faces = false}));
       CompactStructure compact(topo, {});
       auto reader = compact.NewReader();
       const SimplexId centre = topo->vertex_internal_id(0);
@@ -134,7 +135,7 @@ TEST(BlockRelations, ManyNeighboursVertexRelationsMatchOracle) {
 
 TEST(CompactStructure, CacheIsBoundedAndCounted) {
   const Mesh m = testing::Lattice(8, 8, 8, 3);
-  auto topo = *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 16}));
+  auto topo = OkValue(Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 16})));
   ASSERT_GE(topo->num_blocks(), 20);
   CompactStructure structure(topo, {.cache_ratio = 0.2, .consumers = 2});
   EXPECT_EQ(structure.reader_capacity(), int(0.2 * topo->num_blocks() / 2) + 1);
@@ -157,7 +158,7 @@ TEST(CompactStructure, CacheIsBoundedAndCounted) {
 
 TEST(CompactStructure, AFinishedBlockLeavesTheCacheAtOnce) {
   const Mesh m = testing::Lattice(8, 8, 8, 3);
-  auto topo = *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 16}));
+  auto topo = OkValue(Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 16})));
   testing::RelationOracle oracle(*topo);
   CompactStructure structure(topo, {.cache_ratio = 1.0, .consumers = 1});
   auto reader = structure.NewReader();
@@ -180,7 +181,7 @@ TEST(CompactStructure, AFinishedBlockLeavesTheCacheAtOnce) {
 
 TEST(CompactStructure, ConcurrentReadersAgree) {
   const Mesh m = testing::Lattice(7, 6, 6, 5);
-  auto topo = *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 7}));
+  auto topo = OkValue(Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 7})));
   testing::RelationOracle oracle(*topo);
   CompactStructure structure(topo, {.cache_ratio = 0.1, .consumers = 3});
   std::vector<std::thread> threads;
@@ -196,7 +197,7 @@ TEST(CompactStructure, ConcurrentReadersAgree) {
 
 TEST(BlockRelations, RowsCoverExactlyTheBlocksSimplices) {
   const Mesh m = testing::Lattice(5, 5, 5, 8);
-  auto topo = *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 10}));
+  auto topo = OkValue(Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 10})));
   BlockScratch scratch;
   for (Relation r : AllRelations()) {
     if (IsStatic(r)) continue;
@@ -222,7 +223,7 @@ namespace {
 
 TEST(ExplicitProgress, ReportsPerRelationAndStopsBetweenThem) {
   const Mesh m = testing::Lattice(8, 7, 6, 3);
-  auto topo = *Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 20}));
+  auto topo = OkValue(Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = 20})));
   std::vector<double> fractions;
   std::atomic<bool> cancel{false};
   const Progress progress({.cancel = &cancel, .report = [&](std::string_view phase, double f) {

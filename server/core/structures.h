@@ -5,8 +5,7 @@
 //   template <TopologicalStructure S>
 //   absl::StatusOr<int64_t> CountStars(S& structure, const RunContext& context);
 //
-//   #define ACTOPO_INSTANTIATE(S) \
-//     template absl::StatusOr<int64_t> CountStars(S&, const RunContext&);
+//   #define ACTOPO_INSTANTIATE(S) template absl::StatusOr<int64_t> CountStars(S&, ...);
 //   ACTOPO_FOR_EACH_STRUCTURE(ACTOPO_INSTANTIATE)
 //   #undef ACTOPO_INSTANTIATE
 //
@@ -36,21 +35,27 @@
 
 namespace actopo {
 
+// What a structure that prefetches (kPrefetches) also offers.
 template <class S>
-concept TopologicalStructure =
-    requires(S& s, const S& cs, int32_t block) {
-      { cs.topology() } -> std::same_as<const Topology&>;
-      s.NewReader().Finished(block);
-      { S::kRelationsInPlace } -> std::convertible_to<bool>;
-      { S::kPrefetches } -> std::convertible_to<bool>;
-    } && (!S::kPrefetches || requires(S& s) {
-      s.SetPrefetching(true);
-      s.DropBufferedRelations();
-    });
+concept PrefetchControls = requires(S& s) {
+  s.SetPrefetching(true);
+  s.DropBufferedRelations();
+};
+
+template <class S>
+concept TopologicalStructure = requires(S& s, const S& cs, int32_t block) {
+  { cs.topology() } -> std::same_as<const Topology&>;
+  s.NewReader().Finished(block);
+  { S::kRelationsInPlace } -> std::convertible_to<bool>;
+  { S::kPrefetches } -> std::convertible_to<bool>;
+  requires !S::kPrefetches || PrefetchControls<S>;
+};
 
 // Whether the structure records events of its own (SetTrace).
 template <class S>
-constexpr bool kTraces = requires(S& s, std::shared_ptr<Trace> trace) { s.SetTrace(trace); };
+constexpr bool kTraces = requires(S& s, std::shared_ptr<Trace> trace) {
+  s.SetTrace(trace);
+};
 
 #define ACTOPO_FOR_EACH_STRUCTURE(X) X(ExplicitStructure) X(CompactStructure) X(ActopoStructure)
 

@@ -11,6 +11,7 @@
 #include "gtest/gtest.h"
 #include "server/core/partition.h"
 #include "server/core/testing/oracle.h"
+#include "server/core/testing/status.h"
 #include "server/core/testing/test_meshes.h"
 
 namespace actopo {
@@ -89,7 +90,7 @@ TEST(Topology, SameForAnyThreadCount) {
 TEST(Topology, TetrahedraFreedWhenReadGiveTheSameEncoding) {
   const Mesh m = testing::Lattice(9, 8, 7, 5);
   const std::vector<int32_t> blocks = OctreeBlocks(m.points, {.bucket_capacity = 20});
-  auto kept = *Topology::Build(m, blocks, {.threads = 2});
+  auto kept = OkValue(Topology::Build(m, blocks, {.threads = 2}));
   Mesh freed = m;
   int calls = 0;
   auto built = Topology::Build(
@@ -130,7 +131,7 @@ TEST(Topology, CornersTakenWhileTetrahedraAreReleased) {
     std::shuffle(m.tetrahedra.begin() + t, m.tetrahedra.begin() + t + 4, rng);
   }
   const std::vector<int32_t> blocks = OctreeBlocks(m.points, {.bucket_capacity = 500});
-  auto kept = *Topology::Build(m, blocks, {.threads = 2});
+  auto kept = OkValue(Topology::Build(m, blocks, {.threads = 2}));
   Mesh released = m;
   std::vector<uint8_t> corners;
   auto built = Topology::Build(
@@ -159,7 +160,7 @@ TEST(Topology, CornersTakenWhileTetrahedraAreReleased) {
 TEST(Topology, WithoutFacesTheRestIsTheSame) {
   const Mesh m = testing::Lattice(9, 8, 7, 5);
   const std::vector<int32_t> blocks = OctreeBlocks(m.points, {.bucket_capacity = 20});
-  auto full = *Topology::Build(m, blocks, {.threads = 2});
+  auto full = OkValue(Topology::Build(m, blocks, {.threads = 2}));
   Mesh no_points = m;
   no_points.points.clear();
   auto built = Topology::Build(no_points, blocks, {.threads = 2, .faces = false});
@@ -219,8 +220,8 @@ void ExpectSameFaces(const Topology& t, const Topology& full) {
 TEST(Topology, FacesEnsuredLaterAreTheSame) {
   const Mesh m = testing::Lattice(9, 8, 7, 5);
   const std::vector<int32_t> blocks = OctreeBlocks(m.points, {.bucket_capacity = 20});
-  auto full = *Topology::Build(m, blocks, {.threads = 2});
-  auto t = *Topology::Build(m, blocks, {.threads = 2, .faces = false});
+  auto full = OkValue(Topology::Build(m, blocks, {.threads = 2}));
+  auto t = OkValue(Topology::Build(m, blocks, {.threads = 2, .faces = false}));
   ASSERT_FALSE(t->has_faces());
   // Readers of the rest of the topology go on meanwhile (ThreadSanitizer checks they may).
   std::vector<std::thread> threads;
@@ -315,7 +316,7 @@ TEST(Topology, EdgesTrianglesAndBoundaryMatchOracle) {
 // and found again, and tuples that are not there are not found.
 TEST(Topology, FacesAndTetrahedraFarInIdAreKeptWhole) {
   const Mesh m = testing::Lattice(52, 52, 52);  // 140,608 vertices, 796k tetrahedra
-  auto built = Topology::Build(m, *LabelBlocks(testing::SliceLabels(m, 2)));
+  auto built = Topology::Build(m, OkValue(LabelBlocks(testing::SliceLabels(m, 2))));
   ASSERT_TRUE(built.ok()) << built.status();
   const Topology& topo = **built;
   ASSERT_EQ(topo.num_blocks(), 2);
@@ -642,12 +643,12 @@ TEST(TopologyProgress, StopsAtEveryStepWhenCancelled) {
 TEST(TopologyProgress, AStoppedFaceBuildLeavesNothingAndTheNextOneFinishes) {
   const Mesh m = testing::Lattice(12, 11, 10, 5);
   const std::vector<int32_t> blocks = OctreeBlocks(m.points, {.bucket_capacity = 3});
-  auto full = *Topology::Build(m, blocks, {});
-  auto t = *Topology::Build(m, blocks, {.faces = false});
+  auto full = OkValue(Topology::Build(m, blocks, {}));
+  auto t = OkValue(Topology::Build(m, blocks, {.faces = false}));
   const int64_t faceless = t->bytes().total();
   Recorder all;
   {
-    auto probe = *Topology::Build(m, blocks, {.faces = false});
+    auto probe = OkValue(Topology::Build(m, blocks, {.faces = false}));
     ASSERT_TRUE(probe->EnsureFaces(all.progress()).ok());
   }
   ASSERT_GE(all.fractions.size(), 4u);  // 0, a report per window of blocks, 0.95, 1

@@ -12,6 +12,7 @@
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/partition.h"
+#include "server/core/testing/status.h"
 #include "server/core/testing/test_meshes.h"
 
 namespace actopo {
@@ -101,7 +102,7 @@ TEST(Trace, KeepsAtMostMaxEventsAndCountsTheRest) {
 
 std::shared_ptr<const Topology> Lattice() {
   const Mesh mesh = testing::Lattice(6, 6, 5, 3);
-  return *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 12}));
+  return OkValue(Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 12})));
 }
 
 // Sweeps VT and ET over every vertex and edge.
@@ -120,8 +121,8 @@ int64_t SumCounts(const std::vector<Json>& events) {
 
 TEST(Trace, ActopoEngineEventsMatchItsCounters) {
   for (MissPolicy policy : {MissPolicy::kLeader, MissPolicy::kConsumer}) {
-    auto structure = *ActopoStructure::Create(
-        Lattice(), {.consumers = 1, .producers = 3, .buffer_ratio = 0.1, .miss_policy = policy});
+    auto structure = OkValue(ActopoStructure::Create(
+        Lattice(), {.consumers = 1, .producers = 3, .buffer_ratio = 0.1, .miss_policy = policy}));
     auto trace = std::make_shared<Trace>();
     structure->SetTrace(trace);
     {

@@ -12,6 +12,7 @@
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "server/core/testing/status.h"
 #include "server/io/samples.h"
 #include "server/io/test_data.h"
 #include "server/io/vtk_reader.h"
@@ -57,7 +58,7 @@ TEST_F(DataTest, HeaderCountsPointFields) {
 TEST(MeshHeaderTest, LegacyFilesWrittenByVtk) {
   const std::filesystem::path dir = MakeTempDir("header_legacy");
   const std::string vtu = (dir / "sample.vtu").string();
-  ASSERT_TRUE(WriteUnstructuredGrid(vtu, *MakeSample("jittered:7")).ok());
+  ASSERT_TRUE(WriteUnstructuredGrid(vtu, OkValue(MakeSample("jittered:7"))).ok());
   vtkNew<vtkXMLUnstructuredGridReader> reader;
   reader->SetFileName(vtu.c_str());
   reader->Update();

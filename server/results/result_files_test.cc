@@ -14,6 +14,7 @@
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
 #include "server/core/testing/oracle.h"
+#include "server/core/testing/status.h"
 #include "server/core/testing/test_meshes.h"
 
 namespace actopo {
@@ -39,10 +40,12 @@ struct Diagram {
 
 Diagram MakeDiagram() {
   Diagram d{testing::Lattice(6, 5, 4, 9)};
-  d.topology = *Topology::Build(d.mesh, OctreeBlocks(d.mesh.points, {.bucket_capacity = 20}));
-  auto structure = *ExplicitStructure::Build(d.topology, {});
+  d.topology =
+      OkValue(Topology::Build(d.mesh, OctreeBlocks(d.mesh.points, {.bucket_capacity = 20})));
+  auto structure = OkValue(ExplicitStructure::Build(d.topology, {}));
   const std::vector<double>& scalars = d.mesh.point_fields[0].values;
-  d.result = *RunPersistenceDiagram(*structure, VertexOrder(*d.topology, scalars), scalars, {});
+  d.result =
+      OkValue(RunPersistenceDiagram(*structure, VertexOrder(*d.topology, scalars), scalars, {}));
   return d;
 }
 
@@ -50,7 +53,8 @@ Diagram MakeDiagram() {
 // computed only when one of its vertices is asked about, once.
 TEST(VertexBoundary, EqualsTheOracleBlockByBlockOnDemand) {
   const Mesh mesh = testing::Lattice(7, 6, 5, 3);
-  const auto topology = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 20}));
+  const auto topology =
+      OkValue(Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 20})));
   ASSERT_GT(topology->num_blocks(), 4);
   const testing::RelationOracle oracle(*topology);
   const VertexBoundary boundary(*topology);
@@ -75,7 +79,8 @@ TEST(VertexBoundary, EqualsTheOracleBlockByBlockOnDemand) {
 
 TEST(VertexBoundary, PrepareComputesTheBlocksOfTheVerticesGivenOnSeveralThreads) {
   const Mesh mesh = testing::Lattice(7, 6, 5, 3);
-  const auto topology = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 20}));
+  const auto topology =
+      OkValue(Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 20})));
   ASSERT_GT(topology->num_blocks(), 4);
   const testing::RelationOracle oracle(*topology);
   const VertexBoundary boundary(*topology);
@@ -185,12 +190,13 @@ TEST(PersistenceDiagramOutputs, EmbeddedInTheDomainAndWritten) {
 
 TEST(SimplificationOutputs, FieldAndOrderStreamedAndWritten) {
   Mesh mesh = testing::Lattice(6, 5, 4, 9);
-  auto topology = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 20}));
-  auto structure = *ExplicitStructure::Build(topology, {});
+  auto topology =
+      OkValue(Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 20})));
+  auto structure = OkValue(ExplicitStructure::Build(topology, {}));
   const std::vector<double>& scalars = mesh.point_fields[0].values;
   const SimplificationResult r =
-      *RunTopologicalSimplification(*structure, VertexOrder(*topology, scalars), scalars,
-                                    {.threshold = 0.2, .relative = true}, {});
+      OkValue(RunTopologicalSimplification(*structure, VertexOrder(*topology, scalars), scalars,
+                                           {.threshold = 0.2, .relative = true}, {}));
   ASSERT_GT(r.stats.changed_values, 0);
   const ResultContext context{mesh, *topology, "height", scalars,
                               std::make_shared<VertexBoundary>(*topology)};
@@ -213,11 +219,12 @@ TEST(SimplificationOutputs, FieldAndOrderStreamedAndWritten) {
 // placed on several threads), and the critical points' IsOnBoundary as the oracle's VB.
 TEST(MorseSmaleOutputs, SeparatrixPointsAreTheirCellsBarycentres) {
   Mesh mesh = testing::Lattice(9, 8, 7, 9);
-  auto topology = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 30}));
-  auto structure = *ExplicitStructure::Build(topology, {});
+  auto topology =
+      OkValue(Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 30})));
+  auto structure = OkValue(ExplicitStructure::Build(topology, {}));
   const std::vector<double>& scalars = mesh.point_fields[0].values;
-  const MorseSmaleResult r = *RunMorseSmale(*structure, VertexOrder(*topology, scalars),
-                                            *InputCorners(*topology, mesh.tetrahedra), {});
+  const MorseSmaleResult r = OkValue(RunMorseSmale(*structure, VertexOrder(*topology, scalars),
+                                                   *InputCorners(*topology, mesh.tetrahedra), {}));
   ASSERT_GT(r.separatrices.size(), 10u);
   const ResultContext context{mesh, *topology, "height", scalars,
                               std::make_shared<VertexBoundary>(*topology)};
@@ -264,15 +271,16 @@ TEST(MorseSmaleOutputs, SeparatrixPointsAreTheirCellsBarycentres) {
 // cells' highest vertices, ranked by the simplified order.
 TEST(SimplificationOutputs, SimplifiedMorseSmaleReportsTheSimplifiedField) {
   Mesh mesh = testing::Lattice(7, 6, 5, 9);
-  auto topology = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 20}));
-  auto structure = *ExplicitStructure::Build(topology, {});
+  auto topology =
+      OkValue(Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 20})));
+  auto structure = OkValue(ExplicitStructure::Build(topology, {}));
   const std::vector<double>& scalars = mesh.point_fields[0].values;
   SimplifiedMorseSmaleResult r;
   r.simplification =
-      *RunTopologicalSimplification(*structure, VertexOrder(*topology, scalars), scalars,
-                                    {.threshold = 0.2, .relative = true}, {});
-  r.morse_smale = *RunMorseSmale(*structure, r.simplification.internal_order,
-                                 *InputCorners(*topology, mesh.tetrahedra), {});
+      OkValue(RunTopologicalSimplification(*structure, VertexOrder(*topology, scalars), scalars,
+                                           {.threshold = 0.2, .relative = true}, {}));
+  r.morse_smale = OkValue(RunMorseSmale(*structure, r.simplification.internal_order,
+                                        *InputCorners(*topology, mesh.tetrahedra), {}));
   const ResultContext context{mesh, *topology, "height", scalars,
                               std::make_shared<VertexBoundary>(*topology)};
   const ResultOutputs out = BuildOutputs(context, r);

@@ -6,6 +6,7 @@
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "server/core/testing/status.h"
 
 namespace actopo::service {
 namespace {
@@ -77,8 +78,8 @@ TEST(FieldDecoder, RefusesBadHeadersNamingTheField) {
 TEST(FieldDecoder, RefusesBadDataNamingFieldAndVertex) {
   const std::vector<double> good = {1, 2, 3};
   auto start = [](const std::string& data) {
-    return *FieldDecoder::Start(
-        Header({{"a", v1::DATA_TYPE_FLOAT64}, {"b", v1::DATA_TYPE_FLOAT64}}, data), 3);
+    return OkValue(FieldDecoder::Start(
+        Header({{"a", v1::DATA_TYPE_FLOAT64}, {"b", v1::DATA_TYPE_FLOAT64}}, data), 3));
   };
   // A non-finite value of the second field.
   const std::vector<double> bad = {0, std::nan(""), 1};
@@ -102,7 +103,7 @@ TEST(FieldDecoder, RefusesBadDataNamingFieldAndVertex) {
 
 TEST(FieldDecoder, WithoutAChecksumTheBytesAreNotHashed) {
   const std::vector<double> values = {4, 5};
-  FieldDecoder d = *FieldDecoder::Start(Header({{"a", v1::DATA_TYPE_FLOAT64}}), 2);
+  FieldDecoder d = OkValue(FieldDecoder::Start(Header({{"a", v1::DATA_TYPE_FLOAT64}}), 2));
   ASSERT_TRUE(d.Append(Bytes(values)).ok());
   EXPECT_EQ((*d.Finish())[0].values, values);
 }
@@ -112,7 +113,7 @@ TEST(FieldDecoder, TheDigestMayComeAfterTheChunks) {
   const std::string data = Bytes(values);
   v1::AddFieldsHeader h = Header({{"a", v1::DATA_TYPE_FLOAT64}});
   h.set_sha256_last(true);
-  FieldDecoder d = *FieldDecoder::Start(h, 3);
+  FieldDecoder d = OkValue(FieldDecoder::Start(h, 3));
   ASSERT_TRUE(d.Append(data.substr(0, 7)).ok());
   ASSERT_TRUE(d.Append(data.substr(7)).ok());
   ASSERT_TRUE(d.SetDigest(Sha256Hex(data)).ok());
@@ -121,17 +122,17 @@ TEST(FieldDecoder, TheDigestMayComeAfterTheChunks) {
   ASSERT_TRUE(fields.ok()) << fields.status();
   EXPECT_EQ((*fields)[0].values, values);
   // A wrong digest, none, a malformed one, one without sha256_last, one given twice.
-  d = *FieldDecoder::Start(h, 3);
+  d = OkValue(FieldDecoder::Start(h, 3));
   ASSERT_TRUE(d.Append(data).ok());
   ASSERT_TRUE(d.SetDigest(Sha256Hex("other")).ok());
   EXPECT_EQ(d.Finish().status().code(), absl::StatusCode::kDataLoss);
-  d = *FieldDecoder::Start(h, 3);
+  d = OkValue(FieldDecoder::Start(h, 3));
   ASSERT_TRUE(d.Append(data).ok());
   EXPECT_THAT(d.Finish().status().message(), HasSubstr("sha256_last); none came"));
-  d = *FieldDecoder::Start(h, 3);
+  d = OkValue(FieldDecoder::Start(h, 3));
   EXPECT_THAT(d.SetDigest(std::string(64, 'A')).message(),
               HasSubstr("sha256: expected 64 lowercase hex digits"));
-  d = *FieldDecoder::Start(Header({{"a", v1::DATA_TYPE_FLOAT64}}), 3);
+  d = OkValue(FieldDecoder::Start(Header({{"a", v1::DATA_TYPE_FLOAT64}}), 3));
   EXPECT_THAT(d.SetDigest(Sha256Hex(data)).message(), HasSubstr("needs header.sha256_last"));
   h.set_sha256(Sha256Hex(data));
   EXPECT_THAT(FieldDecoder::Start(h, 3).status().message(),
@@ -144,13 +145,13 @@ TEST(FieldDecoder, ABadValueDeepInAChunkIsNamedByItsVertex) {
     std::vector<float> a(1000, 1.5f);
     a[777] = std::numeric_limits<float>::infinity();
     const std::string data = std::string(size_t(offset), 'p') + Bytes(a);
-    FieldDecoder d = *FieldDecoder::Start(Header({{"a", v1::DATA_TYPE_FLOAT32}}), 1000);
+    FieldDecoder d = OkValue(FieldDecoder::Start(Header({{"a", v1::DATA_TYPE_FLOAT32}}), 1000));
     EXPECT_THAT(d.Append(std::string_view(data).substr(size_t(offset))).message(),
                 HasSubstr("fields[0] 'a': vertex 777 has value inf"));
     std::vector<double> b(1000, -2.0);
     b[999] = -std::numeric_limits<double>::infinity();
     const std::string more = std::string(size_t(offset), 'p') + Bytes(b);
-    d = *FieldDecoder::Start(Header({{"b", v1::DATA_TYPE_FLOAT64}}), 1000);
+    d = OkValue(FieldDecoder::Start(Header({{"b", v1::DATA_TYPE_FLOAT64}}), 1000));
     ASSERT_TRUE(d.Append(std::string_view(more).substr(size_t(offset), 8 * 500 + 3)).ok());
     EXPECT_THAT(d.Append(std::string_view(more).substr(size_t(offset) + 8 * 500 + 3)).message(),
                 HasSubstr("fields[0] 'b': vertex 999 has value -inf"));

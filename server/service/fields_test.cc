@@ -17,6 +17,7 @@
 #include "server/algorithms/vertex_order.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
+#include "server/core/testing/status.h"
 #include "server/io/test_data.h"
 #include "server/io/vtk_reader.h"
 #include "server/results/series.h"
@@ -146,7 +147,7 @@ class FieldsTest : public ServiceTest {
 };
 
 TEST_F(FieldsTest, TheDigestMayFollowTheChunks) {
-  const Mesh sample = *io::MakeSample(kSample);
+  const Mesh sample = OkValue(io::MakeSample(kSample));
   const std::string mesh_id = LoadSample(kSample);
   v1::AddFieldsResponse added;
   // Chunks of many sizes: each is decoded while the next arrives.
@@ -167,7 +168,7 @@ TEST_F(FieldsTest, TheDigestMayFollowTheChunks) {
 }
 
 TEST_F(FieldsTest, AnAddedFieldBehavesAsALoadedOne) {
-  const Mesh sample = *io::MakeSample(kSample);
+  const Mesh sample = OkValue(io::MakeSample(kSample));
   const std::vector<double>& scalar = sample.point_fields[0].values;
   std::vector<double> twice(scalar);
   for (double& x : twice) x *= 2;
@@ -400,7 +401,7 @@ TEST_F(FieldsTest, AJobOverFieldsGivesEachWhatAJobOnItAloneGives) {
 }
 
 TEST_F(FieldsTest, DiagramDistanceEqualsTheDistancesOfTheFieldsDiagrams) {
-  const Mesh sample = *io::MakeSample(kSample);
+  const Mesh sample = OkValue(io::MakeSample(kSample));
   const std::string mesh_id = LoadSample(kSample);
   std::vector<double> bent(sample.point_fields[0].values);
   for (size_t v = 0; v < bent.size(); ++v) bent[v] += 0.3 * std::sin(double(v));
@@ -415,13 +416,14 @@ TEST_F(FieldsTest, DiagramDistanceEqualsTheDistancesOfTheFieldsDiagrams) {
     if (m.has_summary()) summary = m.summary().result();
   }
   // The reference: each field's diagram on an explicit structure, compared directly.
-  auto topology = *Topology::Build(sample, OctreeBlocks(sample.points, {.bucket_capacity = 50}));
-  auto structure = *ExplicitStructure::Build(topology, {});
+  auto topology =
+      OkValue(Topology::Build(sample, OctreeBlocks(sample.points, {.bucket_capacity = 50})));
+  auto structure = OkValue(ExplicitStructure::Build(topology, {}));
   std::vector<diagrams::Diagram> expected;
   for (const std::string& name : fields) {
     const std::vector<double>& values = name == "bent" ? bent : sample.FindField(name)->values;
     const auto diagram =
-        *RunPersistenceDiagram(*structure, VertexOrder(*topology, values), values, {});
+        OkValue(RunPersistenceDiagram(*structure, VertexOrder(*topology, values), values, {}));
     expected.push_back(diagrams::ToDiagram(diagram));
   }
   const auto& w = summary.fields().at("wasserstein").list_value();
@@ -440,7 +442,7 @@ TEST_F(FieldsTest, DiagramDistanceEqualsTheDistancesOfTheFieldsDiagrams) {
 }
 
 TEST_F(FieldsTest, TrackingFollowsThePairsOfConsecutiveFields) {
-  const Mesh sample = *io::MakeSample(kSample);
+  const Mesh sample = OkValue(io::MakeSample(kSample));
   const std::string mesh_id = LoadSample(kSample);
   // Three steps of a field drifting in time.
   std::vector<NewField> steps;
@@ -466,12 +468,13 @@ TEST_F(FieldsTest, TrackingFollowsThePairsOfConsecutiveFields) {
       elements[m.chunk().array().name()] = n;
     }
   }
-  auto topology = *Topology::Build(sample, OctreeBlocks(sample.points, {.bucket_capacity = 50}));
-  auto structure = *ExplicitStructure::Build(topology, {});
+  auto topology =
+      OkValue(Topology::Build(sample, OctreeBlocks(sample.points, {.bucket_capacity = 50})));
+  auto structure = OkValue(ExplicitStructure::Build(topology, {}));
   std::vector<diagrams::Diagram> expected;
   for (const std::vector<double>& v : values) {
-    expected.push_back(
-        diagrams::ToDiagram(*RunPersistenceDiagram(*structure, VertexOrder(*topology, v), v, {})));
+    expected.push_back(diagrams::ToDiagram(
+        OkValue(RunPersistenceDiagram(*structure, VertexOrder(*topology, v), v, {}))));
   }
   const auto& step = summary.fields().at("step_wasserstein").list_value();
   ASSERT_EQ(step.values_size(), 2);
@@ -626,7 +629,7 @@ TEST_F(FieldsTest, ADownloadGivesTheMeshAsGivenWithTheFieldsAskedFor) {
   const fs::path file = fs::path(io::testing::DataDir()) / "fertility_tet.vtu";
   if (!fs::exists(file)) ACTOPO_SKIP() << file << " is not there";
   fs::copy(file, data_dir_ / "fertility_tet.vtu");
-  const Mesh given = *io::ReadMesh(file.string());
+  const Mesh given = OkValue(io::ReadMesh(file.string()));
   v1::LoadMeshRequest load;
   load.set_path("fertility_tet.vtu");
   v1::LoadMeshResponse loaded;

@@ -16,6 +16,7 @@
 #include "server/algorithms/vertex_order.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
+#include "server/core/testing/status.h"
 #include "server/results/result_files.h"
 #include "server/results/run_algorithm.h"
 #include "server/service/testing/service_fixture.h"
@@ -117,10 +118,10 @@ TEST_F(ServiceTest, SessionLifecycleAndStats) {
 
 // Relations through the service equal the core's, translated to input ids.
 TEST_F(ServiceTest, RelationsMatchTheCore) {
-  const Mesh mesh = *io::MakeSample("jittered:5");
+  const Mesh mesh = OkValue(io::MakeSample("jittered:5"));
   const std::string mesh_id = LoadSample("jittered:5", 50);
-  auto topo = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 50}));
-  auto structure = *ExplicitStructure::Build(topo, {});
+  auto topo = OkValue(Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 50})));
+  auto structure = OkValue(ExplicitStructure::Build(topo, {}));
   auto reader = structure->NewReader();
   for (v1::Structure kind : {v1::STRUCTURE_EXPLICIT, v1::STRUCTURE_COMPACT, v1::STRUCTURE_ACTOPO}) {
     const std::string session = Open(mesh_id, kind);
@@ -486,14 +487,14 @@ JobRun RunJob(v1::TopologyService::Stub& stub, grpc::ClientContext* context,
 }
 
 TEST_F(ServiceTest, JobsStreamAcceptedProgressArraysSummaryStats) {
-  const Mesh mesh = *io::MakeSample("jittered:8");
+  const Mesh mesh = OkValue(io::MakeSample("jittered:8"));
   const std::string mesh_id = LoadSample("jittered:8", 60);
-  auto topo = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 60}));
-  auto reference = *ExplicitStructure::Build(topo, {});
+  auto topo = OkValue(Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 60})));
+  auto reference = OkValue(ExplicitStructure::Build(topo, {}));
   AlgorithmInput input;
   input.order = VertexOrder(*topo, mesh.point_fields[0].values);
   input.input_corners =
-      std::make_shared<const std::vector<uint8_t>>(*InputCorners(*topo, mesh.tetrahedra));
+      std::make_shared<const std::vector<uint8_t>>(OkValue(InputCorners(*topo, mesh.tetrahedra)));
   input.scalars = mesh.point_fields[0].values;
   for (v1::Structure kind : {v1::STRUCTURE_EXPLICIT, v1::STRUCTURE_COMPACT, v1::STRUCTURE_ACTOPO}) {
     const std::string session = Open(mesh_id, kind, 2);
@@ -753,9 +754,10 @@ TEST_F(ServiceTest, ConcurrentSessionsOnOneMesh) {
 // A mesh is loaded without its edges and triangles; critical points never builds them; the first
 // job and the first query that read them, at once on two sessions, build them once for both.
 TEST_F(ServiceTest, EdgesAndTrianglesAreBuiltOnTheirFirstNeedOnly) {
-  const Mesh mesh = *io::MakeSample("jittered:12");
+  const Mesh mesh = OkValue(io::MakeSample("jittered:12"));
   const std::string mesh_id = LoadSample("jittered:12", 100);
-  auto reference = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 100}));
+  auto reference =
+      OkValue(Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 100})));
   const auto describe = [&] {
     v1::GetMeshRequest get;
     get.set_mesh_id(mesh_id);
@@ -849,7 +851,7 @@ TEST_F(ServiceTest, AJobReportsTheFacesItBuildsBeforeItsRun) {
 }
 
 TEST_F(ServiceTest, UploadRoundTrip) {
-  const Mesh mesh = *io::MakeSample("jittered:4");
+  const Mesh mesh = OkValue(io::MakeSample("jittered:4"));
   std::string bytes(reinterpret_cast<const char*>(mesh.points.data()),
                     mesh.points.size() * sizeof(double));
   bytes.append(reinterpret_cast<const char*>(mesh.tetrahedra.data()),

@@ -16,6 +16,7 @@
 
 #include "absl/strings/match.h"
 #include "server/algorithms/morse_smale.h"
+#include "server/core/testing/status.h"
 #include "server/io/samples.h"
 
 namespace actopo::service {
@@ -47,7 +48,7 @@ class SessionManagerTest : public ::testing::Test {
 // of the tetrahedra as given, and shared by the mesh's sessions. Its share of the memory budget
 // is what it holds.
 TEST_F(SessionManagerTest, ALoadedMeshKeepsItsTetrahedraCornersNotTheTetrahedra) {
-  const Mesh given = *io::MakeSample("jittered:6");
+  const Mesh given = OkValue(io::MakeSample("jittered:6"));
   auto mesh = meshes_.LoadSample("jittered:6", {});
   ASSERT_TRUE(mesh.ok()) << mesh.status();
   const LoadedMesh& loaded = **mesh;
@@ -55,7 +56,7 @@ TEST_F(SessionManagerTest, ALoadedMeshKeepsItsTetrahedraCornersNotTheTetrahedra)
   EXPECT_EQ(loaded.mesh.points, given.points);
   EXPECT_EQ(loaded.topology->num_tetrahedra(), given.num_tetrahedra());
   ASSERT_NE(loaded.input_corners, nullptr);
-  EXPECT_EQ(*loaded.input_corners, *InputCorners(*loaded.topology, given.tetrahedra));
+  EXPECT_EQ(*loaded.input_corners, OkValue(InputCorners(*loaded.topology, given.tetrahedra)));
   // Not every tetrahedron came sorted: the corners carry information.
   EXPECT_TRUE(std::any_of(loaded.input_corners->begin(), loaded.input_corners->end(),
                           [](uint8_t c) { return c != 0b11100100; }));

@@ -11,6 +11,7 @@
 #include "server/algorithms/vertex_order.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
+#include "server/core/testing/status.h"
 #include "server/io/samples.h"
 
 namespace actopo::service {
@@ -63,12 +64,13 @@ void ExpectComplete(const EnumMapping<P, C> (&mapping)[N], std::string_view pref
 
 TEST(WireMapping, RelationsOneRowPerValueBothWays) {
   ExpectComplete(kRelationMapping, "RELATION_", RelationName);
-  for (Relation r : AllRelations()) EXPECT_EQ(*FromProto(ToProto(r)), r) << RelationName(r);
+  for (Relation r : AllRelations()) EXPECT_EQ(OkValue(FromProto(ToProto(r))), r) << RelationName(r);
 }
 
 TEST(WireMapping, AlgorithmsOneRowPerValueBothWays) {
   ExpectComplete(kAlgorithmMapping, "ALGORITHM_", AlgorithmName);
-  for (Algorithm a : AllAlgorithms()) EXPECT_EQ(*FromProto(ToProto(a)), a) << AlgorithmName(a);
+  for (Algorithm a : AllAlgorithms())
+    EXPECT_EQ(OkValue(FromProto(ToProto(a))), a) << AlgorithmName(a);
 }
 
 TEST(WireMapping, StructuresPrefetchAndPrecomputeOneRowPerValueBothWays) {
@@ -78,7 +80,7 @@ TEST(WireMapping, StructuresPrefetchAndPrecomputeOneRowPerValueBothWays) {
   // Every core value has a row: the structures are listed, the prefetch modes named up to the
   // last ("?" past it).
   for (StructureKind kind : AllStructures()) {
-    EXPECT_EQ(*FromProto(ToProto(kind)), kind) << StructureName(kind);
+    EXPECT_EQ(OkValue(FromProto(ToProto(kind))), kind) << StructureName(kind);
   }
   for (int i = 0; PrefetchName(Prefetch(i)) != "?"; ++i) {
     EXPECT_NE(ToProto(Prefetch(i)), v1::PREFETCH_UNSPECIFIED) << i;
@@ -136,13 +138,14 @@ TEST(WireMapping, UnspecifiedMeansTheDefaults) {
 // The summary built from the result equals, value for value, actopo-bench's JSON of the same
 // run parsed into a Struct.
 TEST(WireSummary, EqualsTheBenchJsonForEveryAlgorithm) {
-  const Mesh mesh = *io::MakeSample("jittered:6");
-  auto topology = *Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 40}));
-  auto structure = *ExplicitStructure::Build(topology, {});
+  const Mesh mesh = OkValue(io::MakeSample("jittered:6"));
+  auto topology =
+      OkValue(Topology::Build(mesh, OctreeBlocks(mesh.points, {.bucket_capacity = 40})));
+  auto structure = OkValue(ExplicitStructure::Build(topology, {}));
   AlgorithmInput input;
   input.order = VertexOrder(*topology, mesh.point_fields[0].values);
-  input.input_corners =
-      std::make_shared<const std::vector<uint8_t>>(*InputCorners(*topology, mesh.tetrahedra));
+  input.input_corners = std::make_shared<const std::vector<uint8_t>>(
+      OkValue(InputCorners(*topology, mesh.tetrahedra)));
   input.scalars = mesh.point_fields[0].values;
   for (Algorithm a : AllAlgorithms()) {
     input.algorithm = a;

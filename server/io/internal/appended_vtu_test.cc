@@ -16,6 +16,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "gtest/gtest.h"
+#include "server/core/testing/status.h"
 #include "server/io/samples.h"
 #include "server/io/test_data.h"
 #include "server/io/vtk_reader.h"
@@ -116,7 +117,7 @@ struct Layout {
 
 // Every layout VTK's writer offers reads as VTK reads it; the raw appended ones in parallel.
 TEST(AppendedVtu, EveryLayoutReadsAsVtkDoes) {
-  const Mesh mesh = *MakeSample("jittered:6");
+  const Mesh mesh = OkValue(MakeSample("jittered:6"));
   const std::filesystem::path dir = MakeTempDir("appended_vtu");
   const Layout layouts[] = {
       {"zlib", vtkXMLWriter::Appended, true, true, true, false, 32768, true},
@@ -186,7 +187,7 @@ TEST(AppendedVtu, DamageGetsVtksError) {
     EXPECT_EQ(read.status(), with_vtk.status()) << damage.name;
   }
   // A vertex id beyond the points, uncompressed so the id is written as is.
-  const Mesh mesh = *MakeSample("jittered:3");
+  const Mesh mesh = OkValue(MakeSample("jittered:3"));
   vtkNew<vtkXMLUnstructuredGridWriter> writer;
   vtkNew<vtkUnstructuredGrid> grid = Grid(mesh, false);
   grid->GetCells()->GetConnectivityArray64()->SetValue(5, mesh.num_vertices());
