@@ -139,7 +139,8 @@ TEST_P(MatchesTtkOn, CriticalPointsAndDiscreteGradient) {
                   cp["counts"]["degenerate"].get<int64_t>());
         EXPECT_EQ(r.VerticesDigest(), cp["vertices_sha256"].get<std::string>());
 
-        const DiscreteGradientResult g = OkValue(RunDiscreteGradient(structure, in.order, context));
+        const DiscreteGradientResult g =
+            OkValue(RunDiscreteGradient(structure, in.order, context, GradientArrays::kAll));
         if constexpr (std::is_same_v<std::decay_t<decltype(structure)>, ExplicitStructure>) {
           testing::ExpectValidGradient(g, structure);  // the digests below cover the others
         }
@@ -207,11 +208,12 @@ TEST_F(MatchesTtk, GradientInvariantsOnOtherMeshes) {
     const Loaded in = Load(file, field);
     auto explicit_structure = OkValue(ExplicitStructure::Build(in.topology, {}));
     const DiscreteGradientResult reference =
-        OkValue(RunDiscreteGradient(*explicit_structure, in.order, {}));
+        OkValue(RunDiscreteGradient(*explicit_structure, in.order, {}, GradientArrays::kAll));
     testing::ExpectValidGradient(reference, *explicit_structure);
     auto actopo = OkValue(
         ActopoStructure::Create(in.topology, {.producers = 2, .prefetch = Prefetch::kAdaptive}));
-    const DiscreteGradientResult r = OkValue(RunDiscreteGradient(*actopo, in.order, {}));
+    const DiscreteGradientResult r =
+        OkValue(RunDiscreteGradient(*actopo, in.order, {}, GradientArrays::kAll));
     EXPECT_EQ(r.PairsDigest(*in.topology), reference.PairsDigest(*in.topology));
   }
 }

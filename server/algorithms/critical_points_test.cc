@@ -212,7 +212,7 @@ TEST(CriticalPoints, MinimaAgreeWithTheGradient) {
     auto s = OkValue(ExplicitStructure::Build(f.topo, {}));
     const auto points =
         OkValue(RunCriticalPoints(*s, f.order, {.boundary_rule = BoundaryRule::kNone}, {}));
-    const auto gradient = OkValue(RunDiscreteGradient(*s, f.order, {}));
+    const auto gradient = OkValue(RunDiscreteGradient(*s, f.order, {}, GradientArrays::kAll));
     EXPECT_EQ(points.counts[int(CriticalType::kMinimum)], gradient.critical_cells[0]);
   }
 }
@@ -387,16 +387,18 @@ TEST(DiscreteGradient, EqualsTheLowerStarPairingByDefinition) {
   for (const Case& c : cases) {
     auto explicit_structure = OkValue(ExplicitStructure::Build(c.topo, {}));
     const ReferenceGradient want = PairLowerStarsByDefinition(*explicit_structure, c.order);
-    ExpectEqualsReference(OkValue(RunDiscreteGradient(*explicit_structure, c.order, {})), want,
-                          c.label + ", explicit");
+    ExpectEqualsReference(
+        OkValue(RunDiscreteGradient(*explicit_structure, c.order, {}, GradientArrays::kAll)), want,
+        c.label + ", explicit");
     // Paired again from the gradient of another order, every vertex reordered.
     CompactStructure compact(c.topo, {.cache_ratio = 0.1, .consumers = 2});
     std::vector<SimplexId> every(c.order.size());
     std::iota(every.begin(), every.end(), 0);
     const std::vector<SimplexId> other = reversed(c.order);
     ExpectEqualsReference(
-        OkValue(UpdateDiscreteGradient(compact, *RunDiscreteGradient(compact, other, {}), c.order,
-                                       every, {.consumers = 2})),
+        OkValue(UpdateDiscreteGradient(
+            compact, *RunDiscreteGradient(compact, other, {}, GradientArrays::kAll), c.order, every,
+            {.consumers = 2})),
         want, c.label + ", compact update");
   }
 }
@@ -405,7 +407,7 @@ TEST(DiscreteGradient, ValidAndIdenticalOnEveryStructureAndMode) {
   for (const Fixture& f : Fixtures()) {
     auto explicit_structure = OkValue(ExplicitStructure::Build(f.topo, {}));
     const DiscreteGradientResult reference =
-        OkValue(RunDiscreteGradient(*explicit_structure, f.order, {}));
+        OkValue(RunDiscreteGradient(*explicit_structure, f.order, {}, GradientArrays::kAll));
     testing::ExpectValidGradient(reference, *explicit_structure);
     const std::string pairs = reference.PairsDigest(*f.topo);
     const std::string critical = reference.CriticalCellsDigest(*f.topo);
@@ -421,7 +423,9 @@ TEST(DiscreteGradient, ValidAndIdenticalOnEveryStructureAndMode) {
     check(kept, "explicit, persistence arrays");
     for (int consumers : {1, 2}) {
       CompactStructure compact(f.topo, {.cache_ratio = 0.1, .consumers = consumers});
-      check(OkValue(RunDiscreteGradient(compact, f.order, {.consumers = consumers})), "compact");
+      check(OkValue(RunDiscreteGradient(compact, f.order, {.consumers = consumers},
+                                        GradientArrays::kAll)),
+            "compact");
       for (Prefetch p : {Prefetch::kLinear, Prefetch::kSpatial, Prefetch::kAdaptive}) {
         auto actopo =
             OkValue(ActopoStructure::Create(f.topo, {.consumers = consumers,
@@ -430,7 +434,8 @@ TEST(DiscreteGradient, ValidAndIdenticalOnEveryStructureAndMode) {
                                                      .prefetch = p,
                                                      .precompute = Precompute::kDeclared,
                                                      .declared = DiscreteGradientDeclared()}));
-        check(OkValue(RunDiscreteGradient(*actopo, f.order, {.consumers = consumers})),
+        check(OkValue(RunDiscreteGradient(*actopo, f.order, {.consumers = consumers},
+                                          GradientArrays::kAll)),
               std::string(PrefetchName(p)));
       }
     }

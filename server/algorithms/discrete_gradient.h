@@ -97,8 +97,7 @@ absl::StatusOr<std::vector<SimplexId>> SaddleTetrahedra(const AscendingLinks& li
 template <TopologicalStructure Structure>
 absl::StatusOr<DiscreteGradientResult> RunDiscreteGradient(
     Structure& structure, std::span<const SimplexId> order, const RunContext& context,
-    GradientArrays arrays = GradientArrays::kAll, VertexNeighbors* neighbors = nullptr,
-    AscendingLinks* links = nullptr);
+    GradientArrays arrays, VertexNeighbors* neighbors = nullptr, AscendingLinks* links = nullptr);
 
 // The gradient of `order` from `previous`, the gradient of an order in which every two vertices
 // not in `reordered` compare as in `order` (a simplified field's order and its input's: LTS moves

@@ -227,7 +227,8 @@ TEST(TopologicalSimplification, UpdatedGradientEqualsTheSimplifiedOrdersGradient
     const auto r = OkValue(RunTopologicalSimplification(
         *explicit_structure, in.order, in.scalars, {.threshold = fraction, .relative = true}, {}));
     const std::vector<SimplexId>& order = r.internal_order;
-    const auto want = OkValue(RunDiscreteGradient(*explicit_structure, order, {}));
+    const auto want =
+        OkValue(RunDiscreteGradient(*explicit_structure, order, {}, GradientArrays::kAll));
     // The diagram's gradient keeps the persistence arrays, and so does its update.
     const auto want_kept =
         OkValue(RunDiscreteGradient(*explicit_structure, order, {}, GradientArrays::kPersistence));
@@ -238,7 +239,8 @@ TEST(TopologicalSimplification, UpdatedGradientEqualsTheSimplifiedOrdersGradient
     ExpectSameGradient(OkValue(UpdateDiscreteGradient(*explicit_structure, r.diagram.gradient,
                                                       order, r.reordered, {})),
                        want_kept);
-    const auto full_before = OkValue(RunDiscreteGradient(*explicit_structure, in.order, {}));
+    const auto full_before =
+        OkValue(RunDiscreteGradient(*explicit_structure, in.order, {}, GradientArrays::kAll));
     ExpectSameGradient(
         OkValue(UpdateDiscreteGradient(*explicit_structure, full_before, order, r.reordered, {})),
         want);
@@ -330,7 +332,7 @@ TEST(TopologicalSimplification, KeptNeighboursFarInIdDecodeWhole) {
 TEST(TopologicalSimplification, UpdatedGradientFollowsAnyReordering) {
   const Input in = Noisy(9, 23, /*block_size=*/30);
   auto structure = OkValue(ExplicitStructure::Build(in.topo, {}));
-  const auto before = OkValue(RunDiscreteGradient(*structure, in.order, {}));
+  const auto before = OkValue(RunDiscreteGradient(*structure, in.order, {}, GradientArrays::kAll));
   std::mt19937_64 rng(7);
   for (double share : {0.01, 0.05, 0.3}) {
     SCOPED_TRACE(share);
@@ -345,7 +347,7 @@ TEST(TopologicalSimplification, UpdatedGradientFollowsAnyReordering) {
     std::vector<SimplexId> order(n);
     for (SimplexId r = 0; r < n; ++r) order[rest[r]] = r;
     std::sort(moved.begin(), moved.end());
-    const auto want = OkValue(RunDiscreteGradient(*structure, order, {}));
+    const auto want = OkValue(RunDiscreteGradient(*structure, order, {}, GradientArrays::kAll));
     ExpectSameGradient(OkValue(UpdateDiscreteGradient(*structure, before, order, moved, {})), want);
     CompactStructure compact(in.topo, {.cache_ratio = 0.05, .consumers = 2});
     ExpectSameGradient(
