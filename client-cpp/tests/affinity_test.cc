@@ -85,10 +85,10 @@ TEST(AffinityTest, EveryCallOfAKeyReachesOneServerThroughHAProxy) {
   const std::string target = absl::StrCat("127.0.0.1:", listen);
   // HAProxy listens once it has read the configuration; both servers are up by then.
   bool answered = false;
-  for (int i = 0; i < 300 && !answered && (*proxy)->running(); ++i) {
+  ASSERT_TRUE(WaitUntil([&] {
     answered = Connect(target, "probe")->GetServerInfo().ok();
-    if (!answered) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
+    return answered || !(*proxy)->running();
+  }));
   ASSERT_TRUE(answered) << "HAProxy did not answer on " << target << " with " << config;
 
   std::map<std::string, std::unique_ptr<Client>> direct;

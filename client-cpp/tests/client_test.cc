@@ -224,12 +224,15 @@ TEST_F(ServerTest, ServerErrorsKeepTheirCodeAndMessage) {
   EXPECT_TRUE(HasError(client().CancelJob("job-x"), StatusCode::kNotFound, "job-x"));
 }
 
+// A load held by the server outlasts the client's mesh deadline.
 TEST_F(ServerTest, DeadlinesApply) {
-  auto impatient = Client::Connect(target(), {.default_timeout = std::chrono::milliseconds(1),
-                                              .mesh_timeout = std::chrono::milliseconds(1)});
+  auto impatient = Client::Connect(target(), {.default_timeout = std::chrono::seconds(1),
+                                              .mesh_timeout = std::chrono::seconds(1)});
   ASSERT_OK(impatient);
+  std::unique_ptr<WorkHold> hold = Hold("LoadMesh");
   EXPECT_TRUE(
       HasError((*impatient)->LoadMesh("sample:jittered:20"), StatusCode::kDeadlineExceeded));
+  EXPECT_TRUE(hold->WaitHeld(std::chrono::milliseconds(0))) << "the load was not held";
 }
 
 // A second server with a token and tight limits.

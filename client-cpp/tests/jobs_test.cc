@@ -249,64 +249,66 @@ TEST_F(ServerTest, AJobReportsItsPhases) {
 
 // Waits until the server says no job runs on `session`.
 void WaitIdle(Client& client, const std::string& session) {
-  for (int i = 0; i < 200; ++i) {
+  EXPECT_TRUE(WaitUntil([&] {
     absl::StatusOr<SessionInfo> info = client.GetSession(session);
-    if (!info.ok() || info->running_job_id.empty()) return;
-    std::this_thread::sleep_for(std::chrono::milliseconds(25));
-  }
-  ADD_FAILURE() << "the job on " << session << " did not stop";
+    return !info.ok() || info->running_job_id.empty();
+  })) << "the job on "
+      << session << " did not stop";
 }
 
-// A 1.3M-tetrahedron sample on which topo-relations runs a few seconds: long enough to cancel.
-// Loaded once for the binary (the server goes at the end).
-std::string BigSample(Client& client) {
-  static const std::string id = [&] {
-    absl::StatusOr<MeshInfo> mesh = client.LoadMesh("sample:jittered:60", {.block_size = 500});
-    EXPECT_TRUE(mesh.ok()) << mesh.status();
-    return mesh.ok() ? mesh->mesh_id : std::string();
-  }();
-  return id;
-}
-
+// Every job below is held by the server before it runs (Hold("RunJob")), so that it surely has
+// not ended when the test cancels it or lets its deadline pass.
 TEST_F(ServerTest, Cancellation) {
-  const std::string session = Open(BigSample(client()), {.structure = Structure::kCompact});
+  const std::string session = Open(LoadSample("jittered:10"), {.structure = Structure::kCompact});
   ASSERT_FALSE(session.empty());
 
   // CancelJob from another thread, with the id from on_accepted.
-  std::promise<std::string> job_id;
-  std::future<absl::StatusOr<JobResult>> run = std::async(std::launch::async, [&] {
-    return client().RunJob(session, "topo-relations", {},
-                           {.on_accepted = [&](const std::string& id) { job_id.set_value(id); }});
-  });
-  const std::string id = job_id.get_future().get();
-  absl::StatusOr<SessionInfo> busy = client().GetSession(session);
-  ASSERT_OK(busy);
-  EXPECT_EQ(busy->running_job_id, id);
-  EXPECT_TRUE(HasError(client().RunJob(session, "critical-points"), StatusCode::kFailedPrecondition,
-                       "is running job"));
-  ASSERT_OK(client().CancelJob(id));
-  EXPECT_TRUE(HasError(run.get(), StatusCode::kCancelled));
-  EXPECT_TRUE(HasError(client().CancelJob(id), StatusCode::kNotFound, id));
+  {
+    std::unique_ptr<WorkHold> hold = Hold("RunJob");
+    std::promise<std::string> job_id;
+    std::future<absl::StatusOr<JobResult>> run = std::async(std::launch::async, [&] {
+      return client().RunJob(session, "topo-relations", {},
+                             {.on_accepted = [&](const std::string& id) { job_id.set_value(id); }});
+    });
+    const std::string id = job_id.get_future().get();
+    ASSERT_TRUE(hold->WaitHeld());
+    absl::StatusOr<SessionInfo> busy = client().GetSession(session);
+    ASSERT_OK(busy);
+    EXPECT_EQ(busy->running_job_id, id);
+    EXPECT_TRUE(HasError(client().RunJob(session, "critical-points"),
+                         StatusCode::kFailedPrecondition, "is running job"));
+    ASSERT_OK(client().CancelJob(id));
+    hold->Release();
+    EXPECT_TRUE(HasError(run.get(), StatusCode::kCancelled));
+    EXPECT_TRUE(HasError(client().CancelJob(id), StatusCode::kNotFound, id));
+    WaitIdle(client(), session);
+  }
 
-  // A CancelToken cancelled from another thread once the job is accepted.
-  CancelToken cancel;
-  std::promise<void> accepted;
-  std::thread canceller([&] {
-    accepted.get_future().wait();
-    cancel.Cancel();
-  });
-  absl::StatusOr<JobResult> cancelled = client().RunJob(
-      session, "topo-relations", {},
-      {.on_accepted = [&](const std::string&) { accepted.set_value(); }, .cancel = cancel});
-  canceller.join();
-  EXPECT_TRUE(HasError(cancelled, StatusCode::kCancelled));
-  WaitIdle(client(), session);
+  // A CancelToken cancelled from another thread once the job is held.
+  {
+    std::unique_ptr<WorkHold> hold = Hold("RunJob");
+    CancelToken cancel;
+    std::thread canceller([&] {
+      if (hold->WaitHeld()) cancel.Cancel();
+    });
+    absl::StatusOr<JobResult> cancelled =
+        client().RunJob(session, "topo-relations", {}, {.cancel = cancel});
+    canceller.join();
+    EXPECT_TRUE(HasError(cancelled, StatusCode::kCancelled));
+    hold->Release();
+    WaitIdle(client(), session);
+  }
 
-  // A job deadline.
-  EXPECT_TRUE(HasError(
-      client().RunJob(session, "topo-relations", {}, {.timeout = std::chrono::milliseconds(200)}),
-      StatusCode::kDeadlineExceeded));
-  WaitIdle(client(), session);
+  // A job deadline, passed while the job is held.
+  {
+    std::unique_ptr<WorkHold> hold = Hold("RunJob");
+    EXPECT_TRUE(HasError(
+        client().RunJob(session, "topo-relations", {}, {.timeout = std::chrono::seconds(1)}),
+        StatusCode::kDeadlineExceeded));
+    EXPECT_TRUE(hold->WaitHeld(std::chrono::milliseconds(0))) << "the job was not held";
+    hold->Release();
+    WaitIdle(client(), session);
+  }
 
   // The session is usable again.
   EXPECT_OK(client().RunJob(session, "critical-points", {}, {.include_arrays = false}));
@@ -314,15 +316,15 @@ TEST_F(ServerTest, Cancellation) {
 
 TEST_F(ServerTest, ClosingTheSessionCancelsItsJob) {
   absl::StatusOr<SessionInfo> session =
-      client().OpenSession(BigSample(client()), {.structure = Structure::kCompact});
+      client().OpenSession(LoadSample("jittered:10"), {.structure = Structure::kCompact});
   ASSERT_OK(session);
-  std::promise<void> accepted;
+  std::unique_ptr<WorkHold> hold = Hold("RunJob");
   std::future<absl::StatusOr<JobResult>> run = std::async(std::launch::async, [&] {
-    return client().RunJob(session->session_id, "topo-relations", {},
-                           {.on_accepted = [&](const std::string&) { accepted.set_value(); }});
+    return client().RunJob(session->session_id, "topo-relations", {});
   });
-  accepted.get_future().wait();
+  ASSERT_TRUE(hold->WaitHeld());
   ASSERT_OK(client().CloseSession(session->session_id));
+  hold->Release();
   const absl::StatusOr<JobResult> result = run.get();
   EXPECT_FALSE(result.ok());
   EXPECT_EQ(result.status().code(), StatusCode::kCancelled) << result.status();

@@ -1,5 +1,6 @@
 // Relation queries: single, batch (split over the shared server's max_batch_size of 64) and
 // streams, with their errors.
+#include <latch>
 #include <stdexcept>
 #include <thread>
 
@@ -266,13 +267,16 @@ TEST_F(RelationsTest, StreamAbandonedEarlyEnds) {
   // Finish without reading the second answer: the call is cancelled, not waited for. The server
   // cannot have ended it first: it ends a stream only after the client's last write.
   EXPECT_TRUE(HasError((*opened)->Finish(), StatusCode::kCancelled));
-  // Cancel from another thread ends a blocked Read.
+  // Cancel from another thread ends a Read that nothing else would end, whether the Read has
+  // begun to wait when the Cancel comes or not (which a test cannot see): the same outcome.
   absl::StatusOr<std::unique_ptr<RelationStream>> idle = client().OpenRelationStream();
   ASSERT_OK(idle);
+  std::latch reading(1);
   std::thread canceller([&] {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    reading.wait();
     (*idle)->Cancel();
   });
+  reading.count_down();
   EXPECT_FALSE((*idle)->Read().has_value());  // nothing was asked: only Cancel ends this
   canceller.join();
   EXPECT_TRUE(HasError((*idle)->Finish(), StatusCode::kCancelled));

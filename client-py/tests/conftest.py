@@ -52,10 +52,13 @@ def pytest_make_collect_report(collector: pytest.Collector) -> Iterator[None]:
 
 
 @pytest.fixture(scope="session")
-def shared_server() -> Iterator[ServerProcess]:
-    """The server most tests share: default limits, serving DATA_DIR, and its Prometheus
-    endpoint, where tests read what the server did (e.g. that it stopped a load)."""
-    with server_process("--metrics-port", str(free_port())) as process:
+def shared_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServerProcess]:
+    """The server most tests share: default limits, serving DATA_DIR, its Prometheus endpoint,
+    where tests read what the server did (e.g. that it stopped a load), and a gate directory of
+    its own, where a test holds work with shared_server.hold() (a server checks the gate for a
+    file of the work's name only: it costs the other tests nothing)."""
+    with server_process("--metrics-port", str(free_port()),
+                        gate_dir=tmp_path_factory.mktemp("gate")) as process:
         yield process
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import os
 import queue
@@ -13,7 +14,7 @@ import sys
 import threading
 import time
 import urllib.request
-from collections.abc import Callable, Iterator
+from collections.abc import Awaitable, Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TypeVar
@@ -27,6 +28,8 @@ BENCH_BIN = Path(os.environ.get("ACTOPO_BENCH_BIN", BUILD / "server/cmd/actopo-b
 DATA_DIR = Path(os.environ.get("ACTOPO_DATA_DIR") or REPO.parent / "shared" / "data")
 STARTUP_SECONDS = 30
 STOP_SECONDS = 15
+WAIT_SECONDS = 60.0
+"""Only bounds a hang: what a test waits for happens within a fraction of a second."""
 
 T = TypeVar("T")
 
@@ -52,6 +55,8 @@ class ServerProcess:
     target: str = ""
     metrics_port: int = 0
     stderr: list[str] = field(default_factory=list)
+    gate_dir: Path | None = None
+    """--test-gate-dir, where hold() puts its files."""
 
     @property
     def pid(self) -> int:
@@ -94,6 +99,26 @@ class ServerProcess:
         with urllib.request.urlopen(url, timeout=10) as response:
             return str(response.read().decode())
 
+    @contextlib.contextmanager
+    def hold(self, name: str) -> Iterator[Hold]:
+        """Holds the server's work named `name` at its start for the duration of a with block:
+        "RunJob" (a job, once its client has the job id), "LoadMesh", "LoadMeshWithProgress"
+        and its phases ("LoadMeshWithProgress/encode"), "UploadMesh", "OpenSession", or an
+        offloaded relation call by its RPC's name. Work that starts meanwhile waits until
+        Hold.release() or the end of the block, whatever the test's outcome. Needs a server
+        started with a gate_dir (the shared server has one)."""
+        if self.gate_dir is None:
+            raise RuntimeError("the server was started without a gate_dir (--test-gate-dir)")
+        hold = Hold(self, self.gate_dir, name.replace("/", "."))
+        # The server removes NAME.held as the work it held goes on: a hold of the same name
+        # just released must not be taken for this one.
+        wait_until(lambda: not hold.is_held, f"the last hold of {hold.name} to be let go")
+        hold.path.touch(exist_ok=False)
+        try:
+            yield hold
+        finally:
+            hold.release()
+
     def signal(self, number: signal.Signals) -> None:
         self.process.send_signal(number)
 
@@ -108,17 +133,59 @@ class ServerProcess:
             return self.process.wait()
 
 
-def start_server(*flags: str, port: int = 0) -> ServerProcess:
+@dataclass
+class Hold:
+    """A hold of ServerProcess.hold(): while the file `path` exists, the server's work named
+    `name` waits at its start, and the server says with the file `held_path` that some does."""
+
+    server: ServerProcess = field(repr=False)
+    gate_dir: Path
+    name: str
+
+    @property
+    def path(self) -> Path:
+        return self.gate_dir / self.name
+
+    @property
+    def held_path(self) -> Path:
+        return self.gate_dir / f"{self.name}.held"
+
+    @property
+    def is_held(self) -> bool:
+        """Whether some work of this name waits at the gate now."""
+        return self.held_path.exists()
+
+    def wait_held(self, timeout: float = WAIT_SECONDS) -> None:
+        """Waits until work of this name waits at the gate (fails at once if the server
+        exits)."""
+        def held() -> bool:
+            if self.server.process.poll() is not None:
+                raise AssertionError(f"actopo-server exited ({self.server.process.returncode}) "
+                                     f"before {self.name} was held: {''.join(self.server.stderr)}")
+            return self.is_held
+
+        wait_until(held, f"{self.name} held on the server", timeout)
+
+    def release(self) -> None:
+        """Lets the held work, and work of this name that starts from now on, go on."""
+        self.path.unlink(missing_ok=True)
+
+
+def start_server(*flags: str, port: int = 0,
+                 gate_dir: str | os.PathLike[str] | None = None) -> ServerProcess:
     """Starts actopo-server on 127.0.0.1:`port` (0: a free one) serving DATA_DIR, and waits
-    until it says where it listens (and where its metrics are, with --metrics-port)."""
+    until it says where it listens (and where its metrics are, with --metrics-port). With a
+    `gate_dir` (an empty directory), ServerProcess.hold() holds its work."""
     if not SERVER_BIN.is_file():
         pytest.skip(f"actopo-server not built ({SERVER_BIN}); set ACTOPO_SERVER_BIN")
     if not DATA_DIR.is_dir():
         pytest.skip(f"test meshes not found ({DATA_DIR}); set ACTOPO_DATA_DIR")
+    if gate_dir is not None:
+        flags = (*flags, "--test-gate-dir", str(gate_dir))
     process = subprocess.Popen(
         [str(SERVER_BIN), "--port", str(port), "--host", "127.0.0.1", "--data-dir",
          str(DATA_DIR), *flags], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    server = ServerProcess(process)
+    server = ServerProcess(process, gate_dir=None if gate_dir is None else Path(gate_dir))
     lines: queue.Queue = queue.Queue()
     threading.Thread(target=_read_lines, args=(process.stdout, lines), daemon=True).start()
     threading.Thread(target=lambda: server.stderr.extend(process.stderr), daemon=True).start()
@@ -144,9 +211,10 @@ def start_server(*flags: str, port: int = 0) -> ServerProcess:
 
 
 @contextlib.contextmanager
-def server_process(*flags: str, port: int = 0) -> Iterator[ServerProcess]:
+def server_process(*flags: str, port: int = 0,
+                   gate_dir: str | os.PathLike[str] | None = None) -> Iterator[ServerProcess]:
     """start_server() for the duration of a with block; stops it (if still running) after."""
-    server = start_server(*flags, port=port)
+    server = start_server(*flags, port=port, gate_dir=gate_dir)
     try:
         yield server
     finally:
@@ -160,15 +228,33 @@ def running_server(*flags: str) -> Iterator[str]:
         yield server.target
 
 
-def wait_for(condition: Callable[[], T], seconds: float, interval: float = 0.1) -> T:
-    """Polls `condition` until it returns something true, and returns that; after `seconds`
-    returns its last value (false) so the caller's assert shows it."""
-    deadline = time.monotonic() + seconds
+def wait_until(predicate: Callable[[], T], what: str, timeout: float = WAIT_SECONDS,
+               interval: float = 0.01) -> T:
+    """Calls `predicate` every `interval` seconds until it returns something true, and returns
+    that. After `timeout` seconds (which only bound a hang) raises AssertionError saying that
+    `what` did not happen."""
+    deadline = time.monotonic() + timeout
     while True:
-        value = condition()
-        if value or time.monotonic() >= deadline:
+        value = predicate()
+        if value:
             return value
+        if time.monotonic() >= deadline:
+            raise AssertionError(f"waited {timeout:g} s for {what} (last: {value!r})")
         time.sleep(interval)
+
+
+async def wait_until_async(predicate: Callable[[], Awaitable[T]], what: str,
+                           timeout: float = WAIT_SECONDS, interval: float = 0.01) -> T:
+    """wait_until() in a coroutine: awaits `predicate()`, and sleeps without blocking the
+    event loop."""
+    deadline = time.monotonic() + timeout
+    while True:
+        value = await predicate()
+        if value:
+            return value
+        if time.monotonic() >= deadline:
+            raise AssertionError(f"waited {timeout:g} s for {what} (last: {value!r})")
+        await asyncio.sleep(interval)
 
 
 # Runs the CLI as `python -m actopo` would, with Python's own SIGINT handler even when this

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from harness import wait_until_async
 from meshes import lattice
 
 import actopo
@@ -75,15 +76,14 @@ def test_async_parity(server, client):
     assert stats.jobs.count == 1 and stats.relation_queries.count >= 3
 
 
-async def _stopped(session: actopo.AsyncSession, seconds: float = 30) -> bool:
-    """Whether the session's job was stopped on the server: it runs no job any more (`seconds`
-    only bound a hang) and finished none (the session counts finished jobs only)."""
-    for _ in range(int(seconds / 0.02)):
-        if (await session.describe()).running_job_id is None:
-            break
-        await asyncio.sleep(0.02)
-    return ((await session.describe()).running_job_id is None
-            and (await session.stats()).jobs.count == 0)
+async def _stopped(session: actopo.AsyncSession) -> bool:
+    """Whether the session's job was stopped on the server: waits until it runs no job any
+    more, then checks that it finished none (the session counts finished jobs only)."""
+    async def idle() -> bool:
+        return (await session.describe()).running_job_id is None
+
+    await wait_until_async(idle, "the session to run no job")
+    return (await session.stats()).jobs.count == 0
 
 
 async def _assert_stopped(session: actopo.AsyncSession, when: str, log: list[str]) -> None:
@@ -97,6 +97,9 @@ async def _assert_stopped(session: actopo.AsyncSession, when: str, log: list[str
 
 
 def test_async_errors_and_cancellation(shared_server):
+    """The jobs are held on the server until the client has cancelled them, or until their
+    deadline has passed. A cancelled task's call reaches the server as a message of its own:
+    jittered:50's Morse-Smale complex, let go, runs far longer than that takes."""
     server, log = shared_server.target, shared_server.stderr
 
     async def scenario():
@@ -108,22 +111,28 @@ def test_async_errors_and_cancellation(shared_server):
             mesh = await aclient.sample("jittered:50")
             try:
                 async with aclient.open_session(mesh, structure="compact") as session:
-                    running = asyncio.Event()
-                    task = asyncio.ensure_future(
-                        session.run("morse-smale", progress=lambda f: running.set()))
-                    await running.wait()
-                    task.cancel()  # what Ctrl-C does under asyncio.run
-                    with pytest.raises(asyncio.CancelledError):
-                        await task
+                    with shared_server.hold("RunJob") as hold:
+                        task = asyncio.ensure_future(session.run("morse-smale"))
+                        await asyncio.to_thread(hold.wait_held)
+                        task.cancel()  # what Ctrl-C does under asyncio.run
+                        with pytest.raises(asyncio.CancelledError):
+                            await task
                     await _assert_stopped(session, "after task.cancel()", log)
-                    job = await session.submit("morse-smale")
-                    await job.cancel()
-                    with pytest.raises(actopo.CancelledError):
-                        await job.result()
+                    with shared_server.hold("RunJob") as hold:
+                        job = await session.submit("morse-smale")
+                        await asyncio.to_thread(hold.wait_held)
+                        await job.cancel()
+                        hold.release()
+                        with pytest.raises(actopo.CancelledError):
+                            await job.result()
                     await _assert_stopped(session, "after CancelJob", log)
-                    with pytest.raises(actopo.DeadlineExceededError):
-                        await session.run("morse-smale", timeout=0.01)
+                    with shared_server.hold("RunJob") as hold:
+                        with pytest.raises(actopo.DeadlineExceededError):
+                            await session.run("morse-smale", timeout=1.0)
+                        assert hold.is_held, "the deadline passed while the job was not held"
                     await _assert_stopped(session, "past its deadline", log)
+                    result = await session.run("critical-points", include_arrays=False)
+                    assert result.summary["counts"]
             finally:
                 await aclient.delete_mesh(mesh)
             with pytest.raises(actopo.NotFoundError):

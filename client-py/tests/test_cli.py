@@ -10,6 +10,7 @@ import os
 import signal
 import subprocess
 import sys
+from collections import Counter
 from pathlib import Path
 
 import grpc
@@ -18,7 +19,7 @@ import meshio
 import numpy as np
 import pytest
 import pyvista  # noqa: F401 (the CLI writes its .vtp files with it: a dependency of these tests)
-from harness import start_cli, wait_for
+from harness import start_cli, wait_until
 from meshes import lattice
 from references import ENTRY, check_summary, ttk, ttk_simplification
 
@@ -353,27 +354,35 @@ def test_errors_exit_with_a_message(cli, data_dir, monkeypatch, capsys):
     assert "ACTOPO_SERVER" in capsys.readouterr().err
 
 
-def test_ctrl_c_cancels_the_cli_job(server, client):
-    """SIGINT while `actopo run` waits for its job: the job stops, the session and mesh go."""
+def test_ctrl_c_cancels_the_cli_job(shared_server, client):
+    """SIGINT while `actopo run` waits for its job, held on the server: the job stops, the
+    session and mesh go."""
     before = {m.mesh_id for m in client.list_meshes()}
     sessions = {s.session_id for s in client.list_sessions()}
-    process = start_cli("--server", server, "run", "--mesh", "sample:jittered:60",
-                        "--algorithm", "morse-smale", "--structure", "compact")
-    try:
-        # The job runs on the server, or the command ended early. The bound only stops a hang:
-        # the CLI generates and partitions its mesh first, which under ASan, beside other tests,
-        # has taken more than 30 s.
-        running = wait_for(lambda: process.poll() is not None or any(
-            s.running_job_id for s in client.list_sessions() if s.session_id not in sessions), 120)
-        assert running and process.poll() is None, process.stderr.read()
-        process.send_signal(signal.SIGINT)
-        _, err = process.communicate(timeout=30)
-    finally:
-        if process.poll() is None:
-            process.kill()
+    cancelled = grpc.StatusCode.CANCELLED.value[0]
+    jobs = Counter(shared_server.requests("RunJob"))
+    with shared_server.hold("RunJob") as hold:
+        process = start_cli("--server", shared_server.target, "run", "--mesh",
+                            "sample:jittered:20", "--algorithm", "morse-smale", "--structure",
+                            "compact")
+        try:
+            # The job is held, or the command ended early. The bound only stops a hang: the CLI
+            # generates and partitions its mesh first, which under ASan, beside other tests, has
+            # taken more than 30 s.
+            wait_until(lambda: process.poll() is not None or hold.is_held,
+                       "the command's job held on the server", timeout=120)
+            assert process.poll() is None, process.stderr.read()
+            process.send_signal(signal.SIGINT)
+            _, err = process.communicate(timeout=30)
+        finally:
+            if process.poll() is None:
+                process.kill()
     assert process.returncode == 130 and "actopo: cancelled" in err
     assert {s.session_id for s in client.list_sessions()} == sessions
     assert {m.mesh_id for m in client.list_meshes()} == before
+    # Let go, the job sees that it was cancelled (by its call's end, and by the session's).
+    wait_until(lambda: Counter(shared_server.requests("RunJob"))[cancelled] > jobs[cancelled],
+               "the server to end the command's job CANCELLED")
 
 
 # Fields: add-fields, delete-field, and run over several fields.

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 from dask.distributed import Client as DaskClient
 from dask.distributed import LocalCluster
-from harness import ServerProcess, free_port, server_process, wait_for
+from harness import ServerProcess, free_port, server_process, wait_until
 
 import actopo
 from actopo.distributed import _distance_plan, distance_matrix_distributed, run_distributed
@@ -100,7 +100,8 @@ def no_meshes_left(servers: list[str]) -> None:
     """Every task deleted its mesh (a task still running after an error does so when done)."""
     for target in servers:
         with actopo.Client(target) as client:
-            assert wait_for(lambda c=client: not c.list_meshes(), HANG_SECONDS), target
+            wait_until(lambda c=client: not c.list_meshes(), f"no mesh left on {target}",
+                       timeout=HANG_SECONDS)
 
 
 def test_fields_spread_over_two_servers_give_one_servers_job(dask_client, servers, processes,

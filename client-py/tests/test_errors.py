@@ -7,7 +7,7 @@ import subprocess
 
 import grpc
 import pytest
-from harness import running_server
+from harness import running_server, wait_until
 from meshes import lattice
 
 import actopo
@@ -105,18 +105,28 @@ def test_unavailable():
         assert e.value.code == grpc.StatusCode.UNAVAILABLE
 
 
-def test_cancelled_and_deadline(client):
-    mesh = client.sample("jittered:40")
+def test_cancelled_and_deadline(shared_server, client):
+    """The job is held on the server until it is cancelled, and until its deadline has passed."""
+    mesh = client.sample("jittered:20")
     try:
         with client.open_session(mesh, structure="compact") as session:
-            job = session.submit("morse-smale")
-            job.cancel()
-            with pytest.raises(actopo.CancelledError) as e:
-                job.result()
+            with shared_server.hold("RunJob") as hold:
+                job = session.submit("morse-smale")
+                hold.wait_held()
+                job.cancel()
+                hold.release()
+                with pytest.raises(actopo.CancelledError) as e:
+                    job.result()
             assert e.value.code == grpc.StatusCode.CANCELLED
-            with pytest.raises(actopo.DeadlineExceededError) as e:
-                session.run("morse-smale", timeout=0.01)
+            with shared_server.hold("RunJob") as hold:
+                with pytest.raises(actopo.DeadlineExceededError) as e:
+                    session.run("morse-smale", timeout=1.0)
+                assert hold.is_held, "the deadline passed while the job was not held"
             assert isinstance(e.value, TimeoutError)
+            assert e.value.code == grpc.StatusCode.DEADLINE_EXCEEDED
+            wait_until(lambda: session.describe().running_job_id is None,
+                       "the session to run no job")
+            assert session.run("critical-points", include_arrays=False).summary["counts"]
     finally:
         client.delete_mesh(mesh)
 

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import pyvista as pv
 import references
-from harness import wait_for
+from harness import Hold, wait_until
 from references import CASE_IDS, CASES
 
 import actopo
@@ -25,8 +25,8 @@ import actopo._progress
 from actopo._mesh import MeshArrays, mesh_arrays
 
 STRUCTURES = ["explicit", "compact", "actopo"]
-LIVENESS_SECONDS = 30.0
-"""Only bounds a hang: a cancelled job stops within a fraction of a second."""
+DEADLINE_SECONDS = 1.0
+"""A job's deadline in the tests of deadlines: the job is held on the server until it passed."""
 
 
 @pytest.fixture(scope="module")
@@ -44,18 +44,28 @@ def fertility_session(client, fertility):
 
 @pytest.fixture(scope="module")
 def big(client):
-    """A sample whose Morse-Smale complex takes about a second: room to cancel."""
+    """A sample whose Morse-Smale complex runs for a few tenths of a second. The tests that
+    cancel hold the job on the server until the client has cancelled it; a cancelled stream
+    reaches the server as a message of its own, which is in long before such a job, let go,
+    could end."""
     mesh = client.sample("jittered:50")
     yield mesh
     client.delete_mesh(mesh)
 
 
 def _stopped(session: actopo.Session, finished_before: int) -> bool:
-    """Whether the session's job was stopped on the server: waits until the session runs no job
-    (LIVENESS_SECONDS only bounds a hang), then checks that the job did not finish (the session
-    counts finished jobs only)."""
-    idle = wait_for(lambda: session.describe().running_job_id is None, LIVENESS_SECONDS)
-    return idle and session.stats().jobs.count == finished_before
+    """Whether the session's job was stopped on the server: waits until the session runs no
+    job, then checks that the job did not finish (the session counts finished jobs only)."""
+    wait_until(lambda: session.describe().running_job_id is None, "the session to run no job")
+    return session.stats().jobs.count == finished_before
+
+
+def _interrupt_when_held(hold: Hold, sent: threading.Event) -> None:
+    """SIGINT to this process, as if the user pressed Ctrl-C, once the job is held: the main
+    thread then waits for the job, in run()."""
+    hold.wait_held()
+    os.kill(os.getpid(), signal.SIGINT)
+    sent.set()
 
 
 @pytest.fixture(scope="module")
@@ -221,51 +231,71 @@ def test_a_callable_gets_the_run_a_bar_shows_the_faces_first(client, monkeypatch
             client.delete_mesh(mesh)
 
 
-def test_cancel_from_another_thread(client, big):
-    """cancel() from another thread while result() waits, once the job reports progress."""
+def test_cancel_from_another_thread(shared_server, client, big):
+    """cancel() from another thread while result() waits for the job, held on the server."""
     with client.open_session(big, structure="compact") as session:
-        job = session.submit("morse-smale")
-        assert job.job_id and session.describe().running_job_id == job.job_id
-        running = threading.Event()
+        with shared_server.hold("RunJob") as hold:
+            job = session.submit("morse-smale")
+            assert job.job_id and session.describe().running_job_id == job.job_id
+            hold.wait_held()
+            failed: list[BaseException] = []
 
-        def cancel_when_running() -> None:
-            if running.wait(LIVENESS_SECONDS):
-                job.cancel()
+            def cancel_once_waiting() -> None:
+                try:
+                    # result() holds the job's lock while it reads the job's stream.
+                    wait_until(job._lock.locked, "result() to wait for the job")
+                    job.cancel()
+                except BaseException as e:
+                    failed.append(e)
+                finally:
+                    hold.release()  # the job sees its cancel, or ends and fails the test
 
-        canceller = threading.Thread(target=cancel_when_running)
-        canceller.start()
-        try:
-            with pytest.raises(actopo.CancelledError):
-                job.result(progress=lambda fraction: running.set())
-        finally:
-            running.set()
-            canceller.join()
+            canceller = threading.Thread(target=cancel_once_waiting)
+            canceller.start()
+            try:
+                with pytest.raises(actopo.CancelledError):
+                    job.result()
+            finally:
+                canceller.join()
+                if failed:
+                    raise failed[0]
         assert _stopped(session, 0)
 
 
-def test_ctrl_c_cancels_the_job(client, big):
+def test_ctrl_c_cancels_the_job(shared_server, client, big):
     with client.open_session(big, structure="compact") as session:
-        def interrupt(fraction):
-            os.kill(os.getpid(), signal.SIGINT)  # as if the user pressed Ctrl-C now
-
-        with pytest.raises(KeyboardInterrupt):
-            session.run("morse-smale", progress=interrupt)
+        with shared_server.hold("RunJob") as hold:
+            sent = threading.Event()
+            interrupter = threading.Thread(target=_interrupt_when_held, args=(hold, sent))
+            interrupter.start()
+            try:
+                with pytest.raises(KeyboardInterrupt):
+                    session.run("morse-smale")
+            finally:
+                interrupter.join()
+            assert sent.is_set() and hold.is_held
         assert _stopped(session, 0), "the job ran on on the server after Ctrl-C"
         assert session.run("critical-points", include_arrays=False).summary["counts"]
 
 
-def test_deadline_and_busy_session(client, big):
+def test_deadline_and_busy_session(shared_server, client, big):
     with client.open_session(big, structure="compact") as session:
-        job = session.submit("morse-smale")
-        with pytest.raises(actopo.FailedPreconditionError, match=job.job_id):
-            session.submit("critical-points")
-        job.cancel()
-        with pytest.raises(actopo.CancelledError):
-            job.result()
+        with shared_server.hold("RunJob") as hold:
+            job = session.submit("morse-smale")
+            hold.wait_held()
+            with pytest.raises(actopo.FailedPreconditionError, match=job.job_id):
+                session.submit("critical-points")
+            job.cancel()
+            hold.release()
+            with pytest.raises(actopo.CancelledError):
+                job.result()
         assert _stopped(session, 0)
-        with pytest.raises(actopo.DeadlineExceededError):
-            session.run("morse-smale", timeout=0.05)
+        with shared_server.hold("RunJob") as hold:
+            with pytest.raises(actopo.DeadlineExceededError):
+                session.run("morse-smale", timeout=DEADLINE_SECONDS)
+            assert hold.is_held, "the deadline passed while the job was not held"
         assert _stopped(session, 0), "the job ran on past its deadline"
+        assert session.run("critical-points", include_arrays=False).summary["counts"]
 
 
 def test_cancel_unknown_job(client):

@@ -11,15 +11,19 @@ from collections import Counter
 
 import grpc
 import pytest
-from harness import ServerProcess, start_cli, wait_for
+from harness import ServerProcess, start_cli, wait_until
 
 import actopo
 from actopo._types import LOAD_PHASES
 
 SHAPE = ("vertices", "edges", "triangles", "tetrahedra", "blocks", "block_size")
-BIG = "jittered:80"  # about 3M tetrahedra: its encoding runs long enough to be stopped mid-way
+# About 3M tetrahedra. The tests that stop a load hold it on the server as its encoding begins
+# (ENCODE) until the client has stopped it; the call's cancel reaches the server as a message of
+# its own, which is in long before this encoding, let go, could end.
+BIG = "jittered:80"
+ENCODE = "LoadMeshWithProgress/encode"
 LIVENESS_SECONDS = 30.0
-"""Only bounds a hang: the server ends a stopped load within a fraction of a second."""
+"""Only bounds a hang: the command ends within a fraction of a second."""
 CANCELLED = grpc.StatusCode.CANCELLED.value[0]
 
 
@@ -59,12 +63,14 @@ def _assert_stopped(server: ServerProcess, client: actopo.Client, meshes_before:
     which hold the gRPC call) until this returns: the garbage collector, which cancels calls
     nobody holds, must not do the client's work.
     """
-    ended = wait_for(lambda: (_loads(server) - loads_before).total() >= loads, LIVENESS_SECONDS)
-    outcomes = _loads(server) - loads_before
-    new = _ids(client.list_meshes()) - meshes_before
-    for mesh_id in new:
-        client.delete_mesh(mesh_id)
-    assert ended, f"the server still loads {LIVENESS_SECONDS:g} s after the client stopped"
+    try:
+        wait_until(lambda: (_loads(server) - loads_before).total() >= loads,
+                   "the server to end the loads the client stopped")
+    finally:
+        outcomes = _loads(server) - loads_before
+        new = _ids(client.list_meshes()) - meshes_before
+        for mesh_id in new:
+            client.delete_mesh(mesh_id)
     assert outcomes == {CANCELLED: loads}, f"loads ended with codes {dict(outcomes)}"
     assert not new, "the load went on: its mesh is there"
 
@@ -117,34 +123,48 @@ def test_unreachable_server_is_unavailable():
 
 
 def test_a_raising_callback_stops_the_load(shared_server, client):
+    """The callback raises at the partition's end, once the load is held as its encoding
+    begins."""
     before, loads = _ids(client.list_meshes()), _loads(shared_server)
     reports: list[actopo.LoadProgress] = []
+    with shared_server.hold(ENCODE) as hold:
+        def stop_at_encode(report: actopo.LoadProgress) -> None:
+            reports.append(report)
+            if report.phase == "partition" and report.fraction == 1:
+                hold.wait_held()
+                raise Stop(report.fraction)
 
-    def stop_at_encode(report: actopo.LoadProgress) -> None:
-        reports.append(report)
-        if report.phase == "encode":
-            raise Stop(report.fraction)
-
-    with pytest.raises(Stop) as stopped:
-        client.sample(BIG, progress=stop_at_encode)
-    assert reports[-1].phase == "encode" and [r.phase for r in reports].count("encode") == 1
+        with pytest.raises(Stop) as stopped:
+            client.sample(BIG, progress=stop_at_encode)
+        assert hold.is_held
+    assert (reports[-1].phase, reports[-1].fraction) == ("partition", 1)
+    assert "encode" not in [r.phase for r in reports]
     _assert_stopped(shared_server, client, before, loads)
     assert stopped.value.args == (reports[-1].fraction,)
 
 
 def test_ctrl_c_stops_the_load(shared_server, client):
-    """SIGINT while the client waits for the next report (not inside the callback)."""
+    """SIGINT while the client waits for the next report (not inside the callback), the load
+    held as its encoding begins."""
     before, loads = _ids(client.list_meshes()), _loads(shared_server)
-    encoding = threading.Event()
+    reports: list[actopo.LoadProgress] = []
+    with shared_server.hold(ENCODE) as hold:
+        sent = threading.Event()
 
-    def interrupt_soon(report: actopo.LoadProgress) -> None:
-        if report.phase == "encode" and not encoding.is_set():
-            encoding.set()
-            threading.Timer(0.02, os.kill, (os.getpid(), signal.SIGINT)).start()
+        def interrupt_when_held() -> None:
+            hold.wait_held()
+            os.kill(os.getpid(), signal.SIGINT)  # as if the user pressed Ctrl-C now
+            sent.set()
 
-    with pytest.raises(KeyboardInterrupt) as interrupted:
-        client.sample(BIG, progress=interrupt_soon)
-    assert encoding.is_set()
+        interrupter = threading.Thread(target=interrupt_when_held)
+        interrupter.start()
+        try:
+            with pytest.raises(KeyboardInterrupt) as interrupted:
+                client.sample(BIG, progress=reports.append)
+        finally:
+            interrupter.join()
+        assert sent.is_set() and hold.is_held
+    assert reports and "encode" not in [r.phase for r in reports]
     _assert_stopped(shared_server, client, before, loads)
     del interrupted
     mesh = client.sample("jittered:4", progress=lambda p: None)  # the client still works
@@ -152,23 +172,27 @@ def test_ctrl_c_stops_the_load(shared_server, client):
 
 
 def test_ctrl_c_stops_the_cli_load(shared_server, client):
-    """SIGINT while `actopo load --progress` shows the encoding: exit 130, no mesh."""
+    """SIGINT while `actopo load --progress` waits for the encoding, held on the server: exit
+    130, no mesh."""
     server = shared_server.target
     before, loads = _ids(client.list_meshes()), _loads(shared_server)
-    process = start_cli("--server", server, "load", f"sample:{BIG}", "--progress")
-    err = ""
-    try:
-        while "encode 3/3" not in err:  # the bar ends its lines with \r, not \n
-            chunk = process.stderr.read(1)
-            assert chunk, f"actopo load ended before encoding: {err}"
-            err += chunk
-        process.send_signal(signal.SIGINT)
-        out, rest = process.communicate(timeout=LIVENESS_SECONDS)
-    finally:
-        if process.poll() is None:
-            process.kill()
+    with shared_server.hold(ENCODE) as hold:
+        process = start_cli("--server", server, "load", f"sample:{BIG}", "--progress")
+        err = ""
+        try:
+            # Read as it comes, so that the bar never waits for room in the pipe.
+            while "partition 2/3" not in err:  # the bar ends its lines with \r, not \n
+                chunk = process.stderr.read(1)
+                assert chunk, f"actopo load ended before partitioning: {err}"
+                err += chunk
+            hold.wait_held()
+            process.send_signal(signal.SIGINT)
+            out, rest = process.communicate(timeout=LIVENESS_SECONDS)
+        finally:
+            if process.poll() is None:
+                process.kill()
     assert process.returncode == 130 and "actopo: cancelled" in rest
-    assert out == ""
+    assert out == "" and "encode" not in err + rest
     _assert_stopped(shared_server, client, before, loads)
 
 
@@ -190,24 +214,27 @@ def test_async_load_with_progress(server, client):
 
 
 def test_async_raising_callback_and_cancelled_task_stop_the_load(shared_server, client):
+    """Each load is held as its encoding begins until the client has stopped it."""
     before, loads = _ids(client.list_meshes()), _loads(shared_server)
-
-    def stop_at_encode(report: actopo.LoadProgress) -> None:
-        if report.phase == "encode":
-            raise Stop
 
     async def scenario() -> None:
         # Not closed before the check: closing the client would cancel its calls.
         async with actopo.AsyncClient(shared_server.target) as aclient:
-            with pytest.raises(Stop) as stopped:
-                await aclient.sample(BIG, progress=stop_at_encode)
-            encoding = asyncio.Event()
-            task = asyncio.ensure_future(aclient.load_mesh(
-                f"sample:{BIG}", progress=lambda r: r.phase == "encode" and encoding.set()))
-            await encoding.wait()
-            task.cancel()  # what Ctrl-C does under asyncio.run
-            with pytest.raises(asyncio.CancelledError) as cancelled:
-                await task
+            with shared_server.hold(ENCODE) as hold:
+                def stop_at_encode(report: actopo.LoadProgress) -> None:
+                    if report.phase == "partition" and report.fraction == 1:
+                        hold.wait_held()  # the event loop has nothing else to do meanwhile
+                        raise Stop
+
+                with pytest.raises(Stop) as stopped:
+                    await aclient.sample(BIG, progress=stop_at_encode)
+            with shared_server.hold(ENCODE) as hold:
+                task = asyncio.ensure_future(aclient.load_mesh(f"sample:{BIG}",
+                                                               progress=lambda r: None))
+                await asyncio.to_thread(hold.wait_held)
+                task.cancel()  # what Ctrl-C does under asyncio.run
+                with pytest.raises(asyncio.CancelledError) as cancelled:
+                    await task
             await asyncio.to_thread(_assert_stopped, shared_server, client, before, loads, 2)
             del stopped, cancelled
 

@@ -6,6 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "server/algorithms/digest.h"
+#include "server/algorithms/union_find.h"
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
@@ -15,23 +16,6 @@
 namespace actopo {
 namespace {
 
-// Union-find over a vertex's link vertices (a few tens): flat arrays reused across vertices.
-class LinkComponents {
- public:
-  void Reset(size_t n) {
-    parent_.resize(n);
-    for (size_t i = 0; i < n; ++i) parent_[i] = static_cast<int>(i);
-  }
-  int Find(int x) {
-    while (parent_[x] != x) x = parent_[x] = parent_[parent_[x]];
-    return x;
-  }
-  void Union(int a, int b) { parent_[Find(a)] = Find(b); }
-
- private:
-  std::vector<int> parent_;
-};
-
 struct Classified {
   CriticalType type = CriticalType::kRegular;
   bool on_boundary = false;
@@ -39,7 +23,7 @@ struct Classified {
 
 // Per consumer, reused across vertices.
 struct ClassifyScratch {
-  LinkComponents components;
+  UnionFind components;  // over the link vertices (a few tens)
   LinkVertexIndex index;
   std::vector<std::array<int, 3>> triangles;  // per star tetrahedron, its link triangle
   std::vector<uint8_t> below;                 // per link vertex: lower than the vertex
@@ -71,7 +55,7 @@ Classified Classify(Reader& reader, SimplexId v, std::span<const SimplexId> orde
   std::vector<uint8_t>& below = scratch.below;
   below.resize(n);
   for (size_t i = 0; i < n; ++i) below[i] = order[neighbors[i]] < ov;
-  LinkComponents& uf = scratch.components;
+  UnionFind& uf = scratch.components;
   uf.Reset(n);
   // v's own boundary flag from the link edges of the star scanned here anyway, not from VB:
   // VB is read only for the neighbours of boundary vertices, and localized structures compute it
@@ -90,7 +74,7 @@ Classified Classify(Reader& reader, SimplexId v, std::span<const SimplexId> orde
   out.on_boundary = link.AnyOnce();
   int lower = 0, upper = 0;
   for (size_t i = 0; i < n; ++i) {
-    if (uf.Find(int(i)) != int(i)) continue;
+    if (uf.Find(int32_t(i)) != int32_t(i)) continue;
     (below[i] ? lower : upper)++;
   }
   if (lower == 0 && upper == 1) {

@@ -397,8 +397,8 @@ TEST(DiscreteGradient, EqualsTheLowerStarPairingByDefinition) {
     const std::vector<SimplexId> other = reversed(c.order);
     ExpectEqualsReference(
         OkValue(UpdateDiscreteGradient(
-            compact, *RunDiscreteGradient(compact, other, {}, GradientArrays::kAll), c.order, every,
-            {.consumers = 2})),
+            compact, OkValue(RunDiscreteGradient(compact, other, {}, GradientArrays::kAll)),
+            c.order, every, {.consumers = 2})),
         want, c.label + ", compact update");
   }
 }

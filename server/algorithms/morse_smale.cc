@@ -8,6 +8,7 @@
 #include "absl/container/flat_hash_set.h"
 #include "absl/strings/str_cat.h"
 #include "server/algorithms/digest.h"
+#include "server/algorithms/gradient_paths.h"
 #include "server/algorithms/pair_keys.h"
 #include "server/algorithms/prefetch_off.h"
 #include "server/core/actopo_structure.h"
@@ -29,24 +30,17 @@ void DescendingSeparatrices(const Topology& topo, const GradientField& g,
   for (SimplexId e : saddles) {
     for (SimplexId start : topo.edge(e)) {
       Separatrix s{SeparatrixType::kDescending, {1, e}, {}, {e}};
-      SimplexId v = start;
-      while (true) {
-        s.path.push_back(v);  // a vertex, then its edge
-        if (g.IsCritical(0, v)) break;
-        const SimplexId edge = g.up[0][v];
+      s.path.push_back(start);  // a vertex, then its edge, then the next vertex ...
+      WalkDown(topo, g, start, [&](SimplexId edge, SimplexId next) {
         s.path.push_back(edge);
-        const auto ev = topo.edge(edge);
-        v = ev[0] == v ? ev[1] : ev[0];
-      }
+        s.path.push_back(next);
+      });
       s.destination = s.cell(s.path.size() - 1);
       s.path.shrink_to_fit();  // as in SaddleConnectors
       out.push_back(std::move(s));
     }
   }
 }
-
-// Labels as codes that cannot be tetrahedron ids: label L (>= -1) is -2 - L, so -1 stays -1.
-constexpr SimplexId LabelCode(SimplexId label) { return -2 - label; }
 
 // Whether tetrahedron tv has vertices b and c.
 bool Contains(std::span<const SimplexId, 4> tv, SimplexId b, SimplexId c) {
@@ -77,8 +71,8 @@ class CriticalSaddles {
 template <class Reader>
 class Builder {
  public:
-  // `next_up`, for AscendingSeparatrices: per tetrahedron, the next one up (ScanStar), -1 when
-  // its path leaves through the boundary, a maximum's LabelCode. Those paths read no pairing.
+  // `next_up`, for AscendingSeparatrices: per tetrahedron, the next one up (RecordUpLinks), -1 when
+  // its path leaves through the boundary, a maximum's LinkCode. Those paths read no pairing.
   Builder(Reader& reader, const GradientField& gradient, const CriticalSaddles& saddles,
           std::span<const uint8_t> input_corners, std::span<const SimplexId> next_up = {})
       : r_(reader),
@@ -90,7 +84,7 @@ class Builder {
 
   // The ascending 1-separatrices of 2-saddle f: one per tetrahedron of its star (in TTK's order)
   // whose path ends at a maximum.
-  // `star`: f's tetrahedra (TriangleStar).
+  // `star`: f's tetrahedra (TriangleTetrahedra).
   void AscendingSeparatrices(SimplexId f, std::span<const SimplexId> star,
                              std::vector<Separatrix>& out) {
     star_.assign(star.begin(), star.end());
@@ -129,7 +123,7 @@ class Builder {
   // so a pass over every vertex sets each non-critical tetrahedron's entry once, and a block's
   // pass reads only its own vertices' stars (following each tetrahedron's triangle to its lowest
   // vertex, in whichever block, would compute other blocks' VT again).
-  SimplexId ScanStar(SimplexId a, std::span<SimplexId> up) {
+  SimplexId RecordUpLinks(SimplexId a, std::span<SimplexId> up) {
     const auto star = r_.vertex_star(a);
     if (star.empty()) return -1;
     const SimplexId first_triangle = topo_.vertex_first_triangle(a);
@@ -145,7 +139,7 @@ class Builder {
       if (f < first_triangle || f >= end_triangle) continue;  // another vertex's triangle
       const SimplexId b = topo_.edge_upper(topo_.triangle_edge(f), a);
       const SimplexId c = topo_.triangle_third(f, a);
-      up[t] = -1;
+      up[t] = LinkCode::kBoundary;
       for (size_t i = 0; i < star.size(); ++i) {
         if (star[i] != t && Contains(star_tuples_[i], b, c)) {
           up[t] = star[i];
@@ -163,7 +157,7 @@ class Builder {
   // below a) is a's star read: a vertex star costs a quarter of a triangle star to compute per
   // block, and walls would compute a block's triangle stars many times over. The run saves few
   // block computations, as a block's star is computed once any of its triangles misses.
-  std::span<const SimplexId> TriangleStar(SimplexId f) {
+  std::span<const SimplexId> TriangleTetrahedra(SimplexId f) {
     triangle_star_.clear();
     std::array<SimplexId, 2> in_run;
     if (const int n = topo_.TriangleTetrahedraInRun(f, in_run); n >= 0) {
@@ -182,15 +176,11 @@ class Builder {
   // leaves through the boundary. The paired triangle is the one the two tetrahedra share, so
   // the tetrahedron -> triangle pairing is not kept for these paths (4 bytes per tetrahedron).
   bool AscendingPath(SimplexId tet, std::vector<SimplexId>& path) {
-    SimplexId cur = tet;
-    while (true) {
-      path.push_back(cur);  // a tetrahedron, then its triangle
-      const SimplexId next = next_up_[cur];
-      if (next <= LabelCode(0)) return true;  // a maximum
-      if (next < 0) return false;
-      path.push_back(SharedTriangle(cur, next));
-      cur = next;
-    }
+    path.push_back(tet);  // a tetrahedron, then its triangle, then the next tetrahedron ...
+    return ClimbLinks(next_up_, tet, [&](SimplexId from, SimplexId to) {
+             path.push_back(SharedTriangle(from, to));
+             path.push_back(to);
+           }) != LinkCode::kBoundary;
   }
 
   SimplexId SharedTriangle(SimplexId t, SimplexId u) const {
@@ -296,7 +286,7 @@ class Builder {
   uint64_t TtkTriangleRank(SimplexId f) {
     const auto fv = topo_.triangle(f);
     uint64_t best = UINT64_MAX;
-    for (SimplexId t : TriangleStar(f)) {
+    for (SimplexId t : TriangleTetrahedra(f)) {
       const auto tv = topo_.tetrahedron(t);
       int corner = 0;  // of the sorted tuple, the vertex not in f
       while (tv[corner] == fv[0] || tv[corner] == fv[1] || tv[corner] == fv[2]) ++corner;
@@ -332,7 +322,7 @@ class Builder {
   std::vector<uint64_t> wall_edges_;    // edge << 32 | wall triangle, sorted
   std::vector<uint64_t> sort_scratch_;  // SortPairKeys's
   std::vector<SimplexId> wall_saddles_, candidates_, star_, triangle_star_;
-  std::vector<std::array<SimplexId, 4>> star_tuples_;  // ScanStar's star, decoded
+  std::vector<std::array<SimplexId, 4>> star_tuples_;  // RecordUpLinks's star, decoded
 };
 
 // The segmentations' passes cost little per item but cover every vertex and tetrahedron, too
@@ -397,10 +387,7 @@ std::vector<SimplexId> DescendingSegmentation(const Topology& topo, const Gradie
     for (size_t i = 0; i < minima.size(); ++i) label[minima[i]] = SimplexId(i);
     // A V-path descends the field, so it ends at a minimum (or the gradient is broken; a path
     // longer than the vertex count then labels nothing and its vertices stay -1).
-    const auto across = [&](SimplexId v, SimplexId) {
-      const auto ev = topo.edge(g.up[0][v]);
-      return ev[0] == v ? ev[1] : ev[0];
-    };
+    const auto across = [&](SimplexId v, SimplexId) { return NextVertexDown(topo, g, v); };
     ParallelForRanges(nv, kRange, threads, [&](int64_t begin, int64_t end) {
       std::vector<SimplexId> path;
       for (SimplexId v = SimplexId(begin); v < end; ++v) {
@@ -412,8 +399,8 @@ std::vector<SimplexId> DescendingSegmentation(const Topology& topo, const Gradie
   return ToInputOrder(topo, label, threads);
 }
 
-// `next` holds per tetrahedron the next one up (ScanStar), -1 at the boundary, or a maximum's
-// LabelCode. Follows every path to its end and leaves the labels: the maximum reached, -1 when
+// `next` holds per tetrahedron the next one up (RecordUpLinks), -1 at the boundary, or a maximum's
+// LinkCode. Follows every path to its end and leaves the labels: the maximum reached, -1 when
 // the path leaves through the boundary (or closes on itself, which a valid gradient never
 // does). Needs no relation.
 void ResolveAscendingLabels(std::vector<SimplexId>& next, int threads) {
@@ -424,16 +411,16 @@ void ResolveAscendingLabels(std::vector<SimplexId>& next, int threads) {
     std::vector<SimplexId> path;
     for (SimplexId t = SimplexId(begin); t < end; ++t) {
       const auto up = [](SimplexId, SimplexId at) { return at; };
-      const auto code = [](SimplexId at) { return at < 0; };
+      const auto code = [](SimplexId at) { return LinkCode::IsEnd(at); };
       if (!LabelChain(t, next, path, size_t(n), up, code)) {
         for (SimplexId p : path) {
-          std::atomic_ref<SimplexId>(next[p]).store(LabelCode(-1), std::memory_order_relaxed);
+          std::atomic_ref<SimplexId>(next[p]).store(LinkCode::kBoundary, std::memory_order_relaxed);
         }
       }
     }
   });
   ParallelForRanges(n, kRange, threads, [&](int64_t begin, int64_t end) {
-    for (int64_t t = begin; t < end; ++t) next[t] = LabelCode(next[t]);  // its own inverse
+    for (int64_t t = begin; t < end; ++t) next[t] = LinkCode::Label(next[t]);
   });
 }
 
@@ -557,8 +544,8 @@ absl::StatusOr<std::vector<uint8_t>> InputCorners(const Topology& topology,
 }
 
 // What the ascending paths read of the vertex stars, when the gradient's sweep did not record
-// it (AscendingLinks): in one pass over the blocks, while their stars are at hand (ScanStar,
-// TriangleStar), each vertex's first tetrahedron into `vertex_label`, each tetrahedron's next
+// it (AscendingLinks): in one pass over the blocks, while their stars are at hand (RecordUpLinks,
+// TriangleTetrahedra), each vertex's first tetrahedron into `vertex_label`, each tetrahedron's next
 // one up into `up`, each 2-saddle's tetrahedra into `saddle_tets` (two slots, -1 when on the
 // boundary). The separatrices then read no relation: tracing them through vertex stars would
 // compute each block's stars again, once per wall through it.
@@ -577,12 +564,12 @@ absl::Status ReadAscendingLinks(Structure& structure, const GradientField& g,
         Builder builder(reader, g, critical_saddles, input_corners);
         for (int32_t b = range.begin; b < range.end; ++b) {
           for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
-            vertex_label[v] = builder.ScanStar(v, up);
+            vertex_label[v] = builder.RecordUpLinks(v, up);
           }
           for (auto i =
                    std::lower_bound(saddles.begin(), saddles.end(), topo.block_triangle_begin(b));
                i != saddles.end() && *i < topo.block_triangle_begin(b + 1); ++i) {
-            const auto star = builder.TriangleStar(*i);
+            const auto star = builder.TriangleTetrahedra(*i);
             std::copy(star.begin(), star.end(), saddle_tets.begin() + 2 * (i - saddles.begin()));
           }
           reader.Finished(b);  // both read the stars of b's own vertices
@@ -718,14 +705,14 @@ absl::StatusOr<MorseSmaleResult> RunMorseSmale(Structure& structure,
     RETURN_IF_ERROR(ReadAscendingLinks(structure, g, critical_saddles, input_corners, saddles, up,
                                        vertex_label, saddle_tets, context.Slice(0.5, 0.6)));
   }
-  // The maxima labelled 0.. in ascending input tetrahedron id, in `up` (LabelCode), where the
+  // The maxima labelled 0.. in ascending input tetrahedron id, in `up` (LinkCode), where the
   // ascending paths below find their ends. Nothing reads the tetrahedron -> triangle pairing
   // from here on (4 bytes per tetrahedron).
   std::vector<SimplexId> maxima = result.gradient.critical[3];
   std::sort(maxima.begin(), maxima.end(), [&](SimplexId a, SimplexId b) {
     return topo.tetrahedron_input_id(a) < topo.tetrahedron_input_id(b);
   });
-  for (size_t i = 0; i < maxima.size(); ++i) up[maxima[i]] = LabelCode(SimplexId(i));
+  for (size_t i = 0; i < maxima.size(); ++i) up[maxima[i]] = LinkCode::Code(SimplexId(i));
   Pairings().swap(g.down[3]);
 
   RETURN_IF_ERROR(AppendWalls(structure, g, critical_saddles, input_corners, up, saddles,

@@ -9,7 +9,9 @@
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
 #include "server/algorithms/digest.h"
+#include "server/algorithms/gradient_paths.h"
 #include "server/algorithms/prefetch_off.h"
+#include "server/algorithms/union_find.h"
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
@@ -50,16 +52,8 @@ CriticalCell MakeCriticalCell(const Topology& topo, std::span<const SimplexId> o
 // an eternal extremum (the boundary, for maxima).
 class Components {
  public:
-  explicit Components(size_t n) : parent_(n), paired_(n, false) {
-    for (size_t i = 0; i < n; ++i) parent_[i] = int32_t(i);
-  }
-  int32_t Find(int32_t x) {
-    while (parent_[x] != x) {
-      parent_[x] = parent_[parent_[x]];
-      x = parent_[x];
-    }
-    return x;
-  }
+  explicit Components(size_t n) : sets_(n), paired_(n, false) {}
+  int32_t Find(int32_t x) { return sets_.Find(x); }
   // `a`, `b`: roots of two components; `younger_first` orders two live roots. Returns the root
   // that dies (now part of the other component), or -1 when none can (both dead).
   template <class Younger>
@@ -69,7 +63,7 @@ class Components {
     int32_t dies = paired_[a] ? b : paired_[b] ? a : (younger(a, b) ? a : b);
     const int32_t lives = dies == a ? b : a;
     paired_[dies] = true;
-    parent_[dies] = lives;
+    sets_.Link(dies, lives);
     return dies;
   }
   // The component of root `a` meets the eternal extremum: `a` dies unless already dead.
@@ -81,14 +75,15 @@ class Components {
   bool paired(int32_t x) const { return paired_[x]; }
 
  private:
-  std::vector<int32_t> parent_;
+  UnionFind sets_;
   std::vector<bool> paired_;
 };
 
 // The tetrahedra of triangle f's star, from the star of its lowest vertex (VT, which the
 // gradient reads anyway, is far cheaper per block than FT), other than `skip`; at most two.
 template <class Reader>
-int TriangleStar(Reader& reader, SimplexId f, SimplexId skip, std::array<SimplexId, 2>& out) {
+int TriangleTetrahedraBesides(Reader& reader, SimplexId f, SimplexId skip,
+                              std::array<SimplexId, 2>& out) {
   const Topology& topo = reader.topology();
   const auto fv = topo.triangle(f);
   int n = 0;
@@ -210,15 +205,6 @@ class DiagramBuilder {
     return {int8_t(type), birth.id, -1, birth.top, global_max_};
   }
 
-  // The minimum at the end of the descending V-path from vertex v.
-  SimplexId DescendToMinimum(SimplexId v) const {
-    while (!g_.IsCritical(0, v)) {
-      const auto ev = topo_.edge(g_.up[0][v]);
-      v = ev[0] == v ? ev[1] : ev[0];
-    }
-    return v;
-  }
-
   // Each 1-saddle, youngest last, joins the components of the minima its two descending paths
   // reach; the younger root dies with it.
   absl::Status MinSaddlePairs(std::vector<PersistencePair>& pairs, const RunContext& context) {
@@ -230,8 +216,8 @@ class DiagramBuilder {
                                              for (int64_t i = begin; i < end; ++i) {
                                                const auto ev = topo_.edge(saddles1_[i].id);
                                                for (int k = 0; k < 2; ++k) {
-                                                 ends[i][k] =
-                                                     minimum_index_.at(DescendToMinimum(ev[k]));
+                                                 ends[i][k] = minimum_index_.at(
+                                                     DescendToMinimum(topo_, g_, ev[k]));
                                                }
                                              }
                                              if (!tracker.Done(end - begin)) return;
@@ -270,7 +256,7 @@ class DiagramBuilder {
     // off the boundary (-1), and no relation is read; else through triangle stars.
     const bool linked = !up_.empty();
     for (size_t i = 0; linked && i < maxima_.size(); ++i) {
-      up_[maxima_[i].id] = MaximumCode(int32_t(i));
+      up_[maxima_[i].id] = LinkCode::Code(SimplexId(i));
     }
     std::optional<PrefetchOff<Structure>> off;
     if (!linked) off.emplace(structure_);
@@ -291,7 +277,7 @@ class DiagramBuilder {
                 for (int k = 0; k < 2 && tets[k] >= 0; ++k)
                   reached.push_back(AscendLinked(tets[k]));
               } else {
-                const int n = TriangleStar(reader, f, -1, star);
+                const int n = TriangleTetrahedraBesides(reader, f, -1, star);
                 for (int k = 0; k < n; ++k) reached.push_back(AscendToMaximum(reader, star[k]));
               }
               ends[i] = SaddleEnds(f, reached);
@@ -333,12 +319,10 @@ class DiagramBuilder {
                                : std::array<int32_t, 2>{kNoTriplet, kNoTriplet};
   }
 
-  // In up_, maximum i's mark: below -1 (the boundary's), as no tetrahedron id is.
-  static constexpr SimplexId MaximumCode(int32_t i) { return -2 - i; }
   // The maximum (its index) or kBoundary at the end of the ascending path from t, through up_.
   int32_t AscendLinked(SimplexId t) const {
-    while (up_[t] >= 0) t = up_[t];
-    return up_[t] == -1 ? kBoundary : -2 - up_[t];
+    const SimplexId end = ClimbLinks(up_, t, [](SimplexId, SimplexId) {});
+    return end == LinkCode::kBoundary ? kBoundary : int32_t(LinkCode::Label(end));
   }
 
   // The maximum (its index) at the end of the ascending V-path from tetrahedron t, kBoundary
@@ -347,7 +331,7 @@ class DiagramBuilder {
   int32_t AscendToMaximum(Reader& reader, SimplexId t) const {
     std::array<SimplexId, 2> next;
     while (!g_.IsCritical(3, t)) {
-      if (TriangleStar(reader, g_.down[3][t], t, next) == 0) return kBoundary;
+      if (TriangleTetrahedraBesides(reader, g_.down[3][t], t, next) == 0) return kBoundary;
       t = next[0];
     }
     return maximum_index_.at(t);

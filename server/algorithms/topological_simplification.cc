@@ -17,6 +17,7 @@
 #include "absl/strings/str_cat.h"
 #include "server/algorithms/digest.h"
 #include "server/algorithms/prefetch_off.h"
+#include "server/algorithms/union_find.h"
 #include "server/algorithms/vertex_neighbors.h"
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
@@ -124,7 +125,6 @@ class SparseVertexValues {
 // A superlevel-set component growing from one maximum (LTS's "propagation"): a max-heap of
 // (order, vertex) on its frontier; merged components share the heap of the dominant one.
 struct Propagation {
-  int32_t uf_parent;                // union-find, path-compressed
   int32_t parent;                   // the component it was merged into (itself while it grows)
   std::vector<SimplexId> critical;  // [0] the maximum, then the saddles it met
   std::priority_queue<std::pair<SimplexId, SimplexId>> queue;
@@ -189,18 +189,14 @@ class MaximaRemoval {
     std::sort(maxima.begin(), maxima.end(),
               [&](SimplexId a, SimplexId b) { return order_[a] < order_[b]; });
     props_.resize(maxima.size());
+    components_.Reset(maxima.size());
     for (size_t p = 0; p < maxima.size(); ++p) {
-      props_[p].uf_parent = props_[p].parent = int32_t(p);
+      props_[p].parent = int32_t(p);
       props_[p].critical = {maxima[p]};
     }
   }
 
-  int32_t Find(int32_t p) {
-    int32_t root = p;
-    while (props_[root].uf_parent != root) root = props_[root].uf_parent;
-    while (props_[p].uf_parent != root) p = std::exchange(props_[p].uf_parent, root);
-    return root;
-  }
+  int32_t Find(int32_t p) { return components_.Find(p); }
 
   void Unify(int32_t into, int32_t other) {
     if (other < 0) return;
@@ -210,7 +206,7 @@ class MaximaRemoval {
     Propagation& a = props_[into];
     Propagation& b = props_[other];
     b.parent = into;
-    b.uf_parent = into;
+    components_.Link(other, into);
     a.segment_size += b.segment_size;
     if (a.queue.size() < b.queue.size()) std::swap(a.queue, b.queue);
     while (!b.queue.empty()) {
@@ -424,6 +420,7 @@ class MaximaRemoval {
   SparseVertexValues segmentation_, queue_mask_, local_order_;
   SparseVertexValues owner_;  // the propagation that reached a vertex (not its root)
   std::vector<Propagation> props_;
+  UnionFind components_;  // over props_: the propagations merged into one
   std::vector<int32_t> parents_, neighbors_;
 };
 

@@ -13,7 +13,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <functional>
 #include <iostream>
+#include <string_view>
 #include <thread>
 
 #include "absl/strings/str_cat.h"
@@ -21,6 +24,30 @@
 #include "server/core/parallel.h"
 #include "server/core/process_memory.h"
 #include "server/service/server.h"
+
+namespace {
+
+// --test-gate-dir: the clients' tests hold a call's work at its start, as the server's own tests
+// do with ServerOptions::before_work, from their own process. While the file DIR/NAME exists
+// (NAME: the work's name with '/' as '.', e.g. RunJob, LoadMeshWithProgress.partition), work of
+// that name waits before it begins, and DIR/NAME.held says that some does.
+std::function<void(std::string_view)> FileGate(const std::filesystem::path& dir) {
+  return [dir](std::string_view work) {
+    std::string name(work);
+    std::replace(name.begin(), name.end(), '/', '.');
+    const std::filesystem::path hold = dir / name;
+    std::error_code ec;
+    if (!std::filesystem::exists(hold, ec)) return;
+    const std::filesystem::path held = dir / (name + ".held");
+    std::ofstream(held).close();
+    while (std::filesystem::exists(hold, ec)) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    std::filesystem::remove(held, ec);
+  };
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   actopo::LimitAllocatorArenas(actopo::DefaultThreads());
@@ -33,6 +60,7 @@ int main(int argc, char** argv) {
   std::string mesh_reader =
       (std::filesystem::read_symlink("/proc/self/exe", ec).parent_path() / "actopo-read-mesh")
           .string();
+  std::string test_gate_dir;
   if (const char* token = std::getenv("ACTOPO_TOKEN")) o.token = token;
   actopo::FlagParser flags("actopo-server",
                            "serves the ACTOPO topology API (actopo.v1.TopologyService)");
@@ -58,6 +86,8 @@ int main(int argc, char** argv) {
   flags.Add("tls-key", &o.tls_key_file, "PEM private key");
   flags.Add("token", &o.token,
             "require 'authorization: Bearer TOKEN' on every call (default: $ACTOPO_TOKEN)");
+  flags.Add("test-gate-dir", &test_gate_dir,
+            "tests only: work of a call waits at its start while a file of its name is there");
   if (absl::Status s = flags.Parse(argc, argv); !s.ok()) {
     std::cerr << "actopo-server: " << s.message() << "\n";
     return 2;
@@ -79,6 +109,7 @@ int main(int argc, char** argv) {
     }
     o.mesh_reader = mesh_reader;
   }
+  if (!test_gate_dir.empty()) o.before_work = FileGate(test_gate_dir);
   o.memory_budget_bytes = int64_t(memory_budget_mib) << 20;
   o.max_message_bytes = int64_t(max_message_mib) << 20;
   o.session_idle_timeout = absl::Seconds(idle_timeout_s);

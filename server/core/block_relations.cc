@@ -219,7 +219,7 @@ class BlockComputer {
   }
   // The other vertices of v's star tetrahedra (the other ends of v's edges), numbered in the
   // order first met, in s_.link_vertices.
-  void ScanStar(SimplexId v, std::span<const SimplexId> star) {
+  void IndexLinkVertices(SimplexId v, std::span<const SimplexId> star) {
     LinkVertexIndex& index = s_.link_vertices;
     index.Reset(star.size());
     for (SimplexId t : star) {
@@ -233,7 +233,7 @@ class BlockComputer {
     out.offsets.assign(size_t(out.count) + 1, 0);
     out.values.clear();
     for (SimplexId i = 0; i < out.count; ++i) {
-      ScanStar(vbegin_ + i, star.row(i));
+      IndexLinkVertices(vbegin_ + i, star.row(i));
       const auto row = s_.link_vertices.vertices();
       out.values.insert(out.values.end(), row.begin(), row.end());
       std::sort(out.values.begin() + out.offsets[i], out.values.end());

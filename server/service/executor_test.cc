@@ -10,17 +10,12 @@
 #include <thread>
 #include <vector>
 
+#include "server/core/testing/wait.h"
+
 namespace actopo::service {
 namespace {
 
 Executor::CancelFlag Flag() { return std::make_shared<std::atomic<bool>>(false); }
-
-void WaitFor(const std::function<bool()>& done) {
-  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (!done() && std::chrono::steady_clock::now() < give_up) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  }
-}
 
 TEST(Executor, RunsEveryTaskWithAtMostItsThreads) {
   std::atomic<int> running{0}, most{0}, done{0};
@@ -38,7 +33,7 @@ TEST(Executor, RunsEveryTaskWithAtMostItsThreads) {
     }
     // A task counts as done only after its body returns, so `done` reaches 20 a moment before
     // `pending` reaches 0; every task is queued by now, so pending 0 means all have finished.
-    WaitFor([&] { return work.pending() == 0; });
+    ASSERT_TRUE(actopo::testing::WaitUntil([&] { return work.pending() == 0; }));
     EXPECT_EQ(done, 20);
   }
   EXPECT_EQ(done, 20);
@@ -58,10 +53,10 @@ TEST(Executor, StartsTasksInTheOrderGiven) {
         started.push_back(i);
       });
     }
-    WaitFor([&] {
+    ASSERT_TRUE(actopo::testing::WaitUntil([&] {
       std::lock_guard<std::mutex> lock(mu);
       return started.size() == 20u;
-    });
+    }));
   }
   ASSERT_EQ(started.size(), 20u);
   for (int i = 0; i < 20; ++i) EXPECT_EQ(started[i], i);
@@ -78,7 +73,7 @@ TEST(Executor, CancelAllReachesRunningQueuedAndLaterTasks) {
     ++finished;
   });
   work.Run(queued, [&] { ++finished; });
-  WaitFor([&] { return first_started.load(); });
+  ASSERT_TRUE(actopo::testing::WaitUntil([&] { return first_started.load(); }));
   EXPECT_EQ(work.pending(), 2);
   work.CancelAll();
   EXPECT_TRUE(running->load());
@@ -86,7 +81,7 @@ TEST(Executor, CancelAllReachesRunningQueuedAndLaterTasks) {
   work.Run(later, [&] { ++finished; });
   EXPECT_TRUE(later->load());
   // Cancelled tasks still run, to finish their calls.
-  WaitFor([&] { return finished == 3; });
+  ASSERT_TRUE(actopo::testing::WaitUntil([&] { return finished == 3; }));
   EXPECT_EQ(finished, 3);
 }
 

@@ -9,6 +9,7 @@
 #include <thread>
 #include <vector>
 
+#include "server/core/testing/wait.h"
 #include "server/service/testing/service_fixture.h"
 
 namespace actopo::service {
@@ -65,10 +66,7 @@ class LoadTest : public ServiceTest {
 
   // What a stopped load leaves: the server frees it after the client already has its status.
   void ExpectNothingLeftBehind() {
-    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    while (server_->memory_budget_used_bytes() != 0 && std::chrono::steady_clock::now() < give_up) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
+    actopo::testing::WaitUntil([&] { return server_->memory_budget_used_bytes() == 0; });
     EXPECT_EQ(server_->memory_budget_used_bytes(), 0);
     v1::ListMeshesResponse meshes;
     ASSERT_TRUE(stub_->ListMeshes(Context().get(), {}, &meshes).ok());
@@ -210,10 +208,7 @@ TEST_F(LoadTest, DrainingCancelsLoadsInProgress) {
   while (reader->Read(&message)) got_mesh = got_mesh || message.has_mesh();
   EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
   EXPECT_FALSE(got_mesh);
-  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (server_->memory_budget_used_bytes() != 0 && std::chrono::steady_clock::now() < give_up) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
+  actopo::testing::WaitUntil([&] { return server_->memory_budget_used_bytes() == 0; });
   EXPECT_EQ(server_->memory_budget_used_bytes(), 0);
 }
 
@@ -232,11 +227,7 @@ TEST_F(LoadTest, ADeadlineStopsOpeningAnExplicitSession) {
             grpc::StatusCode::DEADLINE_EXCEEDED);
   gate_->Open();
   // Once its precomputation has stopped, only the mesh is left in the budget.
-  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (server_->memory_budget_used_bytes() != mesh_only &&
-         std::chrono::steady_clock::now() < give_up) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
+  actopo::testing::WaitUntil([&] { return server_->memory_budget_used_bytes() == mesh_only; });
   EXPECT_EQ(server_->memory_budget_used_bytes(), mesh_only);
   v1::ListSessionsResponse sessions;
   ASSERT_TRUE(stub_->ListSessions(Context().get(), {}, &sessions).ok());

@@ -42,8 +42,8 @@ class ReactorHost {
   virtual Executor& relations() = 0;
   virtual Executor& jobs() = 0;
   // Runs ServerOptions::before_work (tests only) on the executor's thread, before the work of
-  // the call named by `rpc` (a load, upload, opening or offloaded relation call) begins, and as
-  // each phase of a LoadMeshWithProgress begins ("LoadMeshWithProgress/PHASE").
+  // the call named by `rpc` (a load, upload, opening, job or offloaded relation call) begins, and
+  // as each phase of a LoadMeshWithProgress begins ("LoadMeshWithProgress/PHASE").
   virtual void BeforeWork(std::string_view rpc) = 0;
 
   // Relations: one simplex; a batch by ids or vertex_tuples (exactly one non-null) as CSR

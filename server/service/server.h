@@ -36,10 +36,11 @@ struct ServerOptions {
   absl::Duration session_idle_timeout = absl::Minutes(30);
   std::string tls_cert_file, tls_key_file;  // both set: TLS
   std::string token;                        // non-empty: require "authorization: Bearer TOKEN"
-  // Tests only: runs on an executor's thread before the work of each load, upload, opening or
-  // relation call begins, with the RPC's name, and as each phase of a LoadMeshWithProgress
-  // begins, with "LoadMeshWithProgress/PHASE" (read, partition, encode). A test blocks in it to
-  // hold that work at a known point (until the call's deadline has passed, or it is cancelled).
+  // Tests only: runs on an executor's thread before the work of each load, upload, opening, job
+  // ("RunJob") or relation call begins, with the RPC's name, and as each phase of a
+  // LoadMeshWithProgress begins, with "LoadMeshWithProgress/PHASE" (read, partition, encode). A
+  // test blocks in it to hold that work at a known point (until the call's deadline has passed, or
+  // it is cancelled).
   std::function<void(std::string_view rpc)> before_work;
 };
 

@@ -281,6 +281,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     }
     // The executor's cancel flag is the job's own (an aliasing pointer that keeps the job alive).
     host_->jobs().Run(Executor::CancelFlag(job_, &job_->cancel), [this] {
+      host_->BeforeWork("RunJob");
       Run();
       Release();
     });

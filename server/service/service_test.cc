@@ -17,6 +17,7 @@
 #include "server/core/explicit_structure.h"
 #include "server/core/partition.h"
 #include "server/core/testing/status.h"
+#include "server/core/testing/wait.h"
 #include "server/results/result_files.h"
 #include "server/results/run_algorithm.h"
 #include "server/service/testing/service_fixture.h"
@@ -715,14 +716,12 @@ TEST_F(ServiceTest, CancellingTheCallCancelsTheJob) {
   }
   EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
   // The job ends and frees the session for the next one.
-  for (int i = 0; i < 100; ++i) {
+  EXPECT_TRUE(actopo::testing::WaitUntil([&] {
     v1::GetSessionRequest get;
     get.set_session_id(session);
     v1::GetSessionResponse s;
-    ASSERT_TRUE(stub_->GetSession(Context().get(), get, &s).ok());
-    if (s.session().running_job_id().empty()) break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
+    return stub_->GetSession(Context().get(), get, &s).ok() && s.session().running_job_id().empty();
+  }));
   request.set_algorithm(v1::ALGORITHM_CRITICAL_POINTS);
   auto again = Context();
   EXPECT_TRUE(RunJob(*stub_, again.get(), request).status.ok());

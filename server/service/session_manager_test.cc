@@ -101,8 +101,7 @@ TEST_F(SessionManagerTest, AWaitForTheMeshsFacesEndsWhenItsCallerStops) {
                     if (std::exchange(first, false)) waiting.count_down();
                   }}));
   });
-  waiting.wait();
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // well into its wait
+  waiting.wait();  // it reports from inside its wait, so it is waiting now
   cancel = true;
   waiter.join();
   EXPECT_EQ(waited.code(), absl::StatusCode::kCancelled) << waited;

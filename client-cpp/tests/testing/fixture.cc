@@ -160,6 +160,10 @@ void ServerTest::TearDown() {
 
 const std::string& ServerTest::target() const { return GetShared().server->target(); }
 
+std::unique_ptr<WorkHold> ServerTest::Hold(const std::string& work) const {
+  return GetShared().server->Hold(work);
+}
+
 std::string ServerTest::LoadSample(const std::string& name, int32_t block_size) {
   absl::StatusOr<MeshInfo> mesh = client_->LoadMesh("sample:" + name, {.block_size = block_size});
   EXPECT_TRUE(mesh.ok()) << mesh.status();

@@ -82,6 +82,8 @@ class ServerTest : public ::testing::Test {
 
   Client& client() { return *client_; }
   const std::string& target() const;
+  // Holds the shared server's work named `work` (ServerProcess::Hold).
+  std::unique_ptr<WorkHold> Hold(const std::string& work) const;
 
   Client* client_ = nullptr;
   std::vector<std::string> meshes_, sessions_;

@@ -7,9 +7,14 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <cstdlib>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <thread>
 
 #include "absl/strings/str_cat.h"
 
@@ -43,16 +48,33 @@ bool ReadLine(int fd, std::chrono::seconds timeout, std::string& line) {
 
 // Waits up to `timeout` for `pid` to exit; true once it has been reaped.
 bool WaitFor(pid_t pid, std::chrono::milliseconds timeout, int* status) {
-  const auto end = std::chrono::steady_clock::now() + timeout;
-  while (true) {
-    const pid_t r = waitpid(pid, status, WNOHANG);
-    if (r == pid || (r < 0 && errno == ECHILD)) return true;
-    if (std::chrono::steady_clock::now() >= end) return false;
-    usleep(10'000);
-  }
+  return WaitUntil(
+      [&] {
+        const pid_t r = waitpid(pid, status, WNOHANG);
+        return r == pid || (r < 0 && errno == ECHILD);
+      },
+      timeout);
 }
 
 }  // namespace
+
+bool WaitUntil(const std::function<bool()>& done, std::chrono::milliseconds timeout) {
+  const auto end = std::chrono::steady_clock::now() + timeout;
+  while (!done()) {
+    if (std::chrono::steady_clock::now() >= end) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return true;
+}
+
+bool WorkHold::WaitHeld(std::chrono::milliseconds timeout) const {
+  return WaitUntil([&] { return std::filesystem::exists(file_ + ".held"); }, timeout);
+}
+
+void WorkHold::Release() {
+  std::error_code ec;
+  std::filesystem::remove(file_, ec);
+}
 
 absl::StatusOr<std::unique_ptr<ChildProcess>> ChildProcess::Start(
     const std::vector<std::string>& args, int stdout_fd) {
@@ -107,8 +129,13 @@ absl::StatusOr<std::unique_ptr<ServerProcess>> ServerProcess::Start(
     return absl::NotFoundError(absl::StrCat("actopo-server not found at ", binary,
                                             " (build the server or set ACTOPO_SERVER_BIN)"));
   }
-  std::vector<std::string> args = {binary,       "--host", "127.0.0.1", "--port", "0",
-                                   "--data-dir", data_dir, "--grace-s", "2"};
+  std::string gate_dir = (std::filesystem::temp_directory_path() / "actopo_gate_XXXXXX").string();
+  if (mkdtemp(gate_dir.data()) == nullptr) {
+    return absl::InternalError(absl::StrCat("mkdtemp: ", std::strerror(errno)));
+  }
+  std::vector<std::string> args = {binary, "--host",          "127.0.0.1", "--port",
+                                   "0",    "--data-dir",      data_dir,    "--grace-s",
+                                   "2",    "--test-gate-dir", gate_dir};
   args.insert(args.end(), extra.begin(), extra.end());
   int fds[2];
   if (pipe2(fds, O_CLOEXEC) != 0) {
@@ -117,10 +144,13 @@ absl::StatusOr<std::unique_ptr<ServerProcess>> ServerProcess::Start(
   absl::StatusOr<std::unique_ptr<ChildProcess>> child = ChildProcess::Start(args, fds[1]);
   close(fds[1]);
   if (!child.ok()) {
+    std::error_code ec;
+    std::filesystem::remove_all(gate_dir, ec);
     close(fds[0]);
     return child.status();
   }
   std::unique_ptr<ServerProcess> server(new ServerProcess(*std::move(child), fds[0]));
+  server->gate_dir_ = gate_dir;
   std::string line;
   if (!ReadLine(fds[0], std::chrono::seconds(60), line) ||
       line.rfind(std::string(kListening), 0) != 0) {
@@ -142,6 +172,16 @@ ServerProcess::~ServerProcess() {
   child_.reset();                        // stops the child
   if (drain_.joinable()) drain_.join();  // EOF once the child is gone
   close(out_);
+  std::error_code ec;
+  std::filesystem::remove_all(gate_dir_, ec);
+}
+
+std::unique_ptr<WorkHold> ServerProcess::Hold(const std::string& work) const {
+  std::string name = work;
+  std::replace(name.begin(), name.end(), '/', '.');
+  const std::string file = (std::filesystem::path(gate_dir_) / name).string();
+  std::ofstream(file).close();
+  return std::unique_ptr<WorkHold>(new WorkHold(file));
 }
 
 }  // namespace actopo::client::testing
