@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
-#include <memory>
 #include <optional>
+#include <string_view>
 #include <vector>
 
 #include "absl/strings/ascii.h"
@@ -15,6 +15,7 @@
 #include "absl/strings/string_view.h"
 #include "server/core/status_macros.h"
 #include "server/io/collection.h"
+#include "server/io/internal/xml_tags.h"
 
 namespace actopo::io {
 namespace {
@@ -23,59 +24,16 @@ absl::Status NoCounts(const std::string& path, absl::string_view why) {
   return absl::InvalidArgumentError(absl::StrCat(path, ": no counts in the header: ", why));
 }
 
-// The value of attribute `name` in an XML start tag ("<Piece NumberOfPoints=\"8\" ...>").
-std::optional<absl::string_view> Attribute(absl::string_view tag, absl::string_view name) {
-  for (size_t at = tag.find(name); at != absl::string_view::npos; at = tag.find(name, at + 1)) {
-    // A whole attribute name: preceded by a space, followed by ="
-    if (at == 0 || tag[at - 1] != ' ' || tag.substr(at + name.size(), 2) != "=\"") continue;
-    const size_t begin = at + name.size() + 2;
-    const size_t end = tag.find('"', begin);
-    if (end == absl::string_view::npos) return std::nullopt;
-    return tag.substr(begin, end - begin);
-  }
-  return std::nullopt;
+// A scan's error in this file's words: its reason, after the path, is why there are no counts.
+absl::Status ScanError(const std::string& path, const absl::Status& status) {
+  return absl::IsInvalidArgument(status) ? NoCounts(path, status.message()) : status;
 }
 
-std::optional<int64_t> IntAttribute(absl::string_view tag, absl::string_view name) {
-  const std::optional<absl::string_view> text = Attribute(tag, name);
+std::optional<int64_t> IntAttribute(const internal::XmlTag& tag, std::string_view name) {
+  const std::optional<std::string_view> text = tag.Find(name);
   int64_t value = 0;
-  if (!text || !absl::SimpleAtoi(*text, &value) || value < 0) return std::nullopt;
+  if (!text || !internal::ParseXmlInt(*text, &value) || value < 0) return std::nullopt;
   return value;
-}
-
-// Calls fn(tag) for every start or end tag of a VTK XML file, in order, until fn returns false
-// or the raw appended data begins. Inline data between tags holds no '<' (ASCII numbers or
-// base64), so it is skipped as text. Reads the file in blocks; nothing is kept whole.
-template <class Fn>
-absl::Status ForEachXmlTag(const std::string& path, Fn&& fn) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return absl::NotFoundError(absl::StrCat(path, ": cannot open"));
-  constexpr size_t kBlock = 1 << 20;
-  std::string text;
-  std::unique_ptr<char[]> block(new char[kBlock]);
-  while (in) {
-    in.read(block.get(), kBlock);
-    text.append(block.get(), size_t(in.gcount()));
-    size_t at = 0;
-    while (true) {
-      const size_t open = text.find('<', at);
-      if (open == std::string::npos) {
-        at = text.size();
-        break;
-      }
-      const size_t close = text.find('>', open);
-      if (close == std::string::npos) {  // the tag goes on in the next block
-        at = open;
-        break;
-      }
-      const absl::string_view tag(text.data() + open, close + 1 - open);
-      if (absl::StartsWith(tag, "<AppendedData") || !fn(tag)) return absl::OkStatus();
-      at = close + 1;
-    }
-    text.erase(0, at);
-    if (text.size() > kBlock) return NoCounts(path, "a tag longer than 1 MiB");
-  }
-  return absl::OkStatus();
 }
 
 // Counts the 1-component DataArray elements of the first PointData element.
@@ -83,14 +41,15 @@ struct PointFieldCounter {
   int fields = 0;
   int state = 0;  // 0: before the first PointData, 1: inside it, 2: after it
 
-  void See(absl::string_view tag) {
-    if (state == 0 && absl::StartsWith(tag, "<PointData")) {
-      state = absl::EndsWith(tag, "/>") ? 2 : 1;
-    } else if (state == 1 && absl::StartsWith(tag, "</PointData")) {
+  void See(const internal::XmlTag& tag) {
+    if (state == 0 && tag.name == "PointData" && !tag.closing) {
+      state = tag.self_closing ? 2 : 1;
+    } else if (state == 1 && tag.name == "PointData" && tag.closing) {
       state = 2;
-    } else if (state == 1 && absl::StartsWith(tag, "<DataArray")) {
-      const std::optional<int64_t> components = IntAttribute(tag, "NumberOfComponents");
-      fields += !components || *components == 1;
+    } else if (state == 1 && tag.name == "DataArray" && !tag.closing) {
+      const std::optional<std::string_view> components = tag.Find("NumberOfComponents");
+      int value = 0;
+      fields += !components || (internal::ParseXmlInt(*components, &value) && value == 1);
     }
   }
 };
@@ -100,9 +59,9 @@ absl::StatusOr<MeshCounts> UnstructuredGridCounts(const std::string& path) {
   int pieces = 0;
   PointFieldCounter fields;
   absl::Status bad;
-  const absl::Status read = ForEachXmlTag(path, [&](absl::string_view tag) {
+  const absl::Status read = internal::ForEachXmlTagInFile(path, [&](const internal::XmlTag& tag) {
     fields.See(tag);
-    if (!absl::StartsWith(tag, "<Piece")) return true;
+    if (tag.name != "Piece" || tag.closing) return true;
     const std::optional<int64_t> points = IntAttribute(tag, "NumberOfPoints");
     const std::optional<int64_t> cells = IntAttribute(tag, "NumberOfCells");
     if (!points || !cells) {
@@ -114,7 +73,7 @@ absl::StatusOr<MeshCounts> UnstructuredGridCounts(const std::string& path) {
     ++pieces;
     return true;
   });
-  if (!read.ok()) return read;
+  if (!read.ok()) return ScanError(path, read);
   if (!bad.ok()) return bad;
   if (pieces == 0) return NoCounts(path, "no Piece element");
   counts.point_fields = fields.fields;
@@ -124,12 +83,14 @@ absl::StatusOr<MeshCounts> UnstructuredGridCounts(const std::string& path) {
 absl::StatusOr<MeshCounts> ImageDataCounts(const std::string& path) {
   std::optional<MeshCounts> counts;
   PointFieldCounter fields;
-  const absl::Status read = ForEachXmlTag(path, [&](absl::string_view tag) {
+  const absl::Status read = internal::ForEachXmlTagInFile(path, [&](const internal::XmlTag& tag) {
     fields.See(tag);
-    if (!counts && absl::StartsWith(tag, "<ImageData")) {
-      const std::optional<absl::string_view> extent = Attribute(tag, "WholeExtent");
+    if (!counts && tag.name == "ImageData" && !tag.closing) {
+      const std::optional<std::string_view> extent = tag.Find("WholeExtent");
       if (!extent) return false;
-      const std::vector<absl::string_view> parts = absl::StrSplit(*extent, ' ', absl::SkipEmpty());
+      const std::vector<absl::string_view> parts =
+          absl::StrSplit(absl::string_view(extent->data(), extent->size()),
+                         absl::ByAnyChar(" \t\n\r"), absl::SkipEmpty());
       int64_t e[6];
       if (parts.size() != 6) return false;
       for (int i = 0; i < 6; ++i) {
@@ -146,7 +107,7 @@ absl::StatusOr<MeshCounts> ImageDataCounts(const std::string& path) {
     }
     return true;
   });
-  if (!read.ok()) return read;
+  if (!read.ok()) return ScanError(path, read);
   if (!counts) return NoCounts(path, "no ImageData element with a WholeExtent");
   counts->point_fields = fields.fields;
   return *counts;

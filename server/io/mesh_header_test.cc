@@ -105,5 +105,53 @@ TEST(MeshHeaderTest, WhatHasNoCountsIsInvalidArgument) {
   EXPECT_EQ(huge->tetrahedra, 70000000000);
 }
 
+// Markup any XML writer may produce: attributes on lines of their own, single quotes, comments.
+TEST(MeshHeaderTest, CountsThroughAnyWellFormedMarkup) {
+  const std::filesystem::path dir = MakeTempDir("header_markup");
+  const auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir / name) << text;
+    return (dir / name).string();
+  };
+  const std::string vtu = write("lines.vtu", R"(<?xml version="1.0"?>
+<VTKFile type='UnstructuredGrid'>
+  <!-- <Piece NumberOfPoints="1000" NumberOfCells="1000"> -->
+  <UnstructuredGrid>
+    <Piece
+        NumberOfPoints='8'
+        NumberOfCells = "5">
+      <PointData>
+        <DataArray	type="Float64"	Name='f'/>
+        <DataArray type="Float64" Name="v" NumberOfComponents='3'/>
+        <DataArray type="Int32" Name="id" NumberOfComponents="1">1 2 3</DataArray>
+      </PointData>
+    </Piece>
+    <Piece NumberOfPoints="2" NumberOfCells="1"/>
+  </UnstructuredGrid>
+</VTKFile>
+)");
+  absl::StatusOr<MeshCounts> counts = ReadMeshCounts(vtu);
+  ASSERT_TRUE(counts.ok()) << counts.status();
+  EXPECT_EQ(counts->vertices, 10);
+  EXPECT_EQ(counts->tetrahedra, 6);
+  EXPECT_EQ(counts->point_fields, 2);  // f and id
+
+  const std::string vti = write("lines.vti",
+                                "<VTKFile type='ImageData'>\n"
+                                "<ImageData WholeExtent='0 2\n\t0 3  0 4'>\n"
+                                "<PointData/><Piece/></ImageData></VTKFile>");
+  counts = ReadMeshCounts(vti);
+  ASSERT_TRUE(counts.ok()) << counts.status();
+  EXPECT_EQ(counts->vertices, 3 * 4 * 5);
+  EXPECT_EQ(counts->tetrahedra, 5 * 2 * 3 * 4);
+  EXPECT_EQ(counts->point_fields, 0);
+
+  // Markup the reader refuses: no counts, and the reason.
+  const absl::StatusOr<MeshCounts> bad =
+      ReadMeshCounts(write("bad.vtu", "<VTKFile><Piece NumberOfPoints='1'NumberOfCells='1'>"));
+  EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(bad.status().message(),
+              ::testing::HasSubstr("no counts in the header: markup it cannot read at byte 9"));
+}
+
 }  // namespace
 }  // namespace actopo::io

@@ -25,6 +25,18 @@ struct Case {
 
 class BadInputTest : public ServiceTest {
  public:
+  // Each case gets its code and a message with its text, and the server still answers on
+  // `session` after it.
+  void ExpectEach(const std::vector<Case>& cases, const std::string& mesh,
+                  const std::string& session) {
+    for (const Case& c : cases) {
+      SCOPED_TRACE(c.name);
+      const grpc::Status s = c.call(this, *stub_, mesh, session);
+      EXPECT_EQ(s.error_code(), c.code) << s.error_message();
+      EXPECT_NE(s.error_message().find(c.message), std::string::npos) << s.error_message();
+      EXPECT_TRUE(Relation(session, v1::RELATION_VERTEX_STAR, 3).ok());
+    }
+  }
   grpc::Status Upload(const v1::UploadMeshHeader& header, const std::vector<std::string>& chunks) {
     v1::UploadMeshResponse response;
     auto context = Context();
@@ -98,16 +110,11 @@ grpc::Status RunToEnd(v1::TopologyService::Stub& stub, const v1::RunJobRequest& 
   return reader->Finish();
 }
 
-TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
-  std::filesystem::copy_file("/etc/hostname", data_dir_ / "notamesh.txt");
-  {
-    std::ofstream corrupt(data_dir_ / "corrupt.vtu");
-    corrupt << "<?xml version=\"1.0\"?><VTKFile type=\"UnstructuredGrid\"><garbage";
-  }
-  const std::string mesh = LoadSample("jittered:5");
-  const std::string session = Open(mesh, v1::STRUCTURE_ACTOPO);
-  using C = grpc::StatusCode;
-  std::vector<Case> cases = {
+using C = grpc::StatusCode;
+
+// Loading by path or sample.
+std::vector<Case> LoadCases() {
+  return {
       {"path escaping the data dir", C::INVALID_ARGUMENT, "outside the server's data directory",
        [](auto* t, auto&, auto&, auto&) {
          return static_cast<BadInputTest*>(t)->Load("../../etc/passwd");
@@ -150,6 +157,12 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
          grpc::ClientContext c;
          return stub.LoadMesh(&c, v1::LoadMeshRequest(), &out);
        }},
+  };
+}
+
+// Opening sessions.
+std::vector<Case> SessionCases() {
+  return {
       {"unknown mesh", C::NOT_FOUND, "mesh-nope",
        [](auto*, auto& stub, auto&, auto&) {
          v1::OpenSessionRequest r;
@@ -203,6 +216,12 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
          grpc::ClientContext c;
          return stub.OpenSession(&c, r, &out);
        }},
+  };
+}
+
+// Relation queries, one simplex or a batch.
+std::vector<Case> RelationCases() {
+  return {
       {"unknown session", C::NOT_FOUND, "session-guess",
        [](auto* t, auto&, auto&, auto&) {
          return static_cast<BadInputTest*>(t)->Relation("session-guess", v1::RELATION_VERTEX_STAR,
@@ -259,6 +278,12 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
          grpc::ClientContext c;
          return stub.GetRelationBatch(&c, r, &out);
        }},
+  };
+}
+
+// Jobs and their parameters.
+std::vector<Case> JobCases() {
+  return {
       {"unknown algorithm", C::INVALID_ARGUMENT, "algorithm",
        [](auto*, auto& stub, auto&, auto& s) {
          v1::RunJobRequest r;
@@ -344,6 +369,12 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
          grpc::ClientContext c;
          return stub.CancelJob(&c, r, &out);
        }},
+  };
+}
+
+// Uploads, and what an uploaded mesh may hold.
+std::vector<Case> UploadCases() {
+  return {
       {"upload: chunk before header", C::INVALID_ARGUMENT, "first message",
        [](auto*, auto& stub, auto&, auto&) {
          v1::UploadMeshResponse out;
@@ -426,15 +457,22 @@ TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
          return stub.GetRelationBatch(&c, r, &out);
        }},
   };
-  ASSERT_GE(cases.size(), 25u);
-  for (const Case& c : cases) {
-    SCOPED_TRACE(c.name);
-    const grpc::Status s = c.call(this, *stub_, mesh, session);
-    EXPECT_EQ(s.error_code(), c.code) << s.error_message();
-    EXPECT_NE(s.error_message().find(c.message), std::string::npos) << s.error_message();
-    // Still serving, the same session included.
-    EXPECT_TRUE(Relation(session, v1::RELATION_VERTEX_STAR, 3).ok());
+}
+
+TEST_F(BadInputTest, EveryCaseGetsItsCodeAndTheServerKeepsServing) {
+  std::filesystem::copy_file("/etc/hostname", data_dir_ / "notamesh.txt");
+  {
+    std::ofstream corrupt(data_dir_ / "corrupt.vtu");
+    corrupt << "<?xml version=\"1.0\"?><VTKFile type=\"UnstructuredGrid\"><garbage";
   }
+  const std::string mesh = LoadSample("jittered:5");
+  const std::string session = Open(mesh, v1::STRUCTURE_ACTOPO);
+  std::vector<Case> cases;
+  for (auto* group : {LoadCases, SessionCases, RelationCases, JobCases, UploadCases}) {
+    for (Case& c : group()) cases.push_back(std::move(c));
+  }
+  ASSERT_GE(cases.size(), 25u);
+  ExpectEach(cases, mesh, session);
 }
 
 // A legacy VTK file: points (x y z per line), cells (one "n v0 v1 ..." per line) and their types.
@@ -529,60 +567,42 @@ void SetInt64s(v1::Array* a, const std::vector<int64_t>& values, std::vector<int
   a->set_data(std::string(reinterpret_cast<const char*>(values.data()), values.size() * 8));
 }
 
-TEST_F(BadInputTest, HostileMeshesAndMoreRequests) {
-  const auto write = [&](const std::string& name, const std::string& text) {
-    std::ofstream(data_dir_ / name) << text;
-  };
-  // VTK's legacy ASCII reader rejects "nan" as a word: non-finite points come in binary XML.
-  write("nan.vtu", RawVtu({0, 0, 0, std::nan(""), 0, 0, 0, 1, 0, 0, 0, 1}, {0, 1, 2, 3}));
-  write("inf.vtu", RawVtu({0, 0, 0, 1, 0, 0, 0, INFINITY, 0, 0, 0, 1}, {0, 1, 2, 3}));
-  write("mixed.vtk", Legacy(kCorners, {"4 0 1 2 3", "3 1 2 4"}, {kTet, kTriangle}));
-  write("flat.vtk", Legacy(kCorners, {"3 0 1 2", "3 1 2 4"}, {kTriangle, kTriangle}));
-  write("badid.vtk", Legacy(kCorners, {"4 0 1 2 99"}, {kTet}));
-  write("repeat.vtk", Legacy(kCorners, {"4 0 1 1 3"}, {kTet}));
-  write("truncated.vtk", Legacy(kCorners, {"4 0 1 2 3"}, {kTet}).substr(0, 150));
-  write("claims.vtu",
-        "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid>"
-        "<Piece NumberOfPoints=\"900000000\" NumberOfCells=\"5000000000\">");
-  write("empty.vtu", "");
-  // Files VTK's own readers crash on: read in a child process, they fail the load, not the
-  // server.
-  io::testing::WriteVtkCrashFiles(data_dir_, ACTOPO_SOURCE_DIR);
-  std::filesystem::create_directories(data_dir_ / "folder.vtu");
-  std::filesystem::create_symlink("/etc/passwd", data_dir_ / "escape.vtk");
-  // Good enough to load, but degenerate: inverted, flat (coplanar) and duplicated tetrahedra and
-  // coincident points. These are served, not refused: topology does not need volume.
-  write("degenerate.vtk",
-        Legacy({"0 0 0", "1 0 0", "0 1 0", "0 0 1", "1 1 0", "0 0 0"},
-               {"4 0 2 1 3", "4 0 1 2 4", "4 0 1 2 3", "4 5 1 2 4"}, {kTet, kTet, kTet, kTet}));
+// A case that loads `path` from the data directory.
+std::function<grpc::Status(ServiceTest*, v1::TopologyService::Stub&, const std::string&,
+                           const std::string&)>
+LoadPath(std::string path) {
+  return [path](auto* t, auto&, auto&, auto&) { return static_cast<BadInputTest*>(t)->Load(path); };
+}
 
-  const std::string mesh = LoadSample("jittered:5");
-  const std::string session = Open(mesh, v1::STRUCTURE_COMPACT);
-  using C = grpc::StatusCode;
-  auto load = [](std::string path) {
-    return
-        [path](auto* t, auto&, auto&, auto&) { return static_cast<BadInputTest*>(t)->Load(path); };
-  };
-  std::vector<Case> cases = {
+// Hostile mesh files (written by HostileMeshesAndMoreRequests).
+std::vector<Case> HostileFileCases() {
+  return {
       {"file: NaN coordinate", C::INVALID_ARGUMENT, "vertex 1 has a non-finite coordinate x = nan",
-       load("nan.vtu")},
+       LoadPath("nan.vtu")},
       {"file: infinite coordinate", C::INVALID_ARGUMENT,
-       "vertex 2 has a non-finite coordinate y = inf", load("inf.vtu")},
-      {"file: mixed cell types", C::INVALID_ARGUMENT, "only tetrahedral", load("mixed.vtk")},
-      {"file: triangles only", C::INVALID_ARGUMENT, "only tetrahedral", load("flat.vtk")},
-      {"file: vertex id out of range", C::INVALID_ARGUMENT, "badid.vtk", load("badid.vtk")},
-      {"file: repeated vertex", C::INVALID_ARGUMENT, "repeats vertex 1", load("repeat.vtk")},
-      {"file: truncated", C::INVALID_ARGUMENT, "truncated.vtk", load("truncated.vtk")},
+       "vertex 2 has a non-finite coordinate y = inf", LoadPath("inf.vtu")},
+      {"file: mixed cell types", C::INVALID_ARGUMENT, "only tetrahedral", LoadPath("mixed.vtk")},
+      {"file: triangles only", C::INVALID_ARGUMENT, "only tetrahedral", LoadPath("flat.vtk")},
+      {"file: vertex id out of range", C::INVALID_ARGUMENT, "badid.vtk", LoadPath("badid.vtk")},
+      {"file: repeated vertex", C::INVALID_ARGUMENT, "repeats vertex 1", LoadPath("repeat.vtk")},
+      {"file: truncated", C::INVALID_ARGUMENT, "truncated.vtk", LoadPath("truncated.vtk")},
       {"file: huge counts in the header", C::RESOURCE_EXHAUSTED, "by its header",
-       load("claims.vtu")},
-      {"file: empty", C::INVALID_ARGUMENT, "empty.vtu", load("empty.vtu")},
+       LoadPath("claims.vtu")},
+      {"file: empty", C::INVALID_ARGUMENT, "empty.vtu", LoadPath("empty.vtu")},
       {"file: legacy POINTS cut short (VTK crashes)", C::INVALID_ARGUMENT,
-       "cut_short.vtk: VTK's reader crashed on this file", load("cut_short.vtk")},
+       "cut_short.vtk: VTK's reader crashed on this file", LoadPath("cut_short.vtk")},
       {"file: compressed block size 0 (VTK crashes)", C::INVALID_ARGUMENT,
-       "block_size_zero.vtu: VTK's reader crashed on this file", load("block_size_zero.vtu")},
-      {"file: a directory", C::INVALID_ARGUMENT, "directory", load("folder.vtu")},
-      {"file: symlink out of the data dir", C::INVALID_ARGUMENT, "outside", load("escape.vtk")},
-      {"file: dot-dot inside the path", C::INVALID_ARGUMENT, "outside", load("sub/../../x.vtu")},
+       "block_size_zero.vtu: VTK's reader crashed on this file", LoadPath("block_size_zero.vtu")},
+      {"file: a directory", C::INVALID_ARGUMENT, "directory", LoadPath("folder.vtu")},
+      {"file: symlink out of the data dir", C::INVALID_ARGUMENT, "outside", LoadPath("escape.vtk")},
+      {"file: dot-dot inside the path", C::INVALID_ARGUMENT, "outside",
+       LoadPath("sub/../../x.vtu")},
+  };
+}
+
+// Partition options and samples.
+std::vector<Case> PartitionAndSampleCases() {
+  return {
       {"partition: negative block size", C::INVALID_ARGUMENT, "block size: -5",
        [](auto*, auto& stub, auto&, auto&) {
          return LoadWith(stub, [](auto& r) {
@@ -616,6 +636,12 @@ TEST_F(BadInputTest, HostileMeshesAndMoreRequests) {
        [](auto*, auto& stub, auto&, auto&) {
          return LoadWith(stub, [](auto& r) { r.set_sample("wavelet:512"); });
        }},
+  };
+}
+
+// Engine options of a session.
+std::vector<Case> EngineCases() {
+  return {
       {"session: consumers over the range", C::INVALID_ARGUMENT, "engine.consumers: 1000",
        [](auto*, auto& stub, auto& m, auto&) {
          return OpenWith(stub, m, [](auto& r) { r.mutable_engine()->set_consumers(1000); });
@@ -637,6 +663,12 @@ TEST_F(BadInputTest, HostileMeshesAndMoreRequests) {
          return OpenWith(stub, m,
                          [](auto& r) { r.mutable_engine()->set_buffer_ratio(std::nan("")); });
        }},
+  };
+}
+
+// Batches and single relations.
+std::vector<Case> BatchAndRelationCases() {
+  return {
       {"batch: tuples of the wrong width", C::INVALID_ARGUMENT, "vertex_tuples.shape",
        [](auto*, auto& stub, auto&, auto& s) {
          return BatchWith(stub, s, [](auto& r) {
@@ -694,6 +726,12 @@ TEST_F(BadInputTest, HostileMeshesAndMoreRequests) {
        [](auto* t, auto&, auto&, auto& s) {
          return static_cast<BadInputTest*>(t)->Tuple(s, v1::RELATION_TRIANGLE_EDGES, {0, 1, 2, 3});
        }},
+  };
+}
+
+// Jobs, statistics, closing, deleting, deadlines.
+std::vector<Case> OtherCallCases() {
+  return {
       {"job: unknown session", C::NOT_FOUND, "session-none",
        [](auto*, auto& stub, auto&, auto&) {
          v1::RunJobRequest r;
@@ -739,6 +777,12 @@ TEST_F(BadInputTest, HostileMeshesAndMoreRequests) {
          v1::GetServerInfoResponse out;
          return stub.GetServerInfo(&c, {}, &out);
        }},
+  };
+}
+
+// Uploads: headers and their fields.
+std::vector<Case> MoreUploadCases() {
+  return {
       {"upload: nothing sent", C::INVALID_ARGUMENT, "the upload was empty",
        [](auto*, auto& stub, auto&, auto&) {
          v1::UploadMeshResponse out;
@@ -809,14 +853,44 @@ TEST_F(BadInputTest, HostileMeshesAndMoreRequests) {
          return OpenWith(stub, out.mesh().mesh_id(), [](auto&) {});
        }},
   };
-  ASSERT_GE(cases.size(), 40u);
-  for (const Case& c : cases) {
-    SCOPED_TRACE(c.name);
-    const grpc::Status s = c.call(this, *stub_, mesh, session);
-    EXPECT_EQ(s.error_code(), c.code) << s.error_message();
-    EXPECT_NE(s.error_message().find(c.message), std::string::npos) << s.error_message();
-    EXPECT_TRUE(Relation(session, v1::RELATION_VERTEX_STAR, 3).ok());
+}
+
+TEST_F(BadInputTest, HostileMeshesAndMoreRequests) {
+  const auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(data_dir_ / name) << text;
+  };
+  // VTK's legacy ASCII reader rejects "nan" as a word: non-finite points come in binary XML.
+  write("nan.vtu", RawVtu({0, 0, 0, std::nan(""), 0, 0, 0, 1, 0, 0, 0, 1}, {0, 1, 2, 3}));
+  write("inf.vtu", RawVtu({0, 0, 0, 1, 0, 0, 0, INFINITY, 0, 0, 0, 1}, {0, 1, 2, 3}));
+  write("mixed.vtk", Legacy(kCorners, {"4 0 1 2 3", "3 1 2 4"}, {kTet, kTriangle}));
+  write("flat.vtk", Legacy(kCorners, {"3 0 1 2", "3 1 2 4"}, {kTriangle, kTriangle}));
+  write("badid.vtk", Legacy(kCorners, {"4 0 1 2 99"}, {kTet}));
+  write("repeat.vtk", Legacy(kCorners, {"4 0 1 1 3"}, {kTet}));
+  write("truncated.vtk", Legacy(kCorners, {"4 0 1 2 3"}, {kTet}).substr(0, 150));
+  write("claims.vtu",
+        "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid>"
+        "<Piece NumberOfPoints=\"900000000\" NumberOfCells=\"5000000000\">");
+  write("empty.vtu", "");
+  // Files VTK's own readers crash on: read in a child process, they fail the load, not the
+  // server.
+  io::testing::WriteVtkCrashFiles(data_dir_, ACTOPO_SOURCE_DIR);
+  std::filesystem::create_directories(data_dir_ / "folder.vtu");
+  std::filesystem::create_symlink("/etc/passwd", data_dir_ / "escape.vtk");
+  // Good enough to load, but degenerate: inverted, flat (coplanar) and duplicated tetrahedra and
+  // coincident points. These are served, not refused: topology does not need volume.
+  write("degenerate.vtk",
+        Legacy({"0 0 0", "1 0 0", "0 1 0", "0 0 1", "1 1 0", "0 0 0"},
+               {"4 0 2 1 3", "4 0 1 2 4", "4 0 1 2 3", "4 5 1 2 4"}, {kTet, kTet, kTet, kTet}));
+
+  const std::string mesh = LoadSample("jittered:5");
+  const std::string session = Open(mesh, v1::STRUCTURE_COMPACT);
+  std::vector<Case> cases;
+  for (auto* group : {HostileFileCases, PartitionAndSampleCases, EngineCases, BatchAndRelationCases,
+                      OtherCallCases, MoreUploadCases}) {
+    for (Case& c : group()) cases.push_back(std::move(c));
   }
+  ASSERT_GE(cases.size(), 40u);
+  ExpectEach(cases, mesh, session);
   // The degenerate mesh is served, and every algorithm runs on it.
   v1::LoadMeshRequest r;
   r.set_path("degenerate.vtk");

@@ -17,11 +17,10 @@
 #include <utility>
 #include <vector>
 
-#include "absl/container/flat_hash_map.h"
-#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "server/core/parallel.h"
 #include "server/core/status_macros.h"
+#include "server/io/internal/xml_tags.h"
 
 namespace actopo::io::internal {
 namespace {
@@ -77,80 +76,6 @@ class MappedFile {
   size_t size_ = 0;
   size_t released_ = 0;  // bytes from the start taken out by Release
 };
-
-// One markup tag: its name ("DataArray", "/Piece"), attributes, and whether it closes itself.
-struct Tag {
-  std::string_view name;
-  absl::flat_hash_map<std::string_view, std::string_view> attributes;
-  bool self_closing = false;
-
-  std::string_view get(std::string_view key) const {
-    const auto it = attributes.find(key);
-    return it == attributes.end() ? std::string_view() : it->second;
-  }
-};
-
-// absl::SimpleAtoi on a std::string_view (absl's own string_view type in this Abseil).
-template <class T>
-bool ParseInt(std::string_view text, T* out) {
-  return absl::SimpleAtoi(absl::string_view(text.data(), text.size()), out);
-}
-
-bool IsSpace(char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r'; }
-
-// The next tag from `pos` (declarations and comments skipped); `pos` moves past it. False at
-// the end of `text` or on markup this reader does not follow.
-bool NextTag(std::string_view text, size_t& pos, Tag& tag) {
-  while (true) {
-    pos = text.find('<', pos);
-    if (pos == std::string_view::npos) return false;
-    if (text.substr(pos, 4) == "<!--") {
-      pos = text.find("-->", pos);
-      if (pos == std::string_view::npos) return false;
-      continue;
-    }
-    if (text.substr(pos, 2) == "<?") {
-      pos = text.find("?>", pos);
-      if (pos == std::string_view::npos) return false;
-      continue;
-    }
-    break;
-  }
-  size_t i = pos + 1;
-  const size_t name_begin = i;
-  while (i < text.size() && !IsSpace(text[i]) && text[i] != '>' && text[i] != '/') ++i;
-  if (i < text.size() && text[i] == '/' && i == name_begin) ++i;  // a closing tag: "</Name>"
-  while (i < text.size() && !IsSpace(text[i]) && text[i] != '>' && text[i] != '/') ++i;
-  tag.name = text.substr(name_begin, i - name_begin);
-  tag.attributes.clear();
-  tag.self_closing = false;
-  while (true) {
-    while (i < text.size() && IsSpace(text[i])) ++i;
-    if (i >= text.size()) return false;
-    if (text[i] == '>') break;
-    if (text[i] == '/') {
-      if (i + 1 >= text.size() || text[i + 1] != '>') return false;
-      tag.self_closing = true;
-      ++i;
-      break;
-    }
-    const size_t key_begin = i;
-    while (i < text.size() && text[i] != '=' && !IsSpace(text[i]) && text[i] != '>') ++i;
-    const std::string_view key = text.substr(key_begin, i - key_begin);
-    while (i < text.size() && IsSpace(text[i])) ++i;
-    if (i >= text.size() || text[i] != '=') return false;
-    ++i;
-    while (i < text.size() && IsSpace(text[i])) ++i;
-    if (i >= text.size() || (text[i] != '"' && text[i] != '\'')) return false;
-    const char quote = text[i++];
-    const size_t value_end = text.find(quote, i);
-    if (value_end == std::string_view::npos) return false;
-    tag.attributes[key] = text.substr(i, value_end - i);
-    i = value_end + 1;
-  }
-  pos = i + 1;
-  return true;
-}
 
 enum class Scalar {
   kInt8,
@@ -223,17 +148,20 @@ struct Layout {
 };
 
 // The array a DataArray tag describes, if it lies in the appended section.
-std::optional<ArraySpec> AppendedArray(const Tag& tag) {
+std::optional<ArraySpec> AppendedArray(const XmlTag& tag) {
   ArraySpec spec;
-  const std::optional<Scalar> scalar = ScalarNamed(tag.get("type"));
-  if (!tag.self_closing || tag.get("format") != "appended" || !scalar) return std::nullopt;
+  const std::optional<Scalar> scalar = ScalarNamed(tag.Get("type"));
+  if (!tag.self_closing || tag.Get("format") != "appended" || !scalar) return std::nullopt;
   spec.scalar = *scalar;
-  spec.name = tag.get("Name");
-  const std::string_view components = tag.get("NumberOfComponents");
-  if (!components.empty() && (!ParseInt(components, &spec.components) || spec.components < 1)) {
+  spec.name = tag.Get("Name");
+  const std::string_view components = tag.Get("NumberOfComponents");
+  if (!components.empty() && (!ParseXmlInt(components, &spec.components) || spec.components < 1)) {
     return std::nullopt;
   }
-  if (spec.name.empty() || !ParseInt(tag.get("offset"), &spec.offset)) return std::nullopt;
+  if (spec.name.empty() || !ParseXmlInt(tag.Get("offset"), &spec.offset)) return std::nullopt;
+  // Values are taken as written; VTK's parser decodes entities and turns whitespace into spaces.
+  // A name where the two would differ goes to VTK, so that fields are named as VTK names them.
+  if (spec.name.find_first_of("&\t\n\r") != std::string_view::npos) return std::nullopt;
   return spec;
 }
 
@@ -242,15 +170,16 @@ std::optional<Layout> ParseLayout(const MappedFile& file) {
   const std::string_view text = file.text().substr(0, kMaxHeaderBytes);
   Layout layout;
   size_t pos = 0;
-  Tag tag;
+  XmlTag tag;
   std::string_view section;  // the open PointData, CellData, Points, Cells or FieldData
   int pieces = 0;
   bool vtk_file = false;
-  while (NextTag(text, pos, tag)) {
-    if (tag.name == "VTKFile") {
-      const std::string_view header = tag.get("header_type");
-      const std::string_view compressor = tag.get("compressor");
-      if (tag.get("type") != "UnstructuredGrid" || tag.get("byte_order") != "LittleEndian" ||
+  // Closing tags carry their name without the '/': every opening test says !tag.closing.
+  while (NextXmlTag(text, pos, tag) == XmlScan::kTag) {
+    if (tag.name == "VTKFile" && !tag.closing) {
+      const std::string_view header = tag.Get("header_type");
+      const std::string_view compressor = tag.Get("compressor");
+      if (tag.Get("type") != "UnstructuredGrid" || tag.Get("byte_order") != "LittleEndian" ||
           (header != "" && header != "UInt32" && header != "UInt64") ||
           (compressor != "" && compressor != "vtkZLibDataCompressor")) {
         return std::nullopt;
@@ -258,20 +187,21 @@ std::optional<Layout> ParseLayout(const MappedFile& file) {
       layout.wide_header = header == "UInt64";
       layout.zlib = !compressor.empty();
       vtk_file = true;
-    } else if (tag.name == "Piece") {
-      if (++pieces > 1 || !ParseInt(tag.get("NumberOfPoints"), &layout.num_points) ||
-          !ParseInt(tag.get("NumberOfCells"), &layout.num_cells)) {
+    } else if (tag.name == "Piece" && !tag.closing) {
+      if (++pieces > 1 || !ParseXmlInt(tag.Get("NumberOfPoints"), &layout.num_points) ||
+          !ParseXmlInt(tag.Get("NumberOfCells"), &layout.num_cells)) {
         return std::nullopt;
       }
-    } else if (tag.name == "PointData" || tag.name == "CellData" || tag.name == "Points" ||
-               tag.name == "Cells" || tag.name == "FieldData") {
+    } else if (!tag.closing &&
+               (tag.name == "PointData" || tag.name == "CellData" || tag.name == "Points" ||
+                tag.name == "Cells" || tag.name == "FieldData")) {
       if (!tag.self_closing) section = tag.name;
-    } else if (!tag.name.empty() && tag.name[0] == '/' && tag.name.substr(1) == section) {
+    } else if (tag.closing && tag.name == section) {
       section = {};
-    } else if (tag.name == "DataArray" &&
+    } else if (tag.name == "DataArray" && !tag.closing &&
                (section == "PointData" || section == "Points" || section == "Cells")) {
       // Cell data and field data are not read (VTK's path drops them too); their inline
-      // values, if any, hold no '<' for NextTag to trip on.
+      // values, if any, hold no '<' for NextXmlTag to trip on.
       std::optional<ArraySpec> spec = AppendedArray(tag);
       if (!spec) return std::nullopt;  // inline data: VTK's reader
       if (section == "PointData") {
@@ -290,8 +220,8 @@ std::optional<Layout> ParseLayout(const MappedFile& file) {
         if (slot == nullptr || slot->has_value()) return std::nullopt;
         *slot = spec;
       }
-    } else if (tag.name == "AppendedData") {
-      if (tag.get("encoding") != "raw") return std::nullopt;
+    } else if (tag.name == "AppendedData" && !tag.closing) {
+      if (tag.Get("encoding") != "raw") return std::nullopt;
       const size_t underscore = file.text().find('_', pos);
       if (underscore == std::string_view::npos) return std::nullopt;
       layout.appended = underscore + 1;
