@@ -580,12 +580,11 @@ MemoryStats ActopoStructure::memory() const {
 }
 
 ActopoStructure::Reader::Reader(const Topology* topology, Consumer* consumer)
-    : ReaderBase<Reader>(topology), consumer_(consumer) {}
+    : BlockSlotReader<Reader, Slot>(topology, {}), consumer_(consumer) {}
 
 ActopoStructure::Reader::Reader(Reader&& other) noexcept
-    : ReaderBase<Reader>(other.topology_),
+    : BlockSlotReader<Reader, Slot>(other.topology_, std::exchange(other.slots_, {})),
       consumer_(std::exchange(other.consumer_, nullptr)),
-      slots_(std::exchange(other.slots_, {})),
       own_(std::move(other.own_)),
       scratch_(std::move(other.scratch_)),
       last_block_(other.last_block_) {}

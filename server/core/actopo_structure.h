@@ -197,20 +197,17 @@ class ActopoStructure {
 
   class Consumer;
 
-  class Reader : public ReaderBase<Reader> {
+  // The block a relation's last span points into, and whether this reader pins it there.
+  struct Slot : RelationSlot {
+    int32_t block = -1;
+    bool pinned = false;  // false: empty, or a block the reader computed itself (Reader::own_)
+  };
+
+  class Reader : public BlockSlotReader<Reader, Slot> {
    public:
     Reader(Reader&& other) noexcept;
     Reader& operator=(Reader&&) = delete;
     ~Reader();  // releases its pins and its consumer slot
-
-    template <Relation R>
-    std::span<const SimplexId> Lookup(SimplexId s) {
-      Slot& slot = slots_[Index(R)];
-      if (!slot.Contains(s)) [[unlikely]] {
-        MoveSlot(R, topology_->block_of(SourceDimension(R), s));
-      }
-      return slot.template Row<R>(s);
-    }
 
     // ReaderBase::Finished: drops this reader's pins on `block` and evicts its relations from
     // the consumer's buffer (those no other pin or computation holds).
@@ -218,16 +215,12 @@ class ActopoStructure {
 
    private:
     friend class ActopoStructure;
-    struct Slot : RelationSlot {
-      int32_t block = -1;
-      bool pinned = false;  // false: empty, or a block this reader computed itself (own_)
-    };
+    friend class BlockSlotReader<Reader, Slot>;
     Reader(const Topology* topology, Consumer* consumer);
     void MoveSlot(Relation r, int32_t block);
     void Release(Relation r);
 
     Consumer* consumer_;
-    std::array<Slot, kNumRelations> slots_;
     // Relations this reader computed for itself (see MoveSlot).
     std::array<std::unique_ptr<RelationBlock>, kNumRelations> own_;
     // For what the consumer computes on its thread: it goes with the reader, so no thread of a

@@ -34,7 +34,7 @@ MemoryStats CompactStructure::memory() const {
 }
 
 CompactStructure::Reader::Reader(CompactStructure* owner)
-    : ReaderBase<Reader>(owner->topology_.get()),
+    : BlockSlotReader<Reader, Slot>(owner->topology_.get(), {}),
       owner_(owner),
       capacity_(owner->capacity_),
       entry_of_block_(owner->topology_->num_blocks(), -1) {
@@ -44,12 +44,11 @@ CompactStructure::Reader::Reader(CompactStructure* owner)
 }
 
 CompactStructure::Reader::Reader(Reader&& other) noexcept
-    : ReaderBase<Reader>(other.topology_),
+    : BlockSlotReader<Reader, Slot>(other.topology_, other.slots_),
       owner_(std::exchange(other.owner_, nullptr)),
       capacity_(other.capacity_),
       entries_(std::move(other.entries_)),
       entry_of_block_(std::move(other.entry_of_block_)),
-      slots_(other.slots_),
       next_insert_(other.next_insert_),
       bytes_(std::exchange(other.bytes_, 0)),
       scratch_(std::move(other.scratch_)),

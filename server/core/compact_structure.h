@@ -36,20 +36,16 @@ class CompactStructure {
 
   CompactStructure(std::shared_ptr<const Topology> topology, const Options& options);
 
-  class Reader : public ReaderBase<Reader> {
+  // The block a relation's last span points into, and the cache entry pinned for it.
+  struct Slot : RelationSlot {
+    int entry = -1;
+  };
+
+  class Reader : public BlockSlotReader<Reader, Slot> {
    public:
     Reader(Reader&& other) noexcept;
     Reader& operator=(Reader&&) = delete;
     ~Reader();
-
-    template <Relation R>
-    std::span<const SimplexId> Lookup(SimplexId s) {
-      Slot& slot = slots_[Index(R)];
-      if (!slot.Contains(s)) [[unlikely]] {
-        MoveSlot(R, topology_->block_of(SourceDimension(R), s));
-      }
-      return slot.template Row<R>(s);
-    }
 
     // This reader's counters so far (also added to the structure's totals on destruction).
     const AccessStats& stats() const { return stats_; }
@@ -59,17 +55,13 @@ class CompactStructure {
 
    private:
     friend class CompactStructure;
+    friend class BlockSlotReader<Reader, Slot>;
     struct Entry {
       int32_t block = -1;
       uint64_t inserted = 0;
       int pins = 0;
       std::array<std::unique_ptr<RelationBlock>, kNumRelations> relations;
     };
-    // The block a relation's last span points into, and the cache entry pinned for it.
-    struct Slot : RelationSlot {
-      int entry = -1;
-    };
-
     explicit Reader(CompactStructure* owner);
     void MoveSlot(Relation r, int32_t block);
     int FindOrInsert(int32_t block);
@@ -79,7 +71,6 @@ class CompactStructure {
     int capacity_;
     std::vector<Entry> entries_;
     std::vector<int32_t> entry_of_block_;  // -1 when not cached
-    std::array<Slot, kNumRelations> slots_;
     uint64_t next_insert_ = 0;
     int64_t bytes_ = 0;
     BlockScratch scratch_;

@@ -136,6 +136,27 @@ class ReaderBase {
   std::array<SimplexId, 4> tetrahedron_row_{};
 };
 
+// A reader whose relations come in blocks (compact, actopo): per relation a slot on the block its
+// last row came from. A row inside that block is read in place; one outside moves the slot
+// (Derived::MoveSlot(Relation, int32_t block), which points it at that block's relation).
+template <class Derived, class Slot>
+class BlockSlotReader : public ReaderBase<Derived> {
+ public:
+  template <Relation R>
+  std::span<const SimplexId> Lookup(SimplexId s) {
+    Slot& slot = slots_[Index(R)];
+    if (!slot.Contains(s)) [[unlikely]] {
+      static_cast<Derived*>(this)->MoveSlot(R, this->topology_->block_of(SourceDimension(R), s));
+    }
+    return slot.template Row<R>(s);
+  }
+
+ protected:
+  BlockSlotReader(const Topology* topology, const std::array<Slot, kNumRelations>& slots)
+      : ReaderBase<Derived>(topology), slots_(slots) {}
+  std::array<Slot, kNumRelations> slots_;
+};
+
 template <class Derived>
 std::span<const SimplexId> ReaderBase<Derived>::get(Relation r, SimplexId s) {
   switch (r) {
