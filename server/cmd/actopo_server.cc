@@ -55,6 +55,7 @@ int main(int argc, char** argv) {
   // A default session runs a consumer and a producer per core: leave room for several.
   o.max_engine_threads = std::max(o.max_engine_threads, 4 * actopo::DefaultThreads());
   int memory_budget_mib = 0, max_message_mib = 64, idle_timeout_s = 1800, grace_s = 10;
+  int upload_budget_mib = 8192, upload_timeout_s = 900;
   // Mesh files are read by actopo-read-mesh, installed beside this executable.
   std::error_code ec;
   std::string mesh_reader =
@@ -82,6 +83,14 @@ int main(int argc, char** argv) {
   flags.Add("max-batch-size", &o.max_batch_size, "most simplices in one GetRelationBatch");
   flags.Add("session-idle-timeout-s", &idle_timeout_s, "close sessions idle this long");
   flags.Add("grace-s", &grace_s, "on SIGTERM, seconds to let calls finish");
+  flags.Add("upload-dir", &o.upload_dir,
+            "folder of the files being uploaded (default: one in the system's temporary "
+            "directory, removed at exit)");
+  flags.Add("upload-budget-mib", &upload_budget_mib,
+            "sizes of the uploads held at once in MiB (on disk, in --upload-dir)");
+  flags.Add("upload-timeout-s", &upload_timeout_s,
+            "drop an upload nobody has written to for this long");
+  flags.Add("max-uploads", &o.max_uploads, "uploads held at once");
   flags.Add("tls-cert", &o.tls_cert_file, "PEM certificate chain (with --tls-key: serve TLS)");
   flags.Add("tls-key", &o.tls_key_file, "PEM private key");
   flags.Add("token", &o.token,
@@ -113,6 +122,8 @@ int main(int argc, char** argv) {
   o.memory_budget_bytes = int64_t(memory_budget_mib) << 20;
   o.max_message_bytes = int64_t(max_message_mib) << 20;
   o.session_idle_timeout = absl::Seconds(idle_timeout_s);
+  o.upload_budget_bytes = int64_t(upload_budget_mib) << 20;
+  o.upload_timeout = absl::Seconds(upload_timeout_s);
 
   // Block the signals in every thread (gRPC's inherit the mask) and wait for them here.
   sigset_t signals;

@@ -147,26 +147,43 @@ bool MeshRegistry::Within(const std::filesystem::path& root, const std::filesyst
 absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFile(
     const std::string& path, const PartitionOptions& partition, const Progress& progress) {
   RETURN_IF_ERROR(CheckCapacity());
+  ASSIGN_OR_RETURN(const std::filesystem::path full, Resolve("path", path));
+  std::error_code ec;
+  return LoadUnder(std::filesystem::weakly_canonical(options_.data_dir, ec), full, path,
+                   "file:" + path, "the server's data directory", partition, progress);
+}
+
+absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadUploaded(
+    const std::filesystem::path& dir, const std::string& file, const PartitionOptions& partition,
+    const Progress& progress) {
+  RETURN_IF_ERROR(CheckCapacity());
+  std::error_code ec;
+  const std::filesystem::path root = std::filesystem::weakly_canonical(dir, ec);
+  return LoadUnder(root, root / file, file, "upload:" + file, "the upload", partition, progress);
+}
+
+absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadUnder(
+    const std::filesystem::path& root, const std::filesystem::path& full, const std::string& path,
+    std::string source, std::string_view where, const PartitionOptions& partition,
+    const Progress& progress) {
   namespace fs = std::filesystem;
-  ASSIGN_OR_RETURN(const fs::path full, Resolve("path", path));
   if (absl::AsciiStrToLower(full.extension().string()) != ".pvd") {
     return Read({{.path = full.string()}}, /*series=*/false, full.filename().string(),
-                "file:" + path, path, partition, progress);
+                std::move(source), path, root, partition, progress);
   }
-  // A series' files, like the path itself, must lie under the data directory.
+  // A series' files, like the path itself, must lie under the root.
   ASSIGN_OR_RETURN(const std::vector<io::CollectionStep> steps, io::ReadCollection(full));
   std::error_code ec;
-  const fs::path root = fs::weakly_canonical(options_.data_dir, ec);
   for (const io::CollectionStep& step : steps) {
     const fs::path file = fs::weakly_canonical(step.path, ec);
     if (ec || !Within(root, file)) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "path: the series '", path, "' lists '", fs::path(step.path).filename().string(),
-          "', which is outside the server's data directory"));
+      return absl::InvalidArgumentError(absl::StrCat("path: the series '", path, "' lists '",
+                                                     fs::path(step.path).filename().string(),
+                                                     "', which is outside ", std::string(where)));
     }
   }
-  return Read(steps, /*series=*/true, full.filename().string(), "file:" + path, path, partition,
-              progress);
+  return Read(steps, /*series=*/true, full.filename().string(), std::move(source), path, root,
+              partition, progress);
 }
 
 absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFiles(
@@ -196,16 +213,19 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadFiles(
     steps.push_back({.path = full.string(), .time = time});
   }
   const std::string name = std::filesystem::path(steps[0].path).filename().string();
+  std::error_code ec;
   return Read(steps, /*series=*/true,
               paths.size() == 1 ? name
                                 : absl::StrCat(name, " +", paths.size() - 1,
                                                paths.size() == 2 ? " file" : " files"),
-              "files:" + absl::StrJoin(paths, ","), "files", partition, progress);
+              "files:" + absl::StrJoin(paths, ","), "files",
+              std::filesystem::weakly_canonical(options_.data_dir, ec), partition, progress);
 }
 
 absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Read(
     const std::vector<io::CollectionStep>& steps, bool series, std::string name, std::string source,
-    const std::string& shown, const PartitionOptions& partition, const Progress& progress) {
+    const std::string& shown, const std::filesystem::path& root, const PartitionOptions& partition,
+    const Progress& progress) {
   // The budget is held before anything is read: what the mesh and its encoding will take, by
   // the counts its header announces (reading peaks below that: VTK's copy and ours, about 48
   // bytes per vertex and 57 per tetrahedron); else, for a header without counts, a bound from
@@ -251,10 +271,8 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::Read(
                                      : read_file(steps[0].path, 0, progress);
   if (!read.ok()) {
     // Name the files as the client did, not by the server's own directory layout.
-    std::error_code ec;
-    const std::string root = std::filesystem::weakly_canonical(options_.data_dir, ec).string();
     return absl::Status(read.status().code(),
-                        absl::StrReplaceAll(read.status().message(), {{root + "/", ""}}));
+                        absl::StrReplaceAll(read.status().message(), {{root.string() + "/", ""}}));
   }
   Mesh mesh = std::move(*read);
   return Add(std::move(name), std::move(source), std::move(mesh), SecondsSince(start), partition,

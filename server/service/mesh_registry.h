@@ -92,6 +92,12 @@ class MeshRegistry {
   absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadFile(const std::string& path,
                                                              const PartitionOptions& partition,
                                                              const Progress& progress = {});
+  // File `file` of an upload's folder `dir` (UploadSpool::Taken), read as LoadFile reads a file
+  // of the data directory; a .pvd's files must lie in the folder. The source is "upload:FILE".
+  absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadUploaded(const std::filesystem::path& dir,
+                                                                 const std::string& file,
+                                                                 const PartitionOptions& partition,
+                                                                 const Progress& progress = {});
   // A series as a list of files (each relative to the data directory, none a .pvd): read as a
   // .pvd's steps are (io/collection.h), step k's time `times[k]` (default k). Errors name the
   // field: files.paths[k], files.times[k].
@@ -127,12 +133,18 @@ class MeshRegistry {
   absl::StatusOr<std::filesystem::path> Resolve(const std::string& field,
                                                 const std::string& path) const;
   static bool Within(const std::filesystem::path& root, const std::filesystem::path& file);
+  // `full` (a file under `root`, shown as `path`), or the series a .pvd there lists, each of its
+  // files under `root` (`where` names it in the error).
+  absl::StatusOr<std::shared_ptr<const LoadedMesh>> LoadUnder(
+      const std::filesystem::path& root, const std::filesystem::path& full, const std::string& path,
+      std::string source, std::string_view where, const PartitionOptions& partition,
+      const Progress& progress);
   // Reads one file (`series` false) or a series' `steps` under the budget, then Add. Errors
-  // name the files relative to the data directory and the whole as `shown`.
+  // name the files relative to `root` and the whole as `shown`.
   absl::StatusOr<std::shared_ptr<const LoadedMesh>> Read(
       const std::vector<io::CollectionStep>& steps, bool series, std::string name,
-      std::string source, const std::string& shown, const PartitionOptions& partition,
-      const Progress& progress);
+      std::string source, const std::string& shown, const std::filesystem::path& root,
+      const PartitionOptions& partition, const Progress& progress);
 
   const MeshRegistryOptions options_;
   MemoryBudget* budget_;

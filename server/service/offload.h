@@ -1,5 +1,6 @@
-// TopologyServiceImpl::Offload: a unary call answered from an executor (service.h). Included by
-// the .cc files that offload calls; the reactor deletes itself when gRPC is done with it.
+// TopologyServiceImpl::Unary and ::Offload: a unary call answered inline, or from an executor
+// (service.h). Included by the .cc files that answer unary calls; an offloaded call's reactor
+// deletes itself when gRPC is done with it.
 #ifndef ACTOPO_SERVER_SERVICE_OFFLOAD_H_
 #define ACTOPO_SERVER_SERVICE_OFFLOAD_H_
 
@@ -14,6 +15,17 @@
 #include "server/service/wire.h"
 
 namespace actopo::service {
+
+template <class Fn>
+grpc::ServerUnaryReactor* TopologyServiceImpl::Unary(grpc::CallbackServerContext* context,
+                                                     std::string_view rpc, Fn&& fn) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  absl::Status status = Admit(context);
+  if (status.ok()) status = fn();
+  Count(rpc, status);
+  reactor->Finish(ToGrpcStatus(status));
+  return reactor;
+}
 
 // The cancel flag of an offloaded unary call: set when the client cancels, the deadline passes
 // or the server drains.

@@ -5,6 +5,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <thread>
@@ -16,6 +18,7 @@
 #include "server/service/metrics.h"
 #include "server/service/service.h"
 #include "server/service/session_manager.h"
+#include "server/service/upload_spool.h"
 
 namespace actopo::service {
 namespace {
@@ -51,6 +54,7 @@ struct Server::State {
   std::unique_ptr<Metrics> metrics;
   std::unique_ptr<MeshRegistry> meshes;
   std::unique_ptr<SessionManager> sessions;
+  std::unique_ptr<UploadSpool> spool;
   std::unique_ptr<TopologyServiceImpl> service;
   std::unique_ptr<grpc::Server> server;
   bool shut_down = false;
@@ -75,14 +79,27 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& o) {
                                                      .max_engine_threads = o.max_engine_threads,
                                                      .idle_timeout = o.session_idle_timeout},
                                        s.budget.get());
+  const std::filesystem::path upload_dir =
+      !o.upload_dir.empty()
+          ? std::filesystem::path(o.upload_dir)
+          : std::filesystem::temp_directory_path() / absl::StrCat("actopo-uploads-", ::getpid());
+  ASSIGN_OR_RETURN(
+      s.spool,
+      UploadSpool::Open({.dir = upload_dir,
+                         .budget_bytes = o.upload_budget_bytes,
+                         .timeout = std::chrono::seconds(absl::ToInt64Seconds(o.upload_timeout)),
+                         .max_uploads = o.max_uploads}));
   s.service = std::make_unique<TopologyServiceImpl>(
-      s.meshes.get(), s.sessions.get(), s.budget.get(), s.metrics.get(),
+      s.meshes.get(), s.sessions.get(), s.spool.get(), s.budget.get(), s.metrics.get(),
       ServiceLimits{.max_batch_size = o.max_batch_size,
                     .max_message_bytes = o.max_message_bytes,
                     .max_meshes = o.max_meshes,
                     .max_sessions = o.max_sessions,
                     .max_engine_threads = o.max_engine_threads,
-                    .session_idle_timeout_seconds = absl::ToInt64Seconds(o.session_idle_timeout)},
+                    .session_idle_timeout_seconds = absl::ToInt64Seconds(o.session_idle_timeout),
+                    .upload_budget_bytes = o.upload_budget_bytes,
+                    .upload_timeout_seconds = absl::ToInt64Seconds(o.upload_timeout),
+                    .max_uploads = o.max_uploads},
       Threads(o), o.token, o.before_work);
 
   std::shared_ptr<grpc::ServerCredentials> credentials = grpc::InsecureServerCredentials();

@@ -34,6 +34,12 @@ struct ServerOptions {
   int64_t max_message_bytes = 64 << 20;
   int max_batch_size = 1 << 20;
   absl::Duration session_idle_timeout = absl::Minutes(30);
+  // Uploads (CreateUpload): their folder (empty: a folder of the system's temporary directory,
+  // by process), the sizes held at once, how long one may be left alone, how many at once.
+  std::string upload_dir;
+  int64_t upload_budget_bytes = int64_t(8) << 30;
+  absl::Duration upload_timeout = absl::Minutes(15);
+  int max_uploads = 64;
   std::string tls_cert_file, tls_key_file;  // both set: TLS
   std::string token;                        // non-empty: require "authorization: Bearer TOKEN"
   // Tests only: runs on an executor's thread before the work of each load, upload, opening, job

@@ -21,6 +21,7 @@
 #include "server/service/metrics.h"
 #include "server/service/reactor_host.h"
 #include "server/service/session_manager.h"
+#include "server/service/upload_spool.h"
 
 namespace actopo::service {
 
@@ -32,6 +33,9 @@ struct ServiceLimits {
   int max_sessions = 0;
   int max_engine_threads = 0;
   int64_t session_idle_timeout_seconds = 0;
+  int64_t upload_budget_bytes = 0;
+  int64_t upload_timeout_seconds = 0;
+  int max_uploads = 0;
 };
 
 // The threads of the service's executors (Server::Start sizes them from the cores and
@@ -45,9 +49,10 @@ struct ServiceThreads {
 class TopologyServiceImpl final : public v1::TopologyService::CallbackService, private ReactorHost {
  public:
   // `before_work`: tests only (ServerOptions::before_work); may be empty.
-  TopologyServiceImpl(MeshRegistry* meshes, SessionManager* sessions, MemoryBudget* budget,
-                      Metrics* metrics, ServiceLimits limits, ServiceThreads threads,
-                      std::string token, std::function<void(std::string_view)> before_work);
+  TopologyServiceImpl(MeshRegistry* meshes, SessionManager* sessions, UploadSpool* spool,
+                      MemoryBudget* budget, Metrics* metrics, ServiceLimits limits,
+                      ServiceThreads threads, std::string token,
+                      std::function<void(std::string_view)> before_work);
 
   // Stop accepting work (UNAVAILABLE) and cancel running jobs; health is set by the server.
   void Drain();
@@ -64,6 +69,16 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService, p
       grpc::CallbackServerContext*, const v1::DownloadMeshRequest*) override;
   grpc::ServerReadReactor<v1::UploadMeshRequest>* UploadMesh(grpc::CallbackServerContext*,
                                                              v1::UploadMeshResponse*) override;
+  grpc::ServerUnaryReactor* CreateUpload(grpc::CallbackServerContext*,
+                                         const v1::CreateUploadRequest*,
+                                         v1::CreateUploadResponse*) override;
+  grpc::ServerReadReactor<v1::WriteUploadRequest>* WriteUpload(grpc::CallbackServerContext*,
+                                                               v1::WriteUploadResponse*) override;
+  grpc::ServerUnaryReactor* GetUpload(grpc::CallbackServerContext*, const v1::GetUploadRequest*,
+                                      v1::GetUploadResponse*) override;
+  grpc::ServerUnaryReactor* DeleteUpload(grpc::CallbackServerContext*,
+                                         const v1::DeleteUploadRequest*,
+                                         v1::DeleteUploadResponse*) override;
   grpc::ServerUnaryReactor* ListMeshes(grpc::CallbackServerContext*, const v1::ListMeshesRequest*,
                                        v1::ListMeshesResponse*) override;
   grpc::ServerUnaryReactor* GetMesh(grpc::CallbackServerContext*, const v1::GetMeshRequest*,
@@ -143,6 +158,7 @@ class TopologyServiceImpl final : public v1::TopologyService::CallbackService, p
 
   MeshRegistry* meshes_;
   SessionManager* sessions_;
+  UploadSpool* spool_;
   MemoryBudget* budget_;
   Metrics* metrics_;
   const ServiceLimits limits_;

@@ -512,7 +512,12 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> TopologyServiceImpl::LoadReque
       return meshes_->LoadFiles({request.files().paths().begin(), request.files().paths().end()},
                                 {request.files().times().begin(), request.files().times().end()},
                                 partition, progress);
-    default: return absl::InvalidArgumentError("source: set path, sample or files");
+    case v1::LoadMeshRequest::kUpload: {
+      // The upload leaves the spool now; its folder goes when `taken` does, read or not.
+      ASSIGN_OR_RETURN(const UploadSpool::Taken taken, spool_->Take(request.upload()));
+      return meshes_->LoadUploaded(taken.dir(), taken.main_file(), partition, progress);
+    }
+    default: return absl::InvalidArgumentError("source: set path, sample, files or upload");
   }
 }
 

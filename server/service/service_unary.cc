@@ -17,12 +17,13 @@
 namespace actopo::service {
 
 TopologyServiceImpl::TopologyServiceImpl(MeshRegistry* meshes, SessionManager* sessions,
-                                         MemoryBudget* budget, Metrics* metrics,
+                                         UploadSpool* spool, MemoryBudget* budget, Metrics* metrics,
                                          ServiceLimits limits, ServiceThreads threads,
                                          std::string token,
                                          std::function<void(std::string_view)> before_work)
     : meshes_(meshes),
       sessions_(sessions),
+      spool_(spool),
       budget_(budget),
       metrics_(metrics),
       limits_(limits),
@@ -83,17 +84,6 @@ GaugeValues TopologyServiceImpl::Gauges() const {
           .engine_threads = sessions_->threads_in_use()};
 }
 
-template <class Fn>
-grpc::ServerUnaryReactor* TopologyServiceImpl::Unary(grpc::CallbackServerContext* context,
-                                                     std::string_view rpc, Fn&& fn) {
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  absl::Status status = Admit(context);
-  if (status.ok()) status = fn();
-  Count(rpc, status);
-  reactor->Finish(ToGrpcStatus(status));
-  return reactor;
-}
-
 grpc::ServerUnaryReactor* TopologyServiceImpl::GetServerInfo(grpc::CallbackServerContext* c,
                                                              const v1::GetServerInfoRequest*,
                                                              v1::GetServerInfoResponse* out) {
@@ -114,6 +104,9 @@ grpc::ServerUnaryReactor* TopologyServiceImpl::GetServerInfo(grpc::CallbackServe
     l->set_max_sessions(limits_.max_sessions);
     l->set_max_engine_threads(limits_.max_engine_threads);
     l->set_session_idle_timeout_seconds(limits_.session_idle_timeout_seconds);
+    l->set_upload_budget_bytes(limits_.upload_budget_bytes);
+    l->set_upload_timeout_seconds(limits_.upload_timeout_seconds);
+    l->set_max_uploads(limits_.max_uploads);
     return absl::OkStatus();
   });
 }
