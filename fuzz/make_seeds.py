@@ -109,7 +109,15 @@ LOOKUP_TABLE default
         "download": (9, pb.DownloadMeshRequest(fields=["scalar"])),
         "load_files": (3, pb.LoadMeshRequest(files=pb.FileSeries(paths=["a.vtu", "b.vtu"],
                                                                  times=[0.5, 1.5]))),
+        "create_upload": (10, pb.CreateUploadRequest(files=[
+            pb.UploadFileInfo(path="run.pvd", size=120, sha256="0" * 64),
+            pb.UploadFileInfo(path="steps/a.vtu", size=4096, sha256="a" * 64)])),
+        "get_upload": (12, pb.GetUploadRequest()),
+        "load_upload": (3, pb.LoadMeshRequest(upload="upload-0")),
     }
+    # WriteUpload: the start's length, the start (file 0 from offset 0), then chunks' bytes.
+    start = pb.WriteUploadStart(file=0, offset=0).SerializeToString()
+    write("request", "write_upload", bytes([11, len(start)]) + start + bytes(range(64)))
     for name, (kind, message) in requests.items():
         write("request", name, bytes([kind]) + message.SerializeToString())
 

@@ -6,10 +6,12 @@
 // Input: 1 byte choosing the RPC, then the request's protobuf bytes.
 #include <grpcpp/grpcpp.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <string>
 
 #include "actopo/v1/topology_service.grpc.pb.h"
 #include "server/service/server.h"
@@ -30,6 +32,25 @@ std::unique_ptr<grpc::ClientContext> Context() {
   auto context = std::make_unique<grpc::ClientContext>();
   context->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
   return context;
+}
+
+// A fresh upload of one 64-byte file, for the upload requests that name none.
+std::string NewUpload() {
+  v1::CreateUploadRequest r;
+  v1::UploadFileInfo* f = r.add_files();
+  f->set_path("fuzz.vtu");
+  f->set_size(64);
+  f->set_sha256(std::string(64, '0'));
+  v1::CreateUploadResponse out;
+  (void)fixture->stub->CreateUpload(Context().get(), r, &out);
+  return out.upload().upload_id();
+}
+
+void DeleteUpload(const std::string& id) {
+  v1::DeleteUploadRequest r;
+  r.set_upload_id(id);
+  v1::DeleteUploadResponse out;
+  (void)fixture->stub->DeleteUpload(Context().get(), r, &out);
 }
 
 }  // namespace
@@ -67,7 +88,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const auto fill = [](auto& request) {
     if (request.session_id().empty()) request.set_session_id(fixture->session_id);
   };
-  switch (data[0] % 10) {
+  switch (data[0] % 13) {
     case 0: {
       v1::GetRelationRequest r;
       if (!r.ParseFromArray(bytes, n)) return 0;
@@ -178,6 +199,53 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       while (reader->Read(&message)) {
       }
       (void)reader->Finish();
+      break;
+    }
+    case 10: {
+      v1::CreateUploadRequest r;
+      if (!r.ParseFromArray(bytes, n)) return 0;
+      v1::CreateUploadResponse out;
+      if (stub.CreateUpload(Context().get(), r, &out).ok()) DeleteUpload(out.upload().upload_id());
+      break;
+    }
+    case 11: {
+      // A start of the length the first byte says (its upload a fresh one of 64 bytes unless it
+      // names one), then the rest of the input as chunks.
+      if (n < 1) return 0;
+      const char* in = static_cast<const char*>(bytes);
+      const int length = std::min(int(uint8_t(in[0])) % 33, n - 1);
+      v1::WriteUploadStart start;
+      if (!start.ParseFromArray(in + 1, length)) return 0;
+      const std::string fresh = NewUpload();
+      if (start.upload_id().empty()) start.set_upload_id(fresh);
+      auto context = Context();
+      v1::WriteUploadResponse out;
+      auto writer = stub.WriteUpload(context.get(), &out);
+      v1::WriteUploadRequest message;
+      *message.mutable_start() = start;
+      writer->Write(message);
+      for (int at = 1 + length; at < n; at += 16) {
+        v1::WriteUploadRequest chunk;
+        chunk.set_chunk(std::string(in + at, size_t(std::min(16, n - at))));
+        if (!writer->Write(chunk)) break;
+      }
+      writer->WritesDone();
+      (void)writer->Finish();
+      DeleteUpload(fresh);
+      break;
+    }
+    case 12: {
+      v1::GetUploadRequest r;
+      if (!r.ParseFromArray(bytes, n)) return 0;
+      const std::string fresh = NewUpload();
+      if (r.upload_id().empty()) r.set_upload_id(fresh);
+      v1::GetUploadResponse out;
+      (void)stub.GetUpload(Context().get(), r, &out);
+      v1::LoadMeshRequest load;
+      load.set_upload(r.upload_id());
+      v1::LoadMeshResponse mesh;
+      (void)stub.LoadMesh(Context().get(), load, &mesh);
+      DeleteUpload(fresh);
       break;
     }
     default: {

@@ -13,6 +13,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "server/core/status_macros.h"
+#include "server/service/ids.h"
 #include "server/service/memory_budget.h"
 #include "server/service/mesh_registry.h"
 #include "server/service/metrics.h"
@@ -80,9 +81,9 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& o) {
                                                      .idle_timeout = o.session_idle_timeout},
                                        s.budget.get());
   const std::filesystem::path upload_dir =
-      !o.upload_dir.empty()
-          ? std::filesystem::path(o.upload_dir)
-          : std::filesystem::temp_directory_path() / absl::StrCat("actopo-uploads-", ::getpid());
+      !o.upload_dir.empty() ? std::filesystem::path(o.upload_dir)
+                            : std::filesystem::temp_directory_path() /
+                                  absl::StrCat("actopo-uploads-", ::getpid(), "-", NewId("s"));
   ASSIGN_OR_RETURN(
       s.spool,
       UploadSpool::Open({.dir = upload_dir,

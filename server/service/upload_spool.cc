@@ -148,14 +148,30 @@ UploadSpool::Taken::~Taken() {
 UploadSpool::UploadSpool(const UploadSpoolOptions& options)
     : options_(options), budget_(options.budget_bytes) {}
 
+namespace {
+
+// Removes the uploads' folders (named upload-...) in `dir`, nothing else a user keeps there.
+void RemoveUploadFolders(const std::filesystem::path& dir) {
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+    if (entry.path().filename().string().rfind("upload-", 0) == 0) {
+      std::filesystem::remove_all(entry.path(), ec);
+    }
+  }
+}
+
+}  // namespace
+
 absl::StatusOr<std::unique_ptr<UploadSpool>> UploadSpool::Open(const UploadSpoolOptions& options) {
   std::error_code ec;
-  std::filesystem::remove_all(options.dir, ec);  // what an earlier run left is no one's now
-  if (!std::filesystem::create_directories(options.dir, ec) && ec) {
+  const bool made = std::filesystem::create_directories(options.dir, ec);
+  if (ec) {
     return absl::FailedPreconditionError(
-        absl::StrCat("upload spool '", options.dir.string(), "': ", ec.message()));
+        absl::StrCat("upload folder '", options.dir.string(), "': ", ec.message()));
   }
+  RemoveUploadFolders(options.dir);  // what an earlier run left is no one's now
   std::unique_ptr<UploadSpool> spool(new UploadSpool(options));
+  spool->made_dir_ = made;
   spool->reaper_ = std::thread([s = spool.get()] { s->ReapExpired(); });
   return spool;
 }
@@ -167,8 +183,9 @@ UploadSpool::~UploadSpool() {
   }
   reaper_cv_.SignalAll();
   reaper_.join();
+  RemoveUploadFolders(options_.dir);
   std::error_code ec;
-  std::filesystem::remove_all(options_.dir, ec);
+  if (made_dir_) std::filesystem::remove(options_.dir, ec);  // only if empty
 }
 
 int UploadSpool::size() const {

@@ -93,9 +93,9 @@ class UploadSpool {
     Reservation reservation_;
   };
 
-  // Makes (or empties) options.dir.
+  // Makes options.dir if missing, and removes the upload folders an earlier run left there.
   static absl::StatusOr<std::unique_ptr<UploadSpool>> Open(const UploadSpoolOptions& options);
-  ~UploadSpool();  // removes every upload's folder
+  ~UploadSpool();  // removes every upload's folder, and options.dir if it made it
 
   // A new upload of `files`; errors name `files[k].path`, `.size` or `.sha256`.
   absl::StatusOr<std::string> Create(std::vector<FileSpec> files);
@@ -124,6 +124,7 @@ class UploadSpool {
   mutable Mutex mu_;
   absl::flat_hash_map<std::string, std::shared_ptr<Writer::Upload>> uploads_ ABSL_GUARDED_BY(mu_);
   bool stopping_ ABSL_GUARDED_BY(mu_) = false;
+  bool made_dir_ = false;
   CondVar reaper_cv_;
   std::thread reaper_;
 };
