@@ -24,6 +24,8 @@ struct Metrics::Families {
   prometheus::Gauge* rss;
   prometheus::Gauge* heap;
   prometheus::Gauge* threads;
+  prometheus::Gauge* uploads;
+  prometheus::Gauge* upload_bytes;
 };
 
 // The registry as the exposer sees it: the gauges are set from the source, then collected.
@@ -49,6 +51,8 @@ class Metrics::ScrapeTimeGauges : public prometheus::Collectable {
         f_->rss->Set(double(v.process_rss_bytes));
         f_->heap->Set(double(v.process_heap_bytes));
         f_->threads->Set(v.engine_threads);
+        f_->uploads->Set(v.uploads);
+        f_->upload_bytes->Set(double(v.upload_bytes));
       }
     }
     return registry_->Collect();
@@ -103,6 +107,9 @@ absl::StatusOr<std::unique_ptr<Metrics>> Metrics::Create(const std::string& host
                       "Bytes allocated and not freed in the server (free memory the allocator "
                       "keeps excluded)");
   m->f_->threads = gauge("actopo_engine_threads", "Engine threads reserved");
+  m->f_->uploads = gauge("actopo_uploads", "Uploads held (CreateUpload), complete or not");
+  m->f_->upload_bytes =
+      gauge("actopo_upload_bytes", "Announced sizes of the uploads held (--upload-budget-mib)");
   m->collectable_ = std::make_shared<ScrapeTimeGauges>(m->registry_, m->f_.get());
   if (port > 0) {
     try {

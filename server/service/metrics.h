@@ -27,6 +27,8 @@ struct GaugeValues {
   int64_t process_rss_bytes = 0;
   int64_t process_heap_bytes = 0;
   int engine_threads = 0;
+  int uploads = 0;
+  int64_t upload_bytes = 0;  // announced sizes of the uploads held (their budget's use)
 };
 
 class Metrics {

@@ -1055,6 +1055,13 @@ TEST_F(ServiceTest, PrometheusMetrics) {
   missing.set_mesh_id("mesh-none");
   v1::GetMeshResponse out;
   stub_->GetMesh(Context().get(), missing, &out);
+  v1::CreateUploadRequest upload;
+  v1::UploadFileInfo* file = upload.add_files();
+  file->set_path("a.vtu");
+  file->set_size(1234);
+  file->set_sha256(std::string(64, 'a'));
+  v1::CreateUploadResponse created;
+  ASSERT_TRUE(stub_->CreateUpload(Context().get(), upload, &created).ok());
   const std::string text = HttpGet(options_.metrics_port, "/metrics");
   for (const char* expected :
        {"actopo_requests_total{code=\"0\",rpc=\"LoadMesh\"} 1",
@@ -1063,12 +1070,14 @@ TEST_F(ServiceTest, PrometheusMetrics) {
         "actopo_job_duration_seconds_count{algorithm=\"critical-points\",structure=\"actopo\"} 1",
         "actopo_sessions 1", "actopo_meshes 1", "actopo_buffer_hits_total",
         "actopo_consumer_wait_seconds_total", "actopo_process_resident_bytes",
-        "actopo_process_heap_bytes", "actopo_memory_budget_limit_bytes 4294967296"}) {
+        "actopo_process_heap_bytes", "actopo_memory_budget_limit_bytes 4294967296",
+        "actopo_uploads 1", "actopo_upload_bytes 1234"}) {
     EXPECT_NE(text.find(expected), std::string::npos) << expected << "\n" << text.substr(0, 2000);
   }
   // Low cardinality: no ids in labels.
   EXPECT_EQ(text.find("session-"), std::string::npos);
   EXPECT_EQ(text.find("mesh-"), std::string::npos);
+  EXPECT_EQ(text.find("\"upload-"), std::string::npos);  // an id as a label value
 }
 
 }  // namespace

@@ -81,7 +81,9 @@ GaugeValues TopologyServiceImpl::Gauges() const {
           .budget_limit_bytes = budget_->limit(),
           .process_rss_bytes = CurrentRssBytes(),
           .process_heap_bytes = HeapInUseBytes(),
-          .engine_threads = sessions_->threads_in_use()};
+          .engine_threads = sessions_->threads_in_use(),
+          .uploads = spool_->size(),
+          .upload_bytes = spool_->used_bytes()};
 }
 
 grpc::ServerUnaryReactor* TopologyServiceImpl::GetServerInfo(grpc::CallbackServerContext* c,
