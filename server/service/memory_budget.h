@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 
 #include "absl/status/status.h"
 #include "server/core/sync.h"
@@ -13,7 +14,11 @@ namespace actopo::service {
 
 class MemoryBudget {
  public:
-  explicit MemoryBudget(int64_t limit_bytes) : limit_(limit_bytes) {}
+  // `name` and `advice` word the error of a reservation that does not fit.
+  explicit MemoryBudget(
+      int64_t limit_bytes, std::string name = "memory budget",
+      std::string advice = "delete meshes or close sessions, or raise --memory-budget-mib")
+      : limit_(limit_bytes), name_(std::move(name)), advice_(std::move(advice)) {}
 
   // Reserves `bytes` for `what` (named in the error), or fails without reserving.
   absl::Status Reserve(int64_t bytes, const std::string& what);
@@ -23,6 +28,7 @@ class MemoryBudget {
 
  private:
   const int64_t limit_;
+  const std::string name_, advice_;
   mutable Mutex mu_;
   int64_t used_ ABSL_GUARDED_BY(mu_) = 0;
 };

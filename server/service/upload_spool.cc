@@ -18,8 +18,9 @@
 namespace actopo::service {
 
 // One upload: its files, what the server holds of each, and each file's running digest. The
-// spool's mutex guards `received`, `checked`, `last_write`, `writing` and `dropped`; a file's
-// digest and its bytes on disk belong to the one writer while `writing` is set.
+// spool's mutex guards `received`, `checked`, `last_write`, `writing`, `generation` and
+// `dropped`; `write_mu` (taken before the spool's) is held by an append from start to end and
+// by a writer taking the upload over, so the bytes on disk, the digests and `received` agree.
 struct UploadSpool::Writer::Upload {
   std::string id;
   std::filesystem::path dir;
@@ -30,7 +31,9 @@ struct UploadSpool::Writer::Upload {
   Reservation reservation;
   std::chrono::steady_clock::time_point last_write;
   bool writing = false;
-  bool dropped = false;  // deleted, expired or failed while a writer held it
+  uint64_t generation = 0;  // the writer that may append: the latest
+  bool dropped = false;     // deleted, expired or failed while a writer held it
+  Mutex write_mu;
 };
 
 namespace {
@@ -64,19 +67,22 @@ bool IsSha256Hex(const std::string& s) {
 
 }  // namespace
 
-UploadSpool::Writer::Writer(UploadSpool* spool, std::shared_ptr<Upload> upload, int file, int fd)
-    : spool_(spool), upload_(std::move(upload)), file_(file), fd_(fd) {}
+UploadSpool::Writer::Writer(UploadSpool* spool, std::shared_ptr<Upload> upload, int file, int fd,
+                            uint64_t generation)
+    : spool_(spool), upload_(std::move(upload)), file_(file), fd_(fd), generation_(generation) {}
 
 UploadSpool::Writer::Writer(Writer&& o) noexcept
     : spool_(o.spool_),
       upload_(std::move(o.upload_)),
       file_(o.file_),
-      fd_(std::exchange(o.fd_, -1)) {}
+      fd_(std::exchange(o.fd_, -1)),
+      generation_(o.generation_) {}
 
 UploadSpool::Writer::~Writer() {
   if (fd_ >= 0) ::close(fd_);
   if (upload_ == nullptr) return;
   MutexLock lock(spool_->mu_);
+  if (upload_->generation != generation_) return;  // taken over: the newer writer has it
   upload_->writing = false;
   upload_->last_write = std::chrono::steady_clock::now();
 }
@@ -89,11 +95,16 @@ int64_t UploadSpool::Writer::received() const {
 absl::Status UploadSpool::Writer::Append(std::string_view bytes) {
   Upload& u = *upload_;
   const FileSpec& spec = u.files[file_];
+  MutexLock write_lock(u.write_mu);
   int64_t held = 0;
   {
     MutexLock lock(spool_->mu_);
     if (u.dropped) {
       return absl::NotFoundError(absl::StrCat("upload_id: '", u.id, "' was dropped"));
+    }
+    if (u.generation != generation_) {
+      return absl::AbortedError(
+          absl::StrCat("upload '", u.id, "' was taken over by a newer WriteUpload call"));
     }
     held = u.received[file_];
   }
@@ -146,7 +157,9 @@ UploadSpool::Taken::~Taken() {
 }
 
 UploadSpool::UploadSpool(const UploadSpoolOptions& options)
-    : options_(options), budget_(options.budget_bytes) {}
+    : options_(options),
+      budget_(options.budget_bytes, "upload budget",
+              "finish or delete uploads, or raise --upload-budget-mib") {}
 
 namespace {
 
@@ -277,38 +290,45 @@ absl::StatusOr<UploadSpool::Writer> UploadSpool::Write(const std::string& id, in
   {
     MutexLock lock(mu_);
     ASSIGN_OR_RETURN(u, Find(id));
+  }
+  // An append in progress ends first; a writer still holding the upload (a call whose
+  // connection broke without the server noticing yet) is taken over: its next append is refused.
+  MutexLock write_lock(u->write_mu);
+  uint64_t generation = 0;
+  {
+    MutexLock lock(mu_);
+    if (u->dropped) return Find(id).status();
     if (file < 0 || file >= int(u->files.size())) {
       return absl::InvalidArgumentError(absl::StrCat("file: ", file, " is not in [0, ",
                                                      u->files.size(), ") for upload '", id, "'"));
-    }
-    if (u->writing) {
-      return absl::FailedPreconditionError(
-          absl::StrCat("upload '", id, "' is being written by another call"));
     }
     if (offset != u->received[file]) {
       return absl::FailedPreconditionError(absl::StrCat(
           "offset: ", offset, ", but the server holds ", u->received[file], " bytes of files[",
           file, "] '", u->files[file].path, "'; go on from there"));
     }
+    generation = ++u->generation;
     u->writing = true;
   }
+  const auto release = [&] {
+    MutexLock lock(mu_);
+    if (u->generation == generation) u->writing = false;
+  };
   const std::filesystem::path path = u->dir / u->files[file].path;
   const int fd = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
   if (fd < 0) {
     const std::string why = Errno();
-    MutexLock lock(mu_);
-    u->writing = false;
+    release();
     return absl::InternalError(absl::StrCat("opening '", path.string(), "': ", why));
   }
   // What a broken earlier stream wrote past its acknowledged bytes goes.
   if (::ftruncate(fd, offset) != 0) {
     const std::string why = Errno();
     ::close(fd);
-    MutexLock lock(mu_);
-    u->writing = false;
+    release();
     return absl::InternalError(absl::StrCat("truncating '", path.string(), "': ", why));
   }
-  return Writer(this, std::move(u), file, fd);
+  return Writer(this, std::move(u), file, fd, generation);
 }
 
 absl::StatusOr<UploadSpool::State> UploadSpool::Get(const std::string& id) {

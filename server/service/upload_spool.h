@@ -54,7 +54,8 @@ class UploadSpool {
     std::chrono::seconds expires_in{0};
   };
 
-  // The one writer of an upload's file at a time: appends at the offset it holds.
+  // The one writer of an upload's file at a time: appends at the offset it holds. A newer
+  // writer of the upload takes it over (Write); this one's appends are then ABORTED.
   class Writer {
    public:
     Writer(Writer&&) noexcept;
@@ -68,11 +69,13 @@ class UploadSpool {
    private:
     friend class UploadSpool;
     struct Upload;
-    Writer(UploadSpool* spool, std::shared_ptr<Upload> upload, int file, int fd);
+    Writer(UploadSpool* spool, std::shared_ptr<Upload> upload, int file, int fd,
+           uint64_t generation);
     UploadSpool* spool_;
     std::shared_ptr<Upload> upload_;
     int file_;
     int fd_;
+    uint64_t generation_;
   };
 
   // A complete upload taken out of the spool for reading; its folder goes with it.
@@ -100,7 +103,9 @@ class UploadSpool {
   // A new upload of `files`; errors name `files[k].path`, `.size` or `.sha256`.
   absl::StatusOr<std::string> Create(std::vector<FileSpec> files);
   // The writer of file `file` of upload `id` from `offset`, which must be what the server holds
-  // of it (FAILED_PRECONDITION naming both otherwise, or when another writer has it).
+  // of it (FAILED_PRECONDITION naming both otherwise). It takes the upload over from a writer
+  // that still holds it: a client resuming after a broken connection need not wait for the
+  // server to notice the old call's end.
   absl::StatusOr<Writer> Write(const std::string& id, int file, int64_t offset);
   absl::StatusOr<State> Get(const std::string& id);
   absl::Status Delete(const std::string& id);

@@ -53,8 +53,13 @@ TEST(UploadSpool, ResumesFromWhatItHoldsAndHandsOverTheFiles) {
     ASSERT_TRUE(w.Append(std::string_view(mesh).substr(0, 4000)).ok());
     ASSERT_TRUE(w.Append(std::string_view(mesh).substr(4000, 1000)).ok());
     EXPECT_EQ(w.received(), 5000);
-    // Another writer of the same upload meanwhile is refused.
-    EXPECT_EQ(spool->Write(id, 1, 0).status().code(), absl::StatusCode::kFailedPrecondition);
+    // A newer call takes the upload over (a client resuming after a broken connection that the
+    // server has not noticed yet): the first writer's appends are refused from then on.
+    {
+      UploadSpool::Writer newer = OkValue(spool->Write(id, 0, 5000));
+      EXPECT_EQ(w.Append("more").code(), absl::StatusCode::kAborted);
+      EXPECT_EQ(newer.received(), 5000);
+    }
   }  // the stream breaks here
   UploadSpool::State state = OkValue(spool->Get(id));
   EXPECT_EQ(state.received, (std::vector<int64_t>{5000, 0}));
