@@ -94,4 +94,14 @@ grep -q "load it as sample:jittered:16" <<< "$out" ||
 out=$("$build/client-examples/series" "$target" sample:jittered:12 2> /dev/null)
 echo "$out"
 grep -q '^ 1 height ' <<< "$out"
+# Files of this machine uploaded as their bytes: a .vtu, and a .pvd with the four files it names.
+out=$("$build/client-examples/upload_file" "$target" "$ACTOPO_DATA_DIR/fertility_tet.vtu" \
+  2> /dev/null)
+echo "$out"
+grep -q '^fertility_tet.vtu: 14570 vertices, 60948 tetrahedra' <<< "$out"
+grep -q '^source: upload:fertility_tet.vtu$' <<< "$out"
+out=$("$build/client-examples/upload_file" "$target" \
+  "$ACTOPO_DATA_DIR/isabel_series_s2/isabel_series.pvd" 2> /dev/null)
+grep -q '^field velocityMag_3 (float64) .* at time 5$' <<< "$out" ||
+  { echo "$out"; echo "upload_file: no velocityMag_3 at time 5 from the .pvd" >&2; exit 1; }
 step "all passed"

@@ -11,7 +11,7 @@ want_venv=1
 
 debian_packages=(
   build-essential cmake ninja-build pkg-config git ca-certificates
-  libabsl-dev nlohmann-json3-dev libssl-dev
+  libabsl-dev nlohmann-json3-dev libssl-dev libexpat1-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libvtk9-dev libdeflate-dev
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler

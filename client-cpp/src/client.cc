@@ -7,11 +7,13 @@
 #include "absl/strings/str_cat.h"
 #include "src/internal/convert.h"
 #include "src/internal/core.h"
+#include "src/internal/load.h"
 #include "src/internal/names.h"
 
 namespace actopo::client {
 
 using internal::FromProto;
+using internal::LoadWithProgress;
 using internal::ToProto;
 
 absl::StatusOr<std::unique_ptr<Client>> Client::Connect(std::string_view target,
@@ -106,12 +108,12 @@ absl::StatusOr<MeshInfo> Load(const internal::Core& core, const v1::LoadMeshRequ
   return FromProto(response.mesh());
 }
 
-// Calls `f` when LoadOptions::cancel is cancelled, until the result is destroyed: the token's
-// OnCancel, which only a Client may call, passed in by one.
-using OnCancel = std::function<std::shared_ptr<void>(std::function<void()> f)>;
+}  // namespace
 
-absl::StatusOr<MeshInfo> LoadWithProgress(const internal::Core& core, v1::LoadMeshRequest load,
-                                          const LoadOptions& options, const OnCancel& on_cancel) {
+absl::StatusOr<MeshInfo> internal::LoadWithProgress(const internal::Core& core,
+                                                    v1::LoadMeshRequest load,
+                                                    const LoadOptions& options,
+                                                    const internal::OnCancel& on_cancel) {
   v1::LoadMeshWithProgressRequest request;
   *request.mutable_load() = std::move(load);
   if (options.cancel.cancelled()) return absl::CancelledError("load: cancelled before it started");
@@ -145,8 +147,6 @@ absl::StatusOr<MeshInfo> LoadWithProgress(const internal::Core& core, v1::LoadMe
   if (!mesh) return absl::DataLossError("load: the stream ended without the mesh");
   return *std::move(mesh);
 }
-
-}  // namespace
 
 absl::StatusOr<MeshInfo> Client::LoadMesh(std::string_view path,
                                           const PartitionOptions& partition) {

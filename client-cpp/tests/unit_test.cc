@@ -93,6 +93,29 @@ namespace {
   return absl::OkStatus();
 }
 
+// The examples of UploadFile in the header and in README.md's "Uploading a mesh file", so that
+// they keep compiling (never run).
+[[maybe_unused]] absl::Status UploadFileExamples(Client* client) {
+  {
+    auto mesh = client->UploadFile("/data/wavelet128.vtu",
+                                   {.progress = [](const actopo::client::UploadFileProgress& p) {
+                                     std::cerr << p.phase << " " << int(100 * p.fraction) << "%\r";
+                                   }});
+    if (mesh.ok()) std::cout << mesh->vertices << " vertices\n";  // source "upload:..."
+  }
+  {
+    actopo::client::UploadFileOptions options;
+    options.progress = [](const actopo::client::UploadFileProgress& p) {
+      std::cerr << p.phase << " " << int(100 * p.fraction) << "%, " << p.sent_bytes
+                << " bytes sent\r";
+    };
+    absl::StatusOr<actopo::client::MeshInfo> mesh = client->UploadFile("wavelet128.vtu", options);
+    if (!mesh.ok()) return mesh.status();  // e.g. UNAVAILABLE: ... (gave up after 5 resumptions
+    std::cout << mesh->source << ": " << mesh->vertices << " vertices\n";  // upload:wavelet128.vtu
+  }
+  return absl::OkStatus();
+}
+
 template <class T>
 Array MakeArray(const std::string& name, std::vector<T> values, std::vector<int64_t> shape) {
   Array a{.name = name, .dtype = kDataTypeOf<T>, .shape = std::move(shape)};

@@ -138,6 +138,9 @@ struct ServerLimits {
   int64_t max_message_bytes = 0;    // largest gRPC message accepted
   int32_t max_batch_size = 0;       // most simplices in one RelationBatch request
   int64_t session_idle_timeout_seconds = 0;
+  int64_t upload_budget_bytes = 0;     // file uploads held at once, announced sizes summed
+  int64_t upload_timeout_seconds = 0;  // an upload nobody writes to this long is dropped
+  int32_t max_uploads = 0;             // file uploads held at once
 };
 
 // Versions, algorithms, relations, samples and limits of a server.
@@ -167,8 +170,10 @@ struct FieldInfo {
 // A mesh loaded on the server.
 struct MeshInfo {
   std::string mesh_id;
-  std::string name;    // file or sample name
-  std::string source;  // "file:PATH", "files:PATH,PATH,..." (LoadSeries), "sample:NAME", "upload"
+  std::string name;  // file or sample name
+  // "file:PATH", "files:PATH,PATH,..." (LoadSeries), "sample:NAME", "upload" (UploadMesh),
+  // "upload:FILE" (UploadFile: the file's name, a .pvd's for a series)
+  std::string source;
   int64_t vertices = 0;
   // Unset until the server has built them: it loads a mesh without its edges and triangles and
   // builds them for the first job, relation query or explicit session that reads them (critical
@@ -567,6 +572,72 @@ struct LoadOptions {
   std::chrono::milliseconds timeout{0};
 };
 
+// ---------------------------------------------------------------------------------------------
+// Uploading mesh files as their bytes (Client::UploadFile; underneath, Client::CreateUpload,
+// WriteUpload, GetUpload, DeleteUpload and LoadUpload).
+
+// A file of an upload.
+struct UploadFileInfo {
+  // Its path in the upload: relative, '/' between parts, no '.' or '..' part. The first file of
+  // an upload is the mesh (its name: .vtu, .vtk, .vti or .pvd); a .pvd's files follow under the
+  // relative paths it names them by.
+  std::string path;
+  int64_t size = 0;    // bytes
+  std::string sha256;  // of its bytes, 64 lowercase hex digits (FileSha256)
+};
+
+// What the server holds of an upload.
+struct UploadStatus {
+  std::string upload_id;
+  std::vector<UploadFileInfo> files;    // as announced, in order
+  std::vector<int64_t> received_bytes;  // per file: the bytes held, where a write goes on from
+  bool complete = false;                // every byte of every file held and its digest checked
+  double expires_in_seconds = 0;        // until the server drops it if nothing is written to it
+};
+
+// How far Client::UploadFile has got.
+struct UploadFileProgress {
+  // "hash": reading the files for their SHA-256; "send": sending their bytes; then the load's
+  // phases as LoadMeshWithProgress reports them ("read", "partition", "encode").
+  std::string phase;
+  double fraction = 0;  // of the phase, 0 to 1
+  // "hash": the bytes hashed; "send" and later: the bytes the server holds of the files plus
+  // those sent since on the current stream (after a break it goes back to what the server holds).
+  int64_t bytes = 0;
+  int64_t total_bytes = 0;  // the files' sizes summed
+  // Bytes this call has sent, those sent again after a break included.
+  int64_t sent_bytes = 0;
+  int32_t resumes = 0;         // streams started again after a break so far
+  std::string upload_id;       // empty while hashing
+  double elapsed_seconds = 0;  // since UploadFile began
+};
+
+// Options of Client::UploadFile.
+struct UploadFileOptions {
+  // Called on UploadFile's thread after each chunk hashed or sent and with each report of the
+  // load. An exception thrown here cancels the upload (the server drops it) and propagates.
+  std::function<void(const UploadFileProgress&)> progress;
+  size_t chunk_bytes = size_t{1} << 20;  // bytes read and sent at a time
+  // A stream that breaks (UNAVAILABLE, DEADLINE_EXCEEDED, ...) is started again from the bytes
+  // the server holds (GetUpload), after 0.2, 0.4, 0.8, 1.6, then every 2 s (+-20%); up to this
+  // many times in a row without the server gaining a byte, then UploadFile gives up and keeps
+  // the upload, its id in the error, for a later call to go on with (upload_id). 0: never.
+  int max_resumes = 5;
+  // Go on with this upload (made by CreateUpload, or kept by an UploadFile that gave up)
+  // instead of creating one: its files must be those this call would announce. Empty: a new one.
+  std::string upload_id;
+  // Cancel() on (a copy of) this token stops the upload (the server drops it) or the load; the
+  // call then returns CANCELLED.
+  CancelToken cancel;
+  // How the server partitions the mesh it loads. (Last, unlike in LoadOptions: GCC 12 warns,
+  // wrongly, of its string "maybe used uninitialized" in options made in a call's arguments.)
+  PartitionOptions partition;
+};
+
+// The SHA-256 of the file at `path`, 64 lowercase hex digits, read a MiB at a time: what
+// UploadFile announces for it. NOT_FOUND if it cannot be opened.
+absl::StatusOr<std::string> FileSha256(std::string_view path);
+
 // Timings and statistics of a job.
 struct JobStats {
   double run_seconds = 0;
@@ -732,12 +803,13 @@ struct ClientOptions {
   // Largest message sent or received.
   int max_message_bytes = 256 << 20;
   // Retry the idempotent reads (GetServerInfo, ListMeshes, GetMesh, ListSessions, GetSession,
-  // GetSessionStats, GetRelation, GetRelationBatch) when an attempt ends UNAVAILABLE: no
+  // GetSessionStats, GetRelation, GetRelationBatch, GetUpload) when an attempt ends UNAVAILABLE: no
   // connection yet, a connection lost before the answer, or a draining server. Up to 5
   // attempts, after 0.2, 0.4, 0.8 and 1.6 s (gRPC's service config, +-20% jitter); a lost
   // connection is retried after 0.1 s, then at most every second, so a read made while the
   // server restarts succeeds once it listens again within about 2 s. Nothing that creates,
-  // changes or deletes state is retried, nor any stream. False: every call is tried once.
+  // changes or deletes state is retried, nor any stream (Client::UploadFile resumes its uploads
+  // itself: UploadFileOptions::max_resumes). False: every call is tried once.
   bool retries = true;
   // Sent with every call as the metadata `x-actopo-session`. Behind a load balancer that hashes
   // it (deploy/haproxy.cfg), every call of this client reaches the one server replica that holds
@@ -813,6 +885,52 @@ class Client {
                                       std::span<const int64_t> tetrahedra,
                                       const std::vector<ScalarField>& fields = {},
                                       const UploadOptions& options = {});
+  // Uploads a mesh file of this machine as it is (.vtu, .vtk, .vti, or a .pvd with the files it
+  // names) and loads it as LoadMesh loads a file of the server's data directory: the files are
+  // hashed (SHA-256), announced (CreateUpload), sent a chunk at a time as they are read from
+  // disk, so memory stays the same whatever their size, and checked by the server, which then
+  // reads them with the reader of its data directory and drops the upload. A stream that breaks
+  // goes on from the bytes the server holds (UploadFileOptions::max_resumes). A .pvd's DataSet
+  // files go under the paths it names them by, relative to its folder; an absolute path or one
+  // that leaves the folder ('..') is INVALID_ARGUMENT naming the entry, before anything is sent.
+  // Errors: NOT_FOUND for a missing file; INVALID_ARGUMENT for another extension;
+  // RESOURCE_EXHAUSTED past the server's upload budget; DATA_LOSS when the bytes the server got
+  // do not hash to the digest announced; ABORTED when a file changed while being read; the
+  // load's errors (a file that is not a mesh, ...) as LoadMesh gives them. On an error other
+  // than giving up on a broken connection the upload is deleted.
+  //
+  //   auto mesh = client->UploadFile("/data/wavelet128.vtu", {
+  //       .progress = [](const actopo::client::UploadFileProgress& p) {
+  //         std::cerr << p.phase << " " << int(100 * p.fraction) << "%\r";
+  //       }});
+  //   if (mesh.ok()) std::cout << mesh->vertices << " vertices\n";   // source "upload:..."
+  absl::StatusOr<MeshInfo> UploadFile(std::string_view path, const UploadFileOptions& options = {});
+  // The calls under UploadFile, for uploads made by hand (bytes from memory, a file sent from
+  // another process). CreateUpload announces the files (the mesh first) and reserves their
+  // sizes in the server's upload budget (RESOURCE_EXHAUSTED past it). WriteUpload sends `bytes`
+  // as file `file` from `offset`, which must be what the server holds of it (FAILED_PRECONDITION
+  // saying how many otherwise; so after a broken stream ask GetUpload and go on from
+  // received_bytes), in one stream of chunk_bytes messages; more bytes than announced are
+  // INVALID_ARGUMENT, a file whose bytes do not hash to its digest DATA_LOSS, and both drop the
+  // upload (then NOT_FOUND). LoadUpload loads a complete upload as LoadMeshWithProgress loads a
+  // path, and the upload is gone after it, loaded or not. DeleteUpload drops one at once; the
+  // server drops one nobody writes to after ServerLimits::upload_timeout_seconds.
+  //
+  //   std::string vtu = ...;   // a .vtu file's bytes
+  //   auto sha = ...;          // their SHA-256 in lowercase hex
+  //   auto upload = client->CreateUpload({{.path = "made.vtu", .size = int64_t(vtu.size()),
+  //                                        .sha256 = sha}});
+  //   if (!upload.ok()) return upload.status();
+  //   auto written = client->WriteUpload(upload->upload_id, 0, 0, std::as_bytes(std::span(vtu)));
+  //   auto mesh = client->LoadUpload(upload->upload_id);
+  absl::StatusOr<UploadStatus> CreateUpload(const std::vector<UploadFileInfo>& files);
+  absl::StatusOr<UploadStatus> WriteUpload(std::string_view upload_id, int32_t file, int64_t offset,
+                                           std::span<const std::byte> bytes,
+                                           size_t chunk_bytes = size_t{1} << 20);
+  absl::StatusOr<UploadStatus> GetUpload(std::string_view upload_id);
+  absl::Status DeleteUpload(std::string_view upload_id);
+  absl::StatusOr<MeshInfo> LoadUpload(std::string_view upload_id, const LoadOptions& options);
+  absl::StatusOr<MeshInfo> LoadUpload(std::string_view upload_id);
   absl::StatusOr<std::vector<MeshInfo>> ListMeshes();
   // With count_faces the server first builds the mesh's edges and triangles if it has not yet
   // (about a second per 10M tetrahedra; the call then gets ClientOptions::mesh_timeout), so

@@ -40,6 +40,9 @@ ServerInfo FromProto(const v1::GetServerInfoResponse& info) {
       .max_message_bytes = l.max_message_bytes(),
       .max_batch_size = l.max_batch_size(),
       .session_idle_timeout_seconds = l.session_idle_timeout_seconds(),
+      .upload_budget_bytes = l.upload_budget_bytes(),
+      .upload_timeout_seconds = l.upload_timeout_seconds(),
+      .max_uploads = l.max_uploads(),
   };
   return out;
 }
@@ -67,6 +70,18 @@ MeshInfo FromProto(const v1::MeshInfo& mesh) {
   out.created = FromProto(mesh.created());
   out.load_seconds = mesh.load_seconds();
   out.partition_seconds = mesh.partition_seconds();
+  return out;
+}
+
+UploadStatus FromProto(const v1::UploadStatus& upload) {
+  UploadStatus out;
+  out.upload_id = upload.upload_id();
+  for (const v1::UploadFileInfo& f : upload.files()) {
+    out.files.push_back(UploadFileInfo{.path = f.path(), .size = f.size(), .sha256 = f.sha256()});
+  }
+  out.received_bytes.assign(upload.received_bytes().begin(), upload.received_bytes().end());
+  out.complete = upload.complete();
+  out.expires_in_seconds = upload.expires_in_seconds();
   return out;
 }
 

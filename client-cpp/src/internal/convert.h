@@ -12,6 +12,7 @@ namespace actopo::client::internal {
 
 ServerInfo FromProto(const v1::GetServerInfoResponse& info);
 MeshInfo FromProto(const v1::MeshInfo& mesh);
+UploadStatus FromProto(const v1::UploadStatus& upload);
 SessionInfo FromProto(const v1::SessionInfo& session);
 SessionStats FromProto(const v1::GetSessionStatsResponse& stats);
 JobStats FromProto(const v1::JobStats& stats);

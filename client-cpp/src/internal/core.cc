@@ -13,7 +13,7 @@ namespace {
 std::string RetryServiceConfig() {
   std::string names;
   for (const char* method : {"GetServerInfo", "ListMeshes", "GetMesh", "ListSessions", "GetSession",
-                             "GetSessionStats", "GetRelation", "GetRelationBatch"}) {
+                             "GetSessionStats", "GetRelation", "GetRelationBatch", "GetUpload"}) {
     absl::StrAppend(&names, names.empty() ? "" : ",", "{\"service\":\"",
                     v1::TopologyService::service_full_name(), "\",\"method\":\"", method, "\"}");
   }
