@@ -3,8 +3,9 @@
     python scripts/soak.py --build build --seconds 600 --clients 16 [--json FILE]
 
 Starts its own actopo-server (so it can watch the process), then runs `--clients` threads, each
-with its own channel, repeating a random mix: upload a small mesh, load a sample or a shared
-data file, open a session (any structure), unary, batched and streamed relation queries, a job
+with its own channel, repeating a random mix: upload a small mesh, upload a shared data file as
+its bytes (sometimes cut half-way and resumed from what the server holds), load a sample or a
+shared data file, open a session (any structure), unary, batched and streamed relation queries, a job
 to its end, a job cancelled mid-way (by CancelJob or by closing the session), asking for what
 does not exist, closing and deleting. Every call's status code is checked against what that
 step may return; anything else is an unexpected code.
@@ -28,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import hashlib
 import json
 import os
 import random
@@ -44,6 +46,7 @@ import grpc
 import numpy as np
 
 import actopo
+from actopo._proto import pb
 
 HERE = Path(__file__).resolve().parent.parent
 SAMPLES = ["jittered:6", "jittered:10", "jittered:14", "wavelet:12"]
@@ -154,8 +157,10 @@ def code_of(error: BaseException) -> str:
 class Client:
     """One soak client: a channel of its own and a random mix of steps."""
 
-    def __init__(self, target: str, index: int, tally: Tally, stop: threading.Event) -> None:
+    def __init__(self, target: str, index: int, tally: Tally, stop: threading.Event,
+                 data_dir: Path) -> None:
         self.client = actopo.Client(target)
+        self.data_dir = data_dir
         self.rng = random.Random(index)
         self.tally = tally
         self.stop = stop
@@ -163,7 +168,7 @@ class Client:
     def step(self, name: str, fn: Any, allowed: set[str] | None = None) -> Any:
         try:
             result = fn()
-        except actopo.ActopoError as e:
+        except (actopo.ActopoError, grpc.RpcError) as e:
             self.tally.record(name, code_of(e), allowed or set(), str(e))
             return None
         self.tally.record(name, "OK", set())
@@ -171,15 +176,66 @@ class Client:
 
     def mesh(self) -> Any:
         choice = self.rng.random()
-        if choice < 0.3:
+        if choice < 0.15:
+            path = self.data_dir / self.rng.choice(FILES)
+            return self.step("upload-file", lambda: self.client.upload_file(path))
+        if choice < 0.2:
+            return self.resumed_upload(self.data_dir / self.rng.choice(FILES))
+        if choice < 0.35:
             points, tets = lattice(self.rng.randint(4, 9), self.rng.random() * 0.01)
             field = points[:, 2] + 0.001 * np.arange(len(points))
             return self.step("upload",
                              lambda: self.client.upload_mesh((points, tets, {"h": field})))
-        if choice < 0.6:
+        if choice < 0.65:
             return self.step("load-file", lambda: self.client.load_mesh(self.rng.choice(FILES)))
         return self.step("load-sample",
                          lambda: self.client.sample(self.rng.choice(SAMPLES), block_size=200))
+
+    def resumed_upload(self, path: Path) -> Any:
+        """A file's upload whose first stream is cut half-way, resumed from what the server holds
+        (GetUpload), then loaded; through the service's calls, as a client library makes them."""
+        data = path.read_bytes()
+        stub = self.client._stub
+        info = pb.UploadFileInfo(path=path.name, size=len(data),
+                                 sha256=hashlib.sha256(data).hexdigest())
+        created = self.step("upload-create",
+                            lambda: stub.CreateUpload(pb.CreateUploadRequest(files=[info])))
+        if created is None:
+            return None
+        upload_id = created.upload.upload_id
+        chunk = 64 << 10
+
+        def chunks(offset: int, end: int) -> Any:
+            yield pb.WriteUploadRequest(start=pb.WriteUploadStart(upload_id=upload_id,
+                                                                  offset=offset))
+            for at in range(offset, end, chunk):
+                yield pb.WriteUploadRequest(chunk=data[at:min(at + chunk, end)])
+
+        # The first stream is cancelled once half the bytes are sent: the server keeps what came.
+        sent_half, cut = threading.Event(), threading.Event()
+
+        def first() -> Any:
+            yield from chunks(0, len(data) // 2)
+            sent_half.set()
+            cut.wait(60)  # a stalled connection, until the cancel
+
+        call = stub.WriteUpload.future(first())
+        sent_half.wait(60)
+        call.cancel()
+        cut.set()
+        self.tally.record("upload-cut", "CANCELLED" if call.cancelled() else "NOT_CANCELLED",
+                          {"CANCELLED"})
+        held = self.step("upload-get",
+                         lambda: stub.GetUpload(pb.GetUploadRequest(upload_id=upload_id)))
+        if held is None:
+            return None
+        offset = held.upload.received_bytes[0]
+        if self.step("upload-resume",
+                     lambda: stub.WriteUpload(chunks(offset, len(data)))) is None:
+            return None
+        loaded = self.step("upload-load", lambda: stub.LoadMesh(
+            pb.LoadMeshRequest(upload=upload_id)))
+        return None if loaded is None else self.client.get_mesh(loaded.mesh.mesh_id)
 
     def session_work(self, mesh: Any) -> None:
         structure = self.rng.choice(STRUCTURES)
@@ -276,7 +332,7 @@ def main() -> int:
         """Clients (seeded per round) until `until` seconds; then the server's idle figures, once
         its threads and descriptors are back to `baseline`'s (the round's middle if None)."""
         stop = threading.Event()
-        clients = [Client(server.target, index * args.clients + i, tally, stop)
+        clients = [Client(server.target, index * args.clients + i, tally, stop, args.data_dir)
                    for i in range(args.clients)]
         threads = [threading.Thread(target=c.run, daemon=True) for c in clients]
         for t in threads:

@@ -57,6 +57,28 @@ absl::Status CheckRelativePath(const std::string& path, const std::string& field
   return absl::OkStatus();
 }
 
+// `digest` made again from the first `bytes` bytes of `path`.
+absl::Status Rehash(const std::filesystem::path& path, int64_t bytes,
+                    std::unique_ptr<Sha256>& digest) {
+  digest = std::make_unique<Sha256>();
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return absl::InternalError(absl::StrCat("reading '", path.string(), "': ", Errno()));
+  std::string buffer(size_t(1) << 20, '\0');
+  for (int64_t done = 0; done < bytes;) {
+    const ssize_t n =
+        ::read(fd, buffer.data(), size_t(std::min<int64_t>(int64_t(buffer.size()), bytes - done)));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      ::close(fd);
+      return absl::InternalError(absl::StrCat("reading '", path.string(), "' again"));
+    }
+    digest->Update(std::string_view(buffer.data(), size_t(n)));
+    done += n;
+  }
+  ::close(fd);
+  return absl::OkStatus();
+}
+
 bool IsSha256Hex(const std::string& s) {
   if (s.size() != 64) return false;
   for (char c : s) {
@@ -295,6 +317,7 @@ absl::StatusOr<UploadSpool::Writer> UploadSpool::Write(const std::string& id, in
   // connection broke without the server noticing yet) is taken over: its next append is refused.
   MutexLock write_lock(u->write_mu);
   uint64_t generation = 0;
+  bool rewind = false;
   {
     MutexLock lock(mu_);
     if (u->dropped) return Find(id).status();
@@ -302,13 +325,18 @@ absl::StatusOr<UploadSpool::Writer> UploadSpool::Write(const std::string& id, in
       return absl::InvalidArgumentError(absl::StrCat("file: ", file, " is not in [0, ",
                                                      u->files.size(), ") for upload '", id, "'"));
     }
-    if (offset != u->received[file]) {
+    if (offset < 0 || offset > u->received[file]) {
       return absl::FailedPreconditionError(absl::StrCat(
           "offset: ", offset, ", but the server holds ", u->received[file], " bytes of files[",
           file, "] '", u->files[file].path, "'; go on from there"));
     }
     generation = ++u->generation;
     u->writing = true;
+    rewind = offset < u->received[file];
+    if (rewind) {  // the bytes after `offset` go; the file is neither complete nor checked
+      u->received[file] = offset;
+      u->checked[file] = false;
+    }
   }
   const auto release = [&] {
     MutexLock lock(mu_);
@@ -327,6 +355,15 @@ absl::StatusOr<UploadSpool::Writer> UploadSpool::Write(const std::string& id, in
     ::close(fd);
     release();
     return absl::InternalError(absl::StrCat("truncating '", path.string(), "': ", why));
+  }
+  if (rewind) {
+    // A client going on from fewer bytes than the server holds (it asked while an earlier call
+    // was still appending): the digest is made again from the bytes kept.
+    if (absl::Status hashed = Rehash(path, offset, u->digests[file]); !hashed.ok()) {
+      ::close(fd);
+      DropNow(id);
+      return hashed;
+    }
   }
   return Writer(this, std::move(u), file, fd, generation);
 }

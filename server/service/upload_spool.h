@@ -102,10 +102,11 @@ class UploadSpool {
 
   // A new upload of `files`; errors name `files[k].path`, `.size` or `.sha256`.
   absl::StatusOr<std::string> Create(std::vector<FileSpec> files);
-  // The writer of file `file` of upload `id` from `offset`, which must be what the server holds
-  // of it (FAILED_PRECONDITION naming both otherwise). It takes the upload over from a writer
-  // that still holds it: a client resuming after a broken connection need not wait for the
-  // server to notice the old call's end.
+  // The writer of file `file` of upload `id` from `offset`, at most what the server holds of it
+  // (FAILED_PRECONDITION naming both otherwise; the bytes after `offset` go). It takes the
+  // upload over from a writer that still holds it: a client resuming after a broken connection
+  // need not wait for the server to notice the old call's end, nor for it to stop appending
+  // what had come before the break.
   absl::StatusOr<Writer> Write(const std::string& id, int file, int64_t offset);
   absl::StatusOr<State> Get(const std::string& id);
   absl::Status Delete(const std::string& id);

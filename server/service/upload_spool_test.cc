@@ -64,11 +64,17 @@ TEST(UploadSpool, ResumesFromWhatItHoldsAndHandsOverTheFiles) {
   UploadSpool::State state = OkValue(spool->Get(id));
   EXPECT_EQ(state.received, (std::vector<int64_t>{5000, 0}));
   EXPECT_FALSE(state.complete);
-  // The wrong offset names what the server holds.
-  const absl::Status wrong = spool->Write(id, 0, 4096).status();
+  // An offset past what the server holds names what it holds.
+  const absl::Status wrong = spool->Write(id, 0, 5001).status();
   EXPECT_EQ(wrong.code(), absl::StatusCode::kFailedPrecondition);
   EXPECT_NE(wrong.message().find("holds 5000 bytes of files[0] 'series.pvd'"), std::string::npos)
       << wrong;
+  // One before it goes on from there: the bytes after it go, the digest follows.
+  {
+    UploadSpool::Writer w = OkValue(spool->Write(id, 0, 4096));
+    EXPECT_EQ(w.received(), 4096);
+    ASSERT_TRUE(w.Append(std::string_view(mesh).substr(4096, 904)).ok());
+  }
   EXPECT_EQ(spool->Take(id).status().code(), absl::StatusCode::kFailedPrecondition);
   {
     UploadSpool::Writer w = OkValue(spool->Write(id, 0, 5000));

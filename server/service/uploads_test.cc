@@ -100,8 +100,8 @@ TEST_F(UploadsTest, ACutUploadResumesAndLoadsAsTheFileDoes) {
   const int64_t held = status.received_bytes(0);
   EXPECT_GE(held, half);
   EXPECT_LE(held, half + 2000);
-  // Not where the server is: refused, naming what it holds.
-  const grpc::Status wrong = Write(id, 0, bytes, 0, 10, nullptr);
+  // Past what the server holds: refused, naming what it holds.
+  const grpc::Status wrong = Write(id, 0, bytes, held + 1, held + 10, nullptr);
   EXPECT_EQ(wrong.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
   EXPECT_NE(wrong.error_message().find("holds " + std::to_string(held)), std::string::npos)
       << wrong.error_message();
