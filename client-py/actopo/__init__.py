@@ -30,6 +30,7 @@ from actopo._errors import (
                             AlreadyExistsError,
                             AuthenticationError,
                             CancelledError,
+                            DataLossError,
                             DeadlineExceededError,
                             FailedPreconditionError,
                             InvalidArgumentError,
@@ -48,7 +49,7 @@ __version__ = "0.1.0"
 # The list is documented, one line a name, in README.md ("Public names"); a test compares them.
 __all__ = [
     "ActopoError", "Algorithm", "AlreadyExistsError", "AsyncClient", "AsyncJob", "AsyncSession",
-    "AuthenticationError", "CancelledError", "Client", "DeadlineExceededError",
+    "AuthenticationError", "CancelledError", "Client", "DataLossError", "DeadlineExceededError",
     "FailedPreconditionError", "InvalidArgumentError", "InvalidMeshError", "Job", "JobResult",
     "LoadProgress", "MeshInfo", "NotFoundError", "OutOfRangeError", "Precompute", "Prefetch",
     "Relation", "RelationBatch", "ResourceExhaustedError", "Session", "Structure",

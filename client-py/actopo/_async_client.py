@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import os
 from collections import deque
 from collections.abc import (
     AsyncIterator,
@@ -23,7 +24,7 @@ import grpc.aio
 import numpy as np
 import numpy.typing as npt
 
-from actopo import _batches, _messages, _requests
+from actopo import _batches, _file_upload, _messages, _requests
 from actopo._batches import Piece
 from actopo._channel import (
     DEFAULT_TIMEOUT,
@@ -37,6 +38,7 @@ from actopo._distances import DistanceMatrix
 from actopo._download import MeshStream
 from actopo._errors import ActopoError, translate, translated
 from actopo._fields import FieldsLike, TimesArg
+from actopo._file_upload import LocalFile, Sender
 from actopo._literals import Algorithm, Precompute, Prefetch, Relation, Structure
 from actopo._mesh import MeshArrays, MeshLike
 from actopo._progress import (
@@ -55,10 +57,12 @@ from actopo._requests import (
     SimplexArg,
     SimplexIds,
     distance_parameters,
+    partition,
 )
 from actopo._results import Assembler, FieldResult, JobResult, distance_matrix_of
 from actopo._stub import async_stub
 from actopo._types import (
+    UPLOAD_PHASES,
     JobProgress,
     LoadProgress,
     MeshInfo,
@@ -108,6 +112,7 @@ class AsyncClient:
         self._timeout = timeout
         self._mesh_timeout = MESH_TIMEOUT if timeout is not None else None
         self._max_batch: int | None = None
+        self._retries = retries
 
     async def __aenter__(self) -> Self:
         return self
@@ -175,13 +180,113 @@ class AsyncClient:
         return await self.load_mesh(f"sample:{name}", block_size=block_size, progress=progress)
 
     async def upload_mesh(self, mesh: MeshLike, *, name: str | None = None, block_size: int = 0,
-                          block_label_field: str = "") -> MeshInfo:
-        """See Client.upload_mesh()."""
+                          block_label_field: str = "",
+                          compression: grpc.Compression | None = None) -> MeshInfo:
+        """See Client.upload_mesh() (a .vtu, .vtk, .vti or .pvd file goes as upload_file()
+        sends it)."""
+        if isinstance(mesh, (str, os.PathLike)) and _file_upload.is_mesh_file(mesh):
+            try:
+                return await self.upload_file(mesh, name=name, block_size=block_size,
+                                              block_label_field=block_label_field)
+            except ActopoError as e:  # a server from before file uploads: the arrays, as then
+                if e.code != grpc.StatusCode.UNIMPLEMENTED:
+                    raise
         requests = _messages.build_upload_mesh(mesh, name, block_size, block_label_field)
         with translated(mesh=True):
             response = await self._stub.UploadMesh(requests, timeout=self._mesh_timeout,
-                                                   metadata=self._metadata)
+                                                   metadata=self._metadata,
+                                                   compression=compression)
         return _messages.decode_upload_mesh(response)
+
+    async def upload_file(self, path: str | os.PathLike[str], *, name: str | None = None,
+                          block_size: int = 0, block_label_field: str = "",
+                          progress: LoadProgressArg = None) -> MeshInfo:
+        """See Client.upload_file(). The files are hashed and read in a thread, so the event
+        loop goes on meanwhile; cancelling the awaiting task deletes the upload (or stops its
+        load) on the server."""
+        options = partition(block_size, block_label_field)
+        files = await asyncio.to_thread(_file_upload.upload_plan, path, name)
+        bar = make_load_progress(progress, _file_upload.description(files), UPLOAD_PHASES)
+        try:
+            upload_id = await self._send_files(files, bar)
+        except BaseException:
+            bar.close()
+            raise
+        try:
+            return await self._load_reporting(
+                _file_upload.build_load_upload(upload_id, options), bar)
+        except BaseException:
+            await self._delete_upload(upload_id)  # see Client.upload_file()
+            raise
+
+    async def _send_files(self, files: list[LocalFile], bar: Progress[LoadProgress]) -> str:
+        """See Client._send_files()."""
+        created = await self._call(self._stub.CreateUpload, _file_upload.create_request(files),
+                                   long=True)
+        try:
+            await self._send(Sender(files, self._retries), created.upload, bar)
+        except BaseException:
+            await self._delete_upload(created.upload.upload_id)
+            raise
+        return created.upload.upload_id
+
+    async def _send(self, sender: Sender, status: pb.UploadStatus,
+                    bar: Progress[LoadProgress]) -> None:
+        """See Client._send()."""
+        upload_id = status.upload_id
+        where = sender.next_write(status)
+        sender.report(bar)
+        while where is not None:
+            try:
+                status = await self._write_upload(sender, upload_id, *where, bar)
+                where = sender.next_write(status, wrote=True)
+            except grpc.RpcError as e:
+                where = sender.next_write(await self._resume(sender, upload_id, e))
+        sender.report(bar)
+
+    async def _write_upload(self, sender: Sender, upload_id: str, file: int, offset: int,
+                            bar: Progress[LoadProgress]) -> pb.UploadStatus:
+        """One WriteUpload call, its messages written one at a time (each chunk read from the
+        file in a thread), the bytes sent reported after each."""
+        call = self._stub.WriteUpload(timeout=self._mesh_timeout, metadata=self._metadata)
+        requests = sender.requests(upload_id, file, offset)
+        try:
+            try:
+                while (request := await asyncio.to_thread(next, requests, None)) is not None:
+                    await call.write(request)
+                    sender.report(bar)
+                await call.done_writing()
+            except asyncio.InvalidStateError:
+                pass  # the call is over: awaiting it raises its status
+            response = await call
+        except grpc.RpcError:
+            raise
+        except BaseException:
+            call.cancel()  # after cancellation or a raising callback
+            raise
+        sender.check()
+        sender.report(bar)
+        return response.upload
+
+    async def _resume(self, sender: Sender, upload_id: str,
+                      error: grpc.RpcError) -> pb.UploadStatus:
+        """See Client._resume()."""
+        while True:
+            await asyncio.sleep(sender.failed(error))
+            try:
+                response = await self._stub.GetUpload(pb.GetUploadRequest(upload_id=upload_id),
+                                                      timeout=self._timeout,
+                                                      metadata=self._metadata)
+                return response.upload
+            except grpc.RpcError as e:
+                error = e
+
+    async def _delete_upload(self, upload_id: str) -> None:
+        """See Client._delete_upload()."""
+        with contextlib.suppress(grpc.RpcError):
+            await self._stub.DeleteUpload(pb.DeleteUploadRequest(upload_id=upload_id),
+                                          timeout=_file_upload.DELETE_SECONDS,
+                                          metadata=self._metadata)
 
     async def download_mesh(self, mesh: MeshRef, fields: FieldsArg = None, *,
                             progress: ProgressArg = None) -> MeshArrays:

@@ -3,13 +3,16 @@
 Retries. Every channel carries a gRPC service config ("grpc.service_config", with
 "grpc.enable_retries" 1) whose retryPolicy retries the idempotent unary reads of
 actopo.v1.TopologyService, RETRIED_METHODS (GetServerInfo, ListMeshes, GetMesh, ListSessions,
-GetSession, GetSessionStats, GetRelation, GetRelationBatch), when an attempt ends UNAVAILABLE:
-no connection (the server is restarting, or not there yet), a connection lost before the
-answer, or a draining server ("shutting down; retry elsewhere"). Up to 5 attempts, the retries
-after 0.2, 0.4, 0.8 and 1.6 s (each +-20%, gRPC's jitter), so about 3 s in all, within the
-call's deadline. Nothing that creates, changes or deletes state is retried (LoadMesh,
-UploadMesh, OpenSession, RunJob, CancelJob, DeleteMesh, CloseSession), nor any stream
-(LoadMeshWithProgress, StreamRelations, RunJob); such a call fails with UNAVAILABLE at once.
+GetSession, GetSessionStats, GetRelation, GetRelationBatch, GetUpload), when an attempt ends
+UNAVAILABLE: no connection (the server is restarting, or not there yet), a connection lost
+before the answer, or a draining server ("shutting down; retry elsewhere"). Up to 5 attempts,
+the retries after 0.2, 0.4, 0.8 and 1.6 s (each +-20%, gRPC's jitter), so about 3 s in all,
+within the call's deadline. Nothing that creates, changes or deletes state is retried (LoadMesh,
+UploadMesh, CreateUpload, OpenSession, RunJob, CancelJob, DeleteMesh, CloseSession), nor any
+stream (LoadMeshWithProgress, StreamRelations, RunJob, WriteUpload); such a call fails with
+UNAVAILABLE at once. A file upload (Client.upload_file) resumes a broken WriteUpload itself,
+with this policy's attempts and backoff (_file_upload.Sender): it asks GetUpload what the
+server holds and sends from there.
 
 wait_for_ready is not set, neither on the channel nor per method: a read of a server that does
 not come back fails with UNAVAILABLE after its ~3 s of attempts, rather than hanging until its
@@ -61,7 +64,7 @@ _OPTIONS: list[tuple[str, Any]] = [
 SERVICE = "actopo.v1.TopologyService"
 RETRIED_METHODS: tuple[str, ...] = (
     "GetServerInfo", "ListMeshes", "GetMesh", "ListSessions", "GetSession", "GetSessionStats",
-    "GetRelation", "GetRelationBatch",
+    "GetRelation", "GetRelationBatch", "GetUpload",
 )
 """The idempotent unary reads that the service config retries on UNAVAILABLE."""
 RETRY_POLICY: dict[str, Any] = {

@@ -43,6 +43,7 @@ from actopo._client import Client, Session
 from actopo._distances import DistanceMatrix
 from actopo._errors import ActopoError, InvalidArgumentError, InvalidMeshError, NotFoundError
 from actopo._fields import read_point_fields
+from actopo._file_upload import is_mesh_file, pvd_files
 from actopo._literals import Algorithm, Structure
 from actopo._mesh import MeshArrays, mesh_arrays
 from actopo._results import FieldResult, JobResult
@@ -79,11 +80,14 @@ def _mib(n: int) -> str:
 
 
 class _Mesh:
-    """The mesh a command works on; deletes it at the end if this command loaded it."""
+    """The mesh a command works on (deleted at the end if this command loaded it), with its
+    arrays when the command uploaded them, or the local file it uploaded as its bytes."""
 
-    def __init__(self, info: MeshInfo, local: MeshArrays | None) -> None:
+    def __init__(self, info: MeshInfo, local: MeshArrays | None,
+                 file: Path | None = None) -> None:
         self.info = info
         self.local = local
+        self.file = file
 
 
 def _series(paths: list[str]) -> str | list[str]:
@@ -92,21 +96,56 @@ def _series(paths: list[str]) -> str | list[str]:
     return paths[0] if len(paths) == 1 else paths
 
 
+def _local_mesh_file(source: str | list[str]) -> Path | None:
+    """The local file that a path of --mesh or `load` names, when there is one and the server
+    reads it as it is (.vtu, .vtk, .vti, .pvd); None for a series, a sample or no such file."""
+    if not isinstance(source, str) or source.startswith("sample:"):
+        return None
+    path = Path(source)
+    return path if path.is_file() and is_mesh_file(path) else None
+
+
+def _load_or_upload(client: Client, source: str | list[str], args: argparse.Namespace,
+                    load: Callable[[], MeshInfo],
+                    block_label_field: str = "") -> tuple[MeshInfo, Path | None]:
+    """`load()`s a path of the server's data directory; a local mesh file that the server does
+    not have (NOT_FOUND, or a path no data directory holds: absolute, or with '..') is
+    uploaded as its bytes instead, with a note on stderr. The mesh, and the file uploaded."""
+    local = _local_mesh_file(source)
+    if local is None or not (local.is_absolute() or ".." in local.parts):
+        try:
+            return load(), None
+        except NotFoundError:
+            if local is None:
+                raise
+    print(f"actopo: {local} is not in the server's data directory: uploading the local file",
+          file=sys.stderr)
+    return client.upload_file(local, block_size=args.block_size,
+                              block_label_field=block_label_field,
+                              progress=_progress(args)), local
+
+
 @contextlib.contextmanager
 def _mesh(client: Client, args: argparse.Namespace) -> Iterator[_Mesh]:
     if args.mesh_id:
         yield _Mesh(client.get_mesh(args.mesh_id), None)
         return
     before = {m.mesh_id for m in client.list_meshes()}
-    local = None
-    if args.upload:
+    local, file = None, None
+    if args.upload and is_mesh_file(args.upload):
+        file = Path(args.upload)
+        info = client.upload_file(file, block_size=args.block_size, progress=_progress(args))
+    elif args.upload:
         local = mesh_arrays(args.upload, Path(args.upload).name)
         info = client.upload_mesh(local, block_size=args.block_size)
     else:
         source = _series(args.mesh) if args.mesh else _sample(args.sample)
-        info = client.load_mesh(source, block_size=args.block_size, progress=_progress(args))
+        info, file = _load_or_upload(
+            client, source, args,
+            lambda: client.load_mesh(source, block_size=args.block_size,
+                                     progress=_progress(args)))
     try:
-        yield _Mesh(info, local)
+        yield _Mesh(info, local, file)
     finally:
         if info.mesh_id not in before and not args.keep:
             with contextlib.suppress(ActopoError):
@@ -160,8 +199,9 @@ def _open(client: Client, mesh: MeshInfo, args: argparse.Namespace,
 
 
 # The geometry of `run --output`'s per-vertex files (PREFIX_segmentation.vtu,
-# PREFIX_simplified.vtu): --upload's mesh, --geometry FILE, the file of --mesh NAME found
-# locally, else the points and tetrahedra downloaded from the server.
+# PREFIX_simplified.vtu): --upload's mesh (or the local file --mesh uploaded), --geometry FILE,
+# the file of --mesh NAME found locally, else the points and tetrahedra downloaded from the
+# server.
 
 
 def _mismatch(local: MeshArrays, info: MeshInfo) -> str | None:
@@ -173,15 +213,30 @@ def _mismatch(local: MeshArrays, info: MeshInfo) -> str | None:
     return None
 
 
+def _uploaded_geometry(file: Path, info: MeshInfo) -> MeshArrays | None:
+    """The mesh of a file the command uploaded as its bytes (a .pvd's first file), read here
+    when per-vertex files need it; None when it cannot be read here (no pyvista or meshio, an
+    image the readers do not split) or holds other counts than the server's mesh."""
+    try:
+        if file.suffix.lower() == ".pvd":
+            file = file.parent / pvd_files(file)[0]
+        local = mesh_arrays(file)
+    except (ActopoError, OSError, ImportError, IndexError):
+        return None
+    return local if _mismatch(local, info) is None else None
+
+
 def _given_geometry(args: argparse.Namespace, mesh: _Mesh,
                     algorithm: Algorithm) -> MeshArrays | None:
     """The geometry the command has before the job: --upload's mesh, or the --geometry file
     read and checked against the mesh when the job writes per-vertex files (a file of another
-    mesh stops the command here, before the job runs)."""
+    mesh stops the command here, before the job runs), or the file the command uploaded."""
     if mesh.local is not None:
         return mesh.local
-    if not (args.output and args.geometry and algorithm in PER_VERTEX):
+    if not (args.output and algorithm in PER_VERTEX):
         return None
+    if not args.geometry:
+        return None if mesh.file is None else _uploaded_geometry(mesh.file, mesh.info)
     try:
         local = mesh_arrays(args.geometry)
     except (InvalidMeshError, FileNotFoundError) as e:
@@ -270,15 +325,24 @@ def cmd_load(client: Client, args: argparse.Namespace) -> None:
         raise UsageError(f"--times: {len(args.times)} values for {len(args.source)} PATH(s); "
                          "give one per file of a series (two PATHs or more)")
     source = _series(args.source)
-    info = client.load_mesh(source, times=args.times, block_size=args.block_size,
-                            block_label_field=args.block_labels or "", progress=_progress(args))
+    info, _ = _load_or_upload(
+        client, source, args,
+        lambda: client.load_mesh(source, times=args.times, block_size=args.block_size,
+                                 block_label_field=args.block_labels or "",
+                                 progress=_progress(args)),
+        block_label_field=args.block_labels or "")
     _print_json(info) if args.json else _mesh_rows([info])
 
 
 def cmd_upload(client: Client, args: argparse.Namespace) -> None:
-    info = client.upload_mesh(args.file, name=args.name or Path(args.file).name,
-                              block_size=args.block_size,
-                              block_label_field=args.block_labels or "")
+    if is_mesh_file(args.file):
+        info = client.upload_file(args.file, name=args.name, block_size=args.block_size,
+                                  block_label_field=args.block_labels or "",
+                                  progress=_progress(args))
+    else:
+        info = client.upload_mesh(args.file, name=args.name or Path(args.file).name,
+                                  block_size=args.block_size,
+                                  block_label_field=args.block_labels or "")
     _print_json(info) if args.json else _mesh_rows([info])
 
 

@@ -110,9 +110,10 @@ def _add_meshes(commands: Commands) -> None:
 def _add_load(commands: Commands) -> None:
     c = _command(commands, "load",
                  "load a file under the server's data directory, a series given as its files, "
-                 "or a sample")
+                 "or a sample; a local mesh file the server does not have is uploaded")
     c.add_argument("source", nargs="+", metavar="PATH",
-                   help="path under the data directory, or sample:NAME (e.g. "
+                   help="path under the data directory (a local .vtu, .vtk, .vti or .pvd the "
+                   "server does not have is uploaded), or sample:NAME (e.g. "
                    "sample:jittered:32); several paths: the files of a series (the same points "
                    "and tetrahedra), loaded as one mesh whose point fields are <field>_<k>, k "
                    "the file's index zero-padded to the width of the last (velocityMag_0 ... "
@@ -127,11 +128,14 @@ def _add_load(commands: Commands) -> None:
 
 def _add_upload(commands: Commands) -> None:
     c = _command(commands, "upload",
-                 "upload a local mesh file (read with pyvista or meshio)")
+                 "upload a local mesh file: .vtu, .vtk, .vti and .pvd (with its files) as "
+                 "their bytes, resumably; other formats read with pyvista or meshio")
     c.add_argument("file")
-    c.add_argument("--name")
+    c.add_argument("--name", help="the mesh's name (default: the file's; a .vtu, .vtk, .vti "
+                   "or .pvd keeps its extension)")
     _add_block_size(c)
     c.add_argument("--block-labels", metavar="FIELD")
+    _add_progress(c, "the bytes sent, then a bar per phase of the load")
 
 
 def _add_delete(commands: Commands) -> None:
@@ -321,13 +325,15 @@ def _add_mesh_source(p: argparse.ArgumentParser, session: bool = False,
                      required: bool = True) -> None:
     g = p.add_mutually_exclusive_group(required=required)
     g.add_argument("--mesh", metavar="NAME", action="append",
-                   help="a file under the server's data directory, or sample:NAME; repeated "
+                   help="a file under the server's data directory (a local .vtu, .vtk, .vti "
+                   "or .pvd the server does not have is uploaded), or sample:NAME; repeated "
                    "(--mesh a.vtu --mesh b.vtu): the files of a series, loaded as one mesh "
                    "whose point fields are <field>_<k>, k the file's index zero-padded, time k")
     g.add_argument("--sample", metavar="NAME",
                    help="a built-in sample, e.g. wavelet:40 or sample:wavelet:40 (the same as "
                    "--mesh sample:wavelet:40); `actopo info` lists them")
-    g.add_argument("--upload", metavar="FILE", help="a local mesh file to upload")
+    g.add_argument("--upload", metavar="FILE", help="a local mesh file to upload (.vtu, .vtk, "
+                   ".vti, .pvd: as their bytes, resumably; others read with pyvista or meshio)")
     g.add_argument("--mesh-id", metavar="ID", help="a mesh already loaded on the server")
     if session:
         g.add_argument("--session", metavar="ID", help="an open session (see `actopo open`)")

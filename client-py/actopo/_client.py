@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
 import threading
+import time
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -11,7 +14,7 @@ import grpc
 import numpy as np
 import numpy.typing as npt
 
-from actopo import _batches, _messages, _requests
+from actopo import _batches, _file_upload, _messages, _requests
 from actopo._batches import Piece
 from actopo._channel import (
     DEFAULT_TIMEOUT,
@@ -25,6 +28,7 @@ from actopo._distances import DistanceMatrix
 from actopo._download import MeshStream
 from actopo._errors import ActopoError, translate, translated
 from actopo._fields import FieldsLike, TimesArg
+from actopo._file_upload import LocalFile, Sender
 from actopo._literals import Algorithm, Precompute, Prefetch, Relation, Structure
 from actopo._mesh import MeshArrays, MeshLike
 from actopo._progress import (
@@ -43,10 +47,12 @@ from actopo._requests import (
     SimplexArg,
     SimplexIds,
     distance_parameters,
+    partition,
 )
 from actopo._results import Assembler, FieldResult, JobResult, distance_matrix_of
 from actopo._stub import ResponseStream, sync_stub
 from actopo._types import (
+    UPLOAD_PHASES,
     JobProgress,
     LoadProgress,
     MeshInfo,
@@ -84,8 +90,9 @@ class Client:
         retries: True (the default) retries the idempotent reads (server_info, list_meshes,
             get_mesh, list_sessions, get_session, and on a session stats, query and relation
             up to one batch) when they end UNAVAILABLE, e.g. while the server restarts:
-            5 attempts over about 3 s, within the call's deadline. Nothing else is retried.
-            False: no retries (see actopo._channel).
+            5 attempts over about 3 s, within the call's deadline, and resumes a file upload
+            (upload_file) whose connection broke, with the same attempts and backoff. Nothing
+            else is retried. False: no retries (see actopo._channel).
 
     Example::
 
@@ -109,6 +116,7 @@ class Client:
         self._timeout = timeout
         self._mesh_timeout = MESH_TIMEOUT if timeout is not None else None
         self._max_batch: int | None = None
+        self._retries = retries
 
     def __enter__(self) -> Self:
         return self
@@ -217,13 +225,20 @@ class Client:
         return self.load_mesh(f"sample:{name}", block_size=block_size, progress=progress)
 
     def upload_mesh(self, mesh: MeshLike, *, name: str | None = None, block_size: int = 0,
-                    block_label_field: str = "") -> MeshInfo:
+                    block_label_field: str = "",
+                    compression: grpc.Compression | None = None) -> MeshInfo:
         """Uploads a local mesh.
 
-        `mesh`: a pyvista.UnstructuredGrid, a meshio.Mesh, a file path (read with pyvista or
-        meshio), or ``(points, tetrahedra)`` / ``(points, tetrahedra, {name: values})`` numpy
-        arrays. Only tetrahedra are accepted: anything else raises InvalidMeshError before a
-        byte is sent. Scalar point fields travel along; vector fields are left out.
+        `mesh`: a pyvista.UnstructuredGrid, a meshio.Mesh, a file path, or ``(points,
+        tetrahedra)`` / ``(points, tetrahedra, {name: values})`` numpy arrays. A .vtu, .vtk,
+        .vti or .pvd file goes as its bytes, as upload_file() sends it (the server reads it;
+        a server from before file uploads, which answers UNIMPLEMENTED, gets its arrays);
+        another file is read with pyvista or meshio and goes as arrays, as meshes in memory
+        do. Arrays: only tetrahedra are accepted, anything else raises InvalidMeshError before
+        a byte is sent; scalar point fields travel along, vector fields are left out; the
+        tetrahedra go as int32 when the ids fit. `compression`: e.g. grpc.Compression.Gzip to
+        compress the arrays on the wire (off by default: on a fast link it costs more time
+        than it saves; it does not apply to a file, whose bytes VTK has compressed already).
 
         >>> import numpy as np
         >>> points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
@@ -235,11 +250,132 @@ class Client:
         (6, 4)
         >>> client.delete_mesh(info)
         """
+        if isinstance(mesh, (str, os.PathLike)) and _file_upload.is_mesh_file(mesh):
+            try:
+                return self.upload_file(mesh, name=name, block_size=block_size,
+                                        block_label_field=block_label_field)
+            except ActopoError as e:  # a server from before file uploads: the arrays, as then
+                if e.code != grpc.StatusCode.UNIMPLEMENTED:
+                    raise
         requests = _messages.build_upload_mesh(mesh, name, block_size, block_label_field)
         with translated(mesh=True):
             response = self._stub.UploadMesh(requests, timeout=self._mesh_timeout,
-                                             metadata=self._metadata)
+                                             metadata=self._metadata, compression=compression)
         return _messages.decode_upload_mesh(response)
+
+    def upload_file(self, path: str | os.PathLike[str], *, name: str | None = None,
+                    block_size: int = 0, block_label_field: str = "",
+                    progress: LoadProgressArg = None) -> MeshInfo:
+        """Uploads a mesh file as its bytes and loads it, as the server loads a file of its data
+        directory (the same readers and limits); the mesh is named after the file.
+
+        `path`: a .vtu, .vtk or .vti file, or a .pvd with the files it names (relative to its
+        folder, at or below it: an absolute path or '..' raises InvalidArgumentError naming the
+        entry; a missing one FileNotFoundError). `name`: the mesh's name instead of the file's
+        (the file's extension is added if missing: the server reads the file by it).
+        `block_size`, `block_label_field`: as for load_mesh(). `progress`: True for a bar on
+        stderr counting the bytes sent, then one per phase of the load, or a callable receiving
+        LoadProgress reports: phase "send" (with ``sent_bytes`` and ``total_bytes``), then
+        "read", "partition" and "encode".
+
+        Each file is read twice, in 1 MiB chunks: once for its SHA-256, announced before a byte
+        is sent (CreateUpload), once to send it (WriteUpload); the client holds one chunk at a
+        time, whatever the size. The server checks each file's digest at its last byte. A
+        connection that breaks mid-way (UNAVAILABLE, a reset stream, a deadline) loses nothing
+        the server has written: the client asks what it holds (GetUpload) and sends from there,
+        up to 5 times in a row without progress, backing off 0.2 s to 2 s as the retries of
+        reads do (``retries=False``: never). A definitive error, Ctrl-C or an exception raised
+        by the callable deletes the upload on the server and propagates: DataLossError (the
+        bytes do not hash to the announced digest, e.g. the file changed meanwhile),
+        ResourceExhaustedError (the server's upload budget, ``limits.upload_budget_bytes``, or
+        ``max_uploads``), InvalidMeshError (a file the server cannot read, naming it). Loading
+        the upload takes it off the server, whether the load succeeds or not.
+        """
+        options = partition(block_size, block_label_field)
+        files = _file_upload.upload_plan(path, name)
+        bar = make_load_progress(progress, _file_upload.description(files), UPLOAD_PHASES)
+        try:
+            upload_id = self._send_files(files, bar)
+        except BaseException:
+            bar.close()
+            raise
+        try:
+            return self._load_reporting(_file_upload.build_load_upload(upload_id, options), bar)
+        except BaseException:
+            # The server drops an upload it has begun to load; one stopped before (Ctrl-C while
+            # the load waits for a thread) would stay until the server's upload timeout.
+            self._delete_upload(upload_id)
+            raise
+
+    def _send_files(self, files: list[LocalFile], bar: Progress[LoadProgress]) -> str:
+        """CreateUpload, then the files' bytes until the server holds them all; the upload's
+        id. Whatever stops it deletes the upload (best effort) and propagates."""
+        created = self._call(self._stub.CreateUpload, _file_upload.create_request(files),
+                             long=True)
+        try:
+            self._send(Sender(files, self._retries), created.upload, bar)
+        except BaseException:
+            self._delete_upload(created.upload.upload_id)
+            raise
+        return created.upload.upload_id
+
+    def _send(self, sender: Sender, status: pb.UploadStatus, bar: Progress[LoadProgress]) -> None:
+        """WriteUpload calls from what the server holds (`status`) until it holds every byte;
+        after a broken call, GetUpload says where to go on (Sender.failed() decides whether
+        and when)."""
+        upload_id = status.upload_id
+        where = sender.next_write(status)
+        sender.report(bar)
+        while where is not None:
+            try:
+                status = self._write_upload(sender, upload_id, *where, bar)
+                where = sender.next_write(status, wrote=True)
+            except grpc.RpcError as e:
+                where = sender.next_write(self._resume(sender, upload_id, e))
+        sender.report(bar)
+
+    def _write_upload(self, sender: Sender, upload_id: str, file: int, offset: int,
+                      bar: Progress[LoadProgress]) -> pb.UploadStatus:
+        """One WriteUpload call: the chunks from `offset` to the end of file `file`, read as
+        gRPC's thread sends them, while this thread reports the bytes sent."""
+        call = self._stub.WriteUpload.future(sender.requests(upload_id, file, offset),
+                                             timeout=self._mesh_timeout,
+                                             metadata=self._metadata)
+        try:
+            while True:
+                try:
+                    response = call.result(timeout=_file_upload.PROGRESS_SECONDS)
+                    break
+                except grpc.FutureTimeoutError:
+                    sender.report(bar)
+        except grpc.RpcError:
+            raise
+        except BaseException:
+            sender.stop()
+            call.cancel()  # after Ctrl-C or a raising callback
+            raise
+        sender.check()
+        sender.report(bar)
+        return response.upload
+
+    def _resume(self, sender: Sender, upload_id: str,
+                error: grpc.RpcError) -> pb.UploadStatus:
+        """What the server holds of the upload after the failed call that raised `error`,
+        asked after Sender.failed()'s delay (again while the server cannot be reached)."""
+        while True:
+            time.sleep(sender.failed(error))
+            try:
+                return self._stub.GetUpload(pb.GetUploadRequest(upload_id=upload_id),
+                                            timeout=self._timeout,
+                                            metadata=self._metadata).upload
+            except grpc.RpcError as e:
+                error = e
+
+    def _delete_upload(self, upload_id: str) -> None:
+        """Drops an upload on the server, if it can be reached and still has it."""
+        with contextlib.suppress(grpc.RpcError):
+            self._stub.DeleteUpload(pb.DeleteUploadRequest(upload_id=upload_id),
+                                    timeout=_file_upload.DELETE_SECONDS, metadata=self._metadata)
 
     def download_mesh(self, mesh: MeshRef, fields: FieldsArg = None, *,
                       progress: ProgressArg = None) -> MeshArrays:

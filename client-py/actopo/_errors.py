@@ -51,7 +51,14 @@ class FailedPreconditionError(ActopoError):
 
 
 class ResourceExhaustedError(ActopoError):
-    """A server quota: meshes, sessions, engine threads, memory budget or message size."""
+    """A server quota: meshes, sessions, engine threads, memory budget, upload budget or
+    message size."""
+
+
+class DataLossError(ActopoError):
+    """Bytes that arrived other than they were announced: an uploaded file whose SHA-256 is not
+    the one its upload announced (the file changed while it was sent, or was damaged on the
+    way); the server dropped the upload."""
 
 
 class UnavailableError(ActopoError):
@@ -77,6 +84,7 @@ _BY_CODE: dict[grpc.StatusCode, type[ActopoError]] = {
     grpc.StatusCode.ALREADY_EXISTS: AlreadyExistsError,
     grpc.StatusCode.FAILED_PRECONDITION: FailedPreconditionError,
     grpc.StatusCode.RESOURCE_EXHAUSTED: ResourceExhaustedError,
+    grpc.StatusCode.DATA_LOSS: DataLossError,
     grpc.StatusCode.UNAVAILABLE: UnavailableError,
     grpc.StatusCode.UNAUTHENTICATED: AuthenticationError,
     grpc.StatusCode.PERMISSION_DENIED: AuthenticationError,

@@ -47,15 +47,22 @@ class _Callback(Generic[_T]):
 
 
 class _Tqdm:
-    def __init__(self, description: str) -> None:
+    """A fraction in per mille, or with `total_bytes` the bytes done of it (size and speed)."""
+
+    def __init__(self, description: str, total_bytes: int | None = None) -> None:
         from tqdm.auto import tqdm
 
-        self._bar = tqdm(total=1000, desc=description, unit="‰", leave=False,
-                         bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
+        self._total = 1000 if total_bytes is None else total_bytes
+        if total_bytes is None:
+            self._bar = tqdm(total=1000, desc=description, unit="‰", leave=False,
+                             bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
+        else:
+            self._bar = tqdm(total=total_bytes, desc=description, unit="B", unit_scale=True,
+                             unit_divisor=1024, leave=False)
         self._done = 0
 
     def update(self, fraction: float) -> None:
-        target = int(min(max(fraction, 0.0), 1.0) * 1000)
+        target = int(min(max(fraction, 0.0), 1.0) * self._total)
         if target > self._done:
             self._bar.update(target - self._done)
             self._done = target
@@ -65,47 +72,65 @@ class _Tqdm:
 
 
 class _Rich:
-    def __init__(self, description: str) -> None:
+    def __init__(self, description: str, total_bytes: int | None = None) -> None:
         from rich.console import Console
+        from rich.progress import (
+            BarColumn,
+            DownloadColumn,
+            TextColumn,
+            TimeRemainingColumn,
+            TransferSpeedColumn,
+        )
         from rich.progress import Progress as RichProgress
 
-        self._progress = RichProgress(console=Console(stderr=True), transient=True)
-        self._task = self._progress.add_task(description, total=1.0)
+        columns = () if total_bytes is None else (
+            TextColumn("{task.description}"), BarColumn(), DownloadColumn(binary_units=True),
+            TransferSpeedColumn(), TimeRemainingColumn())
+        self._total = 1.0 if total_bytes is None else float(total_bytes)
+        self._progress = RichProgress(*columns, console=Console(stderr=True), transient=True)
+        self._task = self._progress.add_task(description, total=self._total)
         self._progress.start()
 
     def update(self, fraction: float) -> None:
-        self._progress.update(self._task, completed=fraction)
+        self._progress.update(self._task, completed=fraction * self._total)
 
     def close(self) -> None:
         self._progress.stop()
 
 
 class _Plain:
-    def __init__(self, description: str) -> None:
+    def __init__(self, description: str, total_bytes: int | None = None) -> None:
         self._description = description
+        self._total = total_bytes
         self._shown = -1
+        self._width = 0
 
     def update(self, fraction: float) -> None:
         percent = int(fraction * 100)
         if percent != self._shown:
             self._shown = percent
-            sys.stderr.write(f"\r{self._description}: {percent:3d}%")
+            line = f"{self._description}: {percent:3d}%"
+            if self._total is not None:
+                line += f" of {self._total / 2**20:.1f} MiB"
+            self._width = max(self._width, len(line))
+            sys.stderr.write(f"\r{line}")
             sys.stderr.flush()
 
     def close(self) -> None:
         if self._shown >= 0:
-            sys.stderr.write("\r" + " " * (len(self._description) + 6) + "\r")
+            sys.stderr.write("\r" + " " * self._width + "\r")
             sys.stderr.flush()
 
 
-def _bar(description: str) -> Progress[float]:
-    """A bar on stderr: tqdm if installed, else rich, else a plain line."""
+def _bar(description: str, total_bytes: int | None = None) -> Progress[float]:
+    """A bar on stderr: tqdm if installed, else rich, else a plain line; filled by a fraction,
+    and with `total_bytes` showing the bytes done of that many."""
     for bar in (_Tqdm, _Rich):
         try:
-            return bar(description)
+            return bar(description, total_bytes)
         except ImportError:
             continue
-    return _Plain(description)
+    return _Plain(description, total_bytes)
 
 
 class _PhaseBars:
@@ -121,19 +146,22 @@ class _PhaseBars:
         if report.phase != self._phase:
             self._bar.close()
             self._phase = report.phase
-            self._bar = _bar(self._label(report.phase))
+            total = report.total_bytes if isinstance(report, LoadProgress) else None
+            label = self._label(report.phase)
+            self._bar = _bar(label) if total is None else _bar(label, total)
         self._bar.update(report.fraction)
 
     def close(self) -> None:
         self._bar.close()
 
 
-def _load_label(description: str, phase: str) -> str:
-    """"load sample:wavelet:64 (encode 3/3)" for a phase the client knows, the phase's name for
-    any other."""
-    if phase not in LOAD_PHASES:
+def _load_label(description: str, phase: str,
+                phases: tuple[str, ...] = LOAD_PHASES) -> str:
+    """"load sample:wavelet:64 (encode 3/3)" for a phase of `phases`, the phase's name for any
+    other."""
+    if phase not in phases:
         return f"{description} ({phase})"
-    return f"{description} ({phase} {LOAD_PHASES.index(phase) + 1}/{len(LOAD_PHASES)})"
+    return f"{description} ({phase} {phases.index(phase) + 1}/{len(phases)})"
 
 
 def _job_label(description: str, phase: str) -> str:
@@ -180,7 +208,9 @@ def make_fraction_progress(progress: ProgressArg, description: str) -> Progress[
     return _choose(progress, lambda: _bar(description))
 
 
-def make_load_progress(progress: LoadProgressArg, description: str) -> Progress[LoadProgress]:
-    """Of a load: nothing, a bar per phase, or the caller's callable(LoadProgress)."""
+def make_load_progress(progress: LoadProgressArg, description: str,
+                       phases: tuple[str, ...] = LOAD_PHASES) -> Progress[LoadProgress]:
+    """Of a load (`phases`: UPLOAD_PHASES for a file upload, whose "send" bar counts bytes):
+    nothing, a bar per phase, or the caller's callable(LoadProgress)."""
     return _choose(progress,
-                   lambda: _PhaseBars(lambda phase: _load_label(description, phase)))
+                   lambda: _PhaseBars(lambda phase: _load_label(description, phase, phases)))

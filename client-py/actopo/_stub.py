@@ -43,6 +43,10 @@ class Stub(Protocol):
                                                         pb.LoadMeshWithProgressResponse]
     DownloadMesh: grpc.UnaryStreamMultiCallable[pb.DownloadMeshRequest, pb.DownloadMeshResponse]
     UploadMesh: grpc.StreamUnaryMultiCallable[pb.UploadMeshRequest, pb.UploadMeshResponse]
+    CreateUpload: grpc.UnaryUnaryMultiCallable[pb.CreateUploadRequest, pb.CreateUploadResponse]
+    WriteUpload: grpc.StreamUnaryMultiCallable[pb.WriteUploadRequest, pb.WriteUploadResponse]
+    GetUpload: grpc.UnaryUnaryMultiCallable[pb.GetUploadRequest, pb.GetUploadResponse]
+    DeleteUpload: grpc.UnaryUnaryMultiCallable[pb.DeleteUploadRequest, pb.DeleteUploadResponse]
     ListMeshes: grpc.UnaryUnaryMultiCallable[pb.ListMeshesRequest, pb.ListMeshesResponse]
     GetMesh: grpc.UnaryUnaryMultiCallable[pb.GetMeshRequest, pb.GetMeshResponse]
     DeleteMesh: grpc.UnaryUnaryMultiCallable[pb.DeleteMeshRequest, pb.DeleteMeshResponse]
@@ -74,6 +78,13 @@ class AsyncStub(Protocol):
     DownloadMesh: grpc.aio.UnaryStreamMultiCallable[pb.DownloadMeshRequest,
                                                     pb.DownloadMeshResponse]
     UploadMesh: grpc.aio.StreamUnaryMultiCallable[pb.UploadMeshRequest, pb.UploadMeshResponse]
+    CreateUpload: grpc.aio.UnaryUnaryMultiCallable[pb.CreateUploadRequest,
+                                                   pb.CreateUploadResponse]
+    WriteUpload: grpc.aio.StreamUnaryMultiCallable[pb.WriteUploadRequest,
+                                                   pb.WriteUploadResponse]
+    GetUpload: grpc.aio.UnaryUnaryMultiCallable[pb.GetUploadRequest, pb.GetUploadResponse]
+    DeleteUpload: grpc.aio.UnaryUnaryMultiCallable[pb.DeleteUploadRequest,
+                                                   pb.DeleteUploadResponse]
     ListMeshes: grpc.aio.UnaryUnaryMultiCallable[pb.ListMeshesRequest, pb.ListMeshesResponse]
     GetMesh: grpc.aio.UnaryUnaryMultiCallable[pb.GetMeshRequest, pb.GetMeshResponse]
     DeleteMesh: grpc.aio.UnaryUnaryMultiCallable[pb.DeleteMeshRequest, pb.DeleteMeshResponse]

@@ -28,6 +28,9 @@ class ServerLimits:
     max_message_bytes: int = 0
     max_batch_size: int = 0
     session_idle_timeout_seconds: int = 0
+    upload_budget_bytes: int = 0
+    upload_timeout_seconds: int = 0
+    max_uploads: int = 0
 
 
 @dataclass(frozen=True)
@@ -84,6 +87,9 @@ class MeshInfo:
 LOAD_PHASES = ("read", "partition", "encode")
 """The phases of a load, in the order the server goes through them."""
 
+UPLOAD_PHASES = ("send", *LOAD_PHASES)
+"""The phases of a file upload (upload_file()): the bytes sent, then the load's."""
+
 JOB_PHASES = ("faces", "run")
 """The phases of a job: "faces" (the mesh's edges and triangles, built once per mesh by the first
 job or query that reads them) when the algorithm reads them, then "run"."""
@@ -105,13 +111,18 @@ class LoadProgress:
     """How far a load has got (what a ``progress`` callable of load_mesh() receives).
 
     phase: "read" (the file or sample), "partition" (the octree) or "encode" (the static
-    encoding), in that order, each reported at least once; fraction: how much of that phase is
-    done, 0 to 1, not decreasing within the phase; elapsed_seconds: since the load started.
+    encoding), in that order, each reported at least once; for upload_file() "send" comes first
+    (the file's bytes); fraction: how much of that phase is done, 0 to 1, not decreasing within
+    the phase; elapsed_seconds: since the load (the upload) started; sent_bytes and
+    total_bytes: in "send", the bytes the server holds or that are on their way, and the
+    upload's size (None in the other phases).
     """
 
     phase: str
     fraction: float
     elapsed_seconds: float
+    sent_bytes: int | None = None
+    total_bytes: int | None = None
 
 
 @dataclass(frozen=True)

@@ -41,7 +41,7 @@ def test_docstring_examples(client):
 
 def test_readme_examples(server, monkeypatch, capsys):
     blocks = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
-    assert len(blocks) == 9
+    assert len(blocks) == 10
     monkeypatch.setenv("ACTOPO_SERVER", server)
     monkeypatch.chdir(README.parents[1])
     for code in blocks:
@@ -49,6 +49,10 @@ def test_readme_examples(server, monkeypatch, capsys):
     out = capsys.readouterr().out
     assert "14570 60948 ['eigenfunction4', 'height']" in out
     assert "found cell types: 36290 triangle; hint:" in out
+    assert ("isabel_series_s2_tet.vtu upload:isabel_series_s2_tet.vtu 230640\n"
+            "True ['send', 'read', 'partition', 'encode']\n"
+            "[('velocityMag_0', 2.0), ('velocityMag_1', 3.0), ('velocityMag_2', 4.0), "
+            "('velocityMag_3', 5.0)]\n") in out
     assert ("MeshArrays('viscousFingers001_s2_tet.vtu', 32768 vertices, 148955 tetrahedra, "
             "fields ['density'])\nint32 float32 148955\n") in out
     assert "True\n1 ids[1]: vertex id 1000000000 is outside [0, 8000)\nTrue\nTrue\n" in out
@@ -122,6 +126,7 @@ COMMANDS: dict[str, list[Step] | str] = {
              ("isabel_02_s2_tet.vtu +1 file", "velocityMag_0,velocityMag_1"))],
     "actopo upload ../shared/data/fertility_tet.vtu": [
         Step("actopo upload ../shared/data/fertility_tet.vtu", ("fertility_tet.vtu", " 60948 "))],
+    "actopo load my_mesh.vtu": [Step("actopo load my_mesh.vtu", ("my_mesh.vtu", " 24 "))],
     "actopo add-fields MESH_ID steps.vtu --fields velocityMag_03,velocityMag_04 --times 3,4": [
         Step("actopo add-fields {isabel} steps.vtu --fields velocityMag_03,velocityMag_04 "
              "--times 3,4", ("velocityMag_03  ", "velocityMag_04  "))],

@@ -147,7 +147,7 @@ def test_already_exists_and_data_loss_codes():
     assert type(taken) is actopo.AlreadyExistsError
     assert taken.code == grpc.StatusCode.ALREADY_EXISTS
     lost = translate(FakeError(grpc.StatusCode.DATA_LOSS))
-    assert type(lost) is actopo.ActopoError and lost.code == grpc.StatusCode.DATA_LOSS
+    assert type(lost) is actopo.DataLossError and lost.code == grpc.StatusCode.DATA_LOSS
 
 
 def test_a_job_names_its_fields():

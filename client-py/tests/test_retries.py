@@ -19,7 +19,7 @@ from actopo import _channel
 from actopo._proto import pb
 
 READS = {"GetServerInfo", "ListMeshes", "GetMesh", "ListSessions", "GetSession",
-         "GetSessionStats", "GetRelation", "GetRelationBatch"}
+         "GetSessionStats", "GetRelation", "GetRelationBatch", "GetUpload"}
 
 
 def _method_config() -> dict[str, Any]:

@@ -1,5 +1,6 @@
 """Uploads from pyvista, meshio, files and numpy arrive whole: the jobs on them give upstream
-TTK's results on the files they came from."""
+TTK's results on the files they came from. (A .vtu, .vtk, .vti or .pvd path goes as its bytes:
+test_upload_file.py.)"""
 
 from __future__ import annotations
 
@@ -43,8 +44,9 @@ def test_upload_meshio_mesh(client, data_dir):
 
 def test_upload_file_path_and_numpy_arrays(client, data_dir):
     path = data_dir / "manifoldCheck0_tet.vtu"
-    mesh = client.upload_mesh(str(path), block_size=10)
+    mesh = client.upload_mesh(str(path), block_size=10)  # as its bytes
     assert mesh.name == "manifoldCheck0_tet.vtu" and mesh.block_size == 10
+    assert mesh.source == "upload:manifoldCheck0_tet.vtu"
     file = _run(client, mesh, "critical-points", None)  # the first floating-point field
     _is_ttks(file, "critical-points", "manifoldCheck0_tet.vtu", "height")
     m = meshio.read(path)
@@ -60,10 +62,10 @@ def test_upload_over_many_chunks(client):
 
 
 def test_triangle_meshes_are_rejected_on_the_client(client, data_dir):
-    path = data_dir / "happi_tas_tri.vtu"
+    grid = pv.read(data_dir / "happi_tas_tri.vtu")
     before = len(client.list_meshes())
     with pytest.raises(actopo.InvalidMeshError) as e:
-        client.upload_mesh(path)
+        client.upload_mesh(grid)
     assert e.value.code is None
     assert "36290 triangle" in str(e.value) and "hint:" in str(e.value)
     assert len(client.list_meshes()) == before

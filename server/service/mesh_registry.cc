@@ -171,8 +171,14 @@ absl::StatusOr<std::shared_ptr<const LoadedMesh>> MeshRegistry::LoadUnder(
     return Read({{.path = full.string()}}, /*series=*/false, full.filename().string(),
                 std::move(source), path, root, partition, progress);
   }
-  // A series' files, like the path itself, must lie under the root.
-  ASSIGN_OR_RETURN(const std::vector<io::CollectionStep> steps, io::ReadCollection(full));
+  // A series' files, like the path itself, must lie under the root. Errors name the files as
+  // the client did, not by the server's own layout.
+  absl::StatusOr<std::vector<io::CollectionStep>> listed = io::ReadCollection(full);
+  if (!listed.ok()) {
+    return absl::Status(listed.status().code(), absl::StrReplaceAll(listed.status().message(),
+                                                                    {{root.string() + "/", ""}}));
+  }
+  const std::vector<io::CollectionStep> steps = *std::move(listed);
   std::error_code ec;
   for (const io::CollectionStep& step : steps) {
     const fs::path file = fs::weakly_canonical(step.path, ec);

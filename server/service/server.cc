@@ -121,6 +121,13 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& o) {
   builder.RegisterService(s.service.get());
   builder.SetMaxReceiveMessageSize(int(o.max_message_bytes));
   builder.SetMaxSendMessageSize(int(o.max_message_bytes));
+  // Clients ping every minute while a call waits (a long load sends nothing for minutes): gRPC's
+  // default (one ping per 5 minutes without data, then GOAWAY "too many pings") would cut them.
+  // The server pings too, so that a client gone without a word frees what its calls hold (an
+  // upload being written) within about a minute and a half.
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 30'000);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 60'000);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 20'000);
   s.server = builder.BuildAndStart();
   if (s.server == nullptr || server->port_ == 0) {
     return absl::UnavailableError(

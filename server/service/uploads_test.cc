@@ -174,6 +174,15 @@ TEST_F(UploadsTest, BadUploadsAreDroppedWithTheirReason) {
   EXPECT_NE(s.error_message().find("notes.vtu"), std::string::npos) << s.error_message();
   EXPECT_EQ(s.error_message().find(data_dir_.string()), std::string::npos) << s.error_message();
   EXPECT_EQ(Get(status.upload_id(), &status).error_code(), grpc::StatusCode::NOT_FOUND);
+  // A collection that lists nothing: its error names it as the client did.
+  const std::string empty =
+      "<?xml version=\"1.0\"?><VTKFile type=\"Collection\"><Collection/></VTKFile>";
+  ASSERT_TRUE(Create({{"empty.pvd", empty}}, &status).ok());
+  ASSERT_TRUE(Write(status.upload_id(), 0, empty, 0, int64_t(empty.size()), nullptr).ok());
+  s = LoadUpload(status.upload_id(), &mesh);
+  EXPECT_FALSE(s.ok());
+  EXPECT_NE(s.error_message().find("empty.pvd"), std::string::npos) << s.error_message();
+  EXPECT_EQ(s.error_message().find("actopo-uploads"), std::string::npos) << s.error_message();
   // A first message that is not the start; an unknown upload; a file index out of range.
   s = Write("upload-nope", 0, bytes, 0, 10, nullptr);
   EXPECT_EQ(s.error_code(), grpc::StatusCode::NOT_FOUND);
