@@ -239,12 +239,6 @@ struct Reports {
 
 class UploadFileTest : public ServerTest {
  protected:
-  std::string Keep(const absl::StatusOr<MeshInfo>& mesh) {
-    EXPECT_TRUE(mesh.ok()) << mesh.status();
-    if (!mesh.ok()) return "";
-    meshes_.push_back(mesh->mesh_id);
-    return mesh->mesh_id;
-  }
   static std::string Data(const std::string& file) { return DataDir() + "/" + file; }
   int Port() const { return std::stoi(target().substr(target().rfind(':') + 1)); }
 

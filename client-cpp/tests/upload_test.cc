@@ -11,15 +11,7 @@ namespace {
 
 using absl::StatusCode;
 
-class UploadTest : public ServerTest {
- protected:
-  std::string Keep(const absl::StatusOr<MeshInfo>& mesh) {
-    EXPECT_TRUE(mesh.ok()) << mesh.status();
-    if (!mesh.ok()) return "";
-    meshes_.push_back(mesh->mesh_id);
-    return mesh->mesh_id;
-  }
-};
+class UploadTest : public ServerTest {};
 
 TEST_F(UploadTest, Int32AndInt64RoundTrip) {
   const Lattice lattice(5);

@@ -166,6 +166,14 @@ class Hold:
 
         wait_until(held, f"{self.name} held on the server", timeout)
 
+    def interrupt_when_held(self, sent: threading.Event) -> None:
+        """SIGINT to this process, as if the user pressed Ctrl-C, once work of this name is held
+        (run on a thread of its own while the main thread waits for that work); `sent` is set
+        after."""
+        self.wait_held()
+        os.kill(os.getpid(), signal.SIGINT)
+        sent.set()
+
     def release(self) -> None:
         """Lets the held work, and work of this name that starts from now on, go on."""
         self.path.unlink(missing_ok=True)

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import sys
 import threading
 from pathlib import Path
@@ -17,7 +16,7 @@ import numpy as np
 import pytest
 import pyvista as pv
 import references
-from harness import Hold, wait_until
+from harness import wait_until
 from references import CASE_IDS, CASES
 
 import actopo
@@ -58,14 +57,6 @@ def _stopped(session: actopo.Session, finished_before: int) -> bool:
     job, then checks that the job did not finish (the session counts finished jobs only)."""
     wait_until(lambda: session.describe().running_job_id is None, "the session to run no job")
     return session.stats().jobs.count == finished_before
-
-
-def _interrupt_when_held(hold: Hold, sent: threading.Event) -> None:
-    """SIGINT to this process, as if the user pressed Ctrl-C, once the job is held: the main
-    thread then waits for the job, in run()."""
-    hold.wait_held()
-    os.kill(os.getpid(), signal.SIGINT)
-    sent.set()
 
 
 @pytest.fixture(scope="module")
@@ -266,7 +257,7 @@ def test_ctrl_c_cancels_the_job(shared_server, client, big):
     with client.open_session(big, structure="compact") as session:
         with shared_server.hold("RunJob") as hold:
             sent = threading.Event()
-            interrupter = threading.Thread(target=_interrupt_when_held, args=(hold, sent))
+            interrupter = threading.Thread(target=hold.interrupt_when_held, args=(sent,))
             interrupter.start()
             try:
                 with pytest.raises(KeyboardInterrupt):

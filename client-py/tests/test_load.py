@@ -4,7 +4,6 @@ errors mapped as elsewhere, and a raising callback, Ctrl-C or a cancelled task s
 from __future__ import annotations
 
 import asyncio
-import os
 import signal
 import threading
 from collections import Counter
@@ -151,12 +150,7 @@ def test_ctrl_c_stops_the_load(shared_server, client):
     with shared_server.hold(ENCODE) as hold:
         sent = threading.Event()
 
-        def interrupt_when_held() -> None:
-            hold.wait_held()
-            os.kill(os.getpid(), signal.SIGINT)  # as if the user pressed Ctrl-C now
-            sent.set()
-
-        interrupter = threading.Thread(target=interrupt_when_held)
+        interrupter = threading.Thread(target=hold.interrupt_when_held, args=(sent,))
         interrupter.start()
         try:
             with pytest.raises(KeyboardInterrupt) as interrupted:

@@ -9,9 +9,7 @@ from __future__ import annotations
 import asyncio
 import hashlib
 import json
-import os
 import shutil
-import signal
 import subprocess
 import sys
 import threading
@@ -675,12 +673,7 @@ def test_ctrl_c_while_the_load_waits_deletes_the_upload(shared_server, data_dir,
         with shared_server.hold("LoadMeshWithProgress") as hold:
             sent = threading.Event()
 
-            def interrupt_when_held() -> None:
-                hold.wait_held()
-                os.kill(os.getpid(), signal.SIGINT)  # as if the user pressed Ctrl-C now
-                sent.set()
-
-            interrupter = threading.Thread(target=interrupt_when_held)
+            interrupter = threading.Thread(target=hold.interrupt_when_held, args=(sent,))
             interrupter.start()
             try:
                 with pytest.raises(KeyboardInterrupt) as interrupted:

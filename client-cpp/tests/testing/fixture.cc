@@ -164,6 +164,13 @@ std::unique_ptr<WorkHold> ServerTest::Hold(const std::string& work) const {
   return GetShared().server->Hold(work);
 }
 
+std::string ServerTest::Keep(const absl::StatusOr<MeshInfo>& mesh) {
+  EXPECT_TRUE(mesh.ok()) << mesh.status();
+  if (!mesh.ok()) return "";
+  meshes_.push_back(mesh->mesh_id);
+  return mesh->mesh_id;
+}
+
 std::string ServerTest::LoadSample(const std::string& name, int32_t block_size) {
   absl::StatusOr<MeshInfo> mesh = client_->LoadMesh("sample:" + name, {.block_size = block_size});
   EXPECT_TRUE(mesh.ok()) << mesh.status();

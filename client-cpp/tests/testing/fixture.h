@@ -77,6 +77,8 @@ class ServerTest : public ::testing::Test {
   std::string LoadSample(const std::string& name, int32_t block_size = 0);
   // A session for this test (closed after it).
   std::string Open(const std::string& mesh_id, const SessionOptions& options = {});
+  // The id of a mesh this test made (deleted after it), or "" and a failure if it was not made.
+  std::string Keep(const absl::StatusOr<MeshInfo>& mesh);
   // fertility_tet.vtu, loaded once for the whole binary.
   std::string Fertility();
 
