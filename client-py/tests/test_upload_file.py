@@ -425,8 +425,10 @@ def test_ctrl_c_or_a_raising_callback_mid_send_deletes_the_upload(server, data_d
     link: the call stops, the upload is deleted, the exception propagates."""
     path = data_dir / "isabel_series_s2_tet.vtu"
 
+    # The first report of bytes handed to gRPC (it may take the whole file into its buffers
+    # before the slow link has carried much: the proxy's count says what went).
     def callback(report: actopo.LoadProgress) -> None:
-        if report.phase == "send" and 0 < (report.sent_bytes or 0) < path.stat().st_size:
+        if report.phase == "send" and (report.sent_bytes or 0) > 0:
             raise stop("stop")
 
     async def run_async(target: str) -> list[str]:
@@ -436,7 +438,7 @@ def test_ctrl_c_or_a_raising_callback_mid_send_deletes_the_upload(server, data_d
                 await client.upload_file(path, progress=callback)
         return ids
 
-    with cutting_proxy(server, rate=8e6) as proxy:
+    with cutting_proxy(server, rate=1e6) as proxy:
         if kind == "async":
             ids = asyncio.run(run_async(proxy.target))
         else:
