@@ -1,6 +1,6 @@
-// critical-points, discrete-gradient, morse-smale and persistence-diagram against upstream TTK's
-// results on the same files (../shared/data/expected-ttk.json): counts and SHA-256 digests, on
-// every structure.
+// critical-points, discrete-gradient, morse-smale, persistence-diagram and the merge trees against
+// upstream TTK's results on the same files (../shared/data/expected-ttk.json): counts and SHA-256
+// digests, on every structure.
 #include <cctype>
 #include <fstream>
 #include <set>
@@ -10,6 +10,7 @@
 #include "nlohmann/json.hpp"
 #include "server/algorithms/critical_points.h"
 #include "server/algorithms/discrete_gradient.h"
+#include "server/algorithms/merge_tree.h"
 #include "server/algorithms/morse_smale.h"
 #include "server/algorithms/persistence_diagram.h"
 #include "server/algorithms/testing/gradient_checks.h"
@@ -195,6 +196,36 @@ TEST_P(MatchesTtkOn, PersistenceDiagram) {
           }
           for (const Json& line : pd["lines"]) want.insert(line.get<std::vector<int64_t>>());
           EXPECT_EQ(got, want);
+        }
+      });
+}
+
+// The tree's counts and digests against one entry of "merge_trees" (README of the data).
+void ExpectTreeEquals(const TreeResult& r, const Json& expected) {
+  EXPECT_EQ(int64_t(r.nodes.size()), expected["nodes"].get<int64_t>());
+  EXPECT_EQ(int64_t(r.arcs.size()), expected["arcs"].get<int64_t>());
+  Json types = Json::object();
+  for (size_t t = 0; t < r.counts.size(); ++t) {
+    if (r.counts[t] > 0) types[std::to_string(t)] = r.counts[t];
+  }
+  EXPECT_EQ(types, expected["critical_types"]);
+  EXPECT_EQ(r.NodesDigest(), expected["nodes_sha256"].get<std::string>());
+  EXPECT_EQ(r.ArcsDigest(), expected["arcs_sha256"].get<std::string>());
+  EXPECT_EQ(r.SegmentationDigest(), expected["segmentation_sha256"].get<std::string>());
+}
+
+TEST_P(MatchesTtkOn, MergeTrees) {
+  const Case& c = GetParam();
+  const Json expected = Expected(c);
+  ASSERT_TRUE(expected.contains("merge_trees")) << c.file << " / " << c.field;
+  const Loaded in = Load(c.file, c.field);
+  ForEveryStructureAndThreadCount(
+      in, Prefetch::kLinear,
+      [&](const std::string& label, auto& structure, const RunContext& context) {
+        for (TreeType type : {TreeType::kJoin, TreeType::kSplit}) {
+          SCOPED_TRACE(label + " " + std::string(TreeTypeName(type)));
+          const TreeResult r = OkValue(RunMergeTree(structure, in.order, type, context));
+          ExpectTreeEquals(r, expected["merge_trees"][std::string(TreeTypeName(type)) + "_tree"]);
         }
       });
 }

@@ -6,7 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "server/algorithms/digest.h"
-#include "server/algorithms/union_find.h"
+#include "server/algorithms/link_components.h"
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
@@ -23,11 +23,8 @@ struct Classified {
 
 // Per consumer, reused across vertices.
 struct ClassifyScratch {
-  UnionFind components;  // over the link vertices (a few tens)
-  LinkVertexIndex index;
-  std::vector<std::array<int, 3>> triangles;  // per star tetrahedron, its link triangle
-  std::vector<uint8_t> below;                 // per link vertex: lower than the vertex
-  std::vector<uint8_t> known_on_boundary;     // per link vertex: an end of a boundary triangle
+  LinkComponents link_components;
+  std::vector<uint8_t> known_on_boundary;  // per link vertex: an end of a boundary triangle
   LinkEdgeCounter link;
 };
 
@@ -35,47 +32,24 @@ template <class Reader>
 Classified Classify(Reader& reader, SimplexId v, std::span<const SimplexId> order,
                     const CriticalPointsOptions& options, ClassifyScratch& scratch) {
   // The link's vertices are numbered from the star itself, not looked up in VV, which then need
-  // not be computed at all: first each star tetrahedron's link triangle in local indices, then
-  // the link's components on each side of v and its edges, over the n link vertices.
-  const auto star = reader.vertex_star(v);
-  LinkVertexIndex& index = scratch.index;
-  index.Reset(star.size());
-  std::vector<std::array<int, 3>>& triangles = scratch.triangles;
-  triangles.clear();
-  for (SimplexId t : star) {
-    std::array<int, 3>& local = triangles.emplace_back();
-    int m = 0;
-    for (SimplexId w : reader.tetrahedron_vertices(t)) {
-      if (w != v) local[m++] = index.IndexOf(w);
-    }
-  }
-  const std::span<const SimplexId> neighbors = index.vertices();
+  // not be computed at all.
+  LinkComponents& components = scratch.link_components;
+  components.Scan(reader, v, order);
+  const std::span<const SimplexId> neighbors = components.neighbors();
   const size_t n = neighbors.size();
-  const SimplexId ov = order[v];
-  std::vector<uint8_t>& below = scratch.below;
-  below.resize(n);
-  for (size_t i = 0; i < n; ++i) below[i] = order[neighbors[i]] < ov;
-  UnionFind& uf = scratch.components;
-  uf.Reset(n);
   // v's own boundary flag from the link edges of the star scanned here anyway, not from VB:
   // VB is read only for the neighbours of boundary vertices, and localized structures compute it
   // only for blocks near the boundary.
   LinkEdgeCounter& link = scratch.link;
   link.Reset(n);
-  for (const std::array<int, 3>& local : triangles) {
-    for (int i = 0; i < 3; ++i) {
-      for (int j = i + 1; j < 3; ++j) {
-        if (below[local[i]] == below[local[j]]) uf.Union(local[i], local[j]);
-      }
-    }
+  for (const std::array<int, 3>& local : components.triangles()) {
     link.AddTriangle(size_t(local[0]), size_t(local[1]), size_t(local[2]));
   }
   Classified out;
   out.on_boundary = link.AnyOnce();
   int lower = 0, upper = 0;
   for (size_t i = 0; i < n; ++i) {
-    if (uf.Find(int32_t(i)) != int32_t(i)) continue;
-    (below[i] ? lower : upper)++;
+    if (components.IsRepresentative(i)) (components.below(i) ? lower : upper)++;
   }
   if (lower == 0 && upper == 1) {
     out.type = CriticalType::kMinimum;
@@ -99,11 +73,11 @@ Classified Classify(Reader& reader, SimplexId v, std::span<const SimplexId> orde
     link.MarkOnceEnds(known);
     bool lower_on_boundary = false, upper_on_boundary = false;
     for (size_t i = 0; i < n; ++i) {
-      if (known[i]) (below[i] ? lower_on_boundary : upper_on_boundary) = true;
+      if (known[i]) (components.below(i) ? lower_on_boundary : upper_on_boundary) = true;
     }
     for (size_t i = 0; i < n && !(lower_on_boundary && upper_on_boundary); ++i) {
       if (known[i] || !reader.vertex_on_boundary(neighbors[i])) continue;
-      (below[i] ? lower_on_boundary : upper_on_boundary) = true;
+      (components.below(i) ? lower_on_boundary : upper_on_boundary) = true;
     }
     if (upper_on_boundary && !lower_on_boundary) out.type = CriticalType::kSaddle1;
     if (lower_on_boundary && !upper_on_boundary) out.type = CriticalType::kSaddle2;

@@ -1,0 +1,74 @@
+// The connected components of a vertex's lower and upper link, from its star alone (VT): two
+// link vertices are joined when a tetrahedron of the star holds both on the same side of the
+// vertex (they are then the ends of a mesh edge on that side). Critical points classify by the
+// counts of components; the merge and contour trees take one vertex of each lower (upper)
+// component as a candidate join (split) saddle's representative.
+//
+//   LinkComponents link;                        // per consumer, reused across vertices
+//   link.Scan(reader, v, order);
+//   for (size_t i = 0; i < link.size(); ++i)
+//     if (link.IsRepresentative(i) && link.below(i)) ... link.neighbors()[i] ...
+#ifndef ACTOPO_SERVER_ALGORITHMS_LINK_COMPONENTS_H_
+#define ACTOPO_SERVER_ALGORITHMS_LINK_COMPONENTS_H_
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "server/algorithms/union_find.h"
+#include "server/core/link_edges.h"
+#include "server/core/relation.h"
+
+namespace actopo {
+
+class LinkComponents {
+ public:
+  // Numbers v's link vertices as its star meets them (no VV is read) and joins them, side by
+  // side. `order` is VertexOrder() by internal id.
+  template <class Reader>
+  void Scan(Reader& reader, SimplexId v, std::span<const SimplexId> order) {
+    const auto star = reader.vertex_star(v);
+    index_.Reset(star.size());
+    triangles_.clear();
+    for (SimplexId t : star) {
+      std::array<int, 3>& local = triangles_.emplace_back();
+      int m = 0;
+      for (SimplexId w : reader.tetrahedron_vertices(t)) {
+        if (w != v) local[m++] = index_.IndexOf(w);
+      }
+    }
+    const std::span<const SimplexId> link = index_.vertices();
+    const SimplexId ov = order[v];
+    below_.resize(link.size());
+    for (size_t i = 0; i < link.size(); ++i) below_[i] = order[link[i]] < ov;
+    components_.Reset(link.size());
+    for (const std::array<int, 3>& local : triangles_) {
+      for (int i = 0; i < 3; ++i) {
+        for (int j = i + 1; j < 3; ++j) {
+          if (below_[local[i]] == below_[local[j]]) components_.Union(local[i], local[j]);
+        }
+      }
+    }
+  }
+
+  // The link vertices (internal ids), numbered as the star met them.
+  std::span<const SimplexId> neighbors() const { return index_.vertices(); }
+  size_t size() const { return index_.vertices().size(); }
+  // Whether link vertex i is lower than v in the order.
+  bool below(size_t i) const { return below_[i] != 0; }
+  // Whether link vertex i stands for its component (one per component).
+  bool IsRepresentative(size_t i) { return components_.Find(int32_t(i)) == int32_t(i); }
+  // Per star tetrahedron, its link triangle in link vertex numbers.
+  std::span<const std::array<int, 3>> triangles() const { return triangles_; }
+
+ private:
+  UnionFind components_;  // over the link vertices (a few tens)
+  LinkVertexIndex index_;
+  std::vector<std::array<int, 3>> triangles_;
+  std::vector<uint8_t> below_;
+};
+
+}  // namespace actopo
+
+#endif  // ACTOPO_SERVER_ALGORITHMS_LINK_COMPONENTS_H_

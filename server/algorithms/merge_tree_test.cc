@@ -1,0 +1,217 @@
+#include "server/algorithms/merge_tree.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+#include <tuple>
+
+#include "gtest/gtest.h"
+#include "server/algorithms/testing/tree_oracle.h"
+#include "server/algorithms/vertex_order.h"
+#include "server/core/actopo_structure.h"
+#include "server/core/compact_structure.h"
+#include "server/core/explicit_structure.h"
+#include "server/core/partition.h"
+#include "server/core/testing/status.h"
+#include "server/core/testing/test_meshes.h"
+
+namespace actopo {
+namespace {
+
+using testing::OracleTree;
+
+struct Case {
+  std::string name;
+  Mesh mesh;
+  std::vector<double> scalars;
+};
+
+// Two tetrahedra sharing only their highest vertex: the join tree's root is a saddle, closed by
+// a self-loop; and one vertex in no tetrahedron.
+Mesh PinchedWithIsolatedPoint() {
+  Mesh m;
+  m.points = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 5,  // 0-3: first tet, 3 the shared top
+              2, 0, 0, 3, 0, 0, 2, 1, 0,           // 4-6: second tet
+              9, 9, 9};                            // 7: isolated
+  m.tetrahedra = {0, 1, 2, 3, 4, 5, 6, 3};
+  m.point_fields.push_back({"height", {0.5, 1, 2, 10, 0, 1.5, 3, 4}});
+  return m;
+}
+
+std::vector<Case> Cases() {
+  std::vector<Case> out;
+  const auto add = [&out](std::string name, Mesh m) {
+    std::vector<double> s = m.point_fields[0].values;
+    out.push_back({std::move(name), std::move(m), std::move(s)});
+  };
+  add("single", testing::SingleTetrahedron());
+  add("lattice", testing::Lattice(9, 8, 7, 12));
+  add("two_components", testing::TwoComponents());
+  add("non_manifold", testing::NonManifold());
+  add("bipyramid", testing::Bipyramid(12, true));
+  add("pinched", PinchedWithIsolatedPoint());
+  Mesh ties = testing::Lattice(7, 6, 5, 3);
+  for (double& x : ties.point_fields[0].values) x = std::round(x * 2) / 2;
+  add("lattice_ties", std::move(ties));
+  return out;
+}
+
+std::shared_ptr<const Topology> Build(const Mesh& m, int capacity) {
+  return OkValue(Topology::Build(m, OctreeBlocks(m.points, {.bucket_capacity = capacity})));
+}
+
+// The tree as sets of input vertices, independent of numbering.
+struct Shape {
+  std::set<std::pair<SimplexId, int>> nodes;
+  std::multiset<std::pair<SimplexId, SimplexId>> arcs;
+  std::vector<std::pair<SimplexId, SimplexId>> segmentation;
+  bool operator==(const Shape&) const = default;
+};
+
+Shape ShapeOf(const TreeResult& r) {
+  Shape s;
+  for (const TreeNode& n : r.nodes) s.nodes.insert({n.vertex, int(n.type)});
+  for (const TreeArc& a : r.arcs)
+    s.arcs.insert({r.nodes[a.down_node].vertex, r.nodes[a.up_node].vertex});
+  for (int32_t a : r.vertex_arc) {
+    s.segmentation.push_back(
+        {r.nodes[r.arcs[a].down_node].vertex, r.nodes[r.arcs[a].up_node].vertex});
+  }
+  return s;
+}
+
+Shape ShapeOf(const OracleTree& t) {
+  Shape s;
+  for (const auto& [v, type] : t.nodes) s.nodes.insert({v, type});
+  for (const auto& arc : t.arcs) s.arcs.insert(arc);
+  s.segmentation = t.segmentation;
+  return s;
+}
+
+void PrintTo(const Shape& s, std::ostream* out) {
+  *out << "nodes:";
+  for (const auto& [v, t] : s.nodes) *out << " " << v << "/" << t;
+  *out << " arcs:";
+  for (const auto& [d, u] : s.arcs) *out << " " << d << "-" << u;
+  *out << " segmentation:";
+  for (const auto& [d, u] : s.segmentation) *out << " " << d << "-" << u;
+}
+
+// Runs `check(label, structure, context)` on every structure with 1, 2 and 3 consumers.
+template <class Check>
+void OnEveryStructure(const std::shared_ptr<const Topology>& topo, Check&& check) {
+  auto explicit_structure = OkValue(ExplicitStructure::Build(topo, {.relations = TreeDeclared()}));
+  for (int consumers : {1, 2, 3}) {
+    const RunContext context{.consumers = consumers};
+    const std::string c = " C=" + std::to_string(consumers);
+    check("explicit" + c, *explicit_structure, context);
+    CompactStructure compact(topo, {.cache_ratio = 0.1, .consumers = consumers});
+    check("compact" + c, compact, context);
+    auto actopo = OkValue(ActopoStructure::Create(
+        topo, {.consumers = consumers, .producers = 1 + consumers % 2, .buffer_ratio = 0.2}));
+    check("actopo" + c, *actopo, context);
+  }
+}
+
+TEST(MergeTree, EqualsTheBruteForceTreeOnEveryStructure) {
+  for (const Case& c : Cases()) {
+    for (int capacity : {3, 40}) {
+      auto topo = Build(c.mesh, capacity);
+      const std::vector<SimplexId> order = VertexOrder(*topo, c.scalars);
+      for (TreeType type : {TreeType::kJoin, TreeType::kSplit}) {
+        const Shape expected = ShapeOf(testing::BruteForceMergeTree(c.mesh, c.scalars, type));
+        OnEveryStructure(
+            topo, [&](const std::string& label, auto& structure, const RunContext& context) {
+              const TreeResult r = OkValue(RunMergeTree(structure, order, type, context));
+              EXPECT_EQ(ShapeOf(r), expected) << c.name << " " << TreeTypeName(type) << " " << label
+                                              << " capacity " << capacity;
+            });
+      }
+    }
+  }
+}
+
+// TTK's numbering (docs/trees-plan.md): NodeIds along the sweep within each component, arcs
+// in the order of their down node, SegmentationIds a permutation of each component's ids
+// starting at its node offset, and up/downNodeId relative to the component.
+TEST(MergeTree, NumbersAsTtkDoes) {
+  for (const Case& c : Cases()) {
+    auto topo = Build(c.mesh, 40);
+    const std::vector<SimplexId> order = VertexOrder(*topo, c.scalars);
+    auto structure = OkValue(ExplicitStructure::Build(topo, {.relations = TreeDeclared()}));
+    for (TreeType type : {TreeType::kJoin, TreeType::kSplit}) {
+      const TreeResult r = OkValue(RunMergeTree(*structure, order, type, {}));
+      SCOPED_TRACE(c.name + " " + std::string(TreeTypeName(type)));
+      ASSERT_GE(r.component_node_begin.size(), 2u);
+      EXPECT_EQ(r.component_node_begin.back(), int32_t(r.nodes.size()));
+      const auto rank = [&](int32_t node) {
+        const SimplexId o = order[topo->vertex_internal_id(r.nodes[node].vertex)];
+        return type == TreeType::kJoin ? o : -o;
+      };
+      for (size_t k = 0; k + 1 < r.component_node_begin.size(); ++k) {
+        const int32_t begin = r.component_node_begin[k], end = r.component_node_begin[k + 1];
+        for (int32_t i = begin + 1; i < end; ++i) EXPECT_LT(rank(i - 1), rank(i));
+        std::vector<int32_t> ids;
+        for (const TreeArc& a : r.arcs) {
+          if (a.down_node >= begin && a.down_node < end) ids.push_back(a.segmentation_id - begin);
+        }
+        std::sort(ids.begin(), ids.end());
+        for (size_t i = 0; i < ids.size(); ++i) EXPECT_EQ(ids[i], int32_t(i));
+      }
+      for (size_t i = 1; i < r.arcs.size(); ++i) {
+        EXPECT_LT(std::pair(r.arcs[i - 1].down_node, r.arcs[i - 1].up_node),
+                  std::pair(r.arcs[i].down_node, r.arcs[i].up_node));
+      }
+      int64_t regular = 0;
+      for (const TreeArc& a : r.arcs) regular += a.region_size;
+      EXPECT_EQ(regular + int64_t(r.nodes.size()), int64_t(c.mesh.num_vertices()));
+    }
+  }
+}
+
+// Properties of the join tree: minima are leaves with one arc up, saddles have two or more arcs
+// down; the split tree mirrors it.
+TEST(MergeTree, NodeDegreesFollowTheirTypes) {
+  const Mesh m = testing::Lattice(9, 8, 7, 12);
+  auto topo = Build(m, 40);
+  const std::vector<SimplexId> order = VertexOrder(*topo, m.point_fields[0].values);
+  auto structure = OkValue(ExplicitStructure::Build(topo, {.relations = TreeDeclared()}));
+  for (TreeType type : {TreeType::kJoin, TreeType::kSplit}) {
+    const TreeResult r = OkValue(RunMergeTree(*structure, order, type, {}));
+    std::vector<int> up(r.nodes.size()), down(r.nodes.size());
+    for (const TreeArc& a : r.arcs) {
+      ++up[a.down_node];
+      ++down[a.up_node];
+    }
+    const CriticalType leaf =
+        type == TreeType::kJoin ? CriticalType::kMinimum : CriticalType::kMaximum;
+    const CriticalType saddle =
+        type == TreeType::kJoin ? CriticalType::kSaddle1 : CriticalType::kSaddle2;
+    int leaves = 0;
+    for (size_t i = 0; i < r.nodes.size(); ++i) {
+      if (r.nodes[i].type == leaf) {
+        ++leaves;
+        EXPECT_EQ(up[i], 1);
+        EXPECT_EQ(down[i], 0);
+      }
+      if (r.nodes[i].type == saddle) {
+        EXPECT_EQ(up[i], 1);
+        EXPECT_EQ(down[i], 2);
+      }
+    }
+    EXPECT_GT(leaves, 1) << TreeTypeName(type);
+  }
+}
+
+TEST(MergeTree, ContourTypeIsRefused) {
+  const Mesh m = testing::SingleTetrahedron();
+  auto topo = Build(m, 40);
+  auto structure = OkValue(ExplicitStructure::Build(topo, {.relations = TreeDeclared()}));
+  const std::vector<SimplexId> order = VertexOrder(*topo, m.point_fields[0].values);
+  EXPECT_EQ(RunMergeTree(*structure, order, TreeType::kContour, {}).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace actopo
