@@ -222,9 +222,9 @@ TEST_P(MatchesTtkOn, MergeTrees) {
   ForEveryStructureAndThreadCount(
       in, Prefetch::kLinear,
       [&](const std::string& label, auto& structure, const RunContext& context) {
-        for (TreeType type : {TreeType::kJoin, TreeType::kSplit}) {
+        for (TreeType type : {TreeType::kJoin, TreeType::kSplit, TreeType::kContour}) {
           SCOPED_TRACE(label + " " + std::string(TreeTypeName(type)));
-          const TreeResult r = OkValue(RunMergeTree(structure, in.order, type, context));
+          const TreeResult r = OkValue(RunTree(structure, in.order, type, context));
           ExpectTreeEquals(r, expected["merge_trees"][std::string(TreeTypeName(type)) + "_tree"]);
         }
       });

@@ -14,6 +14,7 @@
 #include "server/core/compact_structure.h"
 #include "server/core/explicit_structure.h"
 #include "server/core/parallel.h"
+#include "server/core/status_macros.h"
 
 namespace actopo {
 
@@ -271,6 +272,25 @@ void FinishTree(const Topology& topology, std::span<const int32_t> vertex_arc_by
                 std::span<const uint8_t> internal_is_node, TreeResult& result) {
   result.counts = {};
   for (const TreeNode& node : result.nodes) ++result.counts[int(node.type)];
+  // Per node: its down and up arc counts and the first of each (arcs in cell order).
+  const size_t num_nodes = result.nodes.size();
+  std::vector<int32_t> downs(num_nodes, 0), ups(num_nodes, 0), first_down(num_nodes, -1),
+      first_up(num_nodes, -1);
+  for (size_t i = 0; i < result.arcs.size(); ++i) {
+    const TreeArc& a = result.arcs[i];
+    if (downs[a.up_node]++ == 0) first_down[a.up_node] = int32_t(i);
+    if (ups[a.down_node]++ == 0) first_up[a.down_node] = int32_t(i);
+  }
+  for (size_t n = 0; n < num_nodes; ++n) {
+    int32_t& arc = result.nodes[n].region_arc;
+    if (downs[n] == 1) {
+      arc = first_down[n];
+    } else if (ups[n] == 1) {
+      arc = first_up[n];
+    } else {
+      arc = first_down[n] >= 0 ? first_down[n] : first_up[n];
+    }
+  }
   for (TreeArc& a : result.arcs) {
     a.region_type = RegionType(result.nodes[a.down_node].type, result.nodes[a.up_node].type);
     a.region_size = 0;
@@ -283,72 +303,80 @@ void FinishTree(const Topology& topology, std::span<const int32_t> vertex_arc_by
   }
 }
 
+MergeTreeNumbering::MergeTreeNumbering(const SweptTree& tree)
+    : tree_(tree),
+      node_arc_(tree.node_vertex.size(), -1),
+      up_arcs_(tree.node_vertex.size(), 0),
+      down_arcs_(tree.node_vertex.size(), 0),
+      component_nodes_(size_t(tree.num_components)) {
+  for (size_t i = 0; i < tree.node_vertex.size(); ++i) {
+    component_nodes_[tree.node_component[i]].push_back(int32_t(i));
+    if (tree.node_up[i] < 0) continue;
+    ++up_arcs_[i];
+    ++down_arcs_[tree.node_up[i]];
+  }
+}
+
+void MergeTreeNumbering::AppendRun(const Topology& topology, std::span<const SimplexId> order,
+                                   std::span<const int32_t> run, TreeResult& result) {
+  std::vector<int32_t> nodes;
+  for (int32_t c : run) {
+    nodes.insert(nodes.end(), component_nodes_[c].begin(), component_nodes_[c].end());
+  }
+  std::sort(nodes.begin(), nodes.end(),
+            [&](int32_t a, int32_t b) { return tree_.Key(order, a) < tree_.Key(order, b); });
+  const int32_t offset = int32_t(result.nodes.size());
+  result.component_node_begin.push_back(offset);
+  std::vector<int32_t> node_id(tree_.node_vertex.size());  // only this run's entries are set
+  for (size_t k = 0; k < nodes.size(); ++k) {
+    const int32_t i = nodes[k];
+    node_id[i] = offset + int32_t(k);
+    const CriticalType t = tree_.reversed ? NodeType(down_arcs_[i], up_arcs_[i])
+                                          : NodeType(up_arcs_[i], down_arcs_[i]);
+    result.nodes.push_back({topology.vertex_input_id(tree_.node_vertex[i]), t});
+  }
+  const size_t first_arc = result.arcs.size();
+  for (int32_t i : nodes) {
+    if (tree_.node_up[i] < 0) continue;
+    node_arc_[i] = int32_t(result.arcs.size());
+    result.arcs.push_back({.down_node = node_id[i], .up_node = node_id[tree_.node_up[i]]});
+  }
+  // Breadth-first from the leaves in NodeId order: a node's arc gets the next id the first
+  // time the node is met, and its upper node is queued then.
+  std::vector<uint8_t> seen(result.arcs.size() - first_arc, 0);
+  std::queue<int32_t> queue;
+  for (int32_t i : nodes) {
+    if (tree_.node_leaf[i]) queue.push(i);
+  }
+  int32_t next = 0;
+  while (!queue.empty()) {
+    const int32_t i = queue.front();
+    queue.pop();
+    const int32_t a = node_arc_[i];
+    if (a < 0 || seen[size_t(a) - first_arc]) continue;
+    seen[size_t(a) - first_arc] = 1;
+    result.arcs[a].segmentation_id = offset + next++;
+    queue.push(tree_.node_up[i]);
+  }
+}
+
 namespace {
 
 // TTK's numbering of a join or split tree (FTMTree_MT::normalizeIds with sortNodes and
-// sortArcs): per run of the forest, NodeIds along the sweep, arcs by their down node, and
-// normalized arc ids handed out breadth-first from the leaves.
+// sortArcs), run by run of the forest.
 TreeResult NumberMergeTree(const Topology& topology, std::span<const SimplexId> order,
                            TreeType type, SweptTree tree) {
   TreeResult result;
   result.type = type;
-  const size_t num_nodes = tree.node_vertex.size();
-  std::vector<std::vector<int32_t>> component_nodes(size_t(tree.num_components));
-  for (size_t i = 0; i < num_nodes; ++i) {
-    component_nodes[tree.node_component[i]].push_back(int32_t(i));
-  }
-  std::vector<int32_t> node_id(num_nodes), node_arc(num_nodes, -1);
-  std::vector<int> up_arcs(num_nodes, 0), down_arcs(num_nodes, 0);
-  for (size_t i = 0; i < num_nodes; ++i) {
-    if (tree.node_up[i] < 0) continue;
-    ++up_arcs[i];
-    ++down_arcs[tree.node_up[i]];
-  }
+  MergeTreeNumbering numbering(tree);
   for (const std::vector<int32_t>& run : ForestRuns(topology, tree)) {
-    std::vector<int32_t> nodes;
-    for (int32_t c : run)
-      nodes.insert(nodes.end(), component_nodes[c].begin(), component_nodes[c].end());
-    std::sort(nodes.begin(), nodes.end(),
-              [&](int32_t a, int32_t b) { return tree.Key(order, a) < tree.Key(order, b); });
-    const int32_t offset = int32_t(result.nodes.size());
-    result.component_node_begin.push_back(offset);
-    for (size_t k = 0; k < nodes.size(); ++k) {
-      const int32_t i = nodes[k];
-      node_id[i] = offset + int32_t(k);
-      CriticalType t = NodeType(up_arcs[i], down_arcs[i]);
-      if (tree.reversed) t = NodeType(down_arcs[i], up_arcs[i]);
-      result.nodes.push_back({topology.vertex_input_id(tree.node_vertex[i]), t});
-    }
-    const size_t first_arc = result.arcs.size();
-    for (int32_t i : nodes) {
-      if (tree.node_up[i] < 0) continue;
-      node_arc[i] = int32_t(result.arcs.size());
-      result.arcs.push_back({.down_node = node_id[i], .up_node = node_id[tree.node_up[i]]});
-    }
-    // Breadth-first from the leaves in NodeId order: a node's arc gets the next id the first
-    // time the node is met, and its upper node is queued then.
-    std::vector<uint8_t> seen(result.arcs.size() - first_arc, 0);
-    std::queue<int32_t> queue;
-    for (int32_t i : nodes) {
-      if (tree.node_leaf[i]) queue.push(i);
-    }
-    int32_t next = 0;
-    while (!queue.empty()) {
-      const int32_t i = queue.front();
-      queue.pop();
-      const int32_t a = node_arc[i];
-      if (a < 0 || seen[size_t(a) - first_arc]) continue;
-      seen[size_t(a) - first_arc] = 1;
-      result.arcs[a].segmentation_id = offset + next++;
-      queue.push(tree.node_up[i]);
-    }
+    numbering.AppendRun(topology, order, run, result);
   }
   result.component_node_begin.push_back(int32_t(result.nodes.size()));
-
   std::vector<uint8_t> is_node(size_t(topology.num_vertices()), 0);
   for (SimplexId v : tree.node_vertex) is_node[v] = 1;
   std::vector<int32_t>& vertex_arc = tree.vertex_node;  // node index -> its arc, in place
-  for (int32_t& x : vertex_arc) x = node_arc[x];
+  for (int32_t& x : vertex_arc) x = numbering.node_arc()[x];
   FinishTree(topology, vertex_arc, is_node, result);
   return result;
 }
@@ -357,25 +385,27 @@ TreeResult NumberMergeTree(const Topology& topology, std::span<const SimplexId> 
 }  // namespace tree_internal
 
 template <TopologicalStructure Structure>
-absl::StatusOr<TreeResult> RunMergeTree(Structure& structure, std::span<const SimplexId> order,
-                                        TreeType type, const RunContext& context) {
+absl::StatusOr<TreeResult> RunTree(Structure& structure, std::span<const SimplexId> order,
+                                   TreeType type, const RunContext& context) {
   using namespace tree_internal;
+  const Topology& topology = structure.topology();
   if (type == TreeType::kContour) {
-    return absl::InvalidArgumentError(
-        "RunMergeTree builds join and split trees; use RunContourTree");
+    LowerLinks join, split;
+    RETURN_IF_ERROR(ScanLinks(structure, order, context, &join, &split));
+    SweptTree join_tree = Sweep(topology, order, false, std::move(join));
+    SweptTree split_tree = Sweep(topology, order, true, std::move(split));
+    return BuildContourTree(topology, order, std::move(join_tree), std::move(split_tree));
   }
   const bool split = type == TreeType::kSplit;
   LowerLinks links;
-  const absl::Status scanned =
-      ScanLinks(structure, order, context, split ? nullptr : &links, split ? &links : nullptr);
-  if (!scanned.ok()) return scanned;
-  const Topology& topology = structure.topology();
+  RETURN_IF_ERROR(
+      ScanLinks(structure, order, context, split ? nullptr : &links, split ? &links : nullptr));
   return NumberMergeTree(topology, order, type, Sweep(topology, order, split, std::move(links)));
 }
 
 #define ACTOPO_INSTANTIATE(S)                                                                   \
-  template absl::StatusOr<TreeResult> RunMergeTree(S&, std::span<const SimplexId>, TreeType,    \
-                                                   const RunContext&);                          \
+  template absl::StatusOr<TreeResult> RunTree(S&, std::span<const SimplexId>, TreeType,         \
+                                              const RunContext&);                               \
   template absl::Status tree_internal::ScanLinks(S&, std::span<const SimplexId>,                \
                                                  const RunContext&, tree_internal::LowerLinks*, \
                                                  tree_internal::LowerLinks*);

@@ -13,7 +13,7 @@
 // per component is its latest node. Only vertices whose lower link has two or more components
 // are checked for a merge.
 //
-//   ASSIGN_OR_RETURN(TreeResult join, RunMergeTree(*structure, order, TreeType::kJoin, context));
+//   ASSIGN_OR_RETURN(TreeResult join, RunTree(*structure, order, TreeType::kJoin, context));
 //   for (const TreeArc& a : join.arcs) ... join.nodes[a.down_node].vertex ...
 //   std::string digest = join.ArcsDigest();  // equals expected-ttk.json's arcs_sha256
 #ifndef ACTOPO_SERVER_ALGORITHMS_MERGE_TREE_H_
@@ -44,6 +44,9 @@ struct TreeNode {
   // root of the split tree, 3 the reverse, 1 and 2 saddles, 4 degenerate (a k-way merge for
   // k >= 3, a root that is also a saddle), 5 regular (a one-vertex component).
   CriticalType type = CriticalType::kRegular;
+  // The arc whose RegionSize and RegionSpan the node reports, as TTK picks it: its only down
+  // arc, else its only up arc, else its first down arc (its first up arc when it has none).
+  int32_t region_arc = 0;
 };
 
 struct TreeArc {
@@ -83,11 +86,11 @@ struct TreeResult {
 // VT only: the star of each vertex, whose other vertices are its link (as critical points).
 RelationSet TreeDeclared();
 
-// The join tree (kJoin) or the split tree (kSplit) of the order `order` (VertexOrder(), by
-// internal id). Defined for the explicit, compact and actopo structures.
+// The join tree (kJoin), split tree (kSplit) or contour tree (kContour) of the order `order`
+// (VertexOrder(), by internal id). Defined for the explicit, compact and actopo structures.
 template <TopologicalStructure Structure>
-absl::StatusOr<TreeResult> RunMergeTree(Structure& structure, std::span<const SimplexId> order,
-                                        TreeType type, const RunContext& context);
+absl::StatusOr<TreeResult> RunTree(Structure& structure, std::span<const SimplexId> order,
+                                   TreeType type, const RunContext& context);
 
 }  // namespace actopo
 

@@ -123,7 +123,7 @@ TEST(MergeTree, EqualsTheBruteForceTreeOnEveryStructure) {
         const Shape expected = ShapeOf(testing::BruteForceMergeTree(c.mesh, c.scalars, type));
         OnEveryStructure(
             topo, [&](const std::string& label, auto& structure, const RunContext& context) {
-              const TreeResult r = OkValue(RunMergeTree(structure, order, type, context));
+              const TreeResult r = OkValue(RunTree(structure, order, type, context));
               EXPECT_EQ(ShapeOf(r), expected) << c.name << " " << TreeTypeName(type) << " " << label
                                               << " capacity " << capacity;
             });
@@ -141,7 +141,7 @@ TEST(MergeTree, NumbersAsTtkDoes) {
     const std::vector<SimplexId> order = VertexOrder(*topo, c.scalars);
     auto structure = OkValue(ExplicitStructure::Build(topo, {.relations = TreeDeclared()}));
     for (TreeType type : {TreeType::kJoin, TreeType::kSplit}) {
-      const TreeResult r = OkValue(RunMergeTree(*structure, order, type, {}));
+      const TreeResult r = OkValue(RunTree(*structure, order, type, {}));
       SCOPED_TRACE(c.name + " " + std::string(TreeTypeName(type)));
       ASSERT_GE(r.component_node_begin.size(), 2u);
       EXPECT_EQ(r.component_node_begin.back(), int32_t(r.nodes.size()));
@@ -178,7 +178,7 @@ TEST(MergeTree, NodeDegreesFollowTheirTypes) {
   const std::vector<SimplexId> order = VertexOrder(*topo, m.point_fields[0].values);
   auto structure = OkValue(ExplicitStructure::Build(topo, {.relations = TreeDeclared()}));
   for (TreeType type : {TreeType::kJoin, TreeType::kSplit}) {
-    const TreeResult r = OkValue(RunMergeTree(*structure, order, type, {}));
+    const TreeResult r = OkValue(RunTree(*structure, order, type, {}));
     std::vector<int> up(r.nodes.size()), down(r.nodes.size());
     for (const TreeArc& a : r.arcs) {
       ++up[a.down_node];
@@ -204,13 +204,86 @@ TEST(MergeTree, NodeDegreesFollowTheirTypes) {
   }
 }
 
-TEST(MergeTree, ContourTypeIsRefused) {
-  const Mesh m = testing::SingleTetrahedron();
+// A join tree arc's vertices with everything below it are a component of a sublevel set, so
+// connected over the edges (and dually for the split tree).
+TEST(MergeTree, ArcsWithTheirSubtreesAreConnected) {
+  const Mesh m = testing::Lattice(9, 8, 7, 12);
   auto topo = Build(m, 40);
-  auto structure = OkValue(ExplicitStructure::Build(topo, {.relations = TreeDeclared()}));
   const std::vector<SimplexId> order = VertexOrder(*topo, m.point_fields[0].values);
-  EXPECT_EQ(RunMergeTree(*structure, order, TreeType::kContour, {}).status().code(),
-            absl::StatusCode::kInvalidArgument);
+  auto structure = OkValue(ExplicitStructure::Build(topo, {.relations = TreeDeclared()}));
+  std::vector<std::set<SimplexId>> adjacent(size_t(m.num_vertices()));
+  for (SimplexId t = 0; t < m.num_tetrahedra(); ++t) {
+    for (int i = 0; i < 4; ++i) {
+      for (int j = 0; j < 4; ++j) adjacent[m.tetrahedra[4 * t + i]].insert(m.tetrahedra[4 * t + j]);
+    }
+  }
+  for (TreeType type : {TreeType::kJoin, TreeType::kSplit}) {
+    const TreeResult r = OkValue(RunTree(*structure, order, type, {}));
+    std::vector<int32_t> arc_of_down(r.nodes.size(), -1);
+    for (size_t a = 0; a < r.arcs.size(); ++a) arc_of_down[r.arcs[a].down_node] = int32_t(a);
+    for (size_t a = 0; a < r.arcs.size(); ++a) {
+      // Members: the vertices whose arc climbs to arc a, and the nodes below it.
+      std::set<SimplexId> members;
+      for (SimplexId v = 0; v < m.num_vertices(); ++v) {
+        for (int32_t b = r.vertex_arc[v]; b >= 0;) {
+          if (b == int32_t(a)) members.insert(v);
+          const int32_t next = arc_of_down[r.arcs[b].up_node];
+          b = next == b ? -1 : next;
+        }
+      }
+      members.insert(r.nodes[r.arcs[a].down_node].vertex);
+      std::set<SimplexId> reached = {*members.begin()};
+      std::vector<SimplexId> stack = {*members.begin()};
+      while (!stack.empty()) {
+        const SimplexId v = stack.back();
+        stack.pop_back();
+        for (SimplexId w : adjacent[v]) {
+          if (members.contains(w) && reached.insert(w).second) stack.push_back(w);
+        }
+      }
+      EXPECT_EQ(reached.size(), members.size()) << TreeTypeName(type) << " arc " << a;
+    }
+  }
+}
+
+// The contour tree: identical on every structure and consumer count; its nodes are the join
+// and split trees' nodes; every other vertex lies strictly between its arc's two ends. (Its
+// regions need not be connected over the edges: FTM gives a vertex to the first arc peeled
+// off either tree that holds it; the fidelity tests compare them with TTK's.)
+TEST(ContourTree, CombinesTheJoinAndSplitTrees) {
+  for (const Case& c : Cases()) {
+    auto topo = Build(c.mesh, 3);
+    const std::vector<SimplexId> order = VertexOrder(*topo, c.scalars);
+    auto structure = OkValue(ExplicitStructure::Build(topo, {.relations = TreeDeclared()}));
+    const TreeResult contour = OkValue(RunTree(*structure, order, TreeType::kContour, {}));
+    SCOPED_TRACE(c.name);
+    std::set<SimplexId> expected_nodes, nodes;
+    for (TreeType type : {TreeType::kJoin, TreeType::kSplit}) {
+      for (const TreeNode& n : OkValue(RunTree(*structure, order, type, {})).nodes) {
+        expected_nodes.insert(n.vertex);
+      }
+    }
+    for (const TreeNode& n : contour.nodes) nodes.insert(n.vertex);
+    EXPECT_EQ(nodes, expected_nodes);
+    const auto rank = [&](SimplexId input) { return order[topo->vertex_internal_id(input)]; };
+    for (SimplexId v = 0; v < c.mesh.num_vertices(); ++v) {
+      const TreeArc& a = contour.arcs[contour.vertex_arc[v]];
+      const SimplexId down = contour.nodes[a.down_node].vertex;
+      const SimplexId up = contour.nodes[a.up_node].vertex;
+      if (nodes.contains(v)) {
+        EXPECT_TRUE(v == down || v == up) << v;
+        continue;
+      }
+      EXPECT_LT(rank(down), rank(v)) << v;
+      EXPECT_LT(rank(v), rank(up)) << v;
+    }
+    const Shape shape = ShapeOf(contour);
+    OnEveryStructure(topo, [&](const std::string& label, auto& s, const RunContext& context) {
+      const TreeResult r = OkValue(RunTree(s, order, TreeType::kContour, context));
+      EXPECT_EQ(ShapeOf(r), shape) << label;
+      EXPECT_EQ(r.SegmentationDigest(), contour.SegmentationDigest()) << label;
+    });
+  }
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include "absl/strings/str_join.h"
 #include "server/algorithms/critical_points.h"
 #include "server/algorithms/discrete_gradient.h"
+#include "server/algorithms/merge_tree.h"
 #include "server/algorithms/morse_smale.h"
 #include "server/algorithms/persistence_diagram.h"
 #include "server/algorithms/topo_relations.h"
@@ -15,11 +16,12 @@
 namespace actopo {
 namespace {
 
-constexpr std::array<Algorithm, 8> kAll = {
+constexpr std::array<Algorithm, 10> kAll = {
     Algorithm::kTopoRelations,      Algorithm::kCriticalPoints,
     Algorithm::kDiscreteGradient,   Algorithm::kMorseSmale,
     Algorithm::kPersistenceDiagram, Algorithm::kTopologicalSimplification,
-    Algorithm::kDiagramDistance,    Algorithm::kTracking};
+    Algorithm::kDiagramDistance,    Algorithm::kTracking,
+    Algorithm::kMergeTree,          Algorithm::kContourTree};
 
 }  // namespace
 
@@ -33,6 +35,8 @@ std::string_view AlgorithmName(Algorithm a) {
     case Algorithm::kTopologicalSimplification: return "topological-simplification";
     case Algorithm::kDiagramDistance: return "diagram-distance";
     case Algorithm::kTracking: return "tracking";
+    case Algorithm::kMergeTree: return "merge-tree";
+    case Algorithm::kContourTree: return "contour-tree";
   }
   return "?";
 }
@@ -68,6 +72,8 @@ RelationSet DeclaredRelations(Algorithm a) {
     case Algorithm::kDiagramDistance:
     case Algorithm::kTracking: return PersistenceDiagramDeclared();
     case Algorithm::kTopologicalSimplification: return TopologicalSimplificationDeclared();
+    case Algorithm::kMergeTree:
+    case Algorithm::kContourTree: return TreeDeclared();
   }
   return {};
 }
@@ -81,9 +87,10 @@ RelationSet SweptRelations(Algorithm a) {
 }
 
 bool NeedsFaces(Algorithm a) {
-  // Critical points reads VT and VB and no other part of the topology's faces.
+  // Critical points reads VT and VB and no other part of the topology's faces, the trees VT.
   static_assert(!NeedsFaces(Relation::kVT) && !NeedsFaces(Relation::kVB));
-  return a != Algorithm::kCriticalPoints;
+  return a != Algorithm::kCriticalPoints && a != Algorithm::kMergeTree &&
+         a != Algorithm::kContourTree;
 }
 
 bool NeedsScalar(Algorithm a) { return a != Algorithm::kTopoRelations; }

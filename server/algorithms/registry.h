@@ -28,6 +28,10 @@ enum class Algorithm : uint8_t {
   // A series' persistence diagrams, consecutive ones matched and the matches chained into
   // trajectories (server/diagrams/tracking.h): per field it runs as the persistence diagram.
   kTracking,
+  // TTK's MergeTree: the join tree (parameter tree = join, the default) or the split tree.
+  kMergeTree,
+  // TTK's ContourTree: the join and split trees combined.
+  kContourTree,
 };
 
 std::string_view AlgorithmName(Algorithm a);  // "critical-points"
@@ -44,7 +48,8 @@ RelationSet DeclaredRelations(Algorithm a);
 // Prefetching those would compute blocks nobody asks for.
 RelationSet SweptRelations(Algorithm a);
 // Whether the algorithm reads edges or triangles (its relations or the topology's), so needs a
-// topology built with faces (TopologyOptions::faces): every one but critical points.
+// topology built with faces (TopologyOptions::faces): every one but critical points and the
+// trees (which simplify first only with a threshold: run_algorithm.h's NeedsFaces(input)).
 bool NeedsFaces(Algorithm a);
 // Whether the algorithm reads a scalar field.
 bool NeedsScalar(Algorithm a);

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
 #include "server/algorithms/consumers.h"
 #include "server/algorithms/merge_tree.h"
 #include "server/core/topology.h"
@@ -64,6 +65,30 @@ SweptTree Sweep(const Topology& topology, std::span<const SimplexId> order, bool
 // order of their lowest input tetrahedron, then the vertices in no tetrahedron; or everything as
 // one forest when at most one component has tetrahedra. Lists each run's components.
 std::vector<std::vector<int32_t>> ForestRuns(const Topology& topology, const SweptTree& tree);
+
+// TTK's numbering of a join or split tree (FTMTree_MT::normalizeIds with sortNodes and
+// sortArcs), one run of the forest at a time: NodeIds along the sweep, arcs in the order of
+// their down node, normalized arc ids handed out breadth-first from the leaves.
+class MergeTreeNumbering {
+ public:
+  explicit MergeTreeNumbering(const SweptTree& tree);
+  // Appends the run's nodes and arcs to `result` (its component_node_begin too).
+  void AppendRun(const Topology& topology, std::span<const SimplexId> order,
+                 std::span<const int32_t> run, TreeResult& result);
+  // Per swept node, the index in result.arcs of its arc (-1: none, or not appended yet).
+  std::span<const int32_t> node_arc() const { return node_arc_; }
+
+ private:
+  const SweptTree& tree_;
+  std::vector<int32_t> node_arc_;
+  std::vector<int> up_arcs_, down_arcs_;
+  std::vector<std::vector<int32_t>> component_nodes_;
+};
+
+// The contour tree of a join tree and a split tree of the same order (contour_tree.cc).
+absl::StatusOr<TreeResult> BuildContourTree(const Topology& topology,
+                                            std::span<const SimplexId> order, SweptTree join,
+                                            SweptTree split);
 
 // TTK's node type from the node's arc counts in the tree's sense (a self-loop counts on both).
 CriticalType NodeType(int up_arcs, int down_arcs);

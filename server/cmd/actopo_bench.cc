@@ -68,6 +68,7 @@ struct BenchOptions {
   std::string boundary_rule = "ttk";
   std::string persistence_threshold, relative_threshold;  // as given, parsed by ApplyParameters
   std::string embedding;
+  std::string tree;        // merge-tree: join or split
   std::string backend;     // simplification: lts or legacy
   std::string relations;   // topo-relations: ttk or all
   std::string p;           // diagram-distance: the Wasserstein order
@@ -333,7 +334,9 @@ absl::StatusOr<std::shared_ptr<const Topology>> Partition(
                            },
                        .input_corners = algorithm == Algorithm::kMorseSmale ? &corners : nullptr,
                        .release_tetrahedra = !keep_tetrahedra,
-                       .faces = NeedsFaces(algorithm),
+                       // A tree with a threshold simplifies first, which reads edges.
+                       .faces = NeedsFaces(algorithm) || !o.persistence_threshold.empty() ||
+                                !o.relative_threshold.empty(),
                        .trace = trace.get()}));
   if (algorithm == Algorithm::kMorseSmale) {
     input_corners = std::make_shared<const std::vector<uint8_t>>(std::move(corners));
@@ -356,13 +359,13 @@ absl::StatusOr<AlgorithmInput> PrepareInput(
                                                                      : BoundaryRule::kTtk}};
   if (!scalars.empty()) input.order = VertexOrder(topology, scalars);
   input.input_corners = std::move(input_corners);
-  if (NeedsScalarValues(algorithm)) input.scalars.assign(scalars.begin(), scalars.end());
   // Thresholds go through the service's parameter parser: one spelling, one set of errors.
   std::map<std::string, std::string> parameters;
   if (!o.persistence_threshold.empty())
     parameters["persistence_threshold"] = o.persistence_threshold;
   if (!o.relative_threshold.empty()) parameters["relative_threshold"] = o.relative_threshold;
   if (!o.embedding.empty()) parameters["embedding"] = o.embedding;
+  if (!o.tree.empty()) parameters["tree"] = o.tree;
   if (!o.backend.empty()) parameters["backend"] = o.backend;
   if (!o.relations.empty()) parameters["relations"] = o.relations;
   if (!o.p.empty()) parameters["p"] = o.p;
@@ -378,6 +381,7 @@ absl::StatusOr<AlgorithmInput> PrepareInput(
     }
     return absl::Status(s.code(), message);
   }
+  if (NeedsScalarValues(input)) input.scalars.assign(scalars.begin(), scalars.end());
   seconds = Seconds(start);
   Phase(trace, "vertex order", start);
   return input;
@@ -766,7 +770,8 @@ int main(int argc, char** argv) {
   flags.Add("boundary-rule", &o.boundary_rule,
             "critical-points: ttk (TTK >= 1.1 boundary saddles) or none");
   flags.Add("persistence-threshold", &o.persistence_threshold,
-            "topological-simplification, morse-smale: keep the persistence pairs at least this "
+            "topological-simplification, morse-smale, merge-tree, contour-tree: keep the "
+            "persistence pairs at least this "
             "persistent (absolute) and simplify the rest away first; diagram-distance, tracking: "
             "compare only those pairs");
   flags.Add("relative-threshold", &o.relative_threshold,
@@ -774,6 +779,7 @@ int main(int argc, char** argv) {
   flags.Add("backend", &o.backend,
             "topological-simplification, morse-smale with a threshold: lts (TTK's default) or "
             "legacy");
+  flags.Add("tree", &o.tree, "merge-tree: join (the default) or split");
   flags.Add("embedding", &o.embedding,
             "persistence-diagram --output: diagram (TTK's birth-death plane) or domain");
   flags.Add("relations", &o.relations,

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <numeric>
@@ -275,6 +276,106 @@ std::vector<io::NamedArray> SimplifiedArrays(const ResultContext& c,
           {c.scalar_name + "_Order", std::vector<int32_t>(s.order.begin(), s.order.end())}};
 }
 
+// TTK's span of an arc (Geometry::distance over float coordinates): the distance between its two
+// nodes' vertices, computed in float. TTK is built with -march=native, so GCC fuses each step
+// of its sum into an FMA on any machine that has one: fmaf here gives its values bit for bit.
+float ArcSpan(const ResultContext& c, const TreeResult& r, const TreeArc& a) {
+  const double* p = &c.mesh.points[3 * size_t(r.nodes[a.down_node].vertex)];
+  const double* q = &c.mesh.points[3 * size_t(r.nodes[a.up_node].vertex)];
+  float sum = 0;
+  for (int k = 0; k < 3; ++k) {
+    const float d = float(p[k]) - float(q[k]);
+    sum = std::fma(d, d, sum);
+  }
+  return std::sqrt(sum);
+}
+
+// TTK's three tree outputs: nodes and arcs (their points at the nodes' vertices) and the
+// segmentation (per vertex, its arc's values).
+void AddTreeOutputs(const ResultContext& c, const TreeResult& r, ResultOutputs& out) {
+  std::vector<float> span(r.arcs.size());
+  for (size_t i = 0; i < r.arcs.size(); ++i) span[i] = ArcSpan(c, r, r.arcs[i]);
+  const auto scalar = [&](SimplexId v) { return float(c.scalars[v]); };
+
+  PolyData nodes;
+  std::vector<int32_t> node_id, vertex_id, type, size, node_span;
+  std::vector<float> node_scalar;
+  for (size_t n = 0; n < r.nodes.size(); ++n) {
+    const TreeNode& node = r.nodes[n];
+    const double* p = &c.mesh.points[3 * size_t(node.vertex)];
+    nodes.points.insert(nodes.points.end(), p, p + 3);
+    node_id.push_back(int32_t(n));
+    node_scalar.push_back(scalar(node.vertex));
+    vertex_id.push_back(node.vertex);
+    type.push_back(int32_t(node.type));
+    size.push_back(r.arcs[node.region_arc].region_size);
+    node_span.push_back(int32_t(span[node.region_arc]));  // TTK truncates toward zero
+  }
+  nodes.point_arrays = {{"NodeId", std::move(node_id)},     {"Scalar", std::move(node_scalar)},
+                        {"VertexId", std::move(vertex_id)}, {"CriticalType", std::move(type)},
+                        {"RegionSize", std::move(size)},    {"RegionSpan", std::move(node_span)}};
+  out.poly_data.push_back({"tree_nodes", std::move(nodes)});
+
+  // One line per arc from its lower-valued node to the other; a point per node, at first use.
+  PolyData arcs;
+  std::vector<int32_t> point_of(r.nodes.size(), -1);
+  std::vector<float> point_scalar;
+  const auto point = [&](int32_t node) {
+    if (point_of[node] < 0) {
+      point_of[node] = int32_t(point_scalar.size());
+      const double* p = &c.mesh.points[3 * size_t(r.nodes[node].vertex)];
+      arcs.points.insert(arcs.points.end(), p, p + 3);
+      point_scalar.push_back(scalar(r.nodes[node].vertex));
+    }
+    return point_of[node];
+  };
+  std::vector<int32_t> segmentation_id, up, down, arc_size;
+  std::vector<double> arc_span;
+  arcs.line_offsets.push_back(0);
+  for (size_t i = 0; i < r.arcs.size(); ++i) {
+    const TreeArc& a = r.arcs[i];
+    const bool down_is_lower = r.type != TreeType::kSplit;
+    const int32_t lower = down_is_lower ? a.down_node : a.up_node;
+    const int32_t upper = down_is_lower ? a.up_node : a.down_node;
+    const int32_t from = point(lower);
+    arcs.line_connectivity.insert(arcs.line_connectivity.end(), {from, point(upper)});
+    arcs.line_offsets.push_back(int32_t(arcs.line_connectivity.size()));
+    segmentation_id.push_back(a.segmentation_id);
+    up.push_back(r.LocalNodeId(a.up_node));
+    down.push_back(r.LocalNodeId(a.down_node));
+    arc_size.push_back(a.region_size);
+    arc_span.push_back(span[i]);
+  }
+  if (r.arcs.empty()) arcs.line_offsets.clear();
+  const size_t num_points = point_scalar.size();
+  arcs.point_arrays = {{"Scalar", std::move(point_scalar)},
+                       {"ttkMaskScalarField", std::vector<int8_t>(num_points, 0)}};
+  arcs.cell_arrays = {{"SegmentationId", std::move(segmentation_id)},
+                      {"upNodeId", std::move(up)},
+                      {"downNodeId", std::move(down)},
+                      {"RegionSize", std::move(arc_size)},
+                      {"RegionSpan", std::move(arc_span)}};
+  out.poly_data.push_back({"tree_arcs", std::move(arcs)});
+
+  const size_t n = r.vertex_arc.size();
+  std::vector<int32_t> vertex_segmentation(n), vertex_size(n);
+  std::vector<double> vertex_span(n);
+  std::vector<int8_t> region_type(n);
+  ParallelForRanges(int64_t(n), 1 << 16, DefaultThreads(), [&](int64_t begin, int64_t end) {
+    for (int64_t v = begin; v < end; ++v) {
+      const int32_t a = r.vertex_arc[v];
+      vertex_segmentation[v] = r.arcs[a].segmentation_id;
+      vertex_size[v] = r.arcs[a].region_size;
+      vertex_span[v] = span[a];
+      region_type[v] = r.arcs[a].region_type;
+    }
+  });
+  out.segmentation = {{"SegmentationId", std::move(vertex_segmentation)},
+                      {"RegionSize", std::move(vertex_size)},
+                      {"RegionSpan", std::move(vertex_span)},
+                      {"RegionType", std::move(region_type)}};
+}
+
 }  // namespace
 
 std::vector<SimplexId> CellInputVertices(const Topology& topology, int d, SimplexId c) {
@@ -296,6 +397,14 @@ ResultOutputs BuildOutputs(const ResultContext& c, const AlgorithmResult& result
     out.tables.push_back({"persistence_curve", CurveTable(*d)});
   } else if (const auto* s = std::get_if<SimplificationResult>(&result)) {
     out.simplified = SimplifiedArrays(c, *s);
+  } else if (const auto* t = std::get_if<TreeResult>(&result)) {
+    AddTreeOutputs(c, *t, out);
+  } else if (const auto* st = std::get_if<SimplifiedTreeResult>(&result)) {
+    ResultContext simplified = c;
+    simplified.scalars = st->simplification.scalars;
+    simplified.order = st->simplification.order;
+    AddTreeOutputs(simplified, st->tree, out);
+    out.simplified = SimplifiedArrays(c, st->simplification);
   } else if (const auto* sm = std::get_if<SimplifiedMorseSmaleResult>(&result)) {
     // The complex is of the simplified field: its values and its order, as TTK's chain reports.
     ResultContext simplified = c;

@@ -2,11 +2,18 @@
 //   PREFIX_critical_points.vtp   critical points (critical-points, morse-smale)
 //   PREFIX_critical_cells.vtp    critical cells at their barycentres (discrete-gradient)
 //   PREFIX_separatrices.vtp      1-separatrices as polylines (morse-smale)
-//   PREFIX_segmentation.vtu      the mesh with the three manifold arrays (morse-smale)
+//   PREFIX_segmentation.vtu      the mesh with the three manifold arrays (morse-smale), or each
+//                                vertex's arc: SegmentationId, RegionSize, RegionSpan,
+//                                RegionType (merge-tree, contour-tree)
+//   PREFIX_tree_nodes.vtp        a tree's nodes: NodeId, Scalar, VertexId, CriticalType,
+//                                RegionSize, RegionSpan (merge-tree, contour-tree)
+//   PREFIX_tree_arcs.vtp         its arcs as lines: SegmentationId, upNodeId, downNodeId,
+//                                RegionSize, RegionSpan (per line), Scalar (per point)
 //   PREFIX_diagram.vtu           the persistence diagram, TTK's grid (persistence-diagram)
 //   PREFIX_persistence_curve.csv pairs alive above each persistence, per type (persistence-diagram)
 //   PREFIX_simplified.vtu        the mesh with the simplified field and its order
-//                                (topological-simplification, morse-smale with a threshold)
+//                                (topological-simplification, morse-smale and the trees with a
+//                                threshold)
 #ifndef ACTOPO_SERVER_RESULTS_RESULT_FILES_H_
 #define ACTOPO_SERVER_RESULTS_RESULT_FILES_H_
 

@@ -116,6 +116,24 @@ Json SimplificationJson(const SimplificationResult& r, bool digests) {
   return j;
 }
 
+Json TreeJson(const TreeResult& r, bool digests) {
+  Json types = Json::object();
+  for (size_t t = 0; t < r.counts.size(); ++t) {
+    if (r.counts[t] > 0) types[std::to_string(t)] = r.counts[t];
+  }
+  Json j = {{"tree", TreeTypeName(r.type)},
+            {"nodes", r.nodes.size()},
+            {"arcs", r.arcs.size()},
+            {"components", r.component_node_begin.size() - 1},
+            {"critical_types", types}};
+  if (digests) {
+    j["nodes_sha256"] = r.NodesDigest();
+    j["arcs_sha256"] = r.ArcsDigest();
+    j["segmentation_sha256"] = r.SegmentationDigest();
+  }
+  return j;
+}
+
 // A threshold parameter: a finite number.
 absl::StatusOr<double> ParseThreshold(const std::string& name, const std::string& value) {
   double t = 0;
@@ -230,8 +248,18 @@ absl::Status ApplyParameters(const std::map<std::string, std::string>& parameter
       input.embed_diagram_in_domain = value == "domain";
       continue;
     }
+    if (name == "tree" && input.algorithm == Algorithm::kMergeTree) {
+      if (value != "join" && value != "split") {
+        return absl::InvalidArgumentError(
+            absl::StrCat("parameters.tree: unknown value '", value, "'; available: join, split"));
+      }
+      input.tree = value == "join" ? TreeType::kJoin : TreeType::kSplit;
+      continue;
+    }
     const bool simplifies = input.algorithm == Algorithm::kTopologicalSimplification ||
-                            input.algorithm == Algorithm::kMorseSmale;
+                            input.algorithm == Algorithm::kMorseSmale ||
+                            input.algorithm == Algorithm::kMergeTree ||
+                            input.algorithm == Algorithm::kContourTree;
     if ((name == "persistence_threshold" || name == "relative_threshold") && simplifies) {
       ASSIGN_OR_RETURN(const double t, ParseThreshold(name, value));
       const SimplificationOptions options{.threshold = t, .relative = name == "relative_threshold"};
@@ -253,15 +281,23 @@ absl::Status ApplyParameters(const std::map<std::string, std::string>& parameter
                                                    std::string(AlgorithmName(input.algorithm))));
   }
   if (const auto backend = parameters.find("backend"); backend != parameters.end()) {
-    if (!input.simplification && input.algorithm == Algorithm::kMorseSmale) {
+    if (!input.simplification && input.algorithm != Algorithm::kTopologicalSimplification) {
       return absl::InvalidArgumentError(
-          "parameters.backend: morse-smale simplifies only with persistence_threshold or "
-          "relative_threshold");
+          absl::StrCat("parameters.backend: ", std::string(AlgorithmName(input.algorithm)),
+                       " simplifies only with persistence_threshold or relative_threshold"));
     }
     if (!input.simplification) input.simplification = kDefaultSimplification;
     input.simplification->legacy = backend->second == "legacy";
   }
   return absl::OkStatus();
+}
+
+bool NeedsFaces(const AlgorithmInput& input) {
+  return NeedsFaces(input.algorithm) || input.simplification.has_value();
+}
+
+bool NeedsScalarValues(const AlgorithmInput& input) {
+  return NeedsScalarValues(input.algorithm) || input.simplification.has_value();
 }
 
 RelationSet DeclaredRelations(const AlgorithmInput& input) {
@@ -290,7 +326,7 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
       if constexpr (kTraces<Structure>) structure.SetTrace(nullptr);
     }
   } recording(structure, context.trace);
-  if (NeedsFaces(in.algorithm) && !structure.topology().has_faces()) {
+  if (NeedsFaces(in) && !structure.topology().has_faces()) {
     return absl::FailedPreconditionError(
         absl::StrCat("algorithm: ", std::string(AlgorithmName(in.algorithm)),
                      " needs edges and triangles, and the topology was built without them"));
@@ -350,6 +386,25 @@ absl::StatusOr<AlgorithmOutcome> RunAlgorithm(Structure& structure, const Algori
       out.result = std::move(diagram);
       break;
     }
+    case Algorithm::kMergeTree:
+    case Algorithm::kContourTree: {
+      const TreeType type = in.algorithm == Algorithm::kContourTree ? TreeType::kContour : in.tree;
+      if (!in.simplification) {
+        ASSIGN_OR_RETURN(out.result, RunTree(structure, in.order, type, context));
+        break;
+      }
+      // As a TTK user chains the filters: simplify, then the tree of the simplified field with
+      // its order (TTK's "<field>_Order").
+      SimplifiedTreeResult r;
+      ASSIGN_OR_RETURN(r.simplification,
+                       RunTopologicalSimplification(structure, in.order, in.scalars,
+                                                    *in.simplification, context.Slice(0, 0.8)));
+      r.simplification.diagram.gradient = {};  // the tree reads the order alone
+      ASSIGN_OR_RETURN(
+          r.tree, RunTree(structure, r.simplification.internal_order, type, context.Slice(0.8, 1)));
+      out.result = std::move(r);
+      break;
+    }
     case Algorithm::kTopologicalSimplification: {
       ASSIGN_OR_RETURN(out.result,
                        RunTopologicalSimplification(
@@ -388,6 +443,12 @@ Json Summarize(const AlgorithmResult& result, const Topology& topology,
         }
         if constexpr (std::is_same_v<T, SimplificationResult>) {
           return SimplificationJson(r, digests);
+        }
+        if constexpr (std::is_same_v<T, TreeResult>) return TreeJson(r, digests);
+        if constexpr (std::is_same_v<T, SimplifiedTreeResult>) {
+          Json j = TreeJson(r.tree, digests);
+          j["simplification"] = SimplificationJson(r.simplification, digests);
+          return j;
         }
         if constexpr (std::is_same_v<T, SimplifiedMorseSmaleResult>) {
           Json j = MorseSmaleJson(r.morse_smale, digests);

@@ -19,6 +19,7 @@
 #include "server/algorithms/consumers.h"
 #include "server/algorithms/critical_points.h"
 #include "server/algorithms/discrete_gradient.h"
+#include "server/algorithms/merge_tree.h"
 #include "server/algorithms/morse_smale.h"
 #include "server/algorithms/persistence_diagram.h"
 #include "server/algorithms/registry.h"
@@ -52,7 +53,9 @@ struct AlgorithmInput {
   CriticalPointsOptions critical_points;
   TopoRelationsOptions topo_relations;
   bool embed_diagram_in_domain = false;  // persistence-diagram outputs
-  // topological-simplification (default: 1% of the range); morse-smale simplifies first when set.
+  TreeType tree = TreeType::kJoin;       // merge-tree: join or split
+  // topological-simplification (default: 1% of the range); morse-smale and the trees simplify
+  // first when set.
   std::optional<SimplificationOptions> simplification;
   DistanceParameters distance;  // diagram-distance, tracking
 };
@@ -63,12 +66,19 @@ struct SimplifiedMorseSmaleResult {
   MorseSmaleResult morse_smale;
 };
 
+// A tree with a persistence threshold: the tree of the simplified field.
+struct SimplifiedTreeResult {
+  SimplificationResult simplification;
+  TreeResult tree;
+};
+
 // Algorithm parameters by name, as the service receives them: "boundary_rule" = "ttk" | "none"
 // (critical-points); "relations" = "ttk" (TTK's 20, the default) | "all" (22: with EE and FF;
 // topo-relations); "embedding" = "diagram" | "domain" (persistence-diagram: pairs at
 // (birth, death) or at their vertices); "persistence_threshold" = an absolute persistence, or
 // "relative_threshold" = a fraction of the field's range (topological-simplification, and
-// morse-smale, which then runs on the simplified field), "backend" = "lts" (default) |
+// morse-smale, merge-tree and contour-tree, which then run on the simplified field); "tree" =
+// "join" (default) | "split" (merge-tree), "backend" = "lts" (default) |
 // "legacy"; diagram-distance and tracking: "p" = the Wasserstein order (default 2),
 // "persistence_threshold" or "relative_threshold" (pairs below it left out, default none),
 // "essential" = "true" | "false" (match the infinite pairs too), and for diagram-distance
@@ -80,7 +90,7 @@ absl::Status ApplyParameters(const std::map<std::string, std::string>& parameter
 using AlgorithmResult =
     std::variant<TopoRelationsResult, CriticalPointsResult, DiscreteGradientResult,
                  MorseSmaleResult, PersistenceDiagramResult, SimplificationResult,
-                 SimplifiedMorseSmaleResult>;
+                 SimplifiedMorseSmaleResult, TreeResult, SimplifiedTreeResult>;
 
 struct AlgorithmOutcome {
   AlgorithmResult result;
@@ -88,8 +98,13 @@ struct AlgorithmOutcome {
   int64_t peak_rss_after_run = 0;  // before summaries, which can be large
 };
 
+// Whether a run of `input` reads edges or triangles: its algorithm's, or a simplification first.
+bool NeedsFaces(const AlgorithmInput& input);
+// Whether it reads the field's values (AlgorithmInput::scalars), not only their order.
+bool NeedsScalarValues(const AlgorithmInput& input);
+
 // The relations a run of `input` reads: its algorithm's declared set, and the simplification's
-// when morse-smale simplifies first.
+// when morse-smale or a tree simplifies first.
 RelationSet DeclaredRelations(const AlgorithmInput& input);
 // Of those, what it reads on every block (SweptRelations): actopo's producers compute these
 // ahead (ActopoStructure::Options::declared).

@@ -329,13 +329,13 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
     RETURN_IF_ERROR(SelectFields(request));
     const AlgorithmInput& base = session_->base_input();
     if (input_.algorithm == Algorithm::kMorseSmale) input_.input_corners = base.input_corners;
-    if (fields_.empty()) {  // the session's field; a list's fields get theirs in turn (Run)
-      input_.order = base.order;
-      if (NeedsScalarValues(input_.algorithm)) input_.scalars = base.scalars;
-    }
     std::map<std::string, std::string> parameters(request.parameters().begin(),
                                                   request.parameters().end());
     RETURN_IF_ERROR(ApplyParameters(parameters, input_));
+    if (fields_.empty()) {  // the session's field; a list's fields get theirs in turn (Run)
+      input_.order = base.order;
+      if (NeedsScalarValues(input_)) input_.scalars = base.scalars;
+    }
     RETURN_IF_ERROR(CheckMatchingEntry(input_.distance, fields_.size()));
     include_arrays_ = request.include_arrays();
     trace_ = request.trace();
@@ -520,7 +520,7 @@ class RunJobReactor final : public grpc::ServerWriteReactor<v1::RunJobResponse> 
       RETURN_IF_ERROR(context.stop().status("run"));
       AlgorithmInput input = input_;
       input.order = VertexOrder(topology, field.values);
-      if (NeedsScalarValues(input.algorithm)) input.scalars = field.values;
+      if (NeedsScalarValues(input)) input.scalars = field.values;
       RunContext one = context;
       // Field i fills [i / n, (i + 1) / n] of the list, never going back (an algorithm's own
       // phases may report a lower fraction than before).

@@ -32,11 +32,13 @@ using testing::ServiceTest;
 TEST_F(ServiceTest, ServerInfo) {
   v1::GetServerInfoResponse info;
   ASSERT_TRUE(stub_->GetServerInfo(Context().get(), {}, &info).ok());
-  EXPECT_EQ(info.algorithms_size(), 8);
+  EXPECT_EQ(info.algorithms_size(), 10);
   EXPECT_EQ(info.algorithms(4), "persistence-diagram");
   EXPECT_EQ(info.algorithms(5), "topological-simplification");
   EXPECT_EQ(info.algorithms(6), "diagram-distance");
   EXPECT_EQ(info.algorithms(7), "tracking");
+  EXPECT_EQ(info.algorithms(8), "merge-tree");
+  EXPECT_EQ(info.algorithms(9), "contour-tree");
   EXPECT_EQ(info.relations_size(), kNumRelations);
   EXPECT_EQ(info.relations(0), "vertex_neighbors");
   EXPECT_FALSE(info.library_versions().at("grpc").empty());

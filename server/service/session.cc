@@ -340,7 +340,7 @@ absl::StatusOr<JobOutcome> Session::RunJob(const AlgorithmInput& input, const Ru
   RunContext ctx = context;
   ctx.consumers = options_.structure.consumers;
   JobOutcome out;
-  if (NeedsFaces(input.algorithm) && !mesh_->topology->has_faces()) {
+  if (NeedsFaces(input) && !mesh_->topology->has_faces()) {
     // The first job on the mesh that reads edges or triangles builds them, for every session.
     const auto faces_start = Clock::now();
     const Progress faces({.cancel = ctx.cancel, .deadline = ctx.deadline, .report = prepare});

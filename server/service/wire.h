@@ -73,6 +73,8 @@ inline constexpr EnumMapping<pb::Algorithm, Algorithm> kAlgorithmMapping[] = {
     {pb::ALGORITHM_TOPOLOGICAL_SIMPLIFICATION, Algorithm::kTopologicalSimplification},
     {pb::ALGORITHM_DIAGRAM_DISTANCE, Algorithm::kDiagramDistance},
     {pb::ALGORITHM_TRACKING, Algorithm::kTracking},
+    {pb::ALGORITHM_MERGE_TREE, Algorithm::kMergeTree},
+    {pb::ALGORITHM_CONTOUR_TREE, Algorithm::kContourTree},
 };
 inline constexpr EnumMapping<pb::Structure, StructureKind> kStructureMapping[] = {
     {pb::STRUCTURE_EXPLICIT, StructureKind::kExplicit},

@@ -97,12 +97,12 @@ TEST(WireMapping, UnknownValuesNameTheFieldAndValue) {
                         "... RELATION_TRIANGLE_NEIGHBORS"));
   EXPECT_THAT(message(FromProto(v1::RELATION_UNSPECIFIED)),
               HasSubstr("relation: RELATION_UNSPECIFIED is not a relation"));
-  EXPECT_THAT(message(FromProto(static_cast<v1::Algorithm>(9))),
-              HasSubstr("algorithm: 9 is not an algorithm; set ALGORITHM_TOPO_RELATIONS, "
+  EXPECT_THAT(message(FromProto(static_cast<v1::Algorithm>(11))),
+              HasSubstr("algorithm: 11 is not an algorithm; set ALGORITHM_TOPO_RELATIONS, "
                         "ALGORITHM_CRITICAL_POINTS, ALGORITHM_DISCRETE_GRADIENT, "
                         "ALGORITHM_MORSE_SMALE, ALGORITHM_PERSISTENCE_DIAGRAM, "
-                        "ALGORITHM_TOPOLOGICAL_SIMPLIFICATION, ALGORITHM_DIAGRAM_DISTANCE or "
-                        "ALGORITHM_TRACKING"));
+                        "ALGORITHM_TOPOLOGICAL_SIMPLIFICATION, ALGORITHM_DIAGRAM_DISTANCE, "
+                        "ALGORITHM_TRACKING, ALGORITHM_MERGE_TREE or ALGORITHM_CONTOUR_TREE"));
   v1::OpenSessionRequest request;
   request.set_structure(static_cast<v1::Structure>(42));
   EXPECT_THAT(message(FromProto(request)), HasSubstr("structure: 42 is not a structure"));
