@@ -18,6 +18,9 @@ Workloads (TTK's side, then ours):
   persistence-diagram     ttkPersistenceDiagramCmd -B 2 -t THREADS
   simplified-morse-smale  bench/ttk_chain.py (diagram, 1% threshold, simplification, complex);
                           ours: --algorithm morse-smale --relative-threshold 0.01
+  join-tree, split-tree   ttkMergeTreeCmd -T 0 | 1 -t THREADS; ours: --algorithm merge-tree
+                          --tree join | split
+  contour-tree            ttkContourTreeCmd -t THREADS
 Ours run with each structure's defaults (threads from the cores) and without digests, as a user
 runs them; --check then runs every structure once more with --digests and fails unless all give
 the same result. TTK comes from ../shared/tools/build-ttk.sh with the extra modules
@@ -38,7 +41,7 @@ from _plotting import require_matplotlib, save_png
 
 ROOT = Path(__file__).resolve().parents[1]
 WORKLOADS = ["critical-points", "discrete-gradient", "morse-smale", "persistence-diagram",
-             "simplified-morse-smale"]
+             "simplified-morse-smale", "join-tree", "split-tree", "contour-tree"]
 STRUCTURES = ["explicit", "compact", "actopo"]
 PHASES = ["load", "partition", "preprocess", "run", "results"]
 THRESHOLD = 0.01  # simplified-morse-smale: relative persistence threshold
@@ -57,6 +60,12 @@ def ttk_command(ttk: Path, workload: str, path: str, field: str, threads: int) -
                                 field, "-B", "2", "-t", str(threads), "-o", ""],
         "simplified-morse-smale": [*python, str(ROOT / "bench/ttk_chain.py"), path, field,
                                    str(THRESHOLD), str(threads)],
+        "join-tree": [str(ttk / "bin/ttkMergeTreeCmd"), "-i", path, "-a", field, "-T", "0", "-t",
+                      str(threads), "-o", ""],
+        "split-tree": [str(ttk / "bin/ttkMergeTreeCmd"), "-i", path, "-a", field, "-T", "1", "-t",
+                       str(threads), "-o", ""],
+        "contour-tree": [str(ttk / "bin/ttkContourTreeCmd"), "-i", path, "-a", field, "-t",
+                         str(threads), "-o", ""],
     }[workload]
 
 
@@ -65,6 +74,8 @@ def our_command(bench: str, workload: str, path: str, field: str, structure: str
     algorithm = ["--algorithm", workload]
     if workload == "simplified-morse-smale":
         algorithm = ["--algorithm", "morse-smale", "--relative-threshold", str(THRESHOLD)]
+    if workload in ("join-tree", "split-tree"):
+        algorithm = ["--algorithm", "merge-tree", "--tree", workload.removesuffix("-tree")]
     return [bench, "--mesh", path, "--scalar", field, *algorithm, "--structure", structure,
             "--json", *extra]
 

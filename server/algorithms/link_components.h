@@ -26,8 +26,11 @@ class LinkComponents {
  public:
   // Numbers v's link vertices as its star meets them (no VV is read) and joins them, side by
   // side. `order` is VertexOrder() by internal id.
+  // Which sides' components Scan joins (the other side's link vertices stay singletons).
+  enum Sides : uint8_t { kLower = 1, kUpper = 2, kBoth = 3 };
+
   template <class Reader>
-  void Scan(Reader& reader, SimplexId v, std::span<const SimplexId> order) {
+  void Scan(Reader& reader, SimplexId v, std::span<const SimplexId> order, Sides sides = kBoth) {
     const auto star = reader.vertex_star(v);
     index_.Reset(star.size());
     triangles_.clear();
@@ -43,11 +46,14 @@ class LinkComponents {
     below_.resize(link.size());
     for (size_t i = 0; i < link.size(); ++i) below_[i] = order[link[i]] < ov;
     components_.Reset(link.size());
+    // A triangle's vertices on one side are joined by a chain: at most two unions.
     for (const std::array<int, 3>& local : triangles_) {
-      for (int i = 0; i < 3; ++i) {
-        for (int j = i + 1; j < 3; ++j) {
-          if (below_[local[i]] == below_[local[j]]) components_.Union(local[i], local[j]);
-        }
+      int last[2] = {-1, -1};  // per side (0 upper, 1 lower): the previous vertex
+      for (int i : local) {
+        const int side = below_[i];
+        if (!(sides & (side ? kLower : kUpper))) continue;
+        if (last[side] >= 0) components_.Union(last[side], i);
+        last[side] = i;
       }
     }
   }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <mutex>
+#include <optional>
 #include <queue>
 #include <utility>
 
@@ -15,6 +16,7 @@
 #include "server/core/explicit_structure.h"
 #include "server/core/parallel.h"
 #include "server/core/status_macros.h"
+#include "server/core/trace.h"
 
 namespace actopo {
 
@@ -85,6 +87,8 @@ absl::Status ScanLinks(Structure& structure, std::span<const SimplexId> order,
     if (side != nullptr) side->first.assign(size_t(n), LowerLinks::kLeaf);
   }
   // Candidates as (vertex, count, vertices...) records, per side, appended by each consumer.
+  const auto scanned = LinkComponents::Sides((join != nullptr ? LinkComponents::kLower : 0) |
+                                             (split != nullptr ? LinkComponents::kUpper : 0));
   std::mutex mu;
   std::vector<SimplexId> records[2];
   const absl::Status status = RunOnConsumers(
@@ -95,7 +99,7 @@ absl::Status ScanLinks(Structure& structure, std::span<const SimplexId> order,
         std::vector<SimplexId> reps;
         for (int32_t b = range.begin; b < range.end; ++b) {
           for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
-            link.Scan(reader, v, order);
+            link.Scan(reader, v, order, scanned);
             for (int s = 0; s < 2; ++s) {
               if (sides[s] == nullptr) continue;
               const bool want_below = s == 0;
@@ -389,18 +393,25 @@ absl::StatusOr<TreeResult> RunTree(Structure& structure, std::span<const Simplex
                                    TreeType type, const RunContext& context) {
   using namespace tree_internal;
   const Topology& topology = structure.topology();
-  if (type == TreeType::kContour) {
-    LowerLinks join, split;
-    RETURN_IF_ERROR(ScanLinks(structure, order, context, &join, &split));
-    SweptTree join_tree = Sweep(topology, order, false, std::move(join));
-    SweptTree split_tree = Sweep(topology, order, true, std::move(split));
-    return BuildContourTree(topology, order, std::move(join_tree), std::move(split_tree));
+  Trace* trace = context.trace.get();
+  const bool join = type != TreeType::kSplit, split = type != TreeType::kJoin;
+  LowerLinks join_links, split_links;
+  {
+    Trace::Scope span(trace, "link scan", "phase");
+    RETURN_IF_ERROR(ScanLinks(structure, order, context, join ? &join_links : nullptr,
+                              split ? &split_links : nullptr));
   }
-  const bool split = type == TreeType::kSplit;
-  LowerLinks links;
-  RETURN_IF_ERROR(
-      ScanLinks(structure, order, context, split ? nullptr : &links, split ? &links : nullptr));
-  return NumberMergeTree(topology, order, type, Sweep(topology, order, split, std::move(links)));
+  std::optional<SweptTree> join_tree, split_tree;
+  {
+    Trace::Scope span(trace, "sweep", "phase");
+    if (join) join_tree = Sweep(topology, order, false, std::move(join_links));
+    if (split) split_tree = Sweep(topology, order, true, std::move(split_links));
+  }
+  Trace::Scope span(trace, type == TreeType::kContour ? "combine" : "numbering", "phase");
+  if (type == TreeType::kContour) {
+    return BuildContourTree(topology, order, *std::move(join_tree), *std::move(split_tree));
+  }
+  return NumberMergeTree(topology, order, type, *std::move(join ? join_tree : split_tree));
 }
 
 #define ACTOPO_INSTANTIATE(S)                                                                   \
