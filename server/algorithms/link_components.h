@@ -26,11 +26,8 @@ class LinkComponents {
  public:
   // Numbers v's link vertices as its star meets them (no VV is read) and joins them, side by
   // side. `order` is VertexOrder() by internal id.
-  // Which sides' components Scan joins (the other side's link vertices stay singletons).
-  enum Sides : uint8_t { kLower = 1, kUpper = 2, kBoth = 3 };
-
   template <class Reader>
-  void Scan(Reader& reader, SimplexId v, std::span<const SimplexId> order, Sides sides = kBoth) {
+  void Scan(Reader& reader, SimplexId v, std::span<const SimplexId> order) {
     const auto star = reader.vertex_star(v);
     index_.Reset(star.size());
     triangles_.clear();
@@ -51,11 +48,31 @@ class LinkComponents {
       int last[2] = {-1, -1};  // per side (0 upper, 1 lower): the previous vertex
       for (int i : local) {
         const int side = below_[i];
-        if (!(sides & (side ? kLower : kUpper))) continue;
         if (last[side] >= 0) components_.Union(last[side], i);
         last[side] = i;
       }
     }
+  }
+
+  // Only the link vertices on one side of v (lower, or upper), numbered and joined: a merge
+  // tree needs one side, and the other's are never looked up.
+  template <class Reader>
+  void ScanSide(Reader& reader, SimplexId v, std::span<const SimplexId> order, bool lower) {
+    const auto star = reader.vertex_star(v);
+    index_.Reset(star.size());
+    components_.Reset(0);
+    const SimplexId ov = order[v];
+    for (SimplexId t : star) {
+      int last = -1;  // the tetrahedron's side is joined by a chain
+      for (SimplexId w : reader.tetrahedron_vertices(t)) {
+        if (w == v || (order[w] < ov) != lower) continue;
+        const int i = index_.IndexOf(w);
+        if (size_t(i) == components_.size()) components_.Add();
+        if (last >= 0) components_.Union(last, i);
+        last = i;
+      }
+    }
+    below_.assign(index_.vertices().size(), lower ? 1 : 0);
   }
 
   // The link vertices (internal ids), numbered as the star met them.

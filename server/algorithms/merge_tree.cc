@@ -87,8 +87,6 @@ absl::Status ScanLinks(Structure& structure, std::span<const SimplexId> order,
     if (side != nullptr) side->first.assign(size_t(n), LowerLinks::kLeaf);
   }
   // Candidates as (vertex, count, vertices...) records, per side, appended by each consumer.
-  const auto scanned = LinkComponents::Sides((join != nullptr ? LinkComponents::kLower : 0) |
-                                             (split != nullptr ? LinkComponents::kUpper : 0));
   std::mutex mu;
   std::vector<SimplexId> records[2];
   const absl::Status status = RunOnConsumers(
@@ -99,7 +97,11 @@ absl::Status ScanLinks(Structure& structure, std::span<const SimplexId> order,
         std::vector<SimplexId> reps;
         for (int32_t b = range.begin; b < range.end; ++b) {
           for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
-            link.Scan(reader, v, order, scanned);
+            if (join != nullptr && split != nullptr) {
+              link.Scan(reader, v, order);
+            } else {
+              link.ScanSide(reader, v, order, join != nullptr);
+            }
             for (int s = 0; s < 2; ++s) {
               if (sides[s] == nullptr) continue;
               const bool want_below = s == 0;

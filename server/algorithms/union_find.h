@@ -29,6 +29,11 @@ class UnionFind {
     for (size_t i = 0; i < n; ++i) parent_[i] = int32_t(i);
   }
   size_t size() const { return parent_.size(); }
+  // One more singleton; returns it.
+  int32_t Add() {
+    parent_.push_back(int32_t(parent_.size()));
+    return parent_.back();
+  }
 
   int32_t Find(int32_t x) {
     while (parent_[x] != x) x = parent_[x] = parent_[parent_[x]];
