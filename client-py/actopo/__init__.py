@@ -3,8 +3,8 @@
 Load or upload tetrahedral meshes and add fields to them, open sessions on a topological data
 structure (explicit, compact or the task-parallel actopo engine), query relations and run
 TTK-compatible algorithms (critical points, discrete gradient, Morse-Smale complex, persistence
-diagram, topological simplification) on one field or over many, and the distances between the
-fields' persistence diagrams, with numpy in and out.
+diagram, topological simplification, merge and contour trees) on one field or over many, and the
+distances between the fields' persistence diagrams, with numpy in and out.
 
     import actopo
 

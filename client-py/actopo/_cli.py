@@ -29,7 +29,7 @@ from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any, TypeAlias, cast
 
-from actopo import _names
+from actopo import _names, _tree
 from actopo._bench import Bench, Load
 from actopo._cli_parser import (
     DIAGRAM,
@@ -37,6 +37,7 @@ from actopo._cli_parser import (
     PER_VERTEX,
     STRUCTURES,
     TRACKING,
+    TREES,
     parse_args,
 )
 from actopo._client import Client, Session
@@ -445,6 +446,8 @@ def _parameters(args: argparse.Namespace) -> dict[str, str]:
     parameters = dict(args.param or [])  # (NAME, VALUE) pairs: _cli_parser._parameter
     if args.boundary_rule:
         parameters["boundary_rule"] = args.boundary_rule
+    if args.tree:
+        parameters["tree"] = args.tree
     return parameters
 
 
@@ -460,14 +463,15 @@ def _run_algorithm(args: argparse.Namespace) -> Algorithm:
     if algorithm in MANY_FIELDS and not args.scalars:
         raise UsageError(f"{algorithm} compares fields: give --scalars F1,F2,... or "
                          "--scalars all")
-    if algorithm in MANY_FIELDS:
-        if args.threshold is not None:
-            raise UsageError(f"--threshold draws on a persistence diagram; {algorithm} takes "
-                             "--param persistence_threshold=T or --param relative_threshold=F")
-    elif args.plot and algorithm != DIAGRAM:
-        raise UsageError(f"--plot draws a persistence diagram: run {DIAGRAM}, not {algorithm}")
-    elif args.plot and args.scalars:
-        raise UsageError("--plot draws one field's persistence diagram: run without --scalars")
+    if algorithm in (*MANY_FIELDS, *TREES) and args.threshold is not None:
+        raise UsageError(f"--threshold draws on a persistence diagram; {algorithm} takes "
+                         "--param persistence_threshold=T or --param relative_threshold=F")
+    if args.plot and algorithm not in (DIAGRAM, *TREES, *MANY_FIELDS):
+        raise UsageError(f"--plot draws a persistence diagram or a tree: run {DIAGRAM}, "
+                         f"{' or '.join(TREES)}, not {algorithm}")
+    if args.plot and args.scalars and algorithm not in MANY_FIELDS:
+        what = "tree" if algorithm in TREES else "persistence diagram"
+        raise UsageError(f"--plot draws one field's {what}: run without --scalars")
     if args.output and args.scalars:
         raise UsageError("--output writes one field's result: run without --scalars")
     return algorithm
@@ -492,10 +496,27 @@ def _pair_counts(counts: dict[str, int]) -> str:
     return ", ".join(parts)
 
 
+def _save_tree_plot(path: str, mesh: MeshInfo, scalar: str, result: JobResult) -> str:
+    """Draws the job's tree into `path`, titled with the mesh, the field and the node types."""
+    tree = result.tree
+    if tree is None:
+        raise ActopoError(f"job {result.job_id}: the server sent no tree arrays to plot")
+    types = ", ".join(f"{_tree.CRITICAL_TYPES.get(int(kind), kind)}: {count}"
+                      for kind, count in tree.counts_by_type().items())
+    simplified = result.summary.get("simplification", {}).get("threshold")
+    of = f"{scalar} simplified at {simplified:.4g}" if simplified is not None else scalar
+    title = (f"{mesh.name}, {of}: {tree.kind} tree, {len(tree.nodes)} nodes, "
+             f"{len(tree.arcs)} arcs\n{types}")
+    return tree.save_plot(path, title=title)
+
+
 def _save_plot(path: str, threshold: tuple[float, bool] | None, mesh: MeshInfo, scalar: str,
           result: JobResult) -> str:
-    """Draws the job's persistence diagram into `path`. A percentage threshold is taken of the
-    scalar field's range, as the server's relative_threshold of a simplification is."""
+    """Draws the job's persistence diagram, or its tree, into `path`. A percentage threshold is
+    taken of the scalar field's range, as the server's relative_threshold of a simplification
+    is."""
+    if result.algorithm in TREES:
+        return _save_tree_plot(path, mesh, scalar, result)
     diagram = result.diagram
     if diagram is None:
         raise ActopoError(f"job {result.job_id}: the server sent no diagram arrays to plot")

@@ -22,7 +22,12 @@ DISTANCE = "diagram-distance"
 TRACKING = "tracking"
 MANY_FIELDS = (DISTANCE, TRACKING)
 """The algorithms that compare several fields: they run only with --scalars."""
-PER_VERTEX = ("morse-smale", "topological-simplification")
+TREES = ("merge-tree", "contour-tree")
+"""The algorithms that give a tree (JobResult.tree), which --plot draws."""
+TREE_TYPES = ("join", "split")
+"""merge-tree's parameter "tree" (--tree): the join tree (the server's default) or the split
+tree."""
+PER_VERTEX = ("morse-smale", "topological-simplification", *TREES)
 """The algorithms whose --output files hold one value per vertex on the mesh
 (PREFIX_segmentation.vtu, PREFIX_simplified.vtu): they need its geometry."""
 SINGLE_FIELD = [a for a in ALGORITHMS if a not in MANY_FIELDS]
@@ -191,9 +196,11 @@ def _add_run(commands: Commands) -> None:
                    "need two or more")
     _add_parameters(c, "an algorithm parameter (repeatable), e.g. embedding=domain "
                     "(persistence-diagram), relative_threshold=0.05 or persistence_threshold=2.5 "
-                    "(topological-simplification, morse-smale, and each field's own range with "
-                    f"{DISTANCE}), backend=legacy (TTK's whole-mesh sweeps instead of its "
-                    "localized lts, for a simplification), p=1 and essential=true "
+                    "(topological-simplification; morse-smale, merge-tree and contour-tree of "
+                    f"the simplified field; each field's own range with {DISTANCE}), "
+                    "tree=split (merge-tree, as --tree), backend=legacy (TTK's whole-mesh "
+                    "sweeps instead of its localized lts, for a simplification), p=1 and "
+                    "essential=true "
                     f"({DISTANCE}), relations=all "
                     "(topo-relations: 22 relations instead of TTK's 20)")
     _add_run_outputs(c)
@@ -201,8 +208,11 @@ def _add_run(commands: Commands) -> None:
 
 
 def _add_parameters(c: argparse.ArgumentParser, param_help: str | None = None) -> None:
-    """The algorithm's parameters: --boundary-rule, and --param NAME=VALUE (repeatable)."""
+    """The algorithm's parameters: --boundary-rule, --tree, and --param NAME=VALUE
+    (repeatable)."""
     c.add_argument("--boundary-rule", choices=["ttk", "none"], help="critical-points")
+    c.add_argument("--tree", choices=TREE_TYPES,
+                   help="merge-tree: the join tree (the server's default) or the split tree")
     c.add_argument("--param", action="append", type=_parameter, metavar="NAME=VALUE",
                    help=param_help)
 
@@ -217,7 +227,9 @@ def _add_run_outputs(c: argparse.ArgumentParser) -> None:
                    "else its points and tetrahedra downloaded from the server")
     c.add_argument("--plot", metavar="PATH.png",
                    help=f"{DIAGRAM}: draw the diagram (birth, death) into this image with "
-                   f"matplotlib (pip install 'actopo[plot]'); {DISTANCE}: the Wasserstein "
+                   f"matplotlib (pip install 'actopo[plot]'); {' and '.join(TREES)}: the tree, "
+                   "each node at its value, the persistence of its branches written beside "
+                   f"their leaves; {DISTANCE}: the Wasserstein "
                    "matrix as a heat map (with a dendrogram when scipy is installed); "
                    f"{TRACKING}: the trajectories' extremum values over the steps")
     c.add_argument("--threshold", type=_threshold, metavar="T",

@@ -147,7 +147,8 @@ class Client:
 
         >>> client.server_info().algorithms
         ['topo-relations', 'critical-points', 'discrete-gradient', 'morse-smale',
-         'persistence-diagram', 'topological-simplification', 'diagram-distance', 'tracking']
+         'persistence-diagram', 'topological-simplification', 'diagram-distance', 'tracking',
+         'merge-tree', 'contour-tree']
         """
         response = self._call(self._stub.GetServerInfo, _messages.build_get_server_info())
         info = _messages.decode_get_server_info(response)
@@ -702,15 +703,17 @@ class Session:
         """Runs an algorithm and returns its result.
 
         `algorithm`: "critical-points", "discrete-gradient", "morse-smale",
-        "persistence-diagram", "topological-simplification", "topo-relations" ("morse_smale"
-        works too), or over several fields "diagram-distance" (see distance_matrix()) or
-        "tracking" (the pairs of consecutive fields matched into trajectories: the summary
-        counts them, the ``tracking`` group holds TTK's tracking output).
+        "persistence-diagram", "topological-simplification", "merge-tree", "contour-tree",
+        "topo-relations" ("morse_smale" works too), or over several fields "diagram-distance"
+        (see distance_matrix()) or "tracking" (the pairs of consecutive fields matched into
+        trajectories: the summary counts them, the ``tracking`` group holds TTK's tracking
+        output).
         `parameters`: e.g. ``{"boundary_rule": "none"}``, ``{"embedding":
         "domain"}`` (persistence-diagram: its points at the vertices), ``{"relative_threshold":
         "0.05"}`` or ``{"persistence_threshold": "2.5"}`` (topological-simplification, and
-        morse-smale on the simplified field), ``{"relations": "all"}`` (topo-relations: 22
-        relations instead of TTK's 20).
+        morse-smale, merge-tree and contour-tree on the simplified field), ``{"tree":
+        "split"}`` (merge-tree: the split tree instead of the join tree), ``{"relations":
+        "all"}`` (topo-relations: 22 relations instead of TTK's 20).
         `fields`: a list of point fields of the session's mesh, or "all" (every floating-point
         one, in the mesh's order), to run the algorithm over each of them in turn instead of
         over the session's scalar field;

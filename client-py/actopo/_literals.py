@@ -15,9 +15,11 @@ Structure: TypeAlias = Literal["explicit", "compact", "actopo"]
 
 Algorithm: TypeAlias = Literal["topo-relations", "critical-points", "discrete-gradient",
                                "morse-smale", "persistence-diagram",
-                               "topological-simplification", "diagram-distance", "tracking"]
+                               "topological-simplification", "diagram-distance", "tracking",
+                               "merge-tree", "contour-tree"]
 """An algorithm that Session.run() runs; "diagram-distance" and "tracking" run over several
-fields (its ``fields`` argument; Session.distance_matrix() runs the first)."""
+fields (its ``fields`` argument; Session.distance_matrix() runs the first); "merge-tree" and
+"contour-tree" give TTK's trees (JobResult.tree)."""
 
 Relation: TypeAlias = Literal[
     "vertex_neighbors", "vertex_edges", "vertex_triangles", "vertex_star",

@@ -1,10 +1,11 @@
 """Drawings with matplotlib (the ``plot`` extra): persistence diagrams, birth against death,
-and distance matrices as heat maps, with a dendrogram when scipy is there.
+distance matrices as heat maps, with a dendrogram when scipy is there, and merge and contour
+trees, each node at its value.
 
-It takes plain arrays, not the PersistenceDiagram or the DistanceMatrix, so that _diagram and
-_distances depend on this module and not the other way round. No pyplot: a Figure of its own
-draws without a display and leaves matplotlib's global state (the backend, the current figure)
-as the caller had it.
+It takes plain arrays, not the PersistenceDiagram, the DistanceMatrix or the Tree, so that
+_diagram, _distances and _tree depend on this module and not the other way round. No pyplot:
+a Figure of its own draws without a display and leaves matplotlib's global state (the backend,
+the current figure) as the caller had it.
 """
 
 from __future__ import annotations
@@ -26,12 +27,13 @@ PAIR_STYLES = {
 """Pair type -> (colour, marker, what the pair joins)."""
 
 
-def _figure(size: float = 7.0) -> Figure:
+def _figure(size: float = 7.0, height: float | None = None) -> Figure:
+    """A Figure of its own, `size` inches wide and `height` (default: as wide) high."""
     try:
         from matplotlib.figure import Figure
     except ImportError:
         raise ImportError("plotting needs matplotlib: pip install 'actopo[plot]'") from None
-    return Figure(figsize=(size, size), layout="constrained")
+    return Figure(figsize=(size, size if height is None else height), layout="constrained")
 
 
 def draw(birth: np.ndarray, death: np.ndarray, pair_type: np.ndarray, is_finite: np.ndarray, *,
@@ -145,4 +147,74 @@ def save_matrix(path: str | os.PathLike[str], values: np.ndarray, names: list[st
     draw_matrix(values, names, merges=merges, title=title, ax=figure.add_subplot())
     # The dendrogram's inset lies outside the heat map's box, where the layout does not look.
     figure.savefig(path, dpi=dpi, bbox_inches="tight")
+    return str(path)
+
+
+NODE_STYLES = {
+    0: ("tab:blue", "v", "minimum"),
+    1: ("tab:orange", "s", "1-saddle"),
+    2: ("tab:green", "D", "2-saddle"),
+    3: ("tab:red", "^", "maximum"),
+    4: ("tab:purple", "X", "degenerate"),
+    5: ("0.5", "o", "regular"),
+}
+"""A tree node's CriticalType -> (colour, marker, name)."""
+
+
+def _tree_width(x: np.ndarray) -> float:
+    """Inches for a tree whose leaves are at x = 0, 1, ...: 7, up to 18 for many leaves."""
+    leaves = float(x.max()) + 1 if len(x) else 1.0
+    return min(18.0, max(7.0, 0.12 * leaves))
+
+
+def draw_tree(x: np.ndarray, y: np.ndarray, arcs: np.ndarray, critical_type: np.ndarray,
+              labels: list[tuple[int, int, str]], *, elbows: bool, title: str,
+              ax: Axes | None = None) -> Axes:
+    """Draws a tree: node i at (x[i], y[i]) with the marker of its CriticalType, each arc (a
+    row of `arcs`: a child and its parent) as a segment, or with `elbows` as an elbow: up or
+    down from the child to the parent's value, then across to the parent, so that a branch's
+    height is its persistence. For each (leaf, end, text) of `labels` the text is written along
+    the branch from its leaf away from its end (a branch's persistence: below a minimum, above
+    a maximum). The x axis means nothing but the order of the leaves, so it has no ticks."""
+    from matplotlib.collections import LineCollection
+
+    ax = ax if ax is not None else _figure(_tree_width(x), 6.0).add_subplot()
+    child, parent = arcs.reshape(-1, 2).T
+    start, target = np.stack([x[child], y[child]], 1), np.stack([x[parent], y[parent]], 1)
+    corner = np.stack([x[child], y[parent]], 1) if elbows else target
+    lines = np.stack([start, corner, target], axis=1)
+    ax.add_collection(LineCollection(list(lines), colors="0.35", linewidths=1.0, zorder=1))
+    for kind, (colour, marker, name) in NODE_STYLES.items():
+        selected = critical_type == kind
+        if selected.any():
+            ax.scatter(x[selected], y[selected], s=22, c=colour, marker=marker, zorder=2,
+                       linewidths=0, label=f"{name} ({selected.sum()})")
+    for leaf, end, text in labels:
+        below = y[leaf] <= y[end]
+        # Rotated to read upwards: anchored at its end below a leaf, at its start above one.
+        ax.annotate(text, (x[leaf], y[leaf]), xytext=(0, -5 if below else 5),
+                    textcoords="offset points", fontsize="x-small", rotation=90,
+                    rotation_mode="anchor", ha="right" if below else "left", va="center",
+                    color="0.15")
+    low, high = (float(y.min()), float(y.max())) if len(y) else (0.0, 1.0)
+    margin = 0.12 * (high - low) or 1.0  # room for the labels
+    ax.set_xlim(-1.0, (float(x.max()) if len(x) else 0.0) + 1.0)
+    ax.set_ylim(low - margin, high + margin)
+    ax.set_xticks([])
+    ax.set_xlabel("leaves" + (" (beside each: its branch's persistence)" if labels else ""))
+    ax.set_ylabel("scalar")
+    ax.grid(True, axis="y", color="0.93", linewidth=0.6)
+    ax.legend(loc="best", fontsize="small")
+    ax.set_title(title)
+    return ax
+
+
+def save_tree(path: str | os.PathLike[str], x: np.ndarray, y: np.ndarray, arcs: np.ndarray,
+              critical_type: np.ndarray, labels: list[tuple[int, int, str]], *, elbows: bool,
+              title: str, dpi: int = 150) -> str:
+    """draw_tree() on a figure of its own, written to `path`; returns the path."""
+    figure = _figure(_tree_width(x), 6.0)
+    draw_tree(x, y, arcs, critical_type, labels, elbows=elbows, title=title,
+              ax=figure.add_subplot())
+    figure.savefig(path, dpi=dpi)
     return str(path)

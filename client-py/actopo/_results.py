@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from actopo import _convert, _diagram, _distances, _simplified, _tracking, _vtk
+from actopo import _convert, _diagram, _distances, _simplified, _tracking, _tree, _vtk
 from actopo._arrays import dtype_of
 from actopo._diagram import PersistenceDiagram
 from actopo._distances import DistanceMatrix
@@ -21,6 +21,7 @@ from actopo._literals import Algorithm
 from actopo._proto import pb
 from actopo._simplified import SimplifiedField
 from actopo._tracking import Trajectories
+from actopo._tree import Tree
 from actopo._types import JobProgress, JobStats
 
 
@@ -39,14 +40,16 @@ class JobResult:
     Groups (see the proto's ResultChunk): ``critical_points`` (critical-points, morse-smale),
     ``critical_cells`` (discrete-gradient), ``separatrices`` and ``segmentation``
     (morse-smale), ``diagram`` and ``persistence_curve`` (persistence-diagram), ``simplified``
-    (topological-simplification, and morse-smale run with a threshold). Each group is a dict
-    of TTK array names::
+    (topological-simplification, and morse-smale run with a threshold), ``tree_nodes``,
+    ``tree_arcs`` and ``segmentation`` (merge-tree, contour-tree). Each group is a dict of TTK
+    array names::
 
         result.critical_points["CriticalType"]        # int8, one per critical vertex
         result.segmentation["MorseSmaleManifold"]     # int32, one per vertex
 
     A persistence diagram also comes typed, one entry per pair: ``result.diagram``; a
-    simplified field, one value per vertex: ``result.simplified``.
+    simplified field, one value per vertex: ``result.simplified``; a merge or contour tree,
+    its nodes, arcs and segmentation: ``result.tree``.
 
     A job over several fields (``Session.run(..., fields=[...])``) has one FieldResult per
     field in ``fields``, in the job's order, each with the summary, arrays and typed views a
@@ -111,6 +114,17 @@ class JobResult:
         return _simplified.from_arrays(group) if group else None
 
     @cached_property
+    def tree(self) -> Tree | None:
+        """The tree of a merge-tree or contour-tree job (its ``tree_nodes``, ``tree_arcs`` and
+        ``segmentation`` groups and its summary's "tree") as a Tree, the arcs' ends as global
+        NodeIds; None for the other algorithms and for a job run without its arrays."""
+        nodes = self.group("tree_nodes")
+        if not nodes:
+            return None
+        return _tree.from_arrays(str(self.summary.get("tree", "")), nodes,
+                                 self.group("tree_arcs"), self.segmentation)
+
+    @cached_property
     def distance_matrix(self) -> DistanceMatrix | None:
         """The matrices of a diagram-distance job as a DistanceMatrix; None for the other
         jobs (and for each field's own result)."""
@@ -138,8 +152,9 @@ class JobResult:
     def to_pyvista(self, mesh: Any = None) -> dict[str, Any]:
         """The result as pyvista datasets, by group (needs the ``pyvista`` extra).
 
-        Critical points and cells become PolyData vertices with their arrays as point data,
-        separatrices PolyData polylines with per-line cell data. The per-vertex groups need the
+        Critical points and cells and a tree's nodes become PolyData vertices with their
+        arrays as point data, separatrices and a tree's arcs PolyData polylines with per-line
+        cell data. The per-vertex groups need the
         mesh's geometry, which stays on the server: pass the mesh you uploaded (any form
         upload_mesh() takes) to get them as UnstructuredGrids, else they are left out: the
         segmentation (the mesh with its arrays added) and the simplified field (the mesh with
@@ -155,9 +170,10 @@ class JobResult:
     def write(self, prefix: str, mesh: Any = None) -> list[str]:
         """Writes files for ParaView as actopo-bench does (PREFIX_critical_points.vtp, ...).
 
-        Uses pyvista if installed, else meshio (then every file is a .vtu). The simplified
-        field (PREFIX_simplified.vtu) and the segmentation are written only when `mesh` gives
-        the geometry; a persistence diagram as PREFIX_diagram.vtu and
+        Uses pyvista if installed, else meshio (then every file is a .vtu). A tree's nodes and
+        arcs go to PREFIX_tree_nodes.vtp and PREFIX_tree_arcs.vtp. The simplified field
+        (PREFIX_simplified.vtu) and the segmentation are written only when `mesh` gives the
+        geometry; a persistence diagram as PREFIX_diagram.vtu and
         PREFIX_persistence_curve.csv. Returns the paths written.
         """
         written = _vtk.write_files(self._groups(), prefix, mesh)

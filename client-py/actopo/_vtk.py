@@ -18,7 +18,10 @@ from actopo._mesh import mesh_arrays
 Groups: TypeAlias = Mapping[str, Mapping[str, np.ndarray]]
 """A result's arrays: group name -> TTK array name -> values."""
 
-POINT_GROUPS = ("critical_points", "critical_cells")
+POINT_GROUPS = ("critical_points", "critical_cells", "tree_nodes")
+LINE_GROUPS = ("separatrices", "tree_arcs")
+LINE_POINT_ARRAYS = {"tree_arcs": ("Scalar", "ttkMaskScalarField")}
+"""The arrays of a line group that hold a value per point; the others hold one per line."""
 VERTEX_GROUPS = ("simplified", "segmentation")
 """Groups of one value per vertex, put on the mesh's grid (so written only with the mesh):
 the simplified field replaces the scalar field of the same name, as in TTK's output."""
@@ -29,16 +32,19 @@ def _group(groups: Groups, name: str) -> dict[str, np.ndarray]:
     return dict(groups.get(name, {}))
 
 
-def _lines(group: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-    """Points, VTK line connectivity [n, i0, .., in-1, ...] and per-line arrays."""
+def _lines(name: str, group: Mapping[str, np.ndarray]
+           ) -> tuple[np.ndarray, list[np.ndarray], dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Points, each line's point ids (Connectivity[Offsets[i]:Offsets[i + 1]], or the points
+    in order without Connectivity), and the per-point and per-line arrays."""
     points = np.asarray(group.get("Points", np.zeros((0, 3)))).reshape(-1, 3)
     offsets = np.asarray(group.get("Offsets", np.zeros(1, dtype=np.int64)), dtype=np.int64)
-    cells = []
-    for start, end in itertools.pairwise(offsets):
-        cells.append(np.concatenate([[end - start], np.arange(start, end)]))
-    connectivity = np.concatenate(cells) if cells else np.zeros(0, dtype=np.int64)
-    arrays = {k: v for k, v in group.items() if k not in ("Points", "Offsets")}
-    return points, connectivity, arrays
+    ids = np.asarray(group.get("Connectivity", np.arange(offsets[-1] if len(offsets) else 0)),
+                     dtype=np.int64)
+    lines = [ids[start:end] for start, end in itertools.pairwise(offsets)]
+    per_point = LINE_POINT_ARRAYS.get(name, ())
+    arrays = {k: v for k, v in group.items() if k not in ("Points", "Offsets", "Connectivity")}
+    return (points, lines, {k: v for k, v in arrays.items() if k in per_point},
+            {k: v for k, v in arrays.items() if k not in per_point})
 
 
 def _pyvista() -> Any:
@@ -60,13 +66,18 @@ def to_pyvista(groups: Groups, mesh: Any = None) -> dict[str, Any]:
             for key, values in group.items():
                 poly.point_data[key] = values
             out[name] = poly
-    separatrices = _group(groups, "separatrices")
-    if separatrices:
-        points, connectivity, arrays = _lines(separatrices)
-        poly = pv.PolyData(points, lines=connectivity) if len(connectivity) else pv.PolyData()
-        for key, values in arrays.items():
-            poly.cell_data[key] = values
-        out["separatrices"] = poly
+    for name in LINE_GROUPS:
+        group = _group(groups, name)
+        if group:
+            points, lines, point_arrays, line_arrays = _lines(name, group)
+            cells = np.concatenate([np.concatenate([[len(line)], line]) for line in lines]) \
+                if lines else np.zeros(0, dtype=np.int64)
+            poly = pv.PolyData(points, lines=cells) if len(cells) else pv.PolyData()
+            for key, values in point_arrays.items():
+                poly.point_data[key] = values
+            for key, values in line_arrays.items():
+                poly.cell_data[key] = values
+            out[name] = poly
     for name in VERTEX_GROUPS:
         group = _group(groups, name)
         if group and mesh is not None:
@@ -96,20 +107,20 @@ def _write_meshio(groups: Groups, prefix: str, mesh: Any) -> list[str]:
             path = f"{prefix}_{name}.vtu"
             meshio.Mesh(points, cells, point_data=group).write(path)
             written.append(path)
-    separatrices = _group(groups, "separatrices")
-    if separatrices:
-        points, _, arrays = _lines(separatrices)
-        offsets = np.asarray(separatrices["Offsets"], dtype=np.int64)
+    for name in LINE_GROUPS:
+        group = _group(groups, name)
+        if not group:
+            continue
+        points, lines, point_arrays, line_arrays = _lines(name, group)
         segments, owner = [], []
-        for i, (start, end) in enumerate(itertools.pairwise(offsets)):
-            ids = np.arange(start, end)
+        for i, ids in enumerate(lines):
             segments.append(np.stack([ids[:-1], ids[1:]], axis=1))
             owner.append(np.full(max(len(ids) - 1, 0), i))
-        lines = np.concatenate(segments) if segments else np.zeros((0, 2), dtype=np.int64)
+        pieces = np.concatenate(segments) if segments else np.zeros((0, 2), dtype=np.int64)
         line_owner = np.concatenate(owner) if owner else np.zeros(0, dtype=np.int64)
-        path = f"{prefix}_separatrices.vtu"
-        meshio.Mesh(points, [("line", lines)],
-                    cell_data={k: [np.asarray(v)[line_owner]] for k, v in arrays.items()}
+        path = f"{prefix}_{name}.vtu"
+        meshio.Mesh(points, [("line", pieces)], point_data=point_arrays,
+                    cell_data={k: [np.asarray(v)[line_owner]] for k, v in line_arrays.items()}
                     ).write(path)
         written.append(path)
     local = None

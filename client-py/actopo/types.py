@@ -16,6 +16,7 @@ from actopo._mesh import MeshArrays
 from actopo._results import FieldResult, JobResult
 from actopo._simplified import SimplifiedField
 from actopo._tracking import Trajectories
+from actopo._tree import Tree, TreeArcs, TreeBranches, TreeNodes, TreeSegmentation
 from actopo._types import (
     Counter,
     EngineOptions,
@@ -41,5 +42,6 @@ __all__ = [
     "FieldInfo", "FieldResult", "JobResult", "JobStats", "LoadProgress", "MemoryStats",
     "MeshArrays", "MeshInfo", "PersistenceCurve", "PersistenceDiagram", "QueryBreakdown",
     "RelationBatch", "ServerInfo", "ServerLimits", "SessionInfo", "SessionStats",
-    "SimplexRelation", "SimplifiedField", "StreamItem", "Trajectories",
+    "SimplexRelation", "SimplifiedField", "StreamItem", "Trajectories", "Tree", "TreeArcs",
+    "TreeBranches", "TreeNodes", "TreeSegmentation",
 ]

@@ -29,7 +29,8 @@ def test_server_info(client):
     assert info.version
     assert info.algorithms == ["topo-relations", "critical-points", "discrete-gradient",
                                "morse-smale", "persistence-diagram",
-                               "topological-simplification", "diagram-distance", "tracking"]
+                               "topological-simplification", "diagram-distance", "tracking",
+                               "merge-tree", "contour-tree"]
     assert "vertex_edges" in info.relations and "triangle_on_boundary" in info.relations
     assert any(s.startswith("jittered:N") for s in info.samples)
     assert info.limits.max_batch_size > 0 and info.limits.max_message_bytes > 0

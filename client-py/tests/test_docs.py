@@ -41,7 +41,7 @@ def test_docstring_examples(client):
 
 def test_readme_examples(server, monkeypatch, capsys):
     blocks = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
-    assert len(blocks) == 10
+    assert len(blocks) == 11
     monkeypatch.setenv("ACTOPO_SERVER", server)
     monkeypatch.chdir(README.parents[1])
     for code in blocks:
@@ -61,6 +61,10 @@ def test_readme_examples(server, monkeypatch, capsys):
             "141 {'0': 63, '0_infinite': 1, '1': 61, '2': 16}\n0 0 6408 False\n") in out
     assert ("SimplifiedField('height', 14570 vertices) 3.6677284240722656 7\nTrue\n"
             "2539 2539\n[3, 8, 2, 0] True\n") in out
+    assert ("Tree('join', 20 nodes, 19 arcs, 1 component) {'0': 10, '1': 9, '3': 1}\nTrue\n"
+            "[ 339 2311 1777] [1974 4871 2830]\n10 [ 339 2311 1825] [73.35 20.17  6.79]\n"
+            "8273 8275\nTree('split', 26 nodes, 25 arcs, 1 component) "
+            "Tree('contour', 6 nodes, 5 arcs, 1 component)\n19 0\n") in out
     assert ("[('velocityMag', None), ('velocityMag_03', 3.0), ('velocityMag_04', 4.0), "
             "('velocityMag_05', 5.0)]\n[('velocityMag', 655), ('velocityMag_03', 814), "
             "('velocityMag_04', 1008), ('velocityMag_05', 1183)]\n"
@@ -147,6 +151,10 @@ COMMANDS: dict[str, list[Step] | str] = {
         Step("actopo run topological-simplification --mesh fertility_tet.vtu --scalar height "
              "--param relative_threshold=0.05 --output out/fertility", ('"backend": "lts"',),
              ("out/fertility_simplified.vtu",), local_data=False)],
+    "actopo run merge-tree --mesh fertility_tet.vtu --scalar height --tree split --plot "
+    "tree.png": [
+        Step("actopo run merge-tree --mesh fertility_tet.vtu --scalar height --tree split "
+             "--plot tree.png", ('"tree": "split"', "wrote tree.png"), ("tree.png",))],
     "actopo run persistence-diagram --mesh isabel_series_s2_tet.vtu --scalars all": [
         Step("actopo run persistence-diagram --mesh isabel_series_s2_tet.vtu --scalars all",
              RUN_FIELDS)],

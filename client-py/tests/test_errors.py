@@ -35,7 +35,7 @@ def test_invalid_argument(client):
             with pytest.raises(actopo.InvalidArgumentError, match="unknown relation 'vv'"):
                 session.relation("vv", [0])  # decided on the client
             with pytest.raises(actopo.InvalidArgumentError, match="unknown algorithm"):
-                session.run("contour-tree")
+                session.run("reeb-graph")
         with pytest.raises(actopo.InvalidArgumentError, match=r"engine\.consumers"):
             client.open_session(mesh, consumers=1000)
     finally:

@@ -124,7 +124,7 @@ BAD_NAMES: list[tuple[str, str, Callable[[_Offline], Any]]] = [
     ("precompute", "always", lambda o: o.client.open_session("mesh-x", precompute="always")),
     ("relation", "vv", lambda o: o.session.query("vv", 0)),
     ("relation", "vertex_stars", lambda o: list(o.session.relations_stream("vertex_stars", [0]))),
-    ("algorithm", "contour-tree", lambda o: o.session.submit("contour-tree")),
+    ("algorithm", "reeb-graph", lambda o: o.session.submit("reeb-graph")),
     ("structure", "3",
      lambda o: _messages.build_open_session("m", None, 3, 0, 0, 0.0, "auto", "auto")),
 ]
@@ -151,7 +151,7 @@ def test_unknown_names_raise_on_the_async_client():
             session = actopo.AsyncSession(client, info)
             calls = [lambda: client.open_session("mesh-x", structure="fancy"),
                      lambda: session.query("vv", 0),
-                     lambda: session.submit("contour-tree")]
+                     lambda: session.submit("reeb-graph")]
             for call in calls:
                 with pytest.raises(actopo.InvalidArgumentError) as e:
                     await call()
@@ -165,7 +165,7 @@ def test_unknown_names_raise_on_the_async_client():
     messages = asyncio.run(check())
     for message, (parameter, value) in zip(messages, [("structure", "fancy"),
                                                       ("relation", "vv"),
-                                                      ("algorithm", "contour-tree"),
+                                                      ("algorithm", "reeb-graph"),
                                                       ("relation", "vertex_stars")],
                                            strict=True):
         assert f"{parameter}: unknown {parameter} '{value}'; available: " in message

@@ -106,10 +106,11 @@ def tree_entry(nodes, arcs, segmentation):
     for t in types.tolist():
         counts[str(int(t))] = counts.get(str(int(t)), 0) + 1
     entry = {
-        "nodes": int(len(node_id)),
+        "nodes": len(node_id),
         "arcs": int(arcs.GetNumberOfCells()),
         "critical_types": dict(sorted(counts.items())),
-        "nodes_sha256": sha256(f"{v} {int(t)}\n" for v, t in sorted(zip(vertex.tolist(), types.tolist(), strict=True))),
+        "nodes_sha256": sha256(f"{v} {int(t)}\n" for v, t in
+                               sorted(zip(vertex.tolist(), types.tolist(), strict=True))),
         "arcs_sha256": sha256(f"{d} {u}\n" for d, u in sorted(ends)),
         "segmentation_sha256": sha256(
             f"{v} {ends[arc_of_id[int(s)]][0]} {ends[arc_of_id[int(s)]][1]}\n"
@@ -194,7 +195,8 @@ def simplified(mesh, field, fraction):
     pd.Update()
     ts = ttkTopologicalSimplification()
     ts.SetInputDataObject(0, mesh)
-    ts.SetInputDataObject(1, constraints_of(pd.GetOutput(), fraction * (values.max() - values.min())))
+    threshold = fraction * (values.max() - values.min())
+    ts.SetInputDataObject(1, constraints_of(pd.GetOutput(), threshold))
     ts.SetInputArrayToProcess(0, 0, 0, POINTS, field)
     ts.SetThreadNumber(2)
     ts.Update()
@@ -226,7 +228,8 @@ def main():
         mesh.GetPointData().SetActiveScalars(field)
         entry = {"trees": trees_of(mesh, field), "simplified": {}}
         for fraction in FRACTIONS:
-            entry["simplified"][f"{fraction:g}"] = trees_of(simplified(mesh, field, fraction), field)
+            simple = simplified(mesh, field, fraction)
+            entry["simplified"][f"{fraction:g}"] = trees_of(simple, field)
         results.setdefault(name, {})[field] = entry
         print(f"{name} {field}: " + ", ".join(
             f"{k} {v['nodes']}" for k, v in entry["trees"].items()), file=sys.stderr)
