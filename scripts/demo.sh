@@ -44,6 +44,22 @@ step "Morse-Smale complex after simplifying away the pairs below 5% of the range
 "$actopo" run --mesh-id "$mesh" --algorithm morse-smale --structure actopo \
   --param relative_threshold=0.05
 
+step "split tree (TTK MergeTree) of the field simplified at 5% of its range: its largest regions"
+"$actopo" run --mesh-id "$mesh" --algorithm merge-tree --tree split --structure actopo \
+  --param relative_threshold=0.05
+"$here/.venv/bin/python" - "$mesh" <<'PY'
+import sys
+import actopo
+with actopo.Client() as client, client.open_session(sys.argv[1], structure="actopo") as session:
+    tree = session.run("merge-tree", parameters={"tree": "split", "relative_threshold": "0.05"}).tree
+    print(f"{len(tree.nodes)} nodes, {len(tree.arcs)} arcs; the largest regions:")
+    for arc in tree.largest_regions(5):
+        up, down = tree.arcs.up[arc], tree.arcs.down[arc]
+        print(f"  arc {arc}: {tree.arcs.region_size[arc]} vertices between vertex "
+              f"{tree.nodes.vertex[down]} ({tree.nodes.scalar[down]:.2f}) and vertex "
+              f"{tree.nodes.vertex[up]} ({tree.nodes.scalar[up]:.2f})")
+PY
+
 if [[ -f "$data_dir/isabel_series_s2_tet.vtu" ]]; then
   series=isabel_series_s2_tet.vtu
   step "a time series: the 12 Hurricane Isabel members on one mesh, each member's persistence diagram"
