@@ -358,30 +358,34 @@ absl::StatusOr<TreeResult> BuildContourTree(const Topology& topology,
   for (size_t i = 0; i < join.node_vertex.size(); ++i) {
     if (run_is_join[run_of_component[join.node_component[i]]]) is_node[join.node_vertex[i]] = 1;
   }
-  std::vector<int32_t> vertex_arc(size_t(num_vertices), -1);
+  // Each vertex's arc, written over its join tree node once read (each vertex reads only its own).
+  std::vector<int32_t>& vertex_arc = join.vertex_node;
   std::atomic<int64_t> lost{0};
   ParallelForRanges(num_vertices, 1 << 14, DefaultThreads(), [&](int64_t begin, int64_t end) {
     for (SimplexId v = SimplexId(begin); v < SimplexId(end); ++v) {
       const int32_t join_node = join.vertex_node[v];
+      int32_t arc = -1;
       if (run_is_join[run_of_component[join.node_component[join_node]]]) {
-        vertex_arc[v] = join_numbering.node_arc()[join_node];
+        arc = join_numbering.node_arc()[join_node];
       } else if (is_node[v]) {
-        vertex_arc[v] = last_arc[ct_of[candidates.of_vertex.at(v)]];
+        arc = last_arc[ct_of[candidates.of_vertex.at(v)]];
       } else {
         const int32_t j =
             join_tree.claimed[PieceOf(join_tree, candidates.of_join, candidates, order, v)];
         const int32_t s =
             split_tree.claimed[PieceOf(split_tree, candidates.of_split, candidates, order, v)];
-        vertex_arc[v] = j < 0 ? s : (s < 0 ? j : std::min(j, s));
+        arc = j < 0 ? s : (s < 0 ? j : std::min(j, s));
       }
-      if (vertex_arc[v] < 0) lost.fetch_add(1, std::memory_order_relaxed);
+      vertex_arc[v] = arc;
+      if (arc < 0) lost.fetch_add(1, std::memory_order_relaxed);
     }
   });
   if (lost.load() > 0) {
     return absl::InternalError(absl::StrCat("contour-tree: ", lost.load(),
                                             " vertices were left on no arc by the combination"));
   }
-  FinishTree(topology, vertex_arc, is_node, result);
+  std::vector<int32_t>().swap(split.vertex_node);
+  FinishTree(topology, std::move(vertex_arc), is_node, result);
   return result;
 }
 

@@ -119,6 +119,7 @@ absl::Status ScanLinks(Structure& structure, std::span<const SimplexId> order,
               found[s].insert(found[s].end(), reps.begin(), reps.end());
             }
           }
+          reader.Finished(b);  // a buffering structure drops the block's stars now
           if (!tracker.Done()) return;
         }
         std::lock_guard<std::mutex> lock(mu);
@@ -274,7 +275,7 @@ int8_t RegionType(CriticalType a, CriticalType b) {
   return 4;
 }
 
-void FinishTree(const Topology& topology, std::span<const int32_t> vertex_arc_by_internal,
+void FinishTree(const Topology& topology, std::vector<int32_t> vertex_arc,
                 std::span<const uint8_t> internal_is_node, TreeResult& result) {
   result.counts = {};
   for (const TreeNode& node : result.nodes) ++result.counts[int(node.type)];
@@ -301,12 +302,25 @@ void FinishTree(const Topology& topology, std::span<const int32_t> vertex_arc_by
     a.region_type = RegionType(result.nodes[a.down_node].type, result.nodes[a.up_node].type);
     a.region_size = 0;
   }
-  result.vertex_arc.assign(vertex_arc_by_internal.size(), 0);
-  for (size_t v = 0; v < vertex_arc_by_internal.size(); ++v) {
-    const int32_t a = vertex_arc_by_internal[v];
-    result.vertex_arc[topology.vertex_input_id(SimplexId(v))] = a;
-    if (!internal_is_node[v]) ++result.arcs[a].region_size;
+  for (size_t v = 0; v < vertex_arc.size(); ++v) {
+    if (!internal_is_node[v]) ++result.arcs[vertex_arc[v]].region_size;
   }
+  // From internal to input ids in place, cycle by cycle: a second array would be the run's
+  // peak on a mesh of millions of vertices.
+  std::vector<uint64_t> placed((vertex_arc.size() + 63) / 64, 0);
+  const auto mark = [&placed](SimplexId v) { placed[size_t(v) >> 6] |= uint64_t(1) << (v & 63); };
+  for (SimplexId start = 0; start < SimplexId(vertex_arc.size()); ++start) {
+    if (placed[size_t(start) >> 6] >> (start & 63) & 1) continue;
+    mark(start);
+    int32_t carried = vertex_arc[start];
+    for (SimplexId at = topology.vertex_input_id(start); at != start;
+         at = topology.vertex_input_id(at)) {
+      std::swap(carried, vertex_arc[at]);
+      mark(at);
+    }
+    vertex_arc[start] = carried;
+  }
+  result.vertex_arc = std::move(vertex_arc);
 }
 
 MergeTreeNumbering::MergeTreeNumbering(const SweptTree& tree)
@@ -381,9 +395,9 @@ TreeResult NumberMergeTree(const Topology& topology, std::span<const SimplexId> 
   result.component_node_begin.push_back(int32_t(result.nodes.size()));
   std::vector<uint8_t> is_node(size_t(topology.num_vertices()), 0);
   for (SimplexId v : tree.node_vertex) is_node[v] = 1;
-  std::vector<int32_t>& vertex_arc = tree.vertex_node;  // node index -> its arc, in place
+  std::vector<int32_t> vertex_arc = std::move(tree.vertex_node);  // node index -> its arc
   for (int32_t& x : vertex_arc) x = numbering.node_arc()[x];
-  FinishTree(topology, vertex_arc, is_node, result);
+  FinishTree(topology, std::move(vertex_arc), is_node, result);
   return result;
 }
 

@@ -94,8 +94,9 @@ absl::StatusOr<TreeResult> BuildContourTree(const Topology& topology,
 CriticalType NodeType(int up_arcs, int down_arcs);
 // TTK's RegionType of an arc between nodes of these types.
 int8_t RegionType(CriticalType a, CriticalType b);
-// Counts, per-vertex arcs' region sizes and types, once nodes and arcs are numbered.
-void FinishTree(const Topology& topology, std::span<const int32_t> vertex_arc_by_internal,
+// Counts, region sizes and types and each node's region arc, once nodes and arcs are numbered;
+// `vertex_arc` (each internal vertex's arc) becomes result.vertex_arc, by input id.
+void FinishTree(const Topology& topology, std::vector<int32_t> vertex_arc,
                 std::span<const uint8_t> internal_is_node, TreeResult& result);
 
 }  // namespace actopo::tree_internal
