@@ -29,10 +29,14 @@ std::string_view TreeTypeName(TreeType type) {
   return "join";
 }
 
-int32_t TreeResult::LocalNodeId(int32_t node) const {
+int32_t TreeResult::ComponentOf(int32_t node) const {
   const auto next =
       std::upper_bound(component_node_begin.begin(), component_node_begin.end(), node);
-  return node - *(next - 1);
+  return int32_t(next - component_node_begin.begin()) - 1;
+}
+
+int32_t TreeResult::LocalNodeId(int32_t node) const {
+  return node - component_node_begin[size_t(ComponentOf(node))];
 }
 
 std::string TreeResult::NodesDigest() const {

@@ -72,6 +72,8 @@ struct TreeResult {
   std::vector<int32_t> vertex_arc;
   std::array<int64_t, 6> counts{};  // nodes per CriticalType
 
+  // The component (of TTK's forest, 0, 1, ...) of a node.
+  int32_t ComponentOf(int32_t node) const;
   // A NodeId relative to its component's first, as TTK's upNodeId and downNodeId are.
   int32_t LocalNodeId(int32_t node) const;
   // SHA-256 of "<input vertex> <type>\n" per node, ascending vertex.

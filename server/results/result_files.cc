@@ -298,7 +298,7 @@ void AddTreeOutputs(const ResultContext& c, const TreeResult& r, ResultOutputs& 
   const auto scalar = [&](SimplexId v) { return float(c.scalars[v]); };
 
   PolyData nodes;
-  std::vector<int32_t> node_id, vertex_id, type, size, node_span;
+  std::vector<int32_t> node_id, vertex_id, type, size, node_span, node_component;
   std::vector<float> node_scalar;
   for (size_t n = 0; n < r.nodes.size(); ++n) {
     const TreeNode& node = r.nodes[n];
@@ -310,10 +310,17 @@ void AddTreeOutputs(const ResultContext& c, const TreeResult& r, ResultOutputs& 
     type.push_back(int32_t(node.type));
     size.push_back(r.arcs[node.region_arc].region_size);
     node_span.push_back(int32_t(span[node.region_arc]));  // TTK truncates toward zero
+    node_component.push_back(r.ComponentOf(int32_t(n)));
   }
-  nodes.point_arrays = {{"NodeId", std::move(node_id)},     {"Scalar", std::move(node_scalar)},
-                        {"VertexId", std::move(vertex_id)}, {"CriticalType", std::move(type)},
-                        {"RegionSize", std::move(size)},    {"RegionSpan", std::move(node_span)}};
+  // ComponentId is ours, not TTK's: the component whose first NodeId upNodeId and downNodeId
+  // are relative to, so that clients need not work it out.
+  nodes.point_arrays = {{"NodeId", std::move(node_id)},
+                        {"Scalar", std::move(node_scalar)},
+                        {"VertexId", std::move(vertex_id)},
+                        {"CriticalType", std::move(type)},
+                        {"RegionSize", std::move(size)},
+                        {"RegionSpan", std::move(node_span)},
+                        {"ComponentId", std::move(node_component)}};
   out.poly_data.push_back({"tree_nodes", std::move(nodes)});
 
   // One line per arc from its lower-valued node to the other; a point per node, at first use.
@@ -329,7 +336,7 @@ void AddTreeOutputs(const ResultContext& c, const TreeResult& r, ResultOutputs& 
     }
     return point_of[node];
   };
-  std::vector<int32_t> segmentation_id, up, down, arc_size;
+  std::vector<int32_t> segmentation_id, up, down, arc_size, arc_component;
   std::vector<double> arc_span;
   arcs.line_offsets.push_back(0);
   for (size_t i = 0; i < r.arcs.size(); ++i) {
@@ -343,6 +350,7 @@ void AddTreeOutputs(const ResultContext& c, const TreeResult& r, ResultOutputs& 
     segmentation_id.push_back(a.segmentation_id);
     up.push_back(r.LocalNodeId(a.up_node));
     down.push_back(r.LocalNodeId(a.down_node));
+    arc_component.push_back(r.ComponentOf(a.down_node));
     arc_size.push_back(a.region_size);
     arc_span.push_back(span[i]);
   }
@@ -354,7 +362,8 @@ void AddTreeOutputs(const ResultContext& c, const TreeResult& r, ResultOutputs& 
                       {"upNodeId", std::move(up)},
                       {"downNodeId", std::move(down)},
                       {"RegionSize", std::move(arc_size)},
-                      {"RegionSpan", std::move(arc_span)}};
+                      {"RegionSpan", std::move(arc_span)},
+                      {"ComponentId", std::move(arc_component)}};
   out.poly_data.push_back({"tree_arcs", std::move(arcs)});
 
   const size_t n = r.vertex_arc.size();
