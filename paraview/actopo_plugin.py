@@ -1,6 +1,6 @@
 """ParaView plugin: TTK's topological filters computed by a running actopo-server.
 
-Seven filters take a tetrahedral vtkUnstructuredGrid and a point scalar field (the last two:
+Nine filters take a tetrahedral vtkUnstructuredGrid and a point scalar field (the last two:
 several), send them to the server with the Python client (``actopo``), and return what TTK's
 filter of the same name returns, with TTK's array names:
 
@@ -20,6 +20,14 @@ filter of the same name returns, with TTK's array names:
 - ACTOPO Topological Simplification (TopologicalSimplification, LTS, constrained by the
   persistence pairs above a threshold): the input grid with the scalar field replaced by the
   simplified one and ``<field>_Order``, its vertex order, added;
+- ACTOPO Merge Tree (MergeTree, Tree Type Join Tree or Split Tree) and ACTOPO Contour Tree
+  (ContourTree): TTK's three outputs, port 0 the nodes ("Skeleton Nodes", a VTK_VERTEX cell each,
+  with NodeId, Scalar, VertexId, CriticalType, RegionSize, RegionSpan), port 1 the arcs ("Skeleton
+  Arcs", a VTK_LINE each, with Scalar and ttkMaskScalarField per point and SegmentationId,
+  upNodeId, downNodeId, RegionSize, RegionSpan per arc), port 2 the input grid with SegmentationId,
+  RegionSize, RegionSpan and RegionType per vertex; with a Persistence Threshold, the tree of the
+  simplified field, port 2 then carrying the simplified field and its order, as the Morse-Smale
+  complex's;
 - ACTOPO Persistence Diagram Distance Matrix (PersistenceDiagramDistanceMatrix, from the fields
   rather than their diagrams): a vtkTable, a row per field, TTK's columns Diagram00, Diagram01,
   ... (Wasserstein-p), then Bottleneck00, ... and FieldName;
@@ -72,6 +80,7 @@ from vtkmodules.util.vtkConstants import (
     VTK_LINE,
     VTK_SIGNED_CHAR,
     VTK_TETRA,
+    VTK_VERTEX,
 )
 from vtkmodules.vtkCommonCore import (
     vtkAbstractArray,
@@ -104,6 +113,10 @@ PREFETCH = ("auto", "linear", "spatial", "adaptive")
 PRECOMPUTE = ("auto", "requested", "declared")
 BOUNDARY_RULES = ("ttk", "none")
 EMBEDDINGS = ("diagram", "domain")
+TREE_TYPES = ("Join Tree", "Split Tree")
+"""ACTOPO Merge Tree's Tree Type, TTK's entries (a TTK state's TreeType = 'Split Tree' applies)."""
+TREES = ("join", "split")
+"""The server's merge-tree parameter "tree" for each of TREE_TYPES."""
 DEFAULT_SIMPLIFICATION_THRESHOLD = 0.01
 """ACTOPO Topological Simplification's default: 1% of the scalar field's range, the server's."""
 DEFAULT_WASSERSTEIN_ORDER = 2.0
@@ -196,6 +209,7 @@ class Settings:
         self.block_size = 0
         self.boundary_rule = "ttk"
         self.embedding = "diagram"
+        self.tree = "join"
         self.persistence_threshold = 0.0
         self.threshold_is_relative = True
         self.fields: list[str] = []
@@ -598,6 +612,60 @@ def tracking_polydata(group: Mapping[str, np.ndarray], output: vtkPolyData) -> N
         data.AddArray(_vtk_array(name, values))
 
 
+TREE_ARC_POINT_ARRAYS = ("Scalar", "ttkMaskScalarField")
+"""The arrays of a tree's arcs that hold a value per point (TTK's point data); the others
+(SegmentationId, upNodeId, downNodeId, RegionSize, RegionSpan) hold one per arc."""
+
+
+def tree_nodes_grid(group: Mapping[str, np.ndarray], output: vtkUnstructuredGrid) -> None:
+    """A tree's nodes as TTK's Skeleton Nodes: a VTK_VERTEX cell per node, in NodeId order,
+    the node arrays (NodeId, Scalar, VertexId, CriticalType, RegionSize, RegionSpan) as point
+    data."""
+    points = np.reshape(group.get("Points", np.zeros((0, 3))), (-1, 3))
+    count = len(points)
+    output.SetPoints(_points(points))
+    vertices = vtkCellArray()
+    vertices.SetData(_id_array(np.arange(count + 1)), _id_array(np.arange(count)))
+    output.SetCells(VTK_VERTEX, vertices)
+    for name, values in group.items():
+        if name == "Points":
+            continue
+        if len(values) != count:
+            raise PluginError(f"tree node array {name} has {len(values)} values, for {count} "
+                              "nodes")
+        output.GetPointData().AddArray(_vtk_array(name, values))
+
+
+def tree_arcs_grid(group: Mapping[str, np.ndarray], output: vtkUnstructuredGrid) -> None:
+    """A tree's arcs as TTK's Skeleton Arcs: a VTK_LINE cell per arc, from its lower node's
+    point to its upper node's (Offsets and Connectivity; without Connectivity the points follow
+    on), Scalar and ttkMaskScalarField as point data, the per-arc arrays as cell data."""
+    points = np.reshape(group.get("Points", np.zeros((0, 3))), (-1, 3))
+    offsets = np.asarray(group.get("Offsets", np.zeros(1)), dtype=np.int64)
+    if np.any(np.diff(offsets) != 2):
+        raise PluginError("tree_arcs/Offsets: an arc is not a line of two points")
+    connectivity = np.asarray(group.get("Connectivity", np.arange(offsets[-1])),
+                              dtype=np.int64)
+    if len(connectivity) != offsets[-1] or (len(connectivity) and (
+            connectivity.min() < 0 or connectivity.max() >= len(points))):
+        raise PluginError(f"tree_arcs/Connectivity: {len(connectivity)} point ids, for "
+                          f"{len(offsets) - 1} arcs over {len(points)} points")
+    output.SetPoints(_points(points))
+    lines = vtkCellArray()
+    lines.SetData(_id_array(offsets), _id_array(connectivity))
+    output.SetCells(VTK_LINE, lines)
+    arcs = len(offsets) - 1
+    for name, values in group.items():
+        if name in ("Points", "Offsets", "Connectivity"):
+            continue
+        on_points = name in TREE_ARC_POINT_ARRAYS
+        if len(values) != (len(points) if on_points else arcs):
+            raise PluginError(f"tree arc array {name} has {len(values)} values, for "
+                              f"{len(points)} points and {arcs} arcs")
+        data = output.GetPointData() if on_points else output.GetCellData()
+        data.AddArray(_vtk_array(name, values))
+
+
 def _camel(name: str) -> str:
     return "".join(part.capitalize() for part in name.split("_"))
 
@@ -894,6 +962,87 @@ class ActopoTopologicalSimplification(ActopoFilter):
         if result.simplified is None:
             raise PluginError(f"job {result.job_id}: the server sent no simplified field")
         vertex_arrays_grid(grid, {"simplified": result.simplified.point_data()}, outputs[0])
+
+
+# --- Merge and contour trees --------------------------------------------------------------------
+
+# TTK's ports, by TTK's names.
+_TREE_PORTS = ('<OutputPort name="Skeleton Nodes" index="0"/>'
+               '<OutputPort name="Skeleton Arcs" index="1"/>'
+               '<OutputPort name="Segmentation" index="2"/>')
+_TREE_THRESHOLD = ("0: no simplification. Above 0, the field is simplified first, keeping the "
+                   "persistence pairs at least this persistent, and the tree is that of the "
+                   "simplified field.")
+
+
+class ActopoTreeFilter(ActopoFilter):
+    """Common part of the tree filters: TTK's three outputs, the nodes and the arcs as
+    vtkUnstructuredGrids (VTK_VERTEX, VTK_LINE cells) and the input grid with the
+    segmentation; with a Persistence Threshold, the tree of the simplified field."""
+
+    output_types = ("vtkUnstructuredGrid", "vtkUnstructuredGrid", "vtkUnstructuredGrid")
+
+    def parameters(self) -> dict[str, str]:
+        # 0 leaves the field as it is; a negative value goes to the server, which names it.
+        if self.settings.persistence_threshold == 0:
+            return {}
+        return self.settings.threshold_parameters()
+
+    def fill(self, grid: vtkUnstructuredGrid, result: Any, outputs: list[Any]) -> None:
+        nodes = result.group("tree_nodes")
+        if not nodes:
+            raise PluginError(f"job {result.job_id}: the server sent no tree")
+        # Downstream of TTK's simplification the grid holds the simplified field and its order.
+        vertex_arrays_grid(grid, {"simplified": result.group("simplified"),
+                                  "segmentation": result.group("segmentation")}, outputs[2])
+        tree_nodes_grid(nodes, outputs[0])
+        tree_arcs_grid(result.group("tree_arcs"), outputs[1])
+
+
+@smproxy.filter(name="ActopoMergeTree", label="ACTOPO Merge Tree")
+@smhint.xml(_MENU)
+@smproperty.xml(_TREE_PORTS)
+@smproperty.xml(_SCALAR_PROPERTY)
+@smproperty.input(name="Input", port_index=0)
+@smdomain.datatype(dataTypes=["vtkUnstructuredGrid"], composite_data_supported=False)
+@smdomain.xml(_INPUT_ARRAYS)
+@_connection_properties
+@_threshold_properties(0.0, _TREE_THRESHOLD)
+class ActopoMergeTree(ActopoTreeFilter):
+    """TTK MergeTree (FTM) on the server: the join or the split tree (Tree Type), its nodes,
+    arcs and segmentation; with a Persistence Threshold, of the field TopologicalSimplification
+    leaves (the server chains the two)."""
+
+    algorithm = "merge-tree"
+    label = "ACTOPO Merge Tree"
+
+    @smproperty.intvector(name="TreeType", label="Tree Type", default_values=0)
+    @_enumeration(TREE_TYPES)
+    @_doc("Join Tree: how the sublevel sets' components merge, from the minima (the leaves) "
+          "up to the maximum (the root); Split Tree: the superlevel sets', from the maxima "
+          "down to the minimum.")
+    def SetTreeType(self, value: int) -> None:
+        self.set_option("tree", TREES[value])
+
+    def parameters(self) -> dict[str, str]:
+        return {"tree": self.settings.tree, **super().parameters()}
+
+
+@smproxy.filter(name="ActopoContourTree", label="ACTOPO Contour Tree")
+@smhint.xml(_MENU)
+@smproperty.xml(_TREE_PORTS)
+@smproperty.xml(_SCALAR_PROPERTY)
+@smproperty.input(name="Input", port_index=0)
+@smdomain.datatype(dataTypes=["vtkUnstructuredGrid"], composite_data_supported=False)
+@smdomain.xml(_INPUT_ARRAYS)
+@_connection_properties
+@_threshold_properties(0.0, _TREE_THRESHOLD)
+class ActopoContourTree(ActopoTreeFilter):
+    """TTK ContourTree (FTM) on the server: the join and split trees combined, its nodes, arcs
+    and segmentation; with a Persistence Threshold, of the simplified field."""
+
+    algorithm = "contour-tree"
+    label = "ACTOPO Contour Tree"
 
 
 # --- Filters over several fields ---------------------------------------------------------------

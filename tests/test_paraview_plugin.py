@@ -5,12 +5,19 @@ must equal what the Python client returns for the same mesh, scalar, structure a
 TTK names, dtypes and values, points, polylines, the segmentation on the input grid, TTK's
 persistence diagram as lines with its diagonal, the simplified field in place of the input's with
 its order beside it (whose digests also equal upstream TTK's), the summary in the field data
-beside the session's statistics. The filters over several fields run on the Isabel series (12
-fields on one mesh): the distance matrix's table must hold, row by row and column by column under
-TTK's column names, the very distances Session.distance_matrix() returns, and the tracking's lines
-the client's tracking arrays, a line per link between consecutive steps. Failures (an unknown
-scalar, an unreachable server, a wrong token, triangles, a relative threshold above 1, a single
-field, an integer field, an unknown field, a Wasserstein order below 1) must print the server's or
+beside the session's statistics. The merge trees (join and split) and contour trees, on the field
+and on the field simplified first, must be TTK's three outputs with TTK's array names and types:
+as many nodes and arcs as the job's summary counts, the segmentation a SegmentationId per vertex
+of the input grid; every array equals upstream TTK's byte for byte
+(tests/ttk_reference/trees-ttk.json), or row for row where TTK's order follows its scheduling,
+and the tree the client reads from the filter's outputs has TTK's digests. Tree Type switches
+from the join tree to the split tree, and a threshold leaves fewer nodes. The filters over
+several fields run on the Isabel series (12 fields on one mesh): the distance matrix's table
+must hold, row by row and column by column under TTK's column names, the very distances
+Session.distance_matrix() returns, and the tracking's lines the client's tracking arrays, a line
+per link between consecutive steps. Failures (an unknown scalar, an unreachable server, a wrong
+token, triangles, a relative threshold above 1, a single field, an integer field, an unknown
+field, a Wasserstein order below 1, a tree's threshold out of range) must print the server's or
 client's message and leave pvbatch running.
 
 The plugin finds the client on its own (the repository's .venv and client-py/, after ParaView's
@@ -24,6 +31,7 @@ a built server ($ACTOPO_BUILD) or without the shared meshes ($ACTOPO_DATA_DIR).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
@@ -31,7 +39,7 @@ import subprocess
 import sys
 import sysconfig
 import time
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -114,6 +122,49 @@ CASES: list[dict[str, Any]] = [
                 "session": {"structure": "actopo"},
                 "parameters": {"relative_threshold": "0.05"}},
      "ttk": "0.05"},
+    # The trees, TTK's MergeTree (join by default, split) and ContourTree; "tree": the entry of
+    # trees-ttk.json they must equal, TTK's tree on the field (None) or on the field simplified
+    # at a fraction of its range; "report": the properties whose default pvbatch reports.
+    {"name": "merge_tree", "filter": "ACTOPOMergeTree", "mesh": FERTILITY,
+     "properties": {"ScalarField": ["POINTS", "height"], "Structure": "explicit"},
+     "report": ["TreeType", "PersistenceThreshold", "ThresholdIsRelative"],
+     "client": {"algorithm": "merge-tree", "scalar": "height",
+                "session": {"structure": "explicit"}, "parameters": {"tree": "join"}},
+     "tree": ["join_tree", None]},
+    {"name": "merge_tree_split", "filter": "ACTOPOMergeTree", "mesh": FERTILITY,
+     "properties": {"ScalarField": ["POINTS", "height"], "Structure": "compact",
+                    "TreeType": "Split Tree"},
+     "client": {"algorithm": "merge-tree", "scalar": "height",
+                "session": {"structure": "compact"}, "parameters": {"tree": "split"}},
+     "tree": ["split_tree", None]},
+    {"name": "merge_tree_simplified", "filter": "ACTOPOMergeTree", "mesh": FERTILITY,
+     "properties": {"ScalarField": ["POINTS", "height"], "Structure": "actopo",
+                    "PersistenceThreshold": 0.05},
+     "client": {"algorithm": "merge-tree", "scalar": "height",
+                "session": {"structure": "actopo"},
+                "parameters": {"tree": "join", "relative_threshold": "0.05"}},
+     "tree": ["join_tree", "0.05"], "ttk": "0.05"},
+    {"name": "contour_tree", "filter": "ACTOPOContourTree", "mesh": FERTILITY,
+     "properties": {"ScalarField": ["POINTS", "height"], "Structure": "actopo",
+                    "Consumers": 2},
+     "report": ["PersistenceThreshold"],
+     "client": {"algorithm": "contour-tree", "scalar": "height",
+                "session": {"structure": "actopo", "consumers": 2}},
+     "tree": ["contour_tree", None]},
+    {"name": "contour_tree_simplified", "filter": "ACTOPOContourTree", "mesh": FERTILITY,
+     "properties": {"ScalarField": ["POINTS", "height"], "Structure": "explicit",
+                    "PersistenceThreshold": 3.6677284240722656, "ThresholdIsRelative": 0},
+     "client": {"algorithm": "contour-tree", "scalar": "height",
+                "session": {"structure": "explicit"},
+                "parameters": {"persistence_threshold": "3.6677284240722656"}},
+     "tree": ["contour_tree", "0.05"], "ttk": "0.05"},  # 5% of the range, given absolutely
+    # On the server's copy of the mesh: the segmentation still lands on the input grid.
+    {"name": "contour_tree_server_path", "filter": "ACTOPOContourTree", "mesh": FINGERS,
+     "properties": {"ScalarField": ["POINTS", "density"], "Structure": "compact",
+                    "ServerPath": FINGERS},
+     "client": {"algorithm": "contour-tree", "scalar": "density", "load": FINGERS,
+                "session": {"structure": "compact"}},
+     "tree": ["contour_tree", None]},
 ]
 # The filters over several fields: name, filter, mesh, properties, the properties whose value
 # pvbatch reports (the defaults the domain chose), how the client computes the same.
@@ -186,11 +237,31 @@ ERRORS: list[dict[str, Any]] = [
      "properties": {"WassersteinOrder": 0.5},
      "message": "parameters.p: 0.5 is not a Wasserstein order; give a finite number of at least "
                 "1 (the bottleneck distance comes with every result) [INVALID_ARGUMENT]"},
+    {"name": "error_tree_threshold", "filter": "ACTOPOMergeTree",
+     "properties": {"ScalarField": ["POINTS", "height"], "TreeType": "Split Tree",
+                    "PersistenceThreshold": 1.5},
+     "message": "parameters.relative_threshold: threshold: 1.5 is not a fraction of the scalar "
+                "range in [0, 1] [INVALID_ARGUMENT]"},
+    {"name": "error_tree_persistence", "filter": "ACTOPOContourTree",
+     "properties": {"ScalarField": ["POINTS", "height"], "PersistenceThreshold": -1.0,
+                    "ThresholdIsRelative": 0},
+     "message": "parameters.persistence_threshold: threshold: -1 is not a finite, non-negative "
+                "persistence [INVALID_ARGUMENT]"},
 ]
 GROUP_OF_PORT = {"critical-points": ["critical_points"], "discrete-gradient": ["critical_cells"],
                  "morse-smale": ["critical_points", "separatrices", "segmentation"],
-                 "persistence-diagram": ["diagram"], "topological-simplification": ["simplified"]}
+                 "persistence-diagram": ["diagram"], "topological-simplification": ["simplified"],
+                 "merge-tree": ["tree_nodes", "tree_arcs", "segmentation"],
+                 "contour-tree": ["tree_nodes", "tree_arcs", "segmentation"]}
 SIMPLIFICATION_REFERENCE = ROOT / "tests" / "ttk_reference" / "simplification-ttk.json"
+TREES_REFERENCE = ROOT / "tests" / "ttk_reference" / "trees-ttk.json"
+# TTK's tree outputs: the nodes' point data, the arcs' point and cell data, the segmentation's
+# point data (trees_reference.py), in TTK's order.
+TREE_NODE_ARRAYS = ["NodeId", "Scalar", "VertexId", "CriticalType", "RegionSize", "RegionSpan"]
+TREE_ARC_POINT_ARRAYS = ["Scalar", "ttkMaskScalarField"]
+TREE_ARC_CELL_ARRAYS = ["SegmentationId", "upNodeId", "downNodeId", "RegionSize", "RegionSpan"]
+TREE_SEGMENTATION_ARRAYS = ["SegmentationId", "RegionSize", "RegionSpan", "RegionType"]
+VTK_VERTEX = 1
 VTK_LINE = 3
 STATISTICS = ["ActopoEngineWaitSeconds", "ActopoEngineRequests", "ActopoEngineHits",
               "ActopoEngineMisses", "ActopoEngineEvictions", "ActopoEngineHitRate",
@@ -270,8 +341,8 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
     pvbatch()
     with running_server("--token", TOKEN) as target:
         unreachable = f"127.0.0.1:{free_port()}"
-        cases = [driver_case(c["name"], c["filter"], c["mesh"], target, c["properties"])
-                 for c in CASES]
+        cases = [driver_case(c["name"], c["filter"], c["mesh"], target, c["properties"],
+                             report=c.get("report", [])) for c in CASES]
         cases += [driver_case(c["name"], c["filter"], c["mesh"], target, c["properties"],
                               report=c.get("report", [])) for c in SERIES_CASES]
         cases += [driver_case(e["name"], e["filter"], e.get("mesh", FERTILITY),
@@ -339,6 +410,43 @@ def assert_same_diagram(run: Run, name: str, port: int, result: Any, where: str)
             assert_same_array(run.array(name, port, kind, key), group[key], f"{where} {key}")
 
 
+def assert_same_tree_port(run: Run, name: str, port: int, group: dict[str, np.ndarray],
+                          where: str) -> None:
+    """A tree's nodes or arcs as TTK outputs them, a vtkUnstructuredGrid: a VTK_VERTEX cell per
+    node, or a VTK_LINE cell per arc through the points Offsets and Connectivity name; the
+    points and every array the client's, per point or per arc where TTK puts them."""
+    output = run.port(name, port)
+    assert output["type"] == "vtkUnstructuredGrid"
+    points = np.asarray(group["Points"], dtype=np.float64).reshape(-1, 3)
+    assert_same_array(run.array(name, port, "geometry", "Points"), points, f"{where} Points")
+    cell_types = run.array(name, port, "geometry", "CellTypes")
+    offsets = run.array(name, port, "geometry", "CellOffsets")
+    connectivity = run.array(name, port, "geometry", "Connectivity")
+    if "Offsets" not in group:  # the nodes
+        assert output["cells"] == output["points"] == len(points)
+        assert cell_types.tolist() == [VTK_VERTEX] * len(points)
+        np.testing.assert_array_equal(offsets, np.arange(len(points) + 1))
+        np.testing.assert_array_equal(connectivity, np.arange(len(points)))
+        point_arrays = {k: v for k, v in group.items() if k != "Points"}
+        cell_arrays: dict[str, np.ndarray] = {}
+    else:
+        arcs = len(group["Offsets"]) - 1
+        assert output["cells"] == arcs
+        assert cell_types.tolist() == [VTK_LINE] * arcs
+        assert_same_array(offsets, group["Offsets"], f"{where} Offsets")
+        assert_same_array(connectivity,
+                          group.get("Connectivity", np.arange(2 * arcs, dtype=np.int64)),
+                          f"{where} Connectivity")
+        point_arrays = {k: group[k] for k in TREE_ARC_POINT_ARRAYS}
+        cell_arrays = {k: v for k, v in group.items()
+                       if k not in (*TREE_ARC_POINT_ARRAYS, "Points", "Offsets", "Connectivity")}
+    assert sorted(output["point_arrays"]) == sorted(point_arrays)
+    assert sorted(output["cell_arrays"]) == sorted(cell_arrays)
+    for kind, arrays in (("point", point_arrays), ("cell", cell_arrays)):
+        for key, values in arrays.items():
+            assert_same_array(run.array(name, port, kind, key), values, f"{where} {key}")
+
+
 @pytest.mark.parametrize("case", CASES, ids=[c["name"] for c in CASES])
 def test_outputs_equal_the_python_clients_results(run: Run, expected: dict[str, Any],
                                                   case: dict[str, Any]) -> None:
@@ -369,6 +477,9 @@ def test_outputs_equal_the_python_clients_results(run: Run, expected: dict[str, 
             continue
         if group_name == "diagram":
             assert_same_diagram(run, name, port, result, where)
+            continue
+        if group_name in ("tree_nodes", "tree_arcs"):
+            assert_same_tree_port(run, name, port, group, where)
             continue
         assert output["type"] == "vtkPolyData"
         assert_same_array(run.array(name, port, "geometry", "Points"),
@@ -451,6 +562,156 @@ def test_every_output_carries_the_summary_and_the_sessions_statistics(
         assert json.loads(data["ActopoSummary"]) == result.summary, where
         assert_statistics(run, data, case["client"]["algorithm"],
                           case["client"]["session"]["structure"], where)
+
+
+# --- The trees -----------------------------------------------------------------------------------
+
+TREES = [c for c in CASES if "tree" in c]
+
+
+def ttk_tree(case: dict[str, Any]) -> dict[str, Any]:
+    """The case's entry of trees-ttk.json: upstream TTK's tree of the same field, or of the
+    field simplified first at the same fraction of its range."""
+    kind, fraction = case["tree"]
+    entry = json.loads(TREES_REFERENCE.read_text())["results"][case["mesh"]][
+        case["client"]["scalar"]]
+    return entry["trees"][kind] if fraction is None else entry["simplified"][fraction][kind]
+
+
+def array_digest(values: np.ndarray) -> str:
+    """"<dtype>:<count>:<SHA-256 of the little-endian bytes>", as trees_reference.py digests
+    TTK's arrays."""
+    data = np.ascontiguousarray(values).astype(values.dtype.newbyteorder("<")).tobytes()
+    return f"{values.dtype.name}:{len(values)}:{hashlib.sha256(data).hexdigest()}"
+
+
+def rows_digest(rows: Iterable[str]) -> str:
+    """The SHA-256 of the rows sorted as strings: trees_reference.py's order-free digests."""
+    return hashlib.sha256("".join(sorted(rows)).encode()).hexdigest()
+
+
+def port_arrays(run: Run, name: str, port: int) -> dict[str, np.ndarray]:
+    """Every point and cell array of an output port by name."""
+    output = run.port(name, port)
+    return {**{k: run.array(name, port, "point", k) for k in output["point_arrays"]},
+            **{k: run.array(name, port, "cell", k) for k in output["cell_arrays"]}}
+
+
+def tree_groups(run: Run, name: str) -> dict[str, dict[str, np.ndarray]]:
+    """What the filter's three ports hold, as the server's groups by TTK name: tree_nodes,
+    tree_arcs (the line cells as Offsets and Connectivity) and segmentation (with the input
+    grid's own arrays)."""
+    nodes = {"Points": run.array(name, 0, "geometry", "Points"), **port_arrays(run, name, 0)}
+    arcs = {"Points": run.array(name, 1, "geometry", "Points"),
+            "Offsets": run.array(name, 1, "geometry", "CellOffsets"),
+            "Connectivity": run.array(name, 1, "geometry", "Connectivity"),
+            **port_arrays(run, name, 1)}
+    return {"tree_nodes": nodes, "tree_arcs": arcs, "segmentation": port_arrays(run, name, 2)}
+
+
+def in_ttks_order(names: list[str], ttk_names: list[str]) -> bool:
+    """Whether `names` hold TTK's arrays `ttk_names`, in TTK's order. Arrays of the server's
+    own may come with them; test_outputs_equal_the_python_clients_results holds the port to
+    the client's arrays."""
+    return [n for n in names if n in ttk_names] == ttk_names
+
+
+@pytest.mark.parametrize("case", TREES, ids=[c["name"] for c in TREES])
+def test_trees_are_ttks(run: Run, expected: dict[str, Any], case: dict[str, Any]) -> None:
+    """TTK's three outputs: the nodes (a VTK_VERTEX each) and the arcs (a VTK_LINE each) as
+    vtkUnstructuredGrids with TTK's arrays, in TTK's order and with TTK's types, as many as the
+    job's summary counts; the input grid with a SegmentationId, an arc's, per vertex. Every
+    array equals upstream TTK's byte for byte (where FTM moved its join tree in as the contour
+    tree, TTK's node and arc order follow its scheduling: their rows then, in any order), and
+    the tree the client reads from these outputs has TTK's digests."""
+    from actopo._tree import from_arrays
+
+    name = case["name"]
+    result, grid = expected[name]
+    summary = result.summary
+    ttk = ttk_tree(case)
+    outputs = run.outputs["cases"][name]
+    assert [o["type"] for o in outputs] == ["vtkUnstructuredGrid"] * 3
+    nodes, arcs, segmentation = outputs
+    assert in_ttks_order(nodes["point_arrays"], TREE_NODE_ARRAYS) and nodes["cell_arrays"] == []
+    assert arcs["point_arrays"] == TREE_ARC_POINT_ARRAYS
+    assert in_ttks_order(arcs["cell_arrays"], TREE_ARC_CELL_ARRAYS)
+    assert in_ttks_order(segmentation["point_arrays"], TREE_SEGMENTATION_ARRAYS)
+    assert nodes["points"] == nodes["cells"] == summary["nodes"] == ttk["nodes"]
+    assert arcs["cells"] == summary["arcs"] == ttk["arcs"]
+    assert summary["critical_types"] == ttk["critical_types"]
+    assert (segmentation["points"], segmentation["cells"]) == (grid.n_points, grid.n_cells)
+    groups = tree_groups(run, name)
+    ids = groups["segmentation"]["SegmentationId"]
+    assert len(ids) == grid.n_points
+    assert np.isin(ids, groups["tree_arcs"]["SegmentationId"]).all()
+
+    moved = ttk.get("moved_join_tree", False)
+    assert len(ttk["arrays_sha256"]) == 17  # every array of the three outputs
+    for key, want in ttk["arrays_sha256"].items():
+        group, array = key.split("/")
+        got = array_digest(groups[group][array])
+        assert got.split(":")[:2] == want.split(":")[:2], f"{name} {key}: {got}, TTK's {want}"
+        if not moved or group == "segmentation":
+            assert got == want, f"{name} {key}: the bytes differ from TTK's"
+
+    tree = from_arrays(summary["tree"], groups["tree_nodes"], groups["tree_arcs"],
+                       groups["segmentation"])
+    assert tree.counts_by_type() == ttk["critical_types"]
+    assert tree.nodes_sha256() == ttk["nodes_sha256"]
+    assert tree.arcs_sha256() == ttk["arcs_sha256"]
+    assert tree.segmentation_sha256() == ttk["segmentation_sha256"]
+    n, a = tree.nodes, tree.arcs
+    assert rows_digest(
+        f"{v} {t} {size} {span} {scalar:.9g}\n" for v, t, size, span, scalar in zip(
+            n.vertex.tolist(), n.critical_type.tolist(), n.region_size.tolist(),
+            n.region_span.tolist(), n.scalar.tolist(), strict=True)) == ttk["node_rows_sha256"]
+    assert rows_digest(
+        f"{sid} {down} {up} {size} {span:.9g}\n" for sid, down, up, size, span in zip(
+            a.segmentation_id.tolist(), n.vertex[a.down].tolist(), n.vertex[a.up].tolist(),
+            a.region_size.tolist(), a.region_span.tolist(), strict=True)) == \
+        ttk["arc_rows_sha256"]
+
+
+def tree_summary(run: Run, name: str) -> dict[str, Any]:
+    return json.loads(run.port(name, 0)["field_data"]["ActopoSummary"])
+
+
+def test_tree_type_switches_from_the_join_tree_to_the_split_tree(run: Run) -> None:
+    """Tree Type has TTK's entries, Join Tree by default (the server's default); Split Tree
+    gives another tree of the same field, whose leaves are the maxima instead of the minima."""
+    # The driver reports an enumeration as the list of its one entry.
+    assert run.outputs["properties"]["merge_tree"] == {
+        "TreeType": ["Join Tree"], "PersistenceThreshold": 0.0, "ThresholdIsRelative": 1}
+    assert tree_summary(run, "merge_tree")["tree"] == "join"
+    assert tree_summary(run, "merge_tree_split")["tree"] == "split"
+    join = run.array("merge_tree", 0, "point", "CriticalType")
+    split = run.array("merge_tree_split", 0, "point", "CriticalType")
+    assert len(join) != len(split)  # fertility's height: 20 nodes, 26
+    # A join tree's leaves are minima and its root the maximum; a split tree's the reverse.
+    assert np.count_nonzero(join == 3) == 1 and np.count_nonzero(join == 0) > 1
+    assert np.count_nonzero(split == 0) == 1 and np.count_nonzero(split == 3) > 1
+
+
+SIMPLIFIED_TREES = [("merge_tree", "merge_tree_simplified"),
+                    ("contour_tree", "contour_tree_simplified")]
+
+
+@pytest.mark.parametrize("pair", SIMPLIFIED_TREES, ids=[p[1] for p in SIMPLIFIED_TREES])
+def test_a_threshold_leaves_fewer_nodes(run: Run, pair: tuple[str, str]) -> None:
+    """Persistence Threshold, 0 by default (the field as it is), simplifies the field first:
+    the tree of the same field has fewer nodes and arcs, and the Segmentation port carries
+    the simplified field and its order, as downstream of TTK's TopologicalSimplification."""
+    whole, simplified = pair
+    assert run.outputs["properties"][whole]["PersistenceThreshold"] == 0
+    for port in (0, 1):
+        assert 0 < run.port(simplified, port)["cells"] < run.port(whole, port)["cells"]
+    assert tree_summary(run, simplified)["nodes"] < tree_summary(run, whole)["nodes"]
+    assert tree_summary(run, simplified)["tree"] == tree_summary(run, whole)["tree"]
+    assert "simplification" in tree_summary(run, simplified)
+    assert "simplification" not in tree_summary(run, whole)
+    assert "height_Order" in run.port(simplified, 2)["point_arrays"]
+    assert "height_Order" not in run.port(whole, 2)["point_arrays"]
 
 
 # --- The filters over several fields -------------------------------------------------------------

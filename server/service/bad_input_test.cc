@@ -315,6 +315,24 @@ std::vector<Case> JobCases() {
          (*r.mutable_parameters())["embedding"] = "sideways";
          return RunToEnd(stub, r);
        }},
+      {"unknown merge tree type", C::INVALID_ARGUMENT,
+       "parameters.tree: unknown value 'contour'; available: join, split",
+       [](auto*, auto& stub, auto&, auto& s) {
+         v1::RunJobRequest r;
+         r.set_session_id(s);
+         r.set_algorithm(v1::ALGORITHM_MERGE_TREE);
+         (*r.mutable_parameters())["tree"] = "contour";
+         return RunToEnd(stub, r);
+       }},
+      {"tree type given to the contour tree", C::INVALID_ARGUMENT,
+       "parameters: unknown parameter 'tree' for contour-tree",
+       [](auto*, auto& stub, auto&, auto& s) {
+         v1::RunJobRequest r;
+         r.set_session_id(s);
+         r.set_algorithm(v1::ALGORITHM_CONTOUR_TREE);
+         (*r.mutable_parameters())["tree"] = "join";
+         return RunToEnd(stub, r);
+       }},
       {"threshold not a number", C::INVALID_ARGUMENT,
        "parameters.relative_threshold: 'lots' is not a number",
        [](auto*, auto& stub, auto&, auto& s) {
