@@ -361,7 +361,8 @@ TEST_F(FieldsTest, AJobOverFieldsGivesEachWhatAJobOnItAloneGives) {
   for (const v1::Structure kind :
        {v1::STRUCTURE_EXPLICIT, v1::STRUCTURE_COMPACT, v1::STRUCTURE_ACTOPO}) {
     for (const v1::Algorithm a : {v1::ALGORITHM_CRITICAL_POINTS, v1::ALGORITHM_MORSE_SMALE,
-                                  v1::ALGORITHM_PERSISTENCE_DIAGRAM}) {
+                                  v1::ALGORITHM_PERSISTENCE_DIAGRAM, v1::ALGORITHM_MERGE_TREE,
+                                  v1::ALGORITHM_CONTOUR_TREE}) {
       // The list decides, not the session's field ("scalar", second in the list).
       const std::string session = OpenOn(mesh_id, "scalar", kind, 2);
       const JobRun run = Job(session, a, fields, /*arrays=*/true);
