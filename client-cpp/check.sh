@@ -94,6 +94,9 @@ grep -q "load it as sample:jittered:16" <<< "$out" ||
 out=$("$build/client-examples/series" "$target" sample:jittered:12 2> /dev/null)
 echo "$out"
 grep -q '^ 1 height ' <<< "$out"
+out=$("$build/client-examples/split_tree" "$target" sample:jittered:16 3)
+echo "$out"
+grep -q '^region [0-9]*: [1-9][0-9]* vertices, from vertex ' <<< "$out"
 # Files of this machine uploaded as their bytes: a .vtu, and a .pvd with the four files it names.
 out=$("$build/client-examples/upload_file" "$target" "$ACTOPO_DATA_DIR/fertility_tet.vtu" \
   2> /dev/null)

@@ -20,10 +20,11 @@ TEST_F(ServerTest, ServerInfo) {
   absl::StatusOr<ServerInfo> info = client().GetServerInfo();
   ASSERT_OK(info);
   EXPECT_FALSE(info->version.empty());
-  EXPECT_EQ(info->algorithms, (std::vector<std::string>{
-                                  "topo-relations", "critical-points", "discrete-gradient",
-                                  "morse-smale", "persistence-diagram",
-                                  "topological-simplification", "diagram-distance", "tracking"}));
+  EXPECT_EQ(
+      info->algorithms,
+      (std::vector<std::string>{"topo-relations", "critical-points", "discrete-gradient",
+                                "morse-smale", "persistence-diagram", "topological-simplification",
+                                "diagram-distance", "tracking", "merge-tree", "contour-tree"}));
   ASSERT_EQ(info->relations.size(), 22u);
   EXPECT_EQ(info->relations.front(), "vertex_neighbors");
   EXPECT_EQ(info->relations.back(), "triangle_neighbors");

@@ -1,11 +1,13 @@
 // What the client does without a server: arrays, names, statistics, tokens, argument checks.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
 #include <thread>
+#include <tuple>
 
 #include "absl/strings/str_cat.h"
 #include "actopo/client.h"
@@ -89,6 +91,32 @@ namespace {
     absl::StatusOr<actopo::client::TrackingSummary> tracking = result->Tracking();
     absl::StatusOr<std::vector<double>> cost = result->Get<double>("tracking/Cost");
     if (tracking.ok()) std::cout << tracking->trajectories << " trajectories\n";
+  }
+  return absl::OkStatus();
+}
+
+// The examples of ResultArrays::Tree in the header and README.md, so that they keep compiling
+// (never run).
+[[maybe_unused]] absl::Status TreeExamples(Client* client, const std::string& session_id) {
+  {
+    absl::StatusOr<actopo::client::JobResult> result =
+        client->RunJob(session_id, "merge-tree", {{"tree", "split"}});
+    if (!result.ok()) return result.status();
+    absl::StatusOr<actopo::client::ScalarTree> tree = result->Tree();
+    if (!tree.ok()) return tree.status();
+    for (const actopo::client::ScalarTree::Arc& a : tree->arcs) {
+      const actopo::client::ScalarTree::Node& down = tree->nodes[size_t(a.down_node)];
+      std::cout << down.vertex << " (" << down.scalar << "): " << a.region_size << " vertices\n";
+    }
+  }
+  {
+    absl::StatusOr<JobResult> result = client->RunJob(session_id, "contour-tree");
+    if (!result.ok()) return result.status();
+    absl::StatusOr<ScalarTree> tree = result->Tree();
+    for (const ScalarTree::Arc& a : tree->arcs) {
+      std::cout << tree->nodes[a.down_node].vertex << " -> " << tree->nodes[a.up_node].vertex
+                << ": " << a.region_size << " vertices\n";
+    }
   }
   return absl::OkStatus();
 }
@@ -350,6 +378,226 @@ TEST(PersistencePairsTest, MalformedArraysAreNamed) {
   }
 }
 
+ScalarTree::Node TreeNode(int64_t id, int64_t vertex, double scalar, int type) {
+  return {.id = id,
+          .vertex = vertex,
+          .scalar = scalar,
+          .critical_type = type,
+          .region_size = 10 * id,
+          .region_span = double(id)};
+}
+
+// Two components of a join tree: a minimum pair merging below a maximum (nodes 0 to 3, vertices
+// 10 to 13), and a chain (nodes 4 to 6, vertices 20 to 22); 30 vertices, each a node's on one
+// of its arcs, the others on arc 0.
+ScalarTree TwoComponents() {
+  ScalarTree t;
+  t.nodes = {TreeNode(0, 10, 0.0, 0), TreeNode(1, 11, 1.0, 0), TreeNode(2, 12, 2.0, 1),
+             TreeNode(3, 13, 3.0, 3), TreeNode(4, 20, 0.5, 0), TreeNode(5, 21, 1.5, 4),
+             TreeNode(6, 22, 2.5, 3)};
+  t.arcs = {{.down_node = 0, .up_node = 2, .segmentation_id = 0, .region_size = 3},
+            {.down_node = 1, .up_node = 2, .segmentation_id = 1, .region_size = 4},
+            {.down_node = 2, .up_node = 3, .segmentation_id = 2, .region_size = 5},
+            {.down_node = 4, .up_node = 5, .segmentation_id = 4, .region_size = 6, .component = 1},
+            {.down_node = 5, .up_node = 6, .segmentation_id = 5, .region_size = 7, .component = 1}};
+  for (ScalarTree::Arc& a : t.arcs) a.region_span = 0.25 * double(a.region_size);
+  t.component_offsets = {0, 4, 7};
+  t.segmentation.assign(30, 0);
+  for (const auto& [vertex, id] : std::vector<std::pair<int, int>>{
+           {10, 0}, {11, 1}, {12, 2}, {13, 2}, {20, 4}, {21, 5}, {22, 5}}) {
+    t.segmentation[size_t(vertex)] = id;
+  }
+  return t;
+}
+
+// The arrays of `t` that Tree() reads, as a merge-tree or contour-tree job streams them:
+// up/downNodeId relative to their component's first NodeId, ComponentId per node and per arc.
+// (The points and lines, which Tree() does not read, are left out.)
+JobResult TreeArrays(const ScalarTree& t) {
+  const int64_t n = int64_t(t.nodes.size()), a = int64_t(t.arcs.size());
+  std::vector<float> node_scalar;
+  std::vector<int32_t> id, vertex, type, size, span, node_component;
+  for (const ScalarTree::Node& node : t.nodes) {
+    node_scalar.push_back(float(node.scalar));
+    id.push_back(int32_t(node.id));
+    vertex.push_back(int32_t(node.vertex));
+    type.push_back(node.critical_type);
+    size.push_back(int32_t(node.region_size));
+    span.push_back(int32_t(node.region_span));
+    const auto next =
+        std::upper_bound(t.component_offsets.begin(), t.component_offsets.end(), node.id);
+    node_component.push_back(int32_t(next - t.component_offsets.begin() - 1));
+  }
+  std::vector<double> arc_span;
+  std::vector<int32_t> segmentation_id, up, down, arc_size, arc_component;
+  for (const ScalarTree::Arc& arc : t.arcs) {
+    const int64_t first = t.component_offsets[size_t(arc.component)];
+    segmentation_id.push_back(int32_t(arc.segmentation_id));
+    up.push_back(int32_t(arc.up_node - first));
+    down.push_back(int32_t(arc.down_node - first));
+    arc_size.push_back(int32_t(arc.region_size));
+    arc_span.push_back(arc.region_span);
+    arc_component.push_back(int32_t(arc.component));
+  }
+
+  JobResult result;
+  const auto add = [&](Array array) { result.arrays[array.name] = std::move(array); };
+  add(MakeArray<int32_t>("tree_nodes/NodeId", id, {n}));
+  add(MakeArray<float>("tree_nodes/Scalar", node_scalar, {n}));
+  add(MakeArray<int32_t>("tree_nodes/VertexId", vertex, {n}));
+  add(MakeArray<int32_t>("tree_nodes/CriticalType", type, {n}));
+  add(MakeArray<int32_t>("tree_nodes/RegionSize", size, {n}));
+  add(MakeArray<int32_t>("tree_nodes/RegionSpan", span, {n}));
+  add(MakeArray<int32_t>("tree_nodes/ComponentId", node_component, {n}));
+  add(MakeArray<int32_t>("tree_arcs/SegmentationId", segmentation_id, {a}));
+  add(MakeArray<int32_t>("tree_arcs/upNodeId", up, {a}));
+  add(MakeArray<int32_t>("tree_arcs/downNodeId", down, {a}));
+  add(MakeArray<int32_t>("tree_arcs/RegionSize", arc_size, {a}));
+  add(MakeArray<double>("tree_arcs/RegionSpan", arc_span, {a}));
+  add(MakeArray<int32_t>("tree_arcs/ComponentId", arc_component, {a}));
+  const std::vector<int32_t> segmentation(t.segmentation.begin(), t.segmentation.end());
+  add(MakeArray<int32_t>("segmentation/SegmentationId", segmentation,
+                         {int64_t(segmentation.size())}));
+  return result;
+}
+
+void ExpectSameTree(const ScalarTree& got, const ScalarTree& want) {
+  ASSERT_EQ(got.nodes.size(), want.nodes.size());
+  for (size_t i = 0; i < got.nodes.size(); ++i) {
+    const ScalarTree::Node &g = got.nodes[i], &w = want.nodes[i];
+    EXPECT_EQ(std::tie(g.id, g.vertex, g.scalar, g.critical_type, g.region_size, g.region_span),
+              std::tie(w.id, w.vertex, w.scalar, w.critical_type, w.region_size, w.region_span))
+        << "node " << i;
+  }
+  ASSERT_EQ(got.arcs.size(), want.arcs.size());
+  for (size_t i = 0; i < got.arcs.size(); ++i) {
+    const ScalarTree::Arc &g = got.arcs[i], &w = want.arcs[i];
+    EXPECT_EQ(std::tie(g.down_node, g.up_node, g.segmentation_id, g.region_size, g.region_span,
+                       g.component),
+              std::tie(w.down_node, w.up_node, w.segmentation_id, w.region_size, w.region_span,
+                       w.component))
+        << "arc " << i;
+  }
+  EXPECT_EQ(got.segmentation, want.segmentation);
+  EXPECT_EQ(got.component_offsets, want.component_offsets);
+}
+
+TEST(TreeTest, GlobalNodeIdsFromTheComponentIds) {
+  const ScalarTree want = TwoComponents();
+  const JobResult result = TreeArrays(want);
+  // The second component's arcs are 0 -> 1 -> 2 on the wire.
+  EXPECT_EQ(*result.Get<int32_t>("tree_arcs/downNodeId"), (std::vector<int32_t>{0, 1, 2, 0, 1}));
+  absl::StatusOr<ScalarTree> tree = result.Tree();
+  ASSERT_TRUE(tree.ok()) << tree.status();
+  ExpectSameTree(*tree, want);
+}
+
+// Each arc takes its own ComponentId's first NodeId, whatever the arcs' order: here the two
+// components' arcs interleaved, and neither component's first arc naming its node 0.
+TEST(TreeTest, ArcsInAnyOrder) {
+  ScalarTree want = TwoComponents();
+  want.arcs = {want.arcs[4], want.arcs[2], want.arcs[3], want.arcs[1], want.arcs[0]};
+  const JobResult result = TreeArrays(want);
+  EXPECT_EQ(*result.Get<int32_t>("tree_arcs/downNodeId"), (std::vector<int32_t>{1, 2, 0, 1, 0}));
+  absl::StatusOr<ScalarTree> tree = result.Tree();
+  ASSERT_TRUE(tree.ok()) << tree.status();
+  ExpectSameTree(*tree, want);
+}
+
+TEST(TreeTest, ANodeAlone) {
+  ScalarTree want;
+  want.nodes = {TreeNode(0, 0, 1.0, 5)};
+  want.component_offsets = {0, 1};
+  want.segmentation = {0};
+  absl::StatusOr<ScalarTree> tree = TreeArrays(want).Tree();
+  ASSERT_TRUE(tree.ok()) << tree.status();
+  ExpectSameTree(*tree, want);
+  // A vertex in no tetrahedron, on a mesh of other components: a component of its own, its node
+  // and an arc from it to itself, as the server writes it.
+  want = TwoComponents();
+  want.nodes.push_back(TreeNode(7, 29, 9.0, 5));
+  want.arcs.push_back({.down_node = 7, .up_node = 7, .segmentation_id = 7, .component = 2});
+  want.component_offsets = {0, 4, 7, 8};
+  want.segmentation[29] = 7;
+  tree = TreeArrays(want).Tree();
+  ASSERT_TRUE(tree.ok()) << tree.status();
+  ExpectSameTree(*tree, want);
+}
+
+TEST(TreeTest, MissingArraysAreNamed) {
+  absl::StatusOr<ScalarTree> none = JobResult().Tree();
+  EXPECT_EQ(none.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_NE(none.status().message().find("'tree_nodes/NodeId' not found"), std::string::npos)
+      << none.status();
+  EXPECT_NE(none.status().message().find("include_arrays"), std::string::npos) << none.status();
+  for (const char* name : {"tree_nodes/Scalar", "tree_nodes/CriticalType", "tree_nodes/ComponentId",
+                           "tree_arcs/upNodeId", "tree_arcs/downNodeId", "tree_arcs/ComponentId",
+                           "segmentation/SegmentationId"}) {
+    JobResult result = TreeArrays(TwoComponents());
+    result.arrays.erase(name);
+    const absl::Status status = result.Tree().status();
+    EXPECT_EQ(status.code(), absl::StatusCode::kNotFound) << name;
+    EXPECT_NE(status.message().find(absl::StrCat("'", name, "' not found")), std::string::npos)
+        << status;
+  }
+  // An older server streams no ComponentId: the message says so.
+  JobResult result = TreeArrays(TwoComponents());
+  result.arrays.erase("tree_arcs/ComponentId");
+  EXPECT_EQ(result.Tree().status().message(),
+            "result array 'tree_arcs/ComponentId' not found: the server streams it beside TTK's "
+            "arrays (a server older than this client does not)");
+}
+
+// Each way the arrays can miss the layout, and the message that names the array.
+TEST(TreeTest, MalformedArraysAreNamed) {
+  const struct {
+    Array array;  // in place of its namesake among TwoComponents' arrays
+    std::string message;
+  } cases[] = {
+      {MakeArray<int32_t>("tree_nodes/NodeId", {0, 1, 2, 4, 4, 5, 6}, {7}),
+       "result array 'tree_nodes/NodeId': entry 3 is 4, not 3: the nodes are not by NodeId"},
+      {MakeArray<float>("tree_nodes/Scalar", {0, 1, 2}, {3}),
+       "result array 'tree_nodes/Scalar': 3 values, expected 7 (one per node)"},
+      {MakeArray<double>("tree_nodes/VertexId", {10, 11, 12, 13, 20, 21, 22}, {7}),
+       "array 'tree_nodes/VertexId': dtype float64 is not an integer type"},
+      {MakeArray<int32_t>("tree_nodes/CriticalType", {0, 0, 1, 3, 0, 6, 3}, {7}),
+       "result array 'tree_nodes/CriticalType': node 5 has type 6; a node's is 0 to 5"},
+      {MakeArray<int32_t>("tree_nodes/ComponentId", {0, 0, 0, 0, 1, 1}, {6}),
+       "result array 'tree_nodes/ComponentId': 6 values, expected 7 (one per node)"},
+      {MakeArray<float>("tree_nodes/ComponentId", {0, 0, 0, 0, 1, 1, 1}, {7}),
+       "array 'tree_nodes/ComponentId': dtype float32 is not an integer type"},
+      {MakeArray<int32_t>("tree_nodes/ComponentId", {1, 1, 1, 1, 2, 2, 2}, {7}),
+       "result array 'tree_nodes/ComponentId': node 0 is in component 1, not 0: not 0, 1, 2, ... "
+       "over NodeId, each component a run"},
+      {MakeArray<int32_t>("tree_nodes/ComponentId", {0, 0, 0, 0, 2, 2, 2}, {7}),
+       "result array 'tree_nodes/ComponentId': node 4 is in component 2 after 0: not 0, 1, 2, ... "
+       "over NodeId, each component a run"},
+      {MakeArray<int32_t>("tree_nodes/ComponentId", {0, 0, 1, 1, 0, 1, 1}, {7}),
+       "result array 'tree_nodes/ComponentId': node 4 is in component 0 after 1: not 0, 1, 2, ... "
+       "over NodeId, each component a run"},
+      {MakeArray<int32_t>("tree_arcs/downNodeId", {0, 1, 2, 0}, {4}),
+       "result array 'tree_arcs/downNodeId': 4 values, expected 5 (one per arc)"},
+      {MakeArray<int32_t>("tree_arcs/ComponentId", {0, 0, 0, 1, 1, 1}, {6}),
+       "result array 'tree_arcs/ComponentId': 6 values, expected 5 (one per arc)"},
+      {MakeArray<int32_t>("tree_arcs/ComponentId", {0, 0, 0, 1, 2}, {5}),
+       "result array 'tree_arcs/ComponentId': arc 4 is in component 2, but "
+       "tree_nodes/ComponentId has 2"},
+      {MakeArray<int32_t>("tree_arcs/downNodeId", {0, 1, 2, -1, 1}, {5}),
+       "result array 'tree_arcs/downNodeId': arc 3 has -1, not within the 3 nodes of its "
+       "component (1)"},
+      {MakeArray<int32_t>("tree_arcs/upNodeId", {2, 2, 3, 1, 3}, {5}),
+       "result array 'tree_arcs/upNodeId': arc 4 has 3, not within the 3 nodes of its component "
+       "(1)"},
+  };
+  for (const auto& [array, message] : cases) {
+    JobResult result = TreeArrays(TwoComponents());
+    result.arrays[array.name] = array;
+    const absl::Status status = result.Tree().status();
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << status;
+    EXPECT_EQ(status.message(), message);
+  }
+}
+
 // A FieldResult reads its arrays as a JobResult does.
 TEST(JobResultTest, FieldResultsHaveTheirArrays) {
   JobResult result;
@@ -364,6 +612,7 @@ TEST(JobResultTest, FieldResultsHaveTheirArrays) {
             (std::vector<int8_t>{0, 3}));
   EXPECT_EQ(result.Field("height")->PersistencePairs().status().code(),
             absl::StatusCode::kNotFound);
+  EXPECT_EQ(result.Field("height")->Tree().status().code(), absl::StatusCode::kNotFound);
 }
 
 // JSON has no infinity: an infinite distance (essential pairs of different counts) is

@@ -11,24 +11,11 @@ RegionType.
 
 Global NodeIds. TTK builds one tree per connected component of the mesh. NodeId counts on
 across the components, but upNodeId and downNodeId restart at 0 in each (they are relative to
-the component's first NodeId). The arcs come component after component, and each component's
-node 0 lies on exactly one arc, its first:
-
-- the join tree numbers a component's nodes in ascending order and the split tree in
-  descending order, so node 0 is its lowest (highest) vertex, a leaf, whose one arc sorts first
-  (TTK sorts arcs by downNodeId); a one-vertex component is node 0 with one self-loop arc;
-- the contour tree numbers nodes and arcs as it creates them: its first arc creates node 0, the
-  leaf it peels first, and that leaf is deleted from both trees right after, so no later arc
-  names it (a component with one maximum, whose contour tree is its join tree, is numbered as
-  the join tree).
-
-So the arcs naming node 0 are where the components start. A component's node count is its
-largest local id plus one, and the counts summed give each component's first NodeId, which is
-added to its arcs' ids. This uses nothing but the ids. from_arrays() then checks the result
-against the geometry: each arc's two points (tree_arcs/Points by Connectivity) must be the
-positions of the two nodes (tree_nodes/Points), and its SegmentationId must fall in its
-component's NodeIds (TTK offsets SegmentationId by the nodes of the components before). Matching
-the points alone would not do: two nodes of different components may share a position.
+the component's first NodeId). The server streams beside TTK's arrays a ComponentId of its own
+per node (tree_nodes/ComponentId: 0, 1, ..., each component a run of NodeIds) and per arc
+(tree_arcs/ComponentId), so an arc's global ids are its local ids plus the first NodeId whose
+ComponentId is the arc's. from_arrays() checks that the node ComponentIds run 0, 1, ... over
+NodeId and that each local id falls within its component's nodes.
 """
 
 from __future__ import annotations
@@ -100,7 +87,8 @@ class TreeArcs:
         segmentation_id: TTK's SegmentationId (int32), the arc's id in ``segmentation``.
         region_size: the vertices inside the arc, its nodes left out (int32).
         region_span: the distance between its nodes' vertices (float64, computed in float).
-        component: the connected component of the mesh the arc lies in (int32).
+        component: the connected component of the mesh the arc lies in (int32; the
+            server's tree_arcs/ComponentId).
     """
 
     down: np.ndarray
@@ -173,7 +161,8 @@ class Tree:
         arcs: TreeArcs, with global NodeIds.
         segmentation: TreeSegmentation, per vertex.
         component_offsets: (k + 1,) int64: the NodeIds of connected component i are
-            component_offsets[i] to component_offsets[i + 1] - 1.
+            component_offsets[i] to component_offsets[i + 1] - 1 (from the server's
+            tree_nodes/ComponentId).
 
     Example::
 
@@ -483,31 +472,59 @@ def _column(group: Mapping[str, np.ndarray], where: str, name: str,
     return values
 
 
-def _components(down: np.ndarray, up: np.ndarray, nodes: int) -> tuple[np.ndarray, np.ndarray]:
-    """Each arc's component and the components' first NodeIds (k + 1 offsets) from TTK's
-    component-relative ids: a component's arcs start at the one arc naming its node 0 (see
-    the module's docstring)."""
-    if not len(down):
-        return np.zeros(0, dtype=np.int32), np.array([0, nodes] if nodes else [0])
-    starts = (down == 0) | (up == 0)
-    if not starts[0]:
-        raise ActopoError("tree_arcs: the first arc does not name node 0 (downNodeId, "
-                          "upNodeId relative to its component)")
-    component = np.cumsum(starts) - 1
-    counts = np.zeros(int(component[-1]) + 1, dtype=np.int64)
-    np.maximum.at(counts, component, np.maximum(down, up).astype(np.int64) + 1)
-    offsets = np.concatenate([[0], np.cumsum(counts)])
-    if offsets[-1] != nodes:
-        raise ActopoError(f"tree_arcs: the components' nodes add up to {offsets[-1]}, but there "
-                          f"are {nodes} nodes")
-    return component.astype(np.int32), offsets
+def _integers(group: Mapping[str, np.ndarray], where: str, name: str,
+              length: int | None) -> np.ndarray:
+    """_column() of an integer array."""
+    if name == "ComponentId" and name not in group:
+        raise ActopoError(f"{where}/ComponentId: missing from the job's arrays; the server "
+                          f"streams it beside TTK's arrays (a server older than this client "
+                          f"does not)")
+    values = _column(group, where, name, length)
+    if not np.issubdtype(values.dtype, np.integer):
+        raise ActopoError(f"{where}/{name}: dtype {values.dtype} is not an integer type")
+    return values
+
+
+def _component_offsets(component: np.ndarray) -> np.ndarray:
+    """The first NodeId of each component, then the node count (k + 1 offsets), from
+    tree_nodes/ComponentId, which must run 0, 1, ... over NodeId, each component a run."""
+    steps = np.diff(component)
+    if (len(component) and component[0] != 0) or ((steps != 0) & (steps != 1)).any():
+        raise ActopoError("tree_nodes/ComponentId: not 0, 1, 2, ... over NodeId, each "
+                          "component a run of NodeIds")
+    return np.concatenate([[0], np.flatnonzero(steps) + 1, [len(component)]]).astype(np.int64)
+
+
+def _global_ids(arcs: Mapping[str, np.ndarray], offsets: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each arc's component and its down and up nodes as global NodeIds: its local ids
+    (downNodeId, upNodeId) plus the first NodeId of its ComponentId."""
+    down_local = _integers(arcs, "tree_arcs", "downNodeId", None)
+    a = len(down_local)
+    up_local = _integers(arcs, "tree_arcs", "upNodeId", a)
+    component = _integers(arcs, "tree_arcs", "ComponentId", a)
+    components = len(offsets) - 1
+    if a and (component.min() < 0 or component.max() >= components):
+        i = int(np.flatnonzero((component < 0) | (component >= components))[0])
+        raise ActopoError(f"tree_arcs/ComponentId: arc {i} is in component {component[i]}, but "
+                          f"tree_nodes/ComponentId has {components}")
+    first = offsets[component]
+    count = offsets[component + 1] - first
+    for name, local in (("downNodeId", down_local), ("upNodeId", up_local)):
+        outside = np.flatnonzero((local < 0) | (local >= count))
+        if len(outside):
+            i = int(outside[0])
+            raise ActopoError(f"tree_arcs/{name}: arc {i} has {local[i]}, not within the "
+                              f"{count[i]} nodes of its component ({component[i]})")
+    return (component.astype(np.int32), (down_local + first).astype(np.int32),
+            (up_local + first).astype(np.int32))
 
 
 def from_arrays(kind: str, nodes: Mapping[str, np.ndarray], arcs: Mapping[str, np.ndarray],
                 segmentation: Mapping[str, np.ndarray]) -> Tree:
     """The Tree of a job's ``tree_nodes/``, ``tree_arcs/`` and ``segmentation/`` groups (arrays
-    by TTK name); `kind` is the summary's "tree". Checks the layout it reads and the global
-    NodeIds it computes (see the module's docstring)."""
+    by TTK name, and the ComponentId of nodes and arcs); `kind` is the summary's "tree". Checks
+    the layout it reads and the local ids it turns global (see the module's docstring)."""
     if kind not in get_args(TreeKind):
         raise ActopoError(f"tree: unknown kind '{kind}' (expected join, split or contour)")
     node_id = _column(nodes, "tree_nodes", "NodeId", None)
@@ -521,18 +538,15 @@ def from_arrays(kind: str, nodes: Mapping[str, np.ndarray], arcs: Mapping[str, n
             ("region_size", "RegionSize"), ("region_span", "RegionSpan"))},
         points=_column(nodes, "tree_nodes", "Points", n).reshape(-1, 3).astype(np.float64))
 
-    down_local = _column(arcs, "tree_arcs", "downNodeId", None)
-    a = len(down_local)
-    up_local = _column(arcs, "tree_arcs", "upNodeId", a)
-    component, offsets = _components(down_local, up_local, n)
-    first = offsets[component]
+    offsets = _component_offsets(_integers(nodes, "tree_nodes", "ComponentId", n))
+    component, down, up = _global_ids(arcs, offsets)
+    a = len(down)
     tree_arcs = TreeArcs(
-        down=(down_local + first).astype(np.int32), up=(up_local + first).astype(np.int32),
+        down=down, up=up,
         **{field: _column(arcs, "tree_arcs", name, a) for field, name in (
             ("segmentation_id", "SegmentationId"), ("region_size", "RegionSize"),
             ("region_span", "RegionSpan"))},
         component=component)
-    _check_arcs(cast(TreeKind, kind), tree_nodes, tree_arcs, arcs, offsets)
 
     segmentation_id = _column(segmentation, "segmentation", "SegmentationId", None)
     arc_of = np.full(int(tree_arcs.segmentation_id.max(initial=-1)) + 1, -1, dtype=np.int64)
@@ -549,31 +563,3 @@ def from_arrays(kind: str, nodes: Mapping[str, np.ndarray], arcs: Mapping[str, n
             ("region_size", "RegionSize"), ("region_span", "RegionSpan"),
             ("region_type", "RegionType"))})
     return Tree(cast(TreeKind, kind), tree_nodes, tree_arcs, tree_segmentation, offsets)
-
-
-def _check_arcs(kind: TreeKind, nodes: TreeNodes, arcs: TreeArcs,
-                group: Mapping[str, np.ndarray], offsets: np.ndarray) -> None:
-    """Each arc's line joins the points of its two nodes, lower first, and its SegmentationId
-    lies in its component's NodeIds: the global NodeIds hold."""
-    a = len(arcs)
-    if not a:
-        return
-    line_offsets = _column(group, "tree_arcs", "Offsets", a + 1)
-    if not np.array_equal(line_offsets, 2 * np.arange(a + 1)):
-        raise ActopoError("tree_arcs/Offsets: the arcs' lines are not two points each")
-    connectivity = np.asarray(group.get("Connectivity", np.arange(2 * a)))
-    if len(connectivity) != 2 * a:
-        raise ActopoError(f"tree_arcs/Connectivity: {len(connectivity)} values, expected {2 * a}")
-    points = _column(group, "tree_arcs", "Points", None).reshape(-1, 3)
-    if connectivity.min() < 0 or connectivity.max() >= len(points):
-        raise ActopoError("tree_arcs/Connectivity: a point id past the arcs' points")
-    lower, upper = (arcs.up, arcs.down) if kind == "split" else (arcs.down, arcs.up)
-    if not (np.array_equal(points[connectivity[0::2]], nodes.points[lower])
-            and np.array_equal(points[connectivity[1::2]], nodes.points[upper])):
-        raise ActopoError("tree_arcs: an arc's points are not at its nodes (downNodeId and "
-                          "upNodeId taken relative to their component)")
-    first = offsets[arcs.component]
-    last = offsets[arcs.component + 1]
-    if ((arcs.segmentation_id < first) | (arcs.segmentation_id >= last)).any():
-        raise ActopoError("tree_arcs/SegmentationId: an arc's id outside its component's")
-

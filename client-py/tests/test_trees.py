@@ -39,16 +39,18 @@ def _wire(kind: str, components: list[tuple[list[tuple[int, float, int]], list[t
           vertex_arc: list[int]) -> dict[str, dict[str, np.ndarray]]:
     """The groups the server streams for a tree whose components are (nodes, arcs): nodes
     (vertex, value, CriticalType) in NodeId order, arcs (down, up) in the component's own ids,
-    as TTK writes them. Vertex v lies on arc vertex_arc[v] (an index over all the arcs); node
-    i's vertex is at (vertex, vertex / 2, 0)."""
+    as TTK writes them, with the server's ComponentId per node and per arc. Vertex v lies on
+    arc vertex_arc[v] (an index over all the arcs); node i's vertex is at (vertex, vertex / 2,
+    0)."""
     nodes = [node for c in components for node in c[0]]
     first = np.cumsum([0] + [len(c[0]) for c in components])
-    ends, segmentation_ids, local = [], [], []
+    ends, segmentation_ids, local, arc_component = [], [], [], []
     for k, (_, arcs) in enumerate(components):
         for i, (down, up) in enumerate(arcs):
             ends.append((down + first[k], up + first[k]))
             segmentation_ids.append(first[k] + i)
             local.append((down, up))
+            arc_component.append(k)
     point_of: dict[int, int] = {}
     connectivity = []
     for down, up in ends:  # a point per node at its first use, the lower end first
@@ -65,7 +67,9 @@ def _wire(kind: str, components: list[tuple[list[tuple[int, float, int]], list[t
             "VertexId": np.array([v for v, _, _ in nodes], dtype=np.int32),
             "CriticalType": np.array([t for _, _, t in nodes], dtype=np.int32),
             "RegionSize": np.arange(len(nodes), dtype=np.int32),
-            "RegionSpan": np.ones(len(nodes), dtype=np.int32)},
+            "RegionSpan": np.ones(len(nodes), dtype=np.int32),
+            "ComponentId": np.repeat(np.arange(len(components), dtype=np.int32),
+                                     [len(c[0]) for c in components])},
         "tree_arcs": {
             "Points": position[sorted(point_of, key=point_of.__getitem__)],
             "Offsets": np.arange(0, 2 * a + 1, 2, dtype=np.int64),
@@ -73,7 +77,8 @@ def _wire(kind: str, components: list[tuple[list[tuple[int, float, int]], list[t
             "SegmentationId": np.array(segmentation_ids, dtype=np.int32),
             "downNodeId": np.array([d for d, _ in local], dtype=np.int32),
             "upNodeId": np.array([u for _, u in local], dtype=np.int32),
-            "RegionSize": arc_size, "RegionSpan": np.arange(a, dtype=np.float64)},
+            "RegionSize": arc_size, "RegionSpan": np.arange(a, dtype=np.float64),
+            "ComponentId": np.array(arc_component, dtype=np.int32)},
         "segmentation": {
             "SegmentationId": np.array(segmentation_ids, dtype=np.int32)[vertex_arc],
             "RegionSize": arc_size[vertex_arc],
@@ -106,6 +111,22 @@ def test_component_ids_become_global_node_ids():
     assert len(tree.nodes) == 7 and len(tree.arcs) == 5 and len(tree.segmentation) == 32
     assert tree.largest_regions(2).tolist() == [0, 4] and tree.largest_regions(0).tolist() == []
     assert tree.region_vertices(1).tolist() == [11]
+
+
+def test_arcs_in_any_order_take_their_components_first_node_id():
+    """The global ids come from each arc's ComponentId, whatever the arcs' order: here the
+    components' arcs interleaved, and no component's first arc naming its node 0."""
+    wire = _wire("join", JOIN, JOIN_VERTEX_ARC)
+    order = np.array([4, 2, 3, 1, 0])
+    arcs = wire["tree_arcs"]
+    for name in ("SegmentationId", "downNodeId", "upNodeId", "RegionSize", "RegionSpan",
+                 "ComponentId"):
+        arcs[name] = arcs[name][order]
+    arcs["Connectivity"] = arcs["Connectivity"].reshape(-1, 2)[order].ravel()
+    tree = _tree("join", wire)
+    assert tree.arcs.down.tolist() == [5, 2, 4, 1, 0] and tree.arcs.up.tolist() == [6, 3, 4, 2, 2]
+    assert tree.arcs.component.tolist() == [2, 0, 1, 0, 0]
+    assert tree.arcs_sha256() == _tree("join", _wire("join", JOIN, JOIN_VERTEX_ARC)).arcs_sha256()
 
 
 def test_digests_are_those_of_the_documented_lines():
@@ -178,19 +199,31 @@ def test_plot_puts_nodes_at_their_values_and_writes_the_persistence(tmp_path):
 
 
 @pytest.mark.parametrize("change,message", [
-    (lambda w: w["tree_arcs"].update(downNodeId=np.array([1, 0, 2, 0, 0], dtype=np.int32)),
-     "tree_arcs: the first arc does not name node 0"),
+    (lambda w: w["tree_nodes"].pop("ComponentId"),
+     "tree_nodes/ComponentId: missing from the job's arrays; the server streams it"),
+    (lambda w: w["tree_arcs"].pop("ComponentId"),
+     "tree_arcs/ComponentId: missing from the job's arrays; the server streams it"),
+    (lambda w: w["tree_nodes"].update(ComponentId=np.zeros(6, dtype=np.int32)),
+     "tree_nodes/ComponentId: 6 values, expected 7"),
+    (lambda w: w["tree_arcs"].update(ComponentId=np.array([0, 0, 0, 1], dtype=np.int32)),
+     "tree_arcs/ComponentId: 4 values, expected 5"),
+    (lambda w: w["tree_nodes"].update(ComponentId=np.array([0, 0, 0, 0, 1, 2, 2.0])),
+     "tree_nodes/ComponentId: dtype float64 is not an integer type"),
+    (lambda w: w["tree_nodes"].update(ComponentId=np.array([0, 0, 0, 0, 2, 1, 1],
+                                                           dtype=np.int32)),
+     "tree_nodes/ComponentId: not 0, 1, 2, ... over NodeId"),
+    (lambda w: w["tree_nodes"].update(ComponentId=np.array([1, 1, 1, 1, 2, 3, 3],
+                                                           dtype=np.int32)),
+     "tree_nodes/ComponentId: not 0, 1, 2, ... over NodeId"),
+    (lambda w: w["tree_arcs"].update(ComponentId=np.array([0, 0, 0, 1, 3], dtype=np.int32)),
+     r"tree_arcs/ComponentId: arc 4 is in component 3, but tree_nodes/ComponentId has 3"),
     (lambda w: w["tree_arcs"].update(upNodeId=np.array([2, 2, 3, 0, 2], dtype=np.int32)),
-     "tree_arcs: the components' nodes add up to 8, but there are 7 nodes"),
-    (lambda w: w["tree_arcs"].update(Points=w["tree_arcs"]["Points"][::-1].copy()),
-     "tree_arcs: an arc's points are not at its nodes"),
-    (lambda w: w["tree_arcs"].update(SegmentationId=np.array([0, 1, 2, 4, 7], dtype=np.int32)),
-     "tree_arcs/SegmentationId: an arc's id outside its component's"),
+     r"tree_arcs/upNodeId: arc 4 has 2, not within the 2 nodes of its component \(2\)"),
+    (lambda w: w["tree_arcs"].update(downNodeId=np.array([0, -1, 2, 0, 0], dtype=np.int32)),
+     r"tree_arcs/downNodeId: arc 1 has -1, not within the 4 nodes of its component \(0\)"),
     (lambda w: w["segmentation"]["SegmentationId"].__setitem__(0, 3),
      "segmentation/SegmentationId: a vertex's id is no arc's"),
     (lambda w: w["tree_nodes"].pop("CriticalType"), "tree_nodes/CriticalType: missing"),
-    (lambda w: w["tree_arcs"].update(Offsets=np.arange(6, dtype=np.int64)),
-     "tree_arcs/Offsets: the arcs' lines are not two points each"),
 ])
 def test_a_layout_the_client_cannot_read_is_named(change, message):
     wire = _wire("join", JOIN, JOIN_VERTEX_ARC)
@@ -384,8 +417,13 @@ def test_several_components_get_global_node_ids(client):
                 assert result.summary["components"] == 3 == len(tree.component_offsets) - 1
                 assert tree.arcs_sha256() == result.summary["arcs_sha256"], kind
                 assert tree.segmentation_sha256() == result.summary["segmentation_sha256"], kind
-                local = result.group("tree_arcs")["downNodeId"]
-                assert (tree.arcs.down - local == tree.component_offsets[tree.arcs.component]).all()
+                wire = result.group("tree_arcs")
+                np.testing.assert_array_equal(tree.arcs.component, wire["ComponentId"])
+                assert (tree.arcs.down - wire["downNodeId"]
+                        == tree.component_offsets[tree.arcs.component]).all()
+                np.testing.assert_array_equal(
+                    np.diff(tree.component_offsets),
+                    np.bincount(result.group("tree_nodes")["ComponentId"], minlength=3))
                 # Each component's vertices are on its own arcs.
                 component = np.searchsorted(firsts, np.arange(len(points)), side="right") - 1
                 np.testing.assert_array_equal(tree.arcs.component[tree.segmentation.arc],

@@ -4,12 +4,13 @@
 // meshes and adds point fields to them, opens sessions (a topological data structure on a mesh and
 // a scalar field), asks relation queries (one simplex, a batch, or a stream) and runs
 // TTK-compatible algorithm jobs, on the session's field or over several fields, whose results come
-// as named arrays (a persistence diagram's also as pairs: JobResult::PersistencePairs) and,
-// comparing fields, as distance matrices (JobResult::Distances) or tracked pairs
-// (JobResult::Tracking). Every fallible call returns absl::Status or absl::StatusOr<T> carrying the
-// server's gRPC code and message unchanged (NOT_FOUND for an unknown mesh, OUT_OF_RANGE for a
-// simplex id past the end, ...); problems the client finds itself (an unknown relation name, a
-// ragged array) are INVALID_ARGUMENT before anything is sent.
+// as named arrays (a persistence diagram's also as pairs: JobResult::PersistencePairs; a merge or
+// contour tree's as nodes and arcs: JobResult::Tree) and, comparing fields, as distance matrices
+// (JobResult::Distances) or tracked pairs (JobResult::Tracking). Every fallible call returns
+// absl::Status or absl::StatusOr<T> carrying the server's gRPC code and message unchanged
+// (NOT_FOUND for an unknown mesh, OUT_OF_RANGE for a simplex id past the end, ...); problems the
+// client finds itself (an unknown relation name, a ragged array) are INVALID_ARGUMENT before
+// anything is sent.
 //
 // Everything here is in namespace actopo::client; the server's own types (its EngineStats,
 // PartitionOptions, ...) are in actopo, so one program may link the client and the server's
@@ -147,7 +148,7 @@ struct ServerLimits {
 struct ServerInfo {
   std::string version;
   std::map<std::string, std::string> library_versions;  // e.g. "grpc" -> "1.51.1"
-  std::vector<std::string> algorithms;                  // "topo-relations", ..., "tracking"
+  std::vector<std::string> algorithms;                  // "topo-relations", ..., "contour-tree"
   std::vector<std::string> relations;                   // "vertex_neighbors", "vertex_edges", ...
   std::vector<std::string> samples;                     // built-in samples with their descriptions
   ServerLimits limits;
@@ -479,10 +480,14 @@ class RelationStream {
 // ---------------------------------------------------------------------------------------------
 // Jobs. Algorithm names: "topo-relations", "critical-points", "discrete-gradient",
 // "morse-smale", "persistence-diagram", "topological-simplification", "diagram-distance",
-// "tracking" ("morse_smale" works too). The last two compare the persistence diagrams of
-// several fields (JobOptions::fields or all_fields, at least two): parameters "p" (the
-// Wasserstein order, default 2), "persistence_threshold" or "relative_threshold" (pairs below
-// it left out), "essential" ("true": match the infinite pairs too).
+// "tracking", "merge-tree", "contour-tree" ("morse_smale" works too). "diagram-distance" and
+// "tracking" compare the persistence diagrams of several fields (JobOptions::fields or
+// all_fields, at least two): parameters "p" (the Wasserstein order, default 2),
+// "persistence_threshold" or "relative_threshold" (pairs below it left out), "essential"
+// ("true": match the infinite pairs too). "merge-tree" is TTK's MergeTree: parameter "tree",
+// "join" (the default) or "split"; "contour-tree" TTK's ContourTree; both take
+// "persistence_threshold" or "relative_threshold" (the tree of the field simplified first) and
+// their nodes and arcs read back with ResultArrays::Tree.
 
 struct FieldResult;
 
@@ -664,6 +669,51 @@ struct PersistencePair {
   bool finite = true;
 };
 
+// A merge tree (TTK's MergeTree: a merge-tree job, the join tree by default, the split tree with
+// {"tree": "split"}) or a contour tree (TTK's ContourTree: a contour-tree job), read back from
+// its tree_nodes/, tree_arcs/ and segmentation/ arrays (ResultArrays::Tree).
+//
+// The join tree follows the components of the sublevel sets as the value rises: its leaves are
+// minima, its arcs run from the down node (the leaf side, lower) to the up node (the root side).
+// The split tree is the join tree of the reversed field: its leaves are maxima and an arc's down
+// node is its higher end. A contour tree's arcs run from the lower node (down) to the higher.
+// Every vertex lies on one arc (a node's vertex on one of its arcs, as TTK's segmentation puts
+// it). A connected component of the mesh has a tree of its own; a vertex in no tetrahedron is a
+// tree of one node (regular) whose one arc goes from it to itself.
+struct ScalarTree {
+  struct Node {
+    int64_t id = 0;      // NodeId: its index in `nodes`
+    int64_t vertex = 0;  // VertexId: its input vertex id
+    double scalar = 0;   // the field at `vertex` (float32 on the wire, as in TTK)
+    // 0 minimum, 1 1-saddle, 2 2-saddle, 3 maximum, 4 degenerate (a merge of three or more, or
+    // a root that is also a saddle), 5 regular (the node of a one-vertex tree).
+    int critical_type = 0;
+    // RegionSize and RegionSpan of one of its arcs, as TTK picks it (its only down arc, else its
+    // only up arc, else its first down arc); TTK truncates a node's span to an integer.
+    int64_t region_size = 0;
+    double region_span = 0;
+  };
+  struct Arc {
+    // NodeIds (indices in `nodes`) of its ends, in the tree's sense. On the wire (upNodeId,
+    // downNodeId) they are relative to the first node of the arc's component; Tree() gives them
+    // in the whole tree's numbering (see there).
+    int64_t down_node = 0;
+    int64_t up_node = 0;
+    int64_t segmentation_id = 0;  // its SegmentationId, the value `segmentation` gives its vertices
+    int64_t region_size = 0;      // the vertices on it, its two nodes left out
+    double region_span = 0;       // the distance between its two nodes' vertices
+    int64_t component = 0;        // its connected component (the server's ComponentId)
+  };
+
+  std::vector<Node> nodes;  // by NodeId
+  std::vector<Arc> arcs;    // in TTK's order of the arcs
+  // Per input vertex, the SegmentationId of the arc it lies on (segmentation/SegmentationId).
+  std::vector<int64_t> segmentation;
+  // k + 1 values for k components: the NodeIds of component i are component_offsets[i] to
+  // component_offsets[i + 1] - 1.
+  std::vector<int64_t> component_offsets;
+};
+
 // Result arrays by name, with typed readers: a job's own (JobResult) and, in a job over several
 // fields, each field's (FieldResult).
 //
@@ -684,6 +734,13 @@ struct PersistencePair {
 //                      point), ConnectedComponentId, MatchingIdentifier, Cost, ComponentLength
 //                      (per link)}, TTK's tracking output; each field's diagram in its
 //                      FieldResult
+//   merge-tree, contour-tree: tree_nodes/{Points, NodeId, Scalar, VertexId, CriticalType,
+//                      RegionSize, RegionSpan, ComponentId} (per node), tree_arcs/{Points,
+//                      Offsets, Connectivity, Scalar, ttkMaskScalarField (per point: one per
+//                      node), SegmentationId, upNodeId, downNodeId, RegionSize, RegionSpan,
+//                      ComponentId (per arc)}, segmentation/{SegmentationId, RegionSize,
+//                      RegionSpan, RegionType} (per vertex), TTK's three outputs (ComponentId is
+//                      the server's); Tree() reads them into a ScalarTree
 //
 //   absl::StatusOr<std::vector<int8_t>> types =
 //       result->Get<int8_t>("critical_points/CriticalType");
@@ -702,6 +759,25 @@ struct ResultArrays {
   // (another algorithm, or JobOptions::include_arrays off); INVALID_ARGUMENT naming the array
   // when they do not hold TTK's layout (two points and one line per pair).
   absl::StatusOr<std::vector<PersistencePair>> PersistencePairs() const;
+  // The tree of a merge-tree or contour-tree job (or of a field of one over several fields):
+  // its nodes, its arcs with their ends as NodeIds of the whole tree, and the SegmentationId of
+  // every vertex. NOT_FOUND without the tree_nodes/, tree_arcs/ and segmentation/ arrays
+  // (another algorithm, or JobOptions::include_arrays off; or the ComponentId arrays, which a
+  // server older than this client does not send); INVALID_ARGUMENT naming the array whose
+  // shape or dtype is not TTK's, or whose ids do not fit the nodes.
+  //
+  // The wire gives an arc's ends relative to the first NodeId of its connected component, as
+  // TTK writes them, and the server adds ComponentId per node (0, 1, ... over NodeId, each
+  // component a run of NodeIds) and per arc. Tree() adds to an arc's ends the first NodeId of
+  // its ComponentId (component_offsets), after checking that the nodes' ComponentId runs so and
+  // that each end falls within its component's nodes.
+  //
+  //   absl::StatusOr<ScalarTree> tree = result->Tree();
+  //   for (const ScalarTree::Arc& a : tree->arcs) {
+  //     std::cout << tree->nodes[a.down_node].vertex << " -> " << tree->nodes[a.up_node].vertex
+  //               << ": " << a.region_size << " vertices\n";
+  //   }
+  absl::StatusOr<ScalarTree> Tree() const;
 };
 
 template <class T>
@@ -714,7 +790,8 @@ absl::StatusOr<std::vector<T>> ResultArrays::Get(std::string_view name) const {
 }
 
 // One field's result in a job over several fields (JobOptions::fields): what a job on that
-// field alone gives, its summary and its arrays (Get<T>, PersistencePairs as on a JobResult).
+// field alone gives, its summary and its arrays (Get<T>, PersistencePairs, Tree as on a
+// JobResult).
 struct FieldResult : ResultArrays {
   std::string field;
   int32_t index = 0;  // its position in the job's list
