@@ -12,7 +12,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = Path(os.environ.get("ACTOPO_BUILD", ROOT / "build")) / "server/cmd/actopo-bench"
 ALGORITHMS = ["topo-relations", "critical-points", "discrete-gradient", "morse-smale",
-              "persistence-diagram", "topological-simplification"]
+              "persistence-diagram", "topological-simplification", "merge-tree", "contour-tree"]
 DATA = Path(os.environ.get("ACTOPO_DATA_DIR", ROOT.parent / "shared/data"))
 
 
@@ -161,7 +161,9 @@ def test_default_threads_use_every_core(structure):
 
 @pytest.mark.parametrize("args,message", [
     (["--sample", "jittered:5", "--structure", "fancy"], "--structure: unknown structure 'fancy'"),
-    (["--sample", "jittered:5", "--algorithm", "contour-tree"], "unknown algorithm 'contour-tree'"),
+    (["--sample", "jittered:5", "--algorithm", "reeb-graph"], "unknown algorithm 'reeb-graph'"),
+    (["--sample", "jittered:5", "--algorithm", "merge-tree", "--tree", "contour"],
+     "--tree: unknown value 'contour'; available: join, split"),
     (["--sample", "jittered:5", "--consumers", "-1"], "--consumers: -1 is outside [1, 64]"),
     (["--sample", "jittered:5", "--buffer-ratio", "2"], "--buffer-ratio: 2 is outside [0, 1]"),
     (["--sample", "jittered:5", "--prefetch", "psychic"],
