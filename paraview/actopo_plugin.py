@@ -224,6 +224,13 @@ class Settings:
         name = "relative_threshold" if self.threshold_is_relative else "persistence_threshold"
         return {name: repr(float(self.persistence_threshold))}
 
+    def optional_threshold_parameters(self) -> dict[str, str]:
+        """threshold_parameters(), or none when the threshold is 0 (no simplification); a
+        negative value goes to the server, which names it."""
+        if self.persistence_threshold == 0:
+            return {}
+        return self.threshold_parameters()
+
 
 def _default_server() -> str:
     return os.environ.get("ACTOPO_SERVER") or DEFAULT_SERVER
@@ -890,10 +897,7 @@ class ActopoMorseSmaleComplex(ActopoFilter):
     output_types = ("vtkPolyData", "vtkPolyData", "vtkUnstructuredGrid")
 
     def parameters(self) -> dict[str, str]:
-        # 0 leaves the field as it is; a negative value goes to the server, which names it.
-        if self.settings.persistence_threshold == 0:
-            return {}
-        return self.settings.threshold_parameters()
+        return self.settings.optional_threshold_parameters()
 
     def fill(self, grid: vtkUnstructuredGrid, result: Any, outputs: list[Any]) -> None:
         # Downstream of TTK's simplification the grid holds the simplified field and its order.
@@ -983,10 +987,7 @@ class ActopoTreeFilter(ActopoFilter):
     output_types = ("vtkUnstructuredGrid", "vtkUnstructuredGrid", "vtkUnstructuredGrid")
 
     def parameters(self) -> dict[str, str]:
-        # 0 leaves the field as it is; a negative value goes to the server, which names it.
-        if self.settings.persistence_threshold == 0:
-            return {}
-        return self.settings.threshold_parameters()
+        return self.settings.optional_threshold_parameters()
 
     def fill(self, grid: vtkUnstructuredGrid, result: Any, outputs: list[Any]) -> None:
         nodes = result.group("tree_nodes")

@@ -11,66 +11,22 @@
 
 #include "absl/strings/str_cat.h"
 #include "actopo/client.h"
+#include "src/internal/columns.h"
 
 namespace actopo::client {
 namespace {
 
-constexpr char kGroup[] = "diagram/";
-
-absl::Status Malformed(const char* name, const std::string& what) {
-  return absl::InvalidArgumentError(absl::StrCat("result array '", kGroup, name, "': ", what));
-}
-
-// The array `name` of the group, its bytes matching its shape.
-absl::StatusOr<const Array*> Column(const ResultArrays& result, const char* name) {
-  const Array* array = result.Find(absl::StrCat(kGroup, name));
-  if (array == nullptr) {
-    return absl::NotFoundError(
-        absl::StrCat("result array '", kGroup, name,
-                     "' not found: persistence pairs come from a persistence-diagram job (or a "
-                     "field of a diagram-distance or tracking job) run with "
-                     "JobOptions::include_arrays"));
-  }
-  if (absl::Status s = array->CheckLayout(array->dtype); !s.ok()) return s;
-  return array;
-}
-
-absl::Status CheckCount(const char* name, size_t got, size_t expected, const char* per) {
-  if (got == expected) return absl::OkStatus();
-  return Malformed(name, absl::StrCat(got, " values, expected ", expected, " (", per, ")"));
-}
-
-// The `count` values of an integer array, whatever their width: the wire's ids are int32 today,
-// and reading them by value keeps working if a server widens them for larger meshes.
-absl::StatusOr<std::vector<int64_t>> Integers(const ResultArrays& result, const char* name,
-                                              size_t count, const char* per) {
-  absl::StatusOr<const Array*> array = Column(result, name);
-  if (!array.ok()) return array.status();
-  absl::StatusOr<std::vector<int64_t>> values = (*array)->ToInt64();
-  if (!values.ok()) return values.status();
-  if (absl::Status s = CheckCount(name, values->size(), count, per); !s.ok()) return s;
-  return values;
-}
-
-absl::StatusOr<std::vector<double>> Reals(const ResultArrays& result, const char* name,
-                                          size_t count, const char* per) {
-  absl::StatusOr<const Array*> array = Column(result, name);
-  if (!array.ok()) return array.status();
-  const DataType dtype = (*array)->dtype;
-  if (dtype != DataType::kFloat64 && dtype != DataType::kFloat32) {
-    return Malformed(name, absl::StrCat("dtype ", std::string(DataTypeName(dtype)),
-                                        " is not a floating-point type"));
-  }
-  std::vector<double> values = (*array)->ToDouble();
-  if (absl::Status s = CheckCount(name, values.size(), count, per); !s.ok()) return s;
-  return values;
-}
+// What a missing diagram/ array's NOT_FOUND says.
+constexpr char kFromWhere[] =
+    "persistence pairs come from a persistence-diagram job (or a field of a diagram-distance or "
+    "tracking job) run with JobOptions::include_arrays";
 
 }  // namespace
 
 absl::StatusOr<std::vector<PersistencePair>> ResultArrays::PersistencePairs() const {
+  const internal::Columns columns(*this, "diagram/", kFromWhere);
   // PairIdentifier counts the lines and tells whether the last one is TTK's diagonal (-1).
-  absl::StatusOr<const Array*> identifiers = Column(*this, "PairIdentifier");
+  absl::StatusOr<const Array*> identifiers = columns.Get("PairIdentifier");
   if (!identifiers.ok()) return identifiers.status();
   absl::StatusOr<std::vector<int64_t>> ids = (*identifiers)->ToInt64();
   if (!ids.ok()) return ids.status();
@@ -81,36 +37,37 @@ absl::StatusOr<std::vector<PersistencePair>> ResultArrays::PersistencePairs() co
   const size_t n = lines - (diagonal ? 1 : 0);
 
   absl::StatusOr<std::vector<int64_t>> offsets =
-      Integers(*this, "Offsets", lines + 1, "one more than the lines");
+      columns.Integers("Offsets", lines + 1, "one more than the lines");
   if (!offsets.ok()) return offsets.status();
   for (size_t i = 0; i <= n; ++i) {
     if ((*offsets)[i] != int64_t(2 * i)) {
-      return Malformed("Offsets", absl::StrCat("entry ", i, " is ", (*offsets)[i], ", not ", 2 * i,
-                                               ": the pairs' lines are not two points each"));
+      return columns.Malformed("Offsets",
+                               absl::StrCat("entry ", i, " is ", (*offsets)[i], ", not ", 2 * i,
+                                            ": the pairs' lines are not two points each"));
     }
   }
-  absl::StatusOr<std::vector<int64_t>> type = Integers(*this, "PairType", lines, "one per line");
+  absl::StatusOr<std::vector<int64_t>> type = columns.Integers("PairType", lines, "one per line");
   if (!type.ok()) return type.status();
-  absl::StatusOr<std::vector<int64_t>> finite = Integers(*this, "IsFinite", lines, "one per line");
+  absl::StatusOr<std::vector<int64_t>> finite = columns.Integers("IsFinite", lines, "one per line");
   if (!finite.ok()) return finite.status();
-  absl::StatusOr<std::vector<double>> birth = Reals(*this, "Birth", lines, "one per line");
+  absl::StatusOr<std::vector<double>> birth = columns.Reals("Birth", lines, "one per line");
   if (!birth.ok()) return birth.status();
   absl::StatusOr<std::vector<double>> persistence =
-      Reals(*this, "Persistence", lines, "one per line");
+      columns.Reals("Persistence", lines, "one per line");
   if (!persistence.ok()) return persistence.status();
   absl::StatusOr<std::vector<int64_t>> vertex =
-      Integers(*this, "ttkVertexScalarField", 2 * n, "two points per pair");
+      columns.Integers("ttkVertexScalarField", 2 * n, "two points per pair");
   if (!vertex.ok()) return vertex.status();
   absl::StatusOr<std::vector<double>> points =
-      Reals(*this, "Points", 6 * n, "x, y, z of two points per pair");
+      columns.Reals("Points", 6 * n, "x, y, z of two points per pair");
   if (!points.ok()) return points.status();
 
   std::vector<PersistencePair> pairs(n);
   for (size_t i = 0; i < n; ++i) {
     PersistencePair& p = pairs[i];
     if ((*type)[i] < 0 || (*type)[i] > 2) {
-      return Malformed("PairType", absl::StrCat("line ", i, " of ", lines, " has type ", (*type)[i],
-                                                "; a pair's is 0, 1 or 2"));
+      return columns.Malformed("PairType", absl::StrCat("line ", i, " of ", lines, " has type ",
+                                                        (*type)[i], "; a pair's is 0, 1 or 2"));
     }
     p.type = int((*type)[i]);
     p.birth_vertex = (*vertex)[2 * i];

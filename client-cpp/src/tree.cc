@@ -12,99 +12,57 @@
 
 #include "absl/strings/str_cat.h"
 #include "actopo/client.h"
+#include "src/internal/columns.h"
 
 namespace actopo::client {
 namespace {
 
-absl::Status Malformed(const std::string& name, const std::string& what) {
-  return absl::InvalidArgumentError(absl::StrCat("result array '", name, "': ", what));
-}
-
-// The array `name`, its bytes matching its shape.
-absl::StatusOr<const Array*> Column(const ResultArrays& result, const std::string& name) {
-  const Array* array = result.Find(name);
-  if (array == nullptr && name.ends_with("/ComponentId")) {
-    return absl::NotFoundError(absl::StrCat("result array '", name,
-                                            "' not found: the server streams it beside TTK's "
-                                            "arrays (a server older than this client does not)"));
-  }
-  if (array == nullptr) {
-    return absl::NotFoundError(
-        absl::StrCat("result array '", name,
-                     "' not found: a tree comes from a merge-tree or "
-                     "contour-tree job run with JobOptions::include_arrays"));
-  }
-  if (absl::Status s = array->CheckLayout(array->dtype); !s.ok()) return s;
-  return array;
-}
-
-absl::Status CheckCount(const std::string& name, size_t got, size_t expected, const char* per) {
-  if (got == expected) return absl::OkStatus();
-  return Malformed(name, absl::StrCat(got, " values, expected ", expected, " (", per, ")"));
-}
-
-// The values of an integer array, whatever their width; `count` of them unless it is negative.
-absl::StatusOr<std::vector<int64_t>> Integers(const ResultArrays& result, const std::string& name,
-                                              int64_t count, const char* per) {
-  absl::StatusOr<const Array*> array = Column(result, name);
-  if (!array.ok()) return array.status();
-  absl::StatusOr<std::vector<int64_t>> values = (*array)->ToInt64();
-  if (!values.ok()) return values.status();
-  if (count >= 0) {
-    if (absl::Status s = CheckCount(name, values->size(), size_t(count), per); !s.ok()) return s;
-  }
-  return values;
-}
-
-// The `count` values of a numeric array as doubles: floating-point only, or any dtype (a node's
-// RegionSpan is int32, an arc's float64).
-absl::StatusOr<std::vector<double>> Numbers(const ResultArrays& result, const std::string& name,
-                                            size_t count, const char* per, bool real_only) {
-  absl::StatusOr<const Array*> array = Column(result, name);
-  if (!array.ok()) return array.status();
-  const DataType dtype = (*array)->dtype;
-  if (real_only && dtype != DataType::kFloat64 && dtype != DataType::kFloat32) {
-    return Malformed(name, absl::StrCat("dtype ", std::string(DataTypeName(dtype)),
-                                        " is not a floating-point type"));
-  }
-  std::vector<double> values = (*array)->ToDouble();
-  if (absl::Status s = CheckCount(name, values.size(), count, per); !s.ok()) return s;
-  return values;
-}
+// What a missing array's NOT_FOUND says.
+constexpr char kFromWhere[] =
+    "a tree comes from a merge-tree or contour-tree job run with JobOptions::include_arrays";
 
 }  // namespace
 
 absl::StatusOr<ScalarTree> ResultArrays::Tree() const {
+  const internal::Columns columns(*this, "", kFromWhere);
+  for (const char* name : {"tree_nodes/ComponentId", "tree_arcs/ComponentId"}) {
+    if (Find(name) == nullptr && Find("tree_nodes/NodeId") != nullptr) {
+      return absl::NotFoundError(absl::StrCat("result array '", name,
+                                              "' not found: the server streams it beside TTK's "
+                                              "arrays (a server older than this client does not)"));
+    }
+  }
   // The nodes: NodeId counts them and must be 0, 1, ...
-  absl::StatusOr<std::vector<int64_t>> ids = Integers(*this, "tree_nodes/NodeId", -1, "");
+  absl::StatusOr<std::vector<int64_t>> ids = columns.Integers("tree_nodes/NodeId", -1, "");
   if (!ids.ok()) return ids.status();
   const size_t n = ids->size();
   for (size_t i = 0; i < n; ++i) {
     if ((*ids)[i] != int64_t(i)) {
-      return Malformed("tree_nodes/NodeId", absl::StrCat("entry ", i, " is ", (*ids)[i], ", not ",
-                                                         i, ": the nodes are not by NodeId"));
+      return columns.Malformed("tree_nodes/NodeId",
+                               absl::StrCat("entry ", i, " is ", (*ids)[i], ", not ", i,
+                                            ": the nodes are not by NodeId"));
     }
   }
   constexpr char kPerNode[] = "one per node";
   absl::StatusOr<std::vector<double>> node_scalar =
-      Numbers(*this, "tree_nodes/Scalar", n, kPerNode, true);
+      columns.Reals("tree_nodes/Scalar", int64_t(n), kPerNode);
   if (!node_scalar.ok()) return node_scalar.status();
   absl::StatusOr<std::vector<int64_t>> vertex =
-      Integers(*this, "tree_nodes/VertexId", int64_t(n), kPerNode);
+      columns.Integers("tree_nodes/VertexId", int64_t(n), kPerNode);
   if (!vertex.ok()) return vertex.status();
   absl::StatusOr<std::vector<int64_t>> type =
-      Integers(*this, "tree_nodes/CriticalType", int64_t(n), kPerNode);
+      columns.Integers("tree_nodes/CriticalType", int64_t(n), kPerNode);
   if (!type.ok()) return type.status();
   absl::StatusOr<std::vector<int64_t>> node_size =
-      Integers(*this, "tree_nodes/RegionSize", int64_t(n), kPerNode);
+      columns.Integers("tree_nodes/RegionSize", int64_t(n), kPerNode);
   if (!node_size.ok()) return node_size.status();
   absl::StatusOr<std::vector<double>> node_span =
-      Numbers(*this, "tree_nodes/RegionSpan", n, kPerNode, false);
+      columns.Reals("tree_nodes/RegionSpan", int64_t(n), kPerNode, /*any_dtype=*/true);
   if (!node_span.ok()) return node_span.status();
   // The components: ComponentId 0, 1, ... over NodeId, each a run of NodeIds. first[k] is
   // component k's first NodeId, first.back() the node count.
   absl::StatusOr<std::vector<int64_t>> node_component =
-      Integers(*this, "tree_nodes/ComponentId", int64_t(n), kPerNode);
+      columns.Integers("tree_nodes/ComponentId", int64_t(n), kPerNode);
   if (!node_component.ok()) return node_component.status();
   std::vector<int64_t> first;
   for (size_t i = 0; i < n; ++i) {
@@ -112,44 +70,46 @@ absl::StatusOr<ScalarTree> ResultArrays::Tree() const {
     if (k == next) {
       first.push_back(int64_t(i));
     } else if (k != next - 1) {
-      return Malformed("tree_nodes/ComponentId",
-                       absl::StrCat("node ", i, " is in component ", k,
-                                    i == 0 ? ", not 0" : absl::StrCat(" after ", next - 1),
-                                    ": not 0, 1, 2, ... over NodeId, each component a run"));
+      return columns.Malformed(
+          "tree_nodes/ComponentId",
+          absl::StrCat("node ", i, " is in component ", k,
+                       i == 0 ? ", not 0" : absl::StrCat(" after ", next - 1),
+                       ": not 0, 1, 2, ... over NodeId, each component a run"));
     }
   }
   first.push_back(int64_t(n));
 
   // The arcs: upNodeId counts them.
   constexpr char kPerArc[] = "one per arc";
-  absl::StatusOr<std::vector<int64_t>> up = Integers(*this, "tree_arcs/upNodeId", -1, "");
+  absl::StatusOr<std::vector<int64_t>> up = columns.Integers("tree_arcs/upNodeId", -1, "");
   if (!up.ok()) return up.status();
   const size_t a = up->size();
   absl::StatusOr<std::vector<int64_t>> down =
-      Integers(*this, "tree_arcs/downNodeId", int64_t(a), kPerArc);
+      columns.Integers("tree_arcs/downNodeId", int64_t(a), kPerArc);
   if (!down.ok()) return down.status();
   absl::StatusOr<std::vector<int64_t>> segmentation_id =
-      Integers(*this, "tree_arcs/SegmentationId", int64_t(a), kPerArc);
+      columns.Integers("tree_arcs/SegmentationId", int64_t(a), kPerArc);
   if (!segmentation_id.ok()) return segmentation_id.status();
   absl::StatusOr<std::vector<int64_t>> arc_size =
-      Integers(*this, "tree_arcs/RegionSize", int64_t(a), kPerArc);
+      columns.Integers("tree_arcs/RegionSize", int64_t(a), kPerArc);
   if (!arc_size.ok()) return arc_size.status();
   absl::StatusOr<std::vector<double>> arc_span =
-      Numbers(*this, "tree_arcs/RegionSpan", a, kPerArc, false);
+      columns.Reals("tree_arcs/RegionSpan", int64_t(a), kPerArc, /*any_dtype=*/true);
   if (!arc_span.ok()) return arc_span.status();
   absl::StatusOr<std::vector<int64_t>> arc_component =
-      Integers(*this, "tree_arcs/ComponentId", int64_t(a), kPerArc);
+      columns.Integers("tree_arcs/ComponentId", int64_t(a), kPerArc);
   if (!arc_component.ok()) return arc_component.status();
   absl::StatusOr<std::vector<int64_t>> segmentation =
-      Integers(*this, "segmentation/SegmentationId", -1, "");
+      columns.Integers("segmentation/SegmentationId", -1, "");
   if (!segmentation.ok()) return segmentation.status();
 
   ScalarTree tree;
   tree.nodes.resize(n);
   for (size_t i = 0; i < n; ++i) {
     if ((*type)[i] < 0 || (*type)[i] > 5) {
-      return Malformed("tree_nodes/CriticalType",
-                       absl::StrCat("node ", i, " has type ", (*type)[i], "; a node's is 0 to 5"));
+      return columns.Malformed(
+          "tree_nodes/CriticalType",
+          absl::StrCat("node ", i, " has type ", (*type)[i], "; a node's is 0 to 5"));
     }
     tree.nodes[i] = {.id = int64_t(i),
                      .vertex = (*vertex)[i],
@@ -165,16 +125,16 @@ absl::StatusOr<ScalarTree> ResultArrays::Tree() const {
   for (size_t i = 0; i < a; ++i) {
     const int64_t k = (*arc_component)[i];
     if (k < 0 || k >= int64_t(first.size()) - 1) {
-      return Malformed("tree_arcs/ComponentId",
-                       absl::StrCat("arc ", i, " is in component ", k,
-                                    ", but tree_nodes/ComponentId has ", first.size() - 1));
+      return columns.Malformed("tree_arcs/ComponentId",
+                               absl::StrCat("arc ", i, " is in component ", k,
+                                            ", but tree_nodes/ComponentId has ", first.size() - 1));
     }
     const int64_t count = first[size_t(k) + 1] - first[size_t(k)];
     for (const auto& [name, local] : {std::pair{"tree_arcs/downNodeId", (*down)[i]},
                                       std::pair{"tree_arcs/upNodeId", (*up)[i]}}) {
       if (local < 0 || local >= count) {
-        return Malformed(name, absl::StrCat("arc ", i, " has ", local, ", not within the ", count,
-                                            " nodes of its component (", k, ")"));
+        return columns.Malformed(name, absl::StrCat("arc ", i, " has ", local, ", not within the ",
+                                                    count, " nodes of its component (", k, ")"));
       }
     }
     tree.arcs[i] = {.down_node = first[size_t(k)] + (*down)[i],

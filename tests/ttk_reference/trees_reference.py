@@ -32,6 +32,9 @@ from topologytoolkit import (
 )
 from vtk.util.numpy_support import vtk_to_numpy
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from simplification_reference import constraints_of, read, sha256
+
 CASES = [
     ("manifoldCheck0_tet.vtu", "height"),
     ("fertility_tet.vtu", "eigenfunction4"),
@@ -49,17 +52,6 @@ NODE_ARRAYS = ["NodeId", "Scalar", "VertexId", "CriticalType", "RegionSize", "Re
 ARC_POINT_ARRAYS = ["Scalar", "ttkMaskScalarField"]
 ARC_CELL_ARRAYS = ["SegmentationId", "upNodeId", "downNodeId", "RegionSize", "RegionSpan"]
 SEGMENTATION_ARRAYS = ["SegmentationId", "RegionSize", "RegionSpan", "RegionType"]
-
-
-def sha256(lines):
-    return hashlib.sha256("".join(lines).encode()).hexdigest()
-
-
-def read(path):
-    reader = vtk.vtkXMLUnstructuredGridReader()
-    reader.SetFileName(path)
-    reader.Update()
-    return reader.GetOutput()
 
 
 def array(data, name):
@@ -164,28 +156,6 @@ def trees_of(mesh, field):
     return out
 
 
-def constraints_of(diagram, threshold):
-    """The kept pairs' two vertices each, as points with ttkVertexScalarField."""
-    cells = diagram.GetCellData()
-    pair_id = vtk_to_numpy(cells.GetArray("PairIdentifier"))
-    persistence = vtk_to_numpy(cells.GetArray("Persistence"))
-    vertex = diagram.GetPointData().GetArray("ttkVertexScalarField")
-    ids = vertex.NewInstance()
-    ids.SetName("ttkVertexScalarField")
-    points = vtk.vtkPoints()
-    for c in range(diagram.GetNumberOfCells()):
-        if pair_id[c] < 0 or persistence[c] < threshold:
-            continue
-        cell_points = diagram.GetCell(c).GetPointIds()
-        for k in range(2):
-            points.InsertNextPoint(0, 0, 0)
-            ids.InsertNextTuple1(vertex.GetTuple1(cell_points.GetId(k)))
-    out = vtk.vtkPolyData()
-    out.SetPoints(points)
-    out.GetPointData().AddArray(ids)
-    return out
-
-
 def simplified(mesh, field, fraction):
     values = vtk_to_numpy(mesh.GetPointData().GetArray(field)).astype(float)
     pd = ttkPersistenceDiagram()
@@ -196,7 +166,7 @@ def simplified(mesh, field, fraction):
     ts = ttkTopologicalSimplification()
     ts.SetInputDataObject(0, mesh)
     threshold = fraction * (values.max() - values.min())
-    ts.SetInputDataObject(1, constraints_of(pd.GetOutput(), threshold))
+    ts.SetInputDataObject(1, constraints_of(pd.GetOutput(), threshold)[0])
     ts.SetInputArrayToProcess(0, 0, 0, POINTS, field)
     ts.SetThreadNumber(2)
     ts.Update()
