@@ -742,7 +742,7 @@ void PrintHuman(const Json& j) {
 }  // namespace actopo
 
 int main(int argc, char** argv) {
-  actopo::LimitAllocatorArenas(actopo::DefaultThreads());
+  actopo::ConfigureAllocator(actopo::DefaultThreads());
   actopo::BenchOptions o;
   actopo::FlagParser flags("actopo-bench",
                            "runs one algorithm in-process on a mesh and reports times, memory, "

@@ -50,7 +50,7 @@ std::function<void(std::string_view)> FileGate(const std::filesystem::path& dir)
 }  // namespace
 
 int main(int argc, char** argv) {
-  actopo::LimitAllocatorArenas(actopo::DefaultThreads());
+  actopo::ConfigureAllocator(actopo::DefaultThreads());
   actopo::service::ServerOptions o;
   // A default session runs a consumer and a producer per core: leave room for several.
   o.max_engine_threads = std::max(o.max_engine_threads, 4 * actopo::DefaultThreads());

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
@@ -58,10 +59,18 @@ void ReleaseFreeMemory() {
 #endif
 }
 
-void LimitAllocatorArenas(int cores) {
+void ConfigureAllocator(int cores) {
 #if defined(__GLIBC__)
-  if (std::getenv("MALLOC_ARENA_MAX") != nullptr) return;
-  mallopt(M_ARENA_MAX, std::max(cores, 1));
+  const char* tunables = std::getenv("GLIBC_TUNABLES");
+  const auto tuned = [tunables](const char* name) {
+    return tunables != nullptr && std::strstr(tunables, name) != nullptr;
+  };
+  if (std::getenv("MALLOC_ARENA_MAX") == nullptr && !tuned("glibc.malloc.arena_max")) {
+    mallopt(M_ARENA_MAX, std::max(cores, 1));
+  }
+  if (std::getenv("MALLOC_MMAP_THRESHOLD_") == nullptr && !tuned("glibc.malloc.mmap_threshold")) {
+    mallopt(M_MMAP_THRESHOLD, int(kMmapThresholdBytes));
+  }
 #else
   (void)cores;
 #endif

@@ -23,13 +23,21 @@ void ReleaseFreeMemory();
 // (madvise MADV_DONTNEED): they stop counting in the resident size and read as zeros after. For
 // an array read for the last time while it is still allocated; a no-op where unsupported.
 void ReleasePages(const void* begin, const void* end);
-// Caps the allocator's arenas at `cores` (glibc's M_ARENA_MAX; a no-op elsewhere, or when the
-// MALLOC_ARENA_MAX environment variable already sets it). Call first thing in main. glibc gives
-// threads up to 8 arenas per core, and a relation block freed by a consumer stays in the arena of
-// the producer that computed it: each arena then keeps a buffer's worth of freed blocks of its
-// own, so actopo's peak would exceed compact's with the same buffer peak. With one arena per
-// core, threads that run at once still rarely share one.
-void LimitAllocatorArenas(int cores);
+// Sets the allocator up for a process that holds a few mesh-sized arrays at a time (glibc; a
+// no-op elsewhere); call first thing in main. Two settings, each left alone when the environment
+// sets it (MALLOC_ARENA_MAX, MALLOC_MMAP_THRESHOLD_ or GLIBC_TUNABLES):
+// - At most `cores` arenas (M_ARENA_MAX). glibc gives threads up to 8 arenas per core, and a
+//   relation block freed by a consumer stays in the arena of the producer that computed it: each
+//   arena then keeps a buffer's worth of freed blocks of its own, so actopo's peak would exceed
+//   compact's with the same buffer peak. With one arena per core, threads that run at once still
+//   rarely share one.
+// - Blocks of kMmapThresholdBytes and more are mapped on their own (M_MMAP_THRESHOLD) and go back
+//   to the system when freed. glibc raises its threshold up to 32 MiB as such blocks are freed,
+//   after which a freed mesh-sized array (the points once the blocks are known, the sort keys of
+//   the vertex order) stays resident inside the heap under the next one: wavelet128's peak was
+//   the vertex order's, 8 MiB above the mesh as read.
+inline constexpr int64_t kMmapThresholdBytes = int64_t(4) << 20;
+void ConfigureAllocator(int cores);
 
 }  // namespace actopo
 

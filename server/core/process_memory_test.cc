@@ -1,5 +1,6 @@
 #include "server/core/process_memory.h"
 
+#include <cstdlib>
 #include <cstring>
 #include <memory>
 
@@ -21,6 +22,31 @@ TEST(ProcessMemory, HeapInUseCountsAllocationsUntilTheyAreFreed) {
   block.reset();
   EXPECT_LT(HeapInUseBytes(), held - kBytes / 2);
   EXPECT_GE(PeakRssBytes(), kBytes);
+}
+
+// A freed mesh-sized array leaves the process at once, even after glibc would have raised its
+// mapping threshold above that size (and served the next such array from the heap, to stay).
+TEST(ProcessMemory, ConfiguredAllocatorHandsLargeArraysBackWhenFreed) {
+#if !defined(__GLIBC__) || defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  GTEST_SKIP() << "glibc's allocator only (a sanitizer's keeps freed memory in quarantine)";
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+  GTEST_SKIP() << "glibc's allocator only (a sanitizer's keeps freed memory in quarantine)";
+#endif
+#endif
+  if (std::getenv("MALLOC_MMAP_THRESHOLD_") != nullptr || std::getenv("GLIBC_TUNABLES") != nullptr)
+    GTEST_SKIP() << "the environment sets the allocator";
+  ConfigureAllocator(2);
+  constexpr size_t kBytes = size_t(24) << 20;
+  {  // glibc's own rule would raise its threshold above kBytes when this one is freed
+    auto first = std::make_unique<char[]>(kBytes);
+    std::memset(first.get(), 1, kBytes);
+  }
+  auto second = std::make_unique<char[]>(kBytes);
+  std::memset(second.get(), 1, kBytes);
+  const int64_t held = CurrentRssBytes();
+  second.reset();
+  EXPECT_LT(CurrentRssBytes(), held - int64_t(kBytes) / 2);
 }
 
 }  // namespace

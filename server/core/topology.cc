@@ -336,8 +336,8 @@ struct Topology::Encoder {
     std::vector<uint32_t> used;
   };
   using Tuple = std::array<SimplexId, 4>;
-  // Per thread, reused from block to block while sorting tetrahedra.
-  struct BlockTets {
+  // Per thread, reused from stretch to stretch while sorting tetrahedra.
+  struct StretchTets {
     std::vector<SimplexId> at, inputs;
     std::vector<uint8_t> corners;
     std::vector<std::pair<SimplexId, std::array<SimplexId, 4>>> wholes;  // (id, tuple)
@@ -354,10 +354,17 @@ struct Topology::Encoder {
   std::vector<BlockFaces> faces;                // per block of the current window
   std::vector<std::vector<int32_t>> neighbors;  // per block, until ListBlockNeighbors
   std::vector<Scratch> scratch;                 // per thread
-  // The sorted tuples bucketed by block, until the sort within each block encodes them
-  // (NarrowTetrahedra), in 8 bytes each: the lowest vertex's offset in its block and the others'
-  // differences from it, 16 bits each. One that does not fit is {kWhole, its index's low and high
-  // 16 bits, chunk} into its chunk's `bucketed_wholes`.
+  // The tetrahedra are bucketed by stretches of vertices: vertex v is in stretch
+  // v / stretch_vertices, and stretch_tet_begin (stretches + 1) says where each stretch's
+  // tetrahedra (those whose lowest vertex it holds) start.
+  static constexpr int64_t kStretchTets = int64_t(1) << 16;             // on average
+  static constexpr SimplexId kMaxStretchVertices = SimplexId(1) << 15;  // offsets fit 16 bits
+  SimplexId stretch_vertices = 1;
+  std::vector<SimplexId> stretch_tet_begin;
+  // The sorted tuples bucketed by stretch, until the sort within each stretch encodes them
+  // (NarrowTetrahedra), in 8 bytes each: the lowest vertex's offset in its stretch and the
+  // others' differences from it, 16 bits each. One that does not fit is {kWhole, its index's low
+  // and high 16 bits, chunk} into its chunk's `bucketed_wholes`.
   using Bucketed = std::array<uint16_t, 4>;
   static constexpr uint16_t kWhole = 0xffff;
   FilledVector<Bucketed> bucketed;
@@ -366,9 +373,9 @@ struct Topology::Encoder {
   // narrowed into the topology's RunStarts.
   FilledVector<SimplexId> edge_runs, triangle_runs, tet_runs;
 
-  Tuple Unbucket(const Bucketed& e, SimplexId block_vertex_begin) const {
+  Tuple Unbucket(const Bucketed& e, SimplexId stretch_vertex_begin) const {
     if (e[0] == kWhole) return bucketed_wholes[e[3]][size_t(e[1]) | size_t(e[2]) << 16];
-    const SimplexId a = block_vertex_begin + e[0];
+    const SimplexId a = stretch_vertex_begin + e[0];
     return {a, a + e[1], a + e[2], a + e[3]};
   }
   SimplexId InternalVertex(int64_t tet, int k) const {
@@ -377,7 +384,12 @@ struct Topology::Encoder {
 
   absl::Status SortVertices();
   void BucketTetrahedra();
-  void SortBlockTetrahedra();
+  void SortTetrahedra();
+  // Stretch k's vertices: [first, second).
+  std::pair<SimplexId, SimplexId> StretchVertices(int64_t k) const {
+    return {SimplexId(k * stretch_vertices),
+            SimplexId(std::min<int64_t>(nv, (k + 1) * stretch_vertices))};
+  }
   void FindExternalTetrahedra();
   void FindBlockNeighbors();
   void ReserveFaces();
@@ -418,26 +430,30 @@ absl::Status Topology::Encoder::SortVertices() {
   return absl::OkStatus();
 }
 
-// Buckets the tetrahedra by their lowest vertex's block; leaves block_tet_begin_, tet_input_id_
-// and each tetrahedron's sorted internal tuple at its place in `bucketed`.
+// Buckets the tetrahedra by the stretch of their lowest vertex; leaves stretch_tet_begin,
+// tet_input_id_ and each tetrahedron's sorted internal tuple at its place in `bucketed`.
 void Topology::Encoder::BucketTetrahedra() {
   // The tuples are written as the tetrahedra are placed, while the mesh is read in order: the
-  // sort within each block then reads its own tuples, not the mesh's at scattered places. They
+  // sort within each stretch then reads its own tuples, not the mesh's at scattered places. They
   // take 8 bytes, half of the mesh's 16, so as the mesh is handed back the resident total falls
   // (with 16 bytes, the rise set a critical points job's peak on a mesh whose cells come in no
   // spatial order). Each corner goes with its input position through the sorting network
   // (4 * vertex + position), so the corners' order comes for free.
+  stretch_vertices = SimplexId(
+      std::clamp<int64_t>(int64_t(nv) * kStretchTets / std::max(nt, 1), 1, kMaxStretchVertices));
+  const int32_t stretches = int32_t((int64_t(nv) + stretch_vertices - 1) / stretch_vertices);
   bucketed.resize(size_t(nt));
   bucketed_wholes.assign(size_t(std::max(threads, 1)), {});
   std::vector<uint8_t>* corners = options.input_corners;
   if (corners != nullptr) corners->resize(size_t(nt));
   BucketItems(
-      nt, num_blocks, threads,
+      nt, stretches, threads,
       [&](int64_t i, auto&& emit) {
-        emit(t.vertex_block_[std::min(std::min(InternalVertex(i, 0), InternalVertex(i, 1)),
-                                      std::min(InternalVertex(i, 2), InternalVertex(i, 3)))]);
+        emit(int32_t(std::min(std::min(InternalVertex(i, 0), InternalVertex(i, 1)),
+                              std::min(InternalVertex(i, 2), InternalVertex(i, 3))) /
+                     stretch_vertices));
       },
-      t.block_tet_begin_, t.tet_input_id_,
+      stretch_tet_begin, t.tet_input_id_,
       [&](int64_t i, SimplexId slot, int chunk) {
         int64_t c[4];
         for (int k = 0; k < 4; ++k) c[k] = int64_t(InternalVertex(i, k)) << 2 | k;
@@ -452,8 +468,8 @@ void Topology::Encoder::BucketTetrahedra() {
           byte |= uint8_t((c[k] & 3) << (2 * k));
         }
         if (corners != nullptr) (*corners)[size_t(slot)] = byte;
-        const SimplexId offset = s[0] - t.block_vertex_begin_[t.vertex_block_[s[0]]];
-        if (offset < kWhole && s[3] - s[0] < kWhole) {
+        const SimplexId offset = s[0] % stretch_vertices;
+        if (s[3] - s[0] < kWhole) {
           bucketed[slot] = {uint16_t(offset), uint16_t(s[1] - s[0]), uint16_t(s[2] - s[0]),
                             uint16_t(s[3] - s[0])};
           return;
@@ -470,72 +486,62 @@ void Topology::Encoder::BucketTetrahedra() {
       });
 }
 
-// Orders each block's tetrahedra by lowest vertex (a stable counting sort of the block's own
+// Orders each stretch's tetrahedra by lowest vertex (a stable counting sort of the stretch's own
 // tuples), so a vertex's star is a few nearby runs, however the file ordered its cells, and
-// encodes them (NarrowTetrahedra), handing the tuples' pages back a stretch of blocks at a time.
-void Topology::Encoder::SortBlockTetrahedra() {
-  // One task per stretch of consecutive blocks of about 64k tetrahedra, which hands the
-  // stretch's tuples back once sorted: one madvise per block would cost more than the sort (TLB
-  // shootdowns).
-  constexpr SimplexId kStretch = 1 << 16;
-  std::vector<int32_t> stretch_first = {0};
-  for (int32_t b = 1; b < num_blocks; ++b) {
-    if (t.block_tet_begin_[b] - t.block_tet_begin_[stretch_first.back()] >= kStretch) {
-      stretch_first.push_back(b);
-    }
-  }
-  stretch_first.push_back(num_blocks);
-  const int64_t stretches = int64_t(stretch_first.size()) - 1;
-  // First where each vertex's run starts (a count of lowest vertices per block), which gives the
-  // encoding its bases: the lowest vertex of each group's first tetrahedron.
+// encodes them (NarrowTetrahedra), handing each stretch's tuples back once sorted (one madvise
+// per stretch of about 64k tetrahedra: one per block would cost more than the sort, in TLB
+// shootdowns). Blocks are runs of vertices, so their tetrahedra come out grouped too.
+void Topology::Encoder::SortTetrahedra() {
+  const int64_t stretches = int64_t(stretch_tet_begin.size()) - 1;
+  // First where each vertex's run starts (a count of lowest vertices per stretch), which gives
+  // the encoding its bases: the lowest vertex of each group's first tetrahedron.
   tet_runs.resize(size_t(nv) + 1);  // every entry is written below
   tet_runs[nv] = nt;
   ParallelFor(stretches, threads, [&](int64_t k, int) {
-    for (int32_t b = stretch_first[k]; b < stretch_first[k + 1]; ++b) {
-      const SimplexId begin = t.block_tet_begin_[b], end = t.block_tet_begin_[b + 1];
-      const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
-      SimplexId* run = &tet_runs[vbegin];
-      std::fill(run, run + (vend - vbegin), 0);
-      for (SimplexId i = begin; i < end; ++i) ++run[Unbucket(bucketed[i], vbegin)[0] - vbegin];
-      SimplexId at = begin;
-      for (SimplexId v = 0; v < vend - vbegin; ++v) at += std::exchange(run[v], at);
-    }
+    const auto [vbegin, vend] = StretchVertices(k);
+    const SimplexId begin = stretch_tet_begin[k], end = stretch_tet_begin[k + 1];
+    SimplexId* run = &tet_runs[vbegin];
+    std::fill(run, run + (vend - vbegin), 0);
+    for (SimplexId i = begin; i < end; ++i) ++run[Unbucket(bucketed[i], vbegin)[0] - vbegin];
+    SimplexId at = begin;
+    for (SimplexId v = 0; v < vend - vbegin; ++v) at += std::exchange(run[v], at);
   });
+  t.block_tet_begin_.resize(size_t(num_blocks) + 1);
+  for (int32_t b = 0; b <= num_blocks; ++b) {
+    t.block_tet_begin_[b] = tet_runs[t.block_vertex_begin_[b]];
+  }
   t.tets_.Start(nt, [&](SimplexId first) {
     const auto after = std::upper_bound(tet_runs.begin(), tet_runs.end(), first);
     return SimplexId(after - tet_runs.begin() - 1);
   });
-  // Then each block's tetrahedra placed and encoded, with their input ids and corners.
-  std::vector<BlockTets> block_tets(std::max(threads, 1));
+  // Then each stretch's tetrahedra placed and encoded, with their input ids and corners.
+  std::vector<StretchTets> scratch_tets(std::max(threads, 1));
   std::vector<std::vector<Tuple>> stretch_wholes(static_cast<size_t>(stretches));
   std::vector<uint8_t>* corners = options.input_corners;
   ParallelFor(stretches, threads, [&](int64_t k, int thread) {
-    BlockTets& sc = block_tets[thread];
-    for (int32_t b = stretch_first[k]; b < stretch_first[k + 1]; ++b) {
-      const SimplexId begin = t.block_tet_begin_[b], end = t.block_tet_begin_[b + 1];
-      const SimplexId vbegin = t.block_vertex_begin_[b], vend = t.block_vertex_begin_[b + 1];
-      sc.at.assign(tet_runs.begin() + vbegin, tet_runs.begin() + vend);
-      sc.inputs.assign(t.tet_input_id_.begin() + begin, t.tet_input_id_.begin() + end);
-      if (corners != nullptr) sc.corners.assign(corners->begin() + begin, corners->begin() + end);
-      sc.wholes.clear();
-      for (SimplexId i = 0; i < end - begin; ++i) {
-        const Tuple s = Unbucket(bucketed[begin + i], vbegin);
-        const SimplexId to = sc.at[s[0] - vbegin]++;
-        if (!t.tets_.Put(to, s.data())) sc.wholes.push_back({to, s});
-        t.tet_input_id_[to] = sc.inputs[i];
-        if (corners != nullptr) (*corners)[to] = sc.corners[i];
-      }
-      std::sort(sc.wholes.begin(), sc.wholes.end(),
-                [](const auto& x, const auto& y) { return x.first < y.first; });
-      for (const auto& [id, tuple] : sc.wholes) stretch_wholes[k].push_back(tuple);
+    StretchTets& sc = scratch_tets[thread];
+    const auto [vbegin, vend] = StretchVertices(k);
+    const SimplexId begin = stretch_tet_begin[k], end = stretch_tet_begin[k + 1];
+    sc.at.assign(tet_runs.begin() + vbegin, tet_runs.begin() + vend);
+    sc.inputs.assign(t.tet_input_id_.begin() + begin, t.tet_input_id_.begin() + end);
+    if (corners != nullptr) sc.corners.assign(corners->begin() + begin, corners->begin() + end);
+    sc.wholes.clear();
+    for (SimplexId i = 0; i < end - begin; ++i) {
+      const Tuple s = Unbucket(bucketed[begin + i], vbegin);
+      const SimplexId to = sc.at[s[0] - vbegin]++;
+      if (!t.tets_.Put(to, s.data())) sc.wholes.push_back({to, s});
+      t.tet_input_id_[to] = sc.inputs[i];
+      if (corners != nullptr) (*corners)[to] = sc.corners[i];
     }
+    std::sort(sc.wholes.begin(), sc.wholes.end(),
+              [](const auto& x, const auto& y) { return x.first < y.first; });
+    for (const auto& [id, tuple] : sc.wholes) stretch_wholes[k].push_back(tuple);
     // Only this stretch reads its tuples (pages it shares with the next stay).
-    const SimplexId first = t.block_tet_begin_[stretch_first[k]];
-    const SimplexId last = t.block_tet_begin_[stretch_first[k + 1]];
-    ReleasePages(bucketed.data() + first, bucketed.data() + last);
+    ReleasePages(bucketed.data() + begin, bucketed.data() + end);
   });
   bucketed = {};
   bucketed_wholes = {};
+  stretch_tet_begin = {};
   // The wholes in id order: the stretches' ids ascend with them.
   std::vector<Tuple> wholes;
   size_t total = 0;
@@ -874,20 +880,22 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
     auto span = step("sort vertices");
     RETURN_IF_ERROR(encoder.SortVertices());
   }
-  // Tetrahedra: stable bucket sort by the block of the lowest vertex, each sorted internal tuple
-  // written straight to its place in 8 bytes, then within each block by the lowest vertex,
-  // encoded in 8 bytes as they are placed. Each step hands back what it has read as it goes (the
-  // mesh's tetrahedra when release_tetrahedra, then the bucketed tuples), so no two copies are
-  // resident in full. (Not a single bucket sort by lowest vertex straight into the encoding: its
-  // writes would scatter over every page at once, raising the peak on a mesh whose cells come in
-  // no spatial order; by block, far fewer pages are written at a time.)
+  // Tetrahedra: stable bucket sort by the stretch of vertices (about 64k tetrahedra) holding the
+  // lowest vertex, each sorted internal tuple written straight to its place in 8 bytes, then
+  // within each stretch by the lowest vertex, encoded in 8 bytes as they are placed. Each step
+  // hands back what it has read as it goes (the mesh's tetrahedra when release_tetrahedra, then
+  // the bucketed tuples), so no two copies are resident in full. (Not one bucket sort by lowest
+  // vertex straight into the encoding: its writes would scatter over every page at once, raising
+  // the peak on a mesh whose cells come in no spatial order. Each bucket being written keeps one
+  // page partly filled per thread and array: by block, that was 29 MiB over the 5M-tetrahedra
+  // part's 3631 blocks, the peak of its encoding; by stretch (78 there), 2%.)
   {
     auto span = step("bucket tetrahedra");
     encoder.BucketTetrahedra();
   }
   {
     auto span = step("sort tetrahedra");
-    encoder.SortBlockTetrahedra();
+    encoder.SortTetrahedra();
   }
   if (options.tetrahedra_read) options.tetrahedra_read(t);
   RETURN_IF_ERROR(progress.Update(kPhase, 0.15));
