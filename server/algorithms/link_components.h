@@ -12,6 +12,7 @@
 #define ACTOPO_SERVER_ALGORITHMS_LINK_COMPONENTS_H_
 
 #include <array>
+#include <bit>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -29,44 +30,63 @@ class LinkComponents {
   template <class Reader>
   void Scan(Reader& reader, SimplexId v, std::span<const SimplexId> order) {
     const auto star = reader.vertex_star(v);
-    index_.Reset(star.size());
-    triangles_.clear();
-    for (SimplexId t : star) {
-      std::array<int, 3>& local = triangles_.emplace_back();
+    index_.Reset(star.size(), v);
+    triangles_.resize(star.size());
+    below_.clear();
+    const SimplexId ov = order[v];
+    for (size_t k = 0; k < star.size(); ++k) {
+      std::array<int, 3>& local = triangles_[k];
       int m = 0;
-      for (SimplexId w : reader.tetrahedron_vertices(t)) {
-        if (w != v) local[m++] = index_.IndexOf(w);
+      for (SimplexId w : reader.tetrahedron_vertices(star[k])) {
+        if (w == v) continue;
+        const int i = index_.IndexOf(w);
+        if (size_t(i) == below_.size()) below_.push_back(order[w] < ov);
+        local[m++] = i;
       }
     }
-    const std::span<const SimplexId> link = index_.vertices();
-    const SimplexId ov = order[v];
-    below_.resize(link.size());
-    for (size_t i = 0; i < link.size(); ++i) below_[i] = order[link[i]] < ov;
-    components_.Reset(link.size());
-    // A triangle's vertices on one side are joined by a chain: at most two unions.
+    components_.Reset(below_.size());
+    // A triangle's vertices on one side are joined by a chain: at most two unions, chosen by
+    // the triangle's sides (bit k: vertex k is below), one branch per triangle.
     for (const std::array<int, 3>& local : triangles_) {
-      int last[2] = {-1, -1};  // per side (0 upper, 1 lower): the previous vertex
-      for (int i : local) {
-        const int side = below_[i];
-        if (last[side] >= 0) components_.Union(last[side], i);
-        last[side] = i;
+      const auto [a, b, c] = local;
+      switch (below_[a] | below_[b] << 1 | below_[c] << 2) {
+        case 0b000:
+        case 0b111: components_.Union(a, b), components_.Union(b, c); break;
+        case 0b011:
+        case 0b100: components_.Union(a, b); break;
+        case 0b101:
+        case 0b010: components_.Union(a, c); break;
+        default:  // 0b110, 0b001
+          components_.Union(b, c);
       }
     }
   }
 
   // Only the link vertices on one side of v (lower, or upper), numbered and joined: a merge
-  // tree needs one side, and the other's are never looked up.
+  // tree needs one side, and the other's are never looked up. In three passes over the star, so
+  // that its loads (each tetrahedron's vertices, then their order) do not wait on one another
+  // or on a mispredicted branch: which side a vertex is on is a coin toss to the predictor.
   template <class Reader>
   void ScanSide(Reader& reader, SimplexId v, std::span<const SimplexId> order, bool lower) {
     const auto star = reader.vertex_star(v);
-    index_.Reset(star.size());
+    index_.Reset(star.size(), v);
     components_.Reset(0);
+    tuples_.resize(star.size());
+    sides_.resize(star.size());
+    for (size_t k = 0; k < star.size(); ++k) tuples_[k] = reader.tetrahedron_vertices(star[k]);
     const SimplexId ov = order[v];
-    for (SimplexId t : star) {
+    for (size_t k = 0; k < star.size(); ++k) {
+      unsigned mask = 0;  // bit j: vertex j of the tetrahedron is on the side
+      for (int j = 0; j < 4; ++j) {
+        const SimplexId w = tuples_[k][j];
+        mask |= unsigned(w != v && (order[w] < ov) == lower) << j;
+      }
+      sides_[k] = uint8_t(mask);
+    }
+    for (size_t k = 0; k < star.size(); ++k) {
       int last = -1;  // the tetrahedron's side is joined by a chain
-      for (SimplexId w : reader.tetrahedron_vertices(t)) {
-        if (w == v || (order[w] < ov) != lower) continue;
-        const int i = index_.IndexOf(w);
+      for (unsigned mask = sides_[k]; mask != 0; mask &= mask - 1) {
+        const int i = index_.IndexOf(tuples_[k][std::countr_zero(mask)]);
         if (size_t(i) == components_.size()) components_.Add();
         if (last >= 0) components_.Union(last, i);
         last = i;
@@ -90,6 +110,8 @@ class LinkComponents {
   LinkVertexIndex index_;
   std::vector<std::array<int, 3>> triangles_;
   std::vector<uint8_t> below_;
+  std::vector<std::array<SimplexId, 4>> tuples_;  // ScanSide: the star's tetrahedra
+  std::vector<uint8_t> sides_;                    // ScanSide: which of their vertices count
 };
 
 }  // namespace actopo

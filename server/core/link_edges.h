@@ -15,6 +15,7 @@
 #include <bit>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -29,7 +30,11 @@ namespace actopo {
 class LinkVertexIndex {
  public:
   // For a star of `tetrahedra` (at most 3 link vertices each); forgets the previous vertex.
-  void Reset(size_t tetrahedra) {
+  void Reset(size_t tetrahedra) { Reset(tetrahedra, kNoCenter); }
+  // The same, for the star of vertex `center`: link vertices numbered within kNear of it (most of
+  // a link, as a block's vertices are numbered together) go through a direct table instead of
+  // the hashed one.
+  void Reset(size_t tetrahedra, SimplexId center) {
     for (uint32_t slot : used_) slot_vertex_[slot] = -1;
     used_.clear();
     vertices_.clear();
@@ -38,9 +43,27 @@ class LinkVertexIndex {
       slot_vertex_.assign(size_t(1) << bits_, -1);
       slot_index_.resize(size_t(1) << bits_);
     }
+    near_base_ = int64_t(center) - kNear;
+    if (near_stamp_.empty() || ++stamp_ == 0) {  // a new table, or the stamps went round
+      near_stamp_.assign(2 * kNear, 0);
+      near_index_.resize(2 * kNear);
+      stamp_ = 1;
+    }
   }
   // w's number, given on first sight.
-  int IndexOf(SimplexId w) {
+  [[gnu::always_inline]] int IndexOf(SimplexId w) {
+    const uint64_t near = uint64_t(int64_t(w) - near_base_);
+    if (near < uint64_t(2 * kNear)) [[likely]] {
+      if (near_stamp_[near] != stamp_) {
+        near_stamp_[near] = stamp_;
+        near_index_[near] = int(vertices_.size());
+        vertices_.push_back(w);
+      }
+      return near_index_[near];
+    }
+    return HashedIndexOf(w);
+  }
+  int HashedIndexOf(SimplexId w) {
     const uint64_t mask = (uint64_t(1) << bits_) - 1;
     uint64_t h = (uint64_t(uint32_t(w)) * 0x9e3779b97f4a7c15u) >> (64 - bits_);
     while (slot_vertex_[h] != w) {
@@ -59,7 +82,13 @@ class LinkVertexIndex {
   std::span<const SimplexId> vertices() const { return vertices_; }
 
  private:
+  static constexpr int64_t kNear = 2048;
+  static constexpr SimplexId kNoCenter = std::numeric_limits<SimplexId>::min();
   int bits_ = 4;
+  int64_t near_base_ = int64_t(kNoCenter) - kNear;  // ids near_base_ .. + 2 kNear are direct
+  uint32_t stamp_ = 0;                              // marks the current vertex's direct slots
+  std::vector<uint32_t> near_stamp_;
+  std::vector<int> near_index_;
   std::vector<SimplexId> slot_vertex_;
   std::vector<int> slot_index_;
   std::vector<uint32_t> used_;
