@@ -84,8 +84,9 @@ int main(int argc, char** argv) {
   flags.Add("session-idle-timeout-s", &idle_timeout_s, "close sessions idle this long");
   flags.Add("grace-s", &grace_s, "on SIGTERM, seconds to let calls finish");
   flags.Add("upload-dir", &o.upload_dir,
-            "folder of the files being uploaded (default: one in the system's temporary "
-            "directory, removed at exit)");
+            "folder of the files being uploaded, one server's at a time (default: one in the "
+            "system's temporary directory, removed at exit; a killed server's at the next "
+            "start)");
   flags.Add("upload-budget-mib", &upload_budget_mib,
             "sizes of the uploads held at once in MiB (on disk, in --upload-dir)");
   flags.Add("upload-timeout-s", &upload_timeout_s,

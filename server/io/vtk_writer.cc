@@ -72,9 +72,21 @@ vtkSmartPointer<vtkDataArray> MakeArray(const NamedArray& array) {
       array.values);
 }
 
-// Int32 keeps label fields integral in ParaView; a value outside int32 (the source array was
-// wider) falls back to Float64, which loses nothing for values up to 2^53.
+// A field keeps the type it was loaded with where its values allow: Int32 keeps label fields
+// integral in ParaView, Float32 keeps a float32 field's file as small as TTK's and its bytes the
+// same. A value outside int32 (the source array was wider) or not a float (the field was
+// changed since) falls back to Float64, which loses nothing for values up to 2^53.
 vtkSmartPointer<vtkDataArray> MakeArray(const PointField& field) {
+  if (!field.is_integer && field.source_bytes == 4 &&
+      std::all_of(field.values.begin(), field.values.end(),
+                  [](double v) { return double(float(v)) == v; })) {
+    auto array = vtkSmartPointer<vtkFloatArray>::New();
+    array->SetName(field.name.c_str());
+    array->SetNumberOfValues(static_cast<vtkIdType>(field.values.size()));
+    std::transform(field.values.begin(), field.values.end(), array->GetPointer(0),
+                   [](double v) { return static_cast<float>(v); });
+    return array;
+  }
   const bool fits_int32 =
       field.is_integer && std::all_of(field.values.begin(), field.values.end(), [](double v) {
         return v >= INT32_MIN && v <= INT32_MAX && v == std::trunc(v);

@@ -116,6 +116,30 @@ TEST(WriteUnstructuredGridTest, WideIntegerFieldFallsBackToDouble) {
   EXPECT_EQ(back->FindField("wide")->values, wide.values);
 }
 
+// A float32 field is written as Float32 (as TTK's outputs keep it), unless a value is no float.
+TEST(WriteUnstructuredGridTest, Float32FieldsStayFloat32) {
+  Mesh mesh = Jittered3();
+  const size_t n = mesh.num_vertices();
+  PointField narrow{.name = "narrow", .values = std::vector<double>(n), .source_bytes = 4};
+  for (size_t v = 0; v < n; ++v) narrow.values[v] = double(0.1f * float(v));
+  PointField changed = narrow;
+  changed.name = "changed";
+  changed.values[n / 2] = 0.1;  // no float is 0.1
+  mesh.point_fields.push_back(narrow);
+  mesh.point_fields.push_back(changed);
+  const std::string path = (MakeTempDir("vtu_float32") / "mesh.vtu").string();
+  ASSERT_TRUE(WriteUnstructuredGrid(path, mesh).ok());
+  const std::string text = ReadText(path);
+  EXPECT_THAT(text, HasSubstr("type=\"Float32\" Name=\"narrow\""));
+  EXPECT_THAT(text, HasSubstr("type=\"Float64\" Name=\"changed\""));
+  absl::StatusOr<Mesh> back = ReadMesh(path);
+  ASSERT_TRUE(back.ok()) << back.status();
+  EXPECT_EQ(back->FindField("narrow")->values, narrow.values);
+  EXPECT_EQ(back->FindField("narrow")->source_bytes, 4);
+  EXPECT_EQ(back->FindField("changed")->values, changed.values);
+  EXPECT_EQ(back->FindField("changed")->source_bytes, 8);
+}
+
 TEST(WriteUnstructuredGridTest, RefusesBadArrays) {
   const Mesh mesh = Jittered3();
   const std::string path = (MakeTempDir("vtu_bad") / "mesh.vtu").string();

@@ -80,10 +80,16 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& o) {
                                                      .max_engine_threads = o.max_engine_threads,
                                                      .idle_timeout = o.session_idle_timeout},
                                        s.budget.get());
+  // Without --upload-dir, a folder of this process's own in the temporary directory; what
+  // killed servers left there beside it goes first.
+  constexpr char kUploadPrefix[] = "actopo-uploads-";
+  if (o.upload_dir.empty()) {
+    UploadSpool::RemoveAbandoned(std::filesystem::temp_directory_path(), kUploadPrefix);
+  }
   const std::filesystem::path upload_dir =
       !o.upload_dir.empty() ? std::filesystem::path(o.upload_dir)
                             : std::filesystem::temp_directory_path() /
-                                  absl::StrCat("actopo-uploads-", ::getpid(), "-", NewId("s"));
+                                  absl::StrCat(kUploadPrefix, ::getpid(), "-", NewId("s"));
   ASSIGN_OR_RETURN(
       s.spool,
       UploadSpool::Open({.dir = upload_dir,

@@ -1,10 +1,13 @@
 #include "server/service/upload_spool.h"
 
 #include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
+#include <csignal>
 #include <cstring>
 
 #include "absl/strings/ascii.h"
@@ -197,6 +200,36 @@ void RemoveUploadFolders(const std::filesystem::path& dir) {
 
 }  // namespace
 
+namespace {
+
+// Opens `path` (creating it when asked) and locks it without waiting: the descriptor, -1 with
+// errno EWOULDBLOCK when another process holds the lock, -1 with errno set on other failures.
+int OpenLocked(const std::filesystem::path& path, bool create) {
+  const int fd = ::open(path.c_str(), O_RDWR | O_CLOEXEC | (create ? O_CREAT : 0), 0600);
+  if (fd < 0) return -1;
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    const int error = errno;
+    ::close(fd);
+    errno = error;
+    return -1;
+  }
+  return fd;
+}
+
+// Whether `name` is PREFIX<pid>-... with a pid no process has.
+bool NamesAGoneProcess(std::string_view name, std::string_view prefix) {
+  const std::string_view rest = name.substr(prefix.size());
+  int pid = 0;
+  const auto [end, error] = std::from_chars(rest.data(), rest.data() + rest.size(), pid);
+  if (error != std::errc() || end == rest.data() || end == rest.data() + rest.size() ||
+      *end != '-' || pid <= 0) {
+    return false;
+  }
+  return ::kill(pid, 0) != 0 && errno == ESRCH;
+}
+
+}  // namespace
+
 absl::StatusOr<std::unique_ptr<UploadSpool>> UploadSpool::Open(const UploadSpoolOptions& options) {
   std::error_code ec;
   const bool made = std::filesystem::create_directories(options.dir, ec);
@@ -204,9 +237,19 @@ absl::StatusOr<std::unique_ptr<UploadSpool>> UploadSpool::Open(const UploadSpool
     return absl::FailedPreconditionError(
         absl::StrCat("upload folder '", options.dir.string(), "': ", ec.message()));
   }
+  const std::filesystem::path lock_path = options.dir / kLockFile;
+  const int lock_fd = OpenLocked(lock_path, /*create=*/true);
+  if (lock_fd < 0) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "upload folder '", options.dir.string(), "': ",
+        errno == EWOULDBLOCK ? "in use by another running server (it holds " : "cannot lock (",
+        lock_path.filename().string(),
+        errno == EWOULDBLOCK ? ")" : "): ", errno == EWOULDBLOCK ? "" : std::strerror(errno)));
+  }
   RemoveUploadFolders(options.dir);  // what an earlier run left is no one's now
   std::unique_ptr<UploadSpool> spool(new UploadSpool(options));
   spool->made_dir_ = made;
+  spool->lock_fd_ = lock_fd;
   spool->reaper_ = std::thread([s = spool.get()] { s->ReapExpired(); });
   return spool;
 }
@@ -220,7 +263,23 @@ UploadSpool::~UploadSpool() {
   reaper_.join();
   RemoveUploadFolders(options_.dir);
   std::error_code ec;
+  std::filesystem::remove(options_.dir / kLockFile, ec);  // still held: no one takes it between
+  ::close(lock_fd_);
   if (made_dir_) std::filesystem::remove(options_.dir, ec);  // only if empty
+}
+
+int UploadSpool::RemoveAbandoned(const std::filesystem::path& parent, std::string_view prefix) {
+  int removed = 0;
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(parent, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind(prefix, 0) != 0 || !entry.is_directory(ec)) continue;
+    const int fd = OpenLocked(entry.path() / kLockFile, /*create=*/false);
+    const bool abandoned = fd >= 0 || (errno == ENOENT && NamesAGoneProcess(name, prefix));
+    if (abandoned && std::filesystem::remove_all(entry.path(), ec) > 0 && !ec) ++removed;
+    if (fd >= 0) ::close(fd);
+  }
+  return removed;
 }
 
 int UploadSpool::size() const {

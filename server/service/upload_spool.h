@@ -96,9 +96,17 @@ class UploadSpool {
     Reservation reservation_;
   };
 
-  // Makes options.dir if missing, and removes the upload folders an earlier run left there.
+  // Makes options.dir if missing, takes it (a lock on its kLockFile, held until the spool is
+  // gone: FAILED_PRECONDITION while another server's spool holds the folder) and removes the
+  // upload folders an earlier run left there.
   static absl::StatusOr<std::unique_ptr<UploadSpool>> Open(const UploadSpoolOptions& options);
   ~UploadSpool();  // removes every upload's folder, and options.dir if it made it
+  // Removes the folders in `parent` whose names start with `prefix` that no running spool holds:
+  // those of servers that were killed before they could clean up (the kernel drops a dead
+  // process's lock). A folder without a lock file is removed only when its name carries the
+  // process id of a process that is gone (PREFIX<pid>-...). Returns how many went.
+  static int RemoveAbandoned(const std::filesystem::path& parent, std::string_view prefix);
+  static constexpr char kLockFile[] = ".actopo-spool.lock";
 
   // A new upload of `files`; errors name `files[k].path`, `.size` or `.sha256`.
   absl::StatusOr<std::string> Create(std::vector<FileSpec> files);
@@ -131,6 +139,7 @@ class UploadSpool {
   absl::flat_hash_map<std::string, std::shared_ptr<Writer::Upload>> uploads_ ABSL_GUARDED_BY(mu_);
   bool stopping_ ABSL_GUARDED_BY(mu_) = false;
   bool made_dir_ = false;
+  int lock_fd_ = -1;  // holds the lock on options_.dir / kLockFile
   CondVar reaper_cv_;
   std::thread reaper_;
 };

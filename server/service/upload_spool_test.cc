@@ -1,5 +1,6 @@
 #include "server/service/upload_spool.h"
 
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -195,6 +196,53 @@ TEST(UploadSpool, UploadsAreWrittenConcurrently) {
   for (const std::string& id : ids) EXPECT_TRUE(OkValue(spool->Get(id)).complete);
   EXPECT_TRUE(spool->Delete(ids[0]).ok());
   EXPECT_EQ(spool->size(), 2);
+}
+
+// A folder is one spool's while it is open: a second server is refused it, by name.
+TEST(UploadSpool, AFolderHoldsOneSpoolAtATime) {
+  auto spool = OpenSpool();
+  const absl::StatusOr<std::unique_ptr<UploadSpool>> second =
+      UploadSpool::Open({.dir = TempDir("spool")});
+  ASSERT_EQ(second.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_NE(second.status().message().find("in use by another running server"), std::string::npos)
+      << second.status();
+  EXPECT_NE(second.status().message().find(TempDir("spool").string()), std::string::npos);
+  spool.reset();
+  EXPECT_TRUE(UploadSpool::Open({.dir = TempDir("spool")}).ok());  // free again
+}
+
+// What killed servers left goes; a running spool's folder, a folder named for a live process
+// and other names stay.
+TEST(UploadSpool, RemoveAbandonedTakesOnlyWhatNoRunningServerHolds) {
+  const std::filesystem::path parent = TempDir("parent");
+  std::filesystem::remove_all(parent);
+  std::filesystem::create_directories(parent);
+  const std::string prefix = "actopo-uploads-";
+  auto running = OkValue(UploadSpool::Open({.dir = parent / (prefix + "1-running")}));
+  // A killed server's folder: its lock file is there, and no process holds it.
+  const std::filesystem::path killed = parent / (prefix + "2-killed");
+  std::filesystem::create_directories(killed / "upload-x");
+  std::ofstream(killed / UploadSpool::kLockFile).put('\n');
+  std::ofstream(killed / "upload-x" / "mesh.vtu") << "bytes";
+  // Older folders without a lock file: one named for a process that is gone, one for this one.
+  const pid_t child = ::fork();
+  if (child == 0) ::_exit(0);
+  ASSERT_GT(child, 0);
+  ASSERT_EQ(::waitpid(child, nullptr, 0), child);
+  const std::filesystem::path gone = parent / (prefix + std::to_string(child) + "-old");
+  const std::filesystem::path alive = parent / (prefix + std::to_string(::getpid()) + "-old");
+  const std::filesystem::path other = parent / "something-else";
+  for (const auto& dir : {gone, alive, other}) std::filesystem::create_directories(dir);
+
+  EXPECT_EQ(UploadSpool::RemoveAbandoned(parent, prefix), 2);
+  EXPECT_FALSE(std::filesystem::exists(killed));
+  EXPECT_FALSE(std::filesystem::exists(gone));
+  EXPECT_TRUE(std::filesystem::exists(parent / (prefix + "1-running") / UploadSpool::kLockFile));
+  EXPECT_TRUE(std::filesystem::exists(alive));
+  EXPECT_TRUE(std::filesystem::exists(other));
+  running.reset();  // its folder goes with it
+  EXPECT_FALSE(std::filesystem::exists(parent / (prefix + "1-running")));
+  std::filesystem::remove_all(parent);
 }
 
 }  // namespace
