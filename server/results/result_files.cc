@@ -447,6 +447,7 @@ absl::StatusOr<std::vector<std::string>> WriteResultFiles(const std::string& pre
     for (PointField& field : mesh.point_fields) {
       if (field.name == c.scalar_name) {
         field.values = std::get<std::vector<double>>(outputs.simplified[0].values);
+        field.source_bytes = 8;  // streamed as float64, and written so by the clients too
       }
     }
     const std::string path = prefix + "_simplified.vtu";
