@@ -25,8 +25,10 @@ namespace actopo {
 
 // A vertex's link vertices (the other vertices of its star tetrahedra) numbered in the order
 // first met, so the counter below and a union-find can work on small numbers. Each comes once per
-// tetrahedron around its edge (a few times): an open-addressing table, at most half full, keeps
-// them unique; Reset empties only the slots the last vertex used. VV, VB and critical points.
+// tetrahedron around its edge (a few times): a direct table over the ids near the centre vertex
+// (stamped per vertex, so never cleared) and an open-addressing table, at most half full, for the
+// rest keep them unique; Reset empties only the slots the last vertex used. VV, VB, critical
+// points and the merge and contour trees.
 class LinkVertexIndex {
  public:
   // For a star of `tetrahedra` (at most 3 link vertices each); forgets the previous vertex.
@@ -63,6 +65,11 @@ class LinkVertexIndex {
     }
     return HashedIndexOf(w);
   }
+  // The link vertices by number.
+  std::span<const SimplexId> vertices() const { return vertices_; }
+
+ private:
+  // Beyond kNear of the centre: an open-addressing table, at most half full.
   int HashedIndexOf(SimplexId w) {
     const uint64_t mask = (uint64_t(1) << bits_) - 1;
     uint64_t h = (uint64_t(uint32_t(w)) * 0x9e3779b97f4a7c15u) >> (64 - bits_);
@@ -78,10 +85,6 @@ class LinkVertexIndex {
     }
     return slot_index_[h];
   }
-  // The link vertices by number.
-  std::span<const SimplexId> vertices() const { return vertices_; }
-
- private:
   static constexpr int64_t kNear = 2048;
   static constexpr SimplexId kNoCenter = std::numeric_limits<SimplexId>::min();
   int bits_ = 4;
