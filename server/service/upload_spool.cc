@@ -269,15 +269,26 @@ UploadSpool::~UploadSpool() {
 }
 
 int UploadSpool::RemoveAbandoned(const std::filesystem::path& parent, std::string_view prefix) {
+  // A server makes its folder, then its lock file, then locks it: between the two a folder of a
+  // live process holds an unlocked (or no) lock file for a moment, so the process id decides
+  // there, and an unlocked lock file only once it is older than a server's start.
+  constexpr auto kStarting = std::chrono::seconds(60);
   int removed = 0;
   std::error_code ec;
   for (const auto& entry : std::filesystem::directory_iterator(parent, ec)) {
     const std::string name = entry.path().filename().string();
     if (name.rfind(prefix, 0) != 0 || !entry.is_directory(ec)) continue;
-    const int fd = OpenLocked(entry.path() / kLockFile, /*create=*/false);
-    const bool abandoned = fd >= 0 || (errno == ENOENT && NamesAGoneProcess(name, prefix));
-    if (abandoned && std::filesystem::remove_all(entry.path(), ec) > 0 && !ec) ++removed;
+    const std::filesystem::path lock_path = entry.path() / kLockFile;
+    const int fd = OpenLocked(lock_path, /*create=*/false);
+    const int error = fd < 0 ? errno : 0;
     if (fd >= 0) ::close(fd);
+    if (error == EWOULDBLOCK) continue;  // a running server's
+    std::error_code age_ec;
+    const auto written = std::filesystem::last_write_time(lock_path, age_ec);
+    const bool stale_lock =
+        fd >= 0 && !age_ec && std::filesystem::file_time_type::clock::now() - written > kStarting;
+    if (!NamesAGoneProcess(name, prefix) && !stale_lock) continue;
+    if (std::filesystem::remove_all(entry.path(), ec) > 0 && !ec) ++removed;
   }
   return removed;
 }

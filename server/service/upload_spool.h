@@ -101,10 +101,11 @@ class UploadSpool {
   // upload folders an earlier run left there.
   static absl::StatusOr<std::unique_ptr<UploadSpool>> Open(const UploadSpoolOptions& options);
   ~UploadSpool();  // removes every upload's folder, and options.dir if it made it
-  // Removes the folders in `parent` whose names start with `prefix` that no running spool holds:
-  // those of servers that were killed before they could clean up (the kernel drops a dead
-  // process's lock). A folder without a lock file is removed only when its name carries the
-  // process id of a process that is gone (PREFIX<pid>-...). Returns how many went.
+  // Removes the folders in `parent` named PREFIX<pid>-... that no running spool holds: those of
+  // servers killed before they could clean up (the kernel drops a dead process's lock). An
+  // unlocked folder goes when its process is gone, or when its lock file is over a minute old
+  // (the process id was reused); a folder without a lock file (an older server's) only in the
+  // first case. Returns how many went.
   static int RemoveAbandoned(const std::filesystem::path& parent, std::string_view prefix);
   static constexpr char kLockFile[] = ".actopo-spool.lock";
 

@@ -211,37 +211,47 @@ TEST(UploadSpool, AFolderHoldsOneSpoolAtATime) {
   EXPECT_TRUE(UploadSpool::Open({.dir = TempDir("spool")}).ok());  // free again
 }
 
-// What killed servers left goes; a running spool's folder, a folder named for a live process
-// and other names stay.
+// What killed servers left goes; a running spool's folder, a folder of a live process being
+// made, and other names stay.
 TEST(UploadSpool, RemoveAbandonedTakesOnlyWhatNoRunningServerHolds) {
   const std::filesystem::path parent = TempDir("parent");
   std::filesystem::remove_all(parent);
   std::filesystem::create_directories(parent);
   const std::string prefix = "actopo-uploads-";
-  auto running = OkValue(UploadSpool::Open({.dir = parent / (prefix + "1-running")}));
-  // A killed server's folder: its lock file is there, and no process holds it.
-  const std::filesystem::path killed = parent / (prefix + "2-killed");
-  std::filesystem::create_directories(killed / "upload-x");
-  std::ofstream(killed / UploadSpool::kLockFile).put('\n');
-  std::ofstream(killed / "upload-x" / "mesh.vtu") << "bytes";
-  // Older folders without a lock file: one named for a process that is gone, one for this one.
-  const pid_t child = ::fork();
+  const std::string self = std::to_string(::getpid());
+  const pid_t child = ::fork();  // a process id that is gone once it is waited for
   if (child == 0) ::_exit(0);
   ASSERT_GT(child, 0);
   ASSERT_EQ(::waitpid(child, nullptr, 0), child);
-  const std::filesystem::path gone = parent / (prefix + std::to_string(child) + "-old");
-  const std::filesystem::path alive = parent / (prefix + std::to_string(::getpid()) + "-old");
-  const std::filesystem::path other = parent / "something-else";
-  for (const auto& dir : {gone, alive, other}) std::filesystem::create_directories(dir);
+  const std::string gone = std::to_string(child);
+  const auto folder = [&](const std::string& name, bool lock_file) {
+    std::filesystem::create_directories(parent / name / "upload-x");
+    std::ofstream(parent / name / "upload-x" / "mesh.vtu") << "bytes";
+    if (lock_file) std::ofstream(parent / name / UploadSpool::kLockFile).put('\n');
+    return parent / name;
+  };
+  auto running = OkValue(UploadSpool::Open({.dir = parent / (prefix + self + "-running")}));
+  const auto killed = folder(prefix + gone + "-killed", true);  // its lock dropped with it
+  const auto older = folder(prefix + gone + "-older", false);   // a server from before locks
+  const auto reused = folder(prefix + self + "-reused", true);  // its pid now someone else's
+  std::filesystem::last_write_time(
+      reused / UploadSpool::kLockFile,
+      std::filesystem::file_time_type::clock::now() - std::chrono::minutes(2));
+  const auto starting = folder(prefix + self + "-starting", true);  // not locked yet
+  const auto unlocked = folder(prefix + self + "-unlocked", false);
+  const auto other = folder("something-else", true);
 
-  EXPECT_EQ(UploadSpool::RemoveAbandoned(parent, prefix), 2);
+  EXPECT_EQ(UploadSpool::RemoveAbandoned(parent, prefix), 3);
   EXPECT_FALSE(std::filesystem::exists(killed));
-  EXPECT_FALSE(std::filesystem::exists(gone));
-  EXPECT_TRUE(std::filesystem::exists(parent / (prefix + "1-running") / UploadSpool::kLockFile));
-  EXPECT_TRUE(std::filesystem::exists(alive));
+  EXPECT_FALSE(std::filesystem::exists(older));
+  EXPECT_FALSE(std::filesystem::exists(reused));
+  EXPECT_TRUE(
+      std::filesystem::exists(parent / (prefix + self + "-running") / UploadSpool::kLockFile));
+  EXPECT_TRUE(std::filesystem::exists(starting / "upload-x" / "mesh.vtu"));
+  EXPECT_TRUE(std::filesystem::exists(unlocked));
   EXPECT_TRUE(std::filesystem::exists(other));
   running.reset();  // its folder goes with it
-  EXPECT_FALSE(std::filesystem::exists(parent / (prefix + "1-running")));
+  EXPECT_FALSE(std::filesystem::exists(parent / (prefix + self + "-running")));
   std::filesystem::remove_all(parent);
 }
 
