@@ -850,6 +850,10 @@ class _Feeder:
             raise self._error
 
 
+# How long Ctrl-C waits for the server to take a job's cancellation (Job.result()).
+CANCEL_TIMEOUT_S = 5.0
+
+
 class Job:
     """A running job (Session.submit()). ``job_id`` is known as soon as it is created;
     result() waits for the end; cancel() may be called from any thread."""
@@ -880,6 +884,21 @@ class Job:
         CancelledError."""
         self._client.cancel_job(self.job_id)
 
+    def _cancel_after_interrupt(self) -> None:
+        """Ctrl-C: CancelJob first, so that the job is cancelled on the server before
+        KeyboardInterrupt reaches the caller (the stream's own cancellation reaches the server
+        when its transport gets to it, which a busy server may take longer to notice than a
+        short job takes to end), then the stream. A job that has ended, or a server that does
+        not answer within CANCEL_TIMEOUT_S, leaves only the stream's cancellation."""
+        try:
+            self._client._stub.CancelJob(_messages.build_cancel_job(self.job_id),
+                                         timeout=CANCEL_TIMEOUT_S,
+                                         metadata=self._client._metadata)
+        except grpc.RpcError:
+            pass  # ended already, or unreachable: the stream's cancellation still goes
+        finally:
+            self._call.cancel()
+
     def result(self, progress: ProgressArg = False) -> JobResult:
         """Waits for the job and returns its result; Ctrl-C cancels it."""
         return self._result(progress)
@@ -896,7 +915,7 @@ class Job:
                         on_field(field)
                 return self._assembler.result()
             except KeyboardInterrupt:
-                self._call.cancel()
+                self._cancel_after_interrupt()
                 raise
             finally:
                 bar.close()
