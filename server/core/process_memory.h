@@ -35,11 +35,10 @@ void ReleasePages(const void* begin, const void* end);
 //   mapped on their own and go back to the system when freed, and the heap's free top is handed
 //   back as soon as it passes 128 KiB. glibc's own threshold moves up to 32 MiB as large blocks are
 //   freed, and its trim threshold to twice that, after which freed mesh-sized arrays (the points
-//   once the blocks are known, the vertex order's sort keys) stay resident: wavelet128's peak was
-//   the vertex order's, 8 MiB above the mesh as read. The threshold trades time for steady
-//   peaks: at 4 MiB part_5M's merge tree peaked at 130 MiB in 8 runs of 8, at 16 MiB at 131 or
-//   137 (arrays of a few MiB left in a thread's arena), and wavelet128 paid 2-3% of its time in
-//   page faults on fresh arrays at 4 or 8 MiB, none at 16.
+//   once the blocks are known, the vertex order's sort keys) stay resident under the next ones.
+//   The value trades time for a steady peak: a higher one spares page faults on fresh arrays
+//   but lets arrays of a few MiB stay in a thread's arena from run to run (bench/HISTORY.md,
+//   twentieth session, has the figures).
 inline constexpr int64_t kMmapThresholdBytes = int64_t(4) << 20;
 void ConfigureAllocator(int cores);
 

@@ -887,8 +887,8 @@ absl::StatusOr<std::shared_ptr<const Topology>> Topology::Build(
   // the bucketed tuples), so no two copies are resident in full. (Not one bucket sort by lowest
   // vertex straight into the encoding: its writes would scatter over every page at once, raising
   // the peak on a mesh whose cells come in no spatial order. Each bucket being written keeps one
-  // page partly filled per thread and array: by block, that was 29 MiB over the 5M-tetrahedra
-  // part's 3631 blocks, the peak of its encoding; by stretch (78 there), 2%.)
+  // page partly filled per thread and array, so the buckets are few: stretches, not blocks,
+  // whose thousands of partial pages set the encoding's peak.)
   {
     auto span = step("bucket tetrahedra");
     encoder.BucketTetrahedra();
