@@ -8,9 +8,15 @@
 //   link.Scan(reader, v, order);
 //   for (size_t i = 0; i < link.size(); ++i)
 //     if (link.IsRepresentative(i) && link.below(i)) ... link.neighbors()[i] ...
+//
+// Where VV is stored (the explicit structure), ScanNumbered does the same in about half the time
+// (bench/HISTORY.md, twenty-first session) and hands out one vertex per component:
+//
+//   if (link.ScanNumbered(reader, v, order)) link.NumberedRepresentatives(true, reps);
 #ifndef ACTOPO_SERVER_ALGORITHMS_LINK_COMPONENTS_H_
 #define ACTOPO_SERVER_ALGORITHMS_LINK_COMPONENTS_H_
 
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <cstdint>
@@ -25,6 +31,11 @@ namespace actopo {
 
 class LinkComponents {
  public:
+  // ScanNumbered looks link vertices up in a table over the ids of a window this wide (64 kB).
+  static constexpr int64_t kNumberedWindow = int64_t(1) << 16;
+  explicit LinkComponents(int64_t numbered_window = kNumberedWindow)
+      : numbered_window_(numbered_window) {}
+
   // Numbers v's link vertices as its star meets them (no VV is read) and joins them, side by
   // side. `order` is VertexOrder() by internal id.
   template <class Reader>
@@ -95,6 +106,69 @@ class LinkComponents {
     below_.assign(index_.vertices().size(), lower ? 1 : 0);
   }
 
+  // Both sides at once from v's neighbours (VV, ascending) and star: the link vertices are
+  // numbered by their place in VV, so a star tetrahedron's are looked up in a table, without the
+  // first-sight branch of a numbering made as the star is met, and each link vertex keeps the
+  // ones it meets on its side as a bit mask. Returns false, having done nothing, when the link
+  // has more than kMaxNumbered vertices or spans the window's width of ids or more: Scan then.
+  // Computing both sides costs no more than one, so the join, split and contour trees share it.
+  template <class Reader>
+  bool ScanNumbered(Reader& reader, SimplexId v, std::span<const SimplexId> order) {
+    const auto vv = reader.vertex_neighbors(v);
+    const size_t n = vv.size();
+    if (n == 0 || n > kMaxNumbered) return false;
+    const SimplexId low = std::min(vv.front(), v), high = std::max(vv.back(), v);
+    if (int64_t(high) - low >= numbered_window_) return false;
+    if (local_.empty()) local_.resize(size_t(numbered_window_));
+    const SimplexId ov = order[v];
+    uint64_t below = 0;
+    for (size_t i = 0; i < n; ++i) {
+      local_[vv[i] - low] = uint8_t(i);
+      below |= uint64_t(order[vv[i]] < ov) << i;
+      same_side_[i] = 0;
+    }
+    local_[v - low] = kCenter;  // bit kCenter is on neither side
+    const uint64_t above = ((uint64_t(1) << n) - 1) & ~below;
+    for (SimplexId t : reader.vertex_star(v)) {
+      const auto tuple = reader.tetrahedron_vertices(t);
+      const uint64_t b0 = uint64_t(1) << local_[tuple[0] - low];
+      const uint64_t b1 = uint64_t(1) << local_[tuple[1] - low];
+      const uint64_t b2 = uint64_t(1) << local_[tuple[2] - low];
+      const uint64_t b3 = uint64_t(1) << local_[tuple[3] - low];
+      const uint64_t in = b0 | b1 | b2 | b3;
+      const uint64_t lower = in & below, upper = in & above;
+      // Each vertex of the tetrahedron meets the others on its side (the centre's entry is a
+      // spare slot nobody reads).
+      same_side_[local_[tuple[0] - low]] |= (b0 & below) ? lower : upper;
+      same_side_[local_[tuple[1] - low]] |= (b1 & below) ? lower : upper;
+      same_side_[local_[tuple[2] - low]] |= (b2 & below) ? lower : upper;
+      same_side_[local_[tuple[3] - low]] |= (b3 & below) ? lower : upper;
+    }
+    numbered_below_ = below;
+    numbered_above_ = above;
+    numbered_neighbors_ = vv;
+    return true;
+  }
+
+  // After ScanNumbered, before the reader is asked for VV again: one vertex of each component of
+  // the lower (`lower`) or upper link, the lowest in VV of each, into `reps` (cleared first).
+  void NumberedRepresentatives(bool lower, std::vector<SimplexId>& reps) const {
+    reps.clear();
+    for (uint64_t left = lower ? numbered_below_ : numbered_above_; left != 0;) {
+      const uint64_t seed = left & -left;
+      uint64_t component = seed, frontier = seed;
+      while (frontier != 0) {
+        const int i = std::countr_zero(frontier);
+        frontier &= frontier - 1;
+        const uint64_t reached = same_side_[size_t(i)] & ~component;
+        component |= reached;
+        frontier |= reached;
+      }
+      left &= ~component;
+      reps.push_back(numbered_neighbors_[size_t(std::countr_zero(seed))]);
+    }
+  }
+
   // The link vertices (internal ids), numbered as the star met them.
   std::span<const SimplexId> neighbors() const { return index_.vertices(); }
   size_t size() const { return index_.vertices().size(); }
@@ -106,7 +180,16 @@ class LinkComponents {
   std::span<const std::array<int, 3>> triangles() const { return triangles_; }
 
  private:
-  UnionFind components_;  // over the link vertices (a few tens)
+  static constexpr size_t kMaxNumbered = 63;  // bit 63 is the centre's
+  static constexpr uint8_t kCenter = 63;
+  int64_t numbered_window_;
+  std::vector<uint8_t> local_;  // ScanNumbered: place in VV by id - the window's lowest id
+  // ScanNumbered: per link vertex (and the centre's spare), the link vertices on its side that
+  // share a star tetrahedron with it; and each side's link vertices.
+  std::array<uint64_t, kMaxNumbered + 1> same_side_{};
+  uint64_t numbered_below_ = 0, numbered_above_ = 0;
+  std::span<const SimplexId> numbered_neighbors_;  // VV of the vertex
+  UnionFind components_;                           // over the link vertices (a few tens)
   LinkVertexIndex index_;
   std::vector<std::array<int, 3>> triangles_;
   std::vector<uint8_t> below_;

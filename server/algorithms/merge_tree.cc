@@ -4,6 +4,7 @@
 #include <mutex>
 #include <optional>
 #include <queue>
+#include <thread>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -77,7 +78,8 @@ std::string TreeResult::SegmentationDigest() const {
   return text.HexDigest();
 }
 
-RelationSet TreeDeclared() { return {Relation::kVT}; }
+RelationSet TreeDeclared() { return {Relation::kVT, Relation::kVV}; }
+RelationSet TreeSwept() { return {Relation::kVT}; }
 
 namespace tree_internal {
 
@@ -90,6 +92,10 @@ absl::Status ScanLinks(Structure& structure, std::span<const SimplexId> order,
   for (LowerLinks* side : sides) {
     if (side != nullptr) side->first.assign(size_t(n), LowerLinks::kLeaf);
   }
+  bool with_neighbors = false;
+  if constexpr (Structure::kRelationsInPlace) {
+    with_neighbors = structure.relations().Contains(Relation::kVV);
+  }
   // Candidates as (vertex, count, vertices...) records, per side, appended by each consumer.
   std::mutex mu;
   std::vector<SimplexId> records[2];
@@ -101,18 +107,28 @@ absl::Status ScanLinks(Structure& structure, std::span<const SimplexId> order,
         std::vector<SimplexId> reps;
         for (int32_t b = range.begin; b < range.end; ++b) {
           for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
-            if (join != nullptr && split != nullptr) {
-              link.Scan(reader, v, order);
-            } else {
-              link.ScanSide(reader, v, order, join != nullptr);
+            bool numbered = false;
+            if constexpr (Structure::kRelationsInPlace) {
+              numbered = with_neighbors && link.ScanNumbered(reader, v, order);
+            }
+            if (!numbered) {
+              if (join != nullptr && split != nullptr) {
+                link.Scan(reader, v, order);
+              } else {
+                link.ScanSide(reader, v, order, join != nullptr);
+              }
             }
             for (int s = 0; s < 2; ++s) {
               if (sides[s] == nullptr) continue;
               const bool want_below = s == 0;
-              reps.clear();
-              for (size_t i = 0; i < link.size(); ++i) {
-                if (link.below(i) == want_below && link.IsRepresentative(i)) {
-                  reps.push_back(link.neighbors()[i]);
+              if (numbered) {
+                link.NumberedRepresentatives(want_below, reps);
+              } else {
+                reps.clear();
+                for (size_t i = 0; i < link.size(); ++i) {
+                  if (link.below(i) == want_below && link.IsRepresentative(i)) {
+                    reps.push_back(link.neighbors()[i]);
+                  }
                 }
               }
               if (reps.size() == 1) sides[s]->first[v] = reps[0];
@@ -168,7 +184,20 @@ SweptTree Sweep(const Topology& topology, std::span<const SimplexId> order, bool
   std::vector<SimplexId>& arc_node = links.first;
   UnionFind components(static_cast<size_t>(n));
   std::vector<SimplexId> roots;
+  // The sweep visits the vertices in the order, all over the mesh: each step's reads would miss
+  // the cache. They are fetched ahead in two steps: the vertex's own entries, then (once those
+  // are in) the union-find entry of its lower neighbour.
+  constexpr SimplexId kAhead = 16;
   for (SimplexId k = 0; k < n; ++k) {
+    if (k + kAhead < n) {
+      const SimplexId ahead = by_key[k + kAhead];
+      __builtin_prefetch(&arc_node[ahead]);
+      components.Prefetch(ahead);
+    }
+    if (k + kAhead / 2 < n) {
+      const SimplexId lower = arc_node[by_key[k + kAhead / 2]];
+      if (lower >= 0) components.Prefetch(lower);
+    }
     const SimplexId v = by_key[k];
     const SimplexId first = arc_node[v];
     if (first == LowerLinks::kLeaf) {
@@ -424,8 +453,20 @@ absl::StatusOr<TreeResult> RunTree(Structure& structure, std::span<const Simplex
   std::optional<SweptTree> join_tree, split_tree;
   {
     Trace::Scope span(trace, "sweep", "phase");
+    // The contour tree's two sweeps are independent: side by side when there are two consumers.
+    std::thread split_thread;
+    if (split) {
+      const auto sweep_split = [&] {
+        split_tree = Sweep(topology, order, true, std::move(split_links));
+      };
+      if (join && context.consumers > 1) {
+        split_thread = std::thread(sweep_split);
+      } else {
+        sweep_split();
+      }
+    }
     if (join) join_tree = Sweep(topology, order, false, std::move(join_links));
-    if (split) split_tree = Sweep(topology, order, true, std::move(split_links));
+    if (split_thread.joinable()) split_thread.join();
   }
   Trace::Scope span(trace, type == TreeType::kContour ? "combine" : "numbering", "phase");
   if (type == TreeType::kContour) {

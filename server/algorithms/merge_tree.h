@@ -7,11 +7,13 @@
 // and each connected component's highest vertex (its root). The split tree is the join tree of
 // the reversed order. Each arc holds the regular vertices between its two nodes.
 //
-// How it is computed (docs/trees-plan.md): one parallel scan of every vertex's star (VT only,
-// like critical points: no edges, no triangles) gives one vertex of each component of its lower
+// How it is computed (docs/trees-plan.md): one parallel scan of every vertex's star (VT, like
+// critical points: no edges, no triangles) gives one vertex of each component of its lower
 // link; a sequential sweep in the vertex order then joins vertices with union-find, whose root
 // per component is its latest node. Only vertices whose lower link has two or more components
-// are checked for a merge.
+// are checked for a merge. Where VV is stored (explicit), the scan numbers each link by it
+// (LinkComponents::ScanNumbered), in half the time; compact and actopo would compute VV only
+// to save less than it costs. The contour tree's two sweeps run side by side.
 //
 //   ASSIGN_OR_RETURN(TreeResult join, RunTree(*structure, order, TreeType::kJoin, context));
 //   for (const TreeArc& a : join.arcs) ... join.nodes[a.down_node].vertex ...
@@ -85,8 +87,11 @@ struct TreeResult {
   std::string SegmentationDigest() const;
 };
 
-// VT only: the star of each vertex, whose other vertices are its link (as critical points).
+// VT: the star of each vertex, whose other vertices are its link (as critical points); and
+// VV, read only where the structure stores it (explicit).
 RelationSet TreeDeclared();
+// VT: what actopo's producers compute ahead.
+RelationSet TreeSwept();
 
 // The join tree (kJoin), split tree (kSplit) or contour tree (kContour) of the order `order`
 // (VertexOrder(), by internal id). Defined for the explicit, compact and actopo structures.

@@ -7,6 +7,7 @@
 #include <tuple>
 
 #include "gtest/gtest.h"
+#include "server/algorithms/link_components.h"
 #include "server/algorithms/persistence_diagram.h"
 #include "server/algorithms/testing/tree_oracle.h"
 #include "server/algorithms/vertex_order.h"
@@ -40,6 +41,19 @@ Mesh PinchedWithIsolatedPoint() {
   return m;
 }
 
+// A vertex with 72 neighbours, more than LinkComponents::ScanNumbered takes: the centre of a
+// ring of 70 whose vertices alternate low and high, so its lower link is 35 single vertices (a
+// 35-way merge) and its upper link one ring with the two apexes.
+Mesh WideSaddle() {
+  Mesh m = testing::Bipyramid(70, true);
+  std::vector<double>& f = m.point_fields[0].values;
+  f[0] = 0.5;
+  f[1] = 2;
+  f[2] = 3;
+  for (size_t i = 3; i < f.size(); ++i) f[i] = double(i % 2) + 1e-3 * double(i);
+  return m;
+}
+
 std::vector<Case> Cases() {
   std::vector<Case> out;
   const auto add = [&out](std::string name, Mesh m) {
@@ -52,6 +66,7 @@ std::vector<Case> Cases() {
   add("non_manifold", testing::NonManifold());
   add("bipyramid", testing::Bipyramid(12, true));
   add("pinched", PinchedWithIsolatedPoint());
+  add("wide_saddle", WideSaddle());
   Mesh ties = testing::Lattice(7, 6, 5, 3);
   for (double& x : ties.point_fields[0].values) x = std::round(x * 2) / 2;
   add("lattice_ties", std::move(ties));
@@ -99,19 +114,61 @@ void PrintTo(const Shape& s, std::ostream* out) {
   for (const auto& [d, u] : s.segmentation) *out << " " << d << "-" << u;
 }
 
-// Runs `check(label, structure, context)` on every structure with 1, 2 and 3 consumers.
+// Runs `check(label, structure, context)` on every structure with 1, 2 and 3 consumers; explicit
+// with VV (the numbered link scan) and without.
 template <class Check>
 void OnEveryStructure(const std::shared_ptr<const Topology>& topo, Check&& check) {
   auto explicit_structure = OkValue(ExplicitStructure::Build(topo, {.relations = TreeDeclared()}));
+  auto explicit_stars = OkValue(ExplicitStructure::Build(topo, {.relations = {Relation::kVT}}));
   for (int consumers : {1, 2, 3}) {
     const RunContext context{.consumers = consumers};
     const std::string c = " C=" + std::to_string(consumers);
     check("explicit" + c, *explicit_structure, context);
+    check("explicit without VV" + c, *explicit_stars, context);
     CompactStructure compact(topo, {.cache_ratio = 0.1, .consumers = consumers});
     check("compact" + c, compact, context);
     auto actopo = OkValue(ActopoStructure::Create(
         topo, {.consumers = consumers, .producers = 1 + consumers % 2, .buffer_ratio = 0.2}));
     check("actopo" + c, *actopo, context);
+  }
+}
+
+// The numbered scan (VV) finds as many components on each side as the scan that numbers the
+// link as the star meets it, and names a vertex of the right side for each; it declines links
+// wider than its window of ids or of more than 63 vertices.
+TEST(LinkComponents, NumberedScanFindsTheStarScansComponents) {
+  Mesh lattice = testing::Lattice(9, 8, 7, 12);
+  const auto far =
+      OkValue(Topology::Build(lattice, *LabelBlocks(testing::SliceLabels(lattice, 3))));
+  const Mesh wide = WideSaddle();
+  for (const auto& [name, topo, scalars] :
+       {std::tuple{"far lattice", far, lattice.point_fields[0].values},
+        std::tuple{"wide saddle", Build(wide, 8), wide.point_fields[0].values}}) {
+    const std::vector<SimplexId> order = VertexOrder(*topo, scalars);
+    auto structure = OkValue(ExplicitStructure::Build(topo, {.relations = TreeDeclared()}));
+    auto reader = structure->NewReader();
+    LinkComponents star_scan, numbered_scan(/*numbered_window=*/256);
+    int numbered = 0, declined = 0;
+    std::vector<SimplexId> reps;
+    for (SimplexId v = 0; v < topo->num_vertices(); ++v) {
+      if (!numbered_scan.ScanNumbered(reader, v, order)) {
+        ++declined;
+        continue;
+      }
+      ++numbered;
+      star_scan.Scan(reader, v, order);
+      for (bool lower : {true, false}) {
+        int expected = 0;
+        for (size_t i = 0; i < star_scan.size(); ++i) {
+          expected += star_scan.below(i) == lower && star_scan.IsRepresentative(i);
+        }
+        numbered_scan.NumberedRepresentatives(lower, reps);
+        EXPECT_EQ(int(reps.size()), expected) << name << " vertex " << v << " lower " << lower;
+        for (SimplexId w : reps) EXPECT_EQ(order[w] < order[v], lower) << name << " vertex " << v;
+      }
+    }
+    EXPECT_GT(numbered, 0) << name;
+    EXPECT_GT(declined, 0) << name;
   }
 }
 

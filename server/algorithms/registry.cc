@@ -82,13 +82,17 @@ RelationSet SweptRelations(Algorithm a) {
   switch (a) {
     case Algorithm::kCriticalPoints: return CriticalPointsSwept();
     case Algorithm::kTopologicalSimplification: return TopologicalSimplificationSwept();
+    case Algorithm::kMergeTree:
+    case Algorithm::kContourTree: return TreeSwept();
     default: return DeclaredRelations(a);
   }
 }
 
 bool NeedsFaces(Algorithm a) {
-  // Critical points reads VT and VB and no other part of the topology's faces, the trees VT.
-  static_assert(!NeedsFaces(Relation::kVT) && !NeedsFaces(Relation::kVB));
+  // Critical points reads VT and VB and no other part of the topology's faces, the trees VT and
+  // VV.
+  static_assert(!NeedsFaces(Relation::kVT) && !NeedsFaces(Relation::kVB) &&
+                !NeedsFaces(Relation::kVV));
   return a != Algorithm::kCriticalPoints && a != Algorithm::kMergeTree &&
          a != Algorithm::kContourTree;
 }

@@ -44,8 +44,8 @@ bool ComparesFields(Algorithm a);
 RelationSet DeclaredRelations(Algorithm a);
 // The declared relations the algorithm reads block by block on actopo, which its producers
 // compute ahead under Precompute::kDeclared: all of them but critical points' VB (read only
-// around boundary vertices) and the simplification's VV (read from rows the diagram keeps).
-// Prefetching those would compute blocks nobody asks for.
+// around boundary vertices), the simplification's VV (read from rows the diagram keeps) and the
+// trees' VV (read only where stored). Prefetching those would compute blocks nobody asks for.
 RelationSet SweptRelations(Algorithm a);
 // Whether the algorithm reads edges or triangles (its relations or the topology's), so needs a
 // topology built with faces (TopologyOptions::faces): every one but critical points and the

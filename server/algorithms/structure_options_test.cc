@@ -126,11 +126,14 @@ TEST(StructureOptions, EngineTakesTheAlgorithmsChoicesUnlessSet) {
     EXPECT_EQ(e.prefetch, DefaultPrefetch(a));
     EXPECT_EQ(e.precompute, DefaultPrecompute(a));
     // Producers compute only what the algorithm declared, and all of it but critical points'
-    // VB and the simplification's VV.
+    // VB and the simplification's and the trees' VV.
     EXPECT_EQ(e.declared | DeclaredRelations(a), DeclaredRelations(a));
     RelationSet swept = DeclaredRelations(a);
     if (a == Algorithm::kCriticalPoints) swept.Remove(Relation::kVB);
-    if (a == Algorithm::kTopologicalSimplification) swept.Remove(Relation::kVV);
+    if (a == Algorithm::kTopologicalSimplification || a == Algorithm::kMergeTree ||
+        a == Algorithm::kContourTree) {
+      swept.Remove(Relation::kVV);
+    }
     EXPECT_EQ(e.declared, swept);
     EXPECT_TRUE(ActopoStructure::Validate(e).ok());
   }
