@@ -31,11 +31,6 @@ namespace actopo {
 
 class LinkComponents {
  public:
-  // ScanNumbered looks link vertices up in a table over the ids of a window this wide (64 kB).
-  static constexpr int64_t kNumberedWindow = int64_t(1) << 16;
-  explicit LinkComponents(int64_t numbered_window = kNumberedWindow)
-      : numbered_window_(numbered_window) {}
-
   // Numbers v's link vertices as its star meets them (no VV is read) and joins them, side by
   // side. `order` is VertexOrder() by internal id.
   template <class Reader>
@@ -110,39 +105,38 @@ class LinkComponents {
   // numbered by their place in VV, so a star tetrahedron's are looked up in a table, without the
   // first-sight branch of a numbering made as the star is met, and each link vertex keeps the
   // ones it meets on its side as a bit mask. Returns false, having done nothing, when the link
-  // has more than kMaxNumbered vertices or spans the window's width of ids or more: Scan then.
-  // Computing both sides costs no more than one, so the join, split and contour trees share it.
+  // has more than kMaxNumbered vertices: Scan then. Computing both sides costs no more than one,
+  // so the join, split and contour trees share it. The table has a byte per mesh vertex (a
+  // window of ids around the vertex declined too many links, whose vertices lie in other blocks).
   template <class Reader>
   bool ScanNumbered(Reader& reader, SimplexId v, std::span<const SimplexId> order) {
     const auto vv = reader.vertex_neighbors(v);
     const size_t n = vv.size();
     if (n == 0 || n > kMaxNumbered) return false;
-    const SimplexId low = std::min(vv.front(), v), high = std::max(vv.back(), v);
-    if (int64_t(high) - low >= numbered_window_) return false;
-    if (local_.empty()) local_.resize(size_t(numbered_window_));
+    if (local_.empty()) local_.resize(size_t(reader.topology().num_vertices()));
     const SimplexId ov = order[v];
     uint64_t below = 0;
     for (size_t i = 0; i < n; ++i) {
-      local_[vv[i] - low] = uint8_t(i);
+      local_[vv[i]] = uint8_t(i);
       below |= uint64_t(order[vv[i]] < ov) << i;
       same_side_[i] = 0;
     }
-    local_[v - low] = kCenter;  // bit kCenter is on neither side
+    local_[v] = kCenter;  // bit kCenter is on neither side
     const uint64_t above = ((uint64_t(1) << n) - 1) & ~below;
     for (SimplexId t : reader.vertex_star(v)) {
       const auto tuple = reader.tetrahedron_vertices(t);
-      const uint64_t b0 = uint64_t(1) << local_[tuple[0] - low];
-      const uint64_t b1 = uint64_t(1) << local_[tuple[1] - low];
-      const uint64_t b2 = uint64_t(1) << local_[tuple[2] - low];
-      const uint64_t b3 = uint64_t(1) << local_[tuple[3] - low];
+      const uint64_t b0 = uint64_t(1) << local_[tuple[0]];
+      const uint64_t b1 = uint64_t(1) << local_[tuple[1]];
+      const uint64_t b2 = uint64_t(1) << local_[tuple[2]];
+      const uint64_t b3 = uint64_t(1) << local_[tuple[3]];
       const uint64_t in = b0 | b1 | b2 | b3;
       const uint64_t lower = in & below, upper = in & above;
       // Each vertex of the tetrahedron meets the others on its side (the centre's entry is a
       // spare slot nobody reads).
-      same_side_[local_[tuple[0] - low]] |= (b0 & below) ? lower : upper;
-      same_side_[local_[tuple[1] - low]] |= (b1 & below) ? lower : upper;
-      same_side_[local_[tuple[2] - low]] |= (b2 & below) ? lower : upper;
-      same_side_[local_[tuple[3] - low]] |= (b3 & below) ? lower : upper;
+      same_side_[local_[tuple[0]]] |= (b0 & below) ? lower : upper;
+      same_side_[local_[tuple[1]]] |= (b1 & below) ? lower : upper;
+      same_side_[local_[tuple[2]]] |= (b2 & below) ? lower : upper;
+      same_side_[local_[tuple[3]]] |= (b3 & below) ? lower : upper;
     }
     numbered_below_ = below;
     numbered_above_ = above;
@@ -182,8 +176,7 @@ class LinkComponents {
  private:
   static constexpr size_t kMaxNumbered = 63;  // bit 63 is the centre's
   static constexpr uint8_t kCenter = 63;
-  int64_t numbered_window_;
-  std::vector<uint8_t> local_;  // ScanNumbered: place in VV by id - the window's lowest id
+  std::vector<uint8_t> local_;  // ScanNumbered: by vertex id, its place in the last VV read
   // ScanNumbered: per link vertex (and the centre's spare), the link vertices on its side that
   // share a star tetrahedron with it; and each side's link vertices.
   std::array<uint64_t, kMaxNumbered + 1> same_side_{};
