@@ -9,10 +9,12 @@
 //   for (size_t i = 0; i < link.size(); ++i)
 //     if (link.IsRepresentative(i) && link.below(i)) ... link.neighbors()[i] ...
 //
-// Where VV is stored (the explicit structure), ScanNumbered does the same in about half the time
-// (bench/HISTORY.md, twenty-first session) and hands out one vertex per component:
+// The trees want one vertex per component, and links of at most 63 vertices (all but a few)
+// fit a bit mask per link vertex: ScanMasked, or ScanNumbered where VV is stored (the explicit
+// structure), find the components in about half Scan's time (bench/HISTORY.md, twenty-first
+// session) and hand out one vertex per component:
 //
-//   if (link.ScanNumbered(reader, v, order)) link.NumberedRepresentatives(true, reps);
+//   if (link.ScanMasked(reader, v, order)) link.MaskedRepresentatives(/*lower=*/true, reps);
 #ifndef ACTOPO_SERVER_ALGORITHMS_LINK_COMPONENTS_H_
 #define ACTOPO_SERVER_ALGORITHMS_LINK_COMPONENTS_H_
 
@@ -68,39 +70,6 @@ class LinkComponents {
     }
   }
 
-  // Only the link vertices on one side of v (lower, or upper), numbered and joined: a merge
-  // tree needs one side, and the other's are never looked up. In three passes over the star, so
-  // that its loads (each tetrahedron's vertices, then their order) do not wait on one another
-  // or on a mispredicted branch: which side a vertex is on is a coin toss to the predictor.
-  template <class Reader>
-  void ScanSide(Reader& reader, SimplexId v, std::span<const SimplexId> order, bool lower) {
-    const auto star = reader.vertex_star(v);
-    index_.Reset(star.size(), v);
-    components_.Reset(0);
-    tuples_.resize(star.size());
-    sides_.resize(star.size());
-    for (size_t k = 0; k < star.size(); ++k) tuples_[k] = reader.tetrahedron_vertices(star[k]);
-    const SimplexId ov = order[v];
-    for (size_t k = 0; k < star.size(); ++k) {
-      unsigned mask = 0;  // bit j: vertex j of the tetrahedron is on the side
-      for (int j = 0; j < 4; ++j) {
-        const SimplexId w = tuples_[k][j];
-        mask |= unsigned(w != v && (order[w] < ov) == lower) << j;
-      }
-      sides_[k] = uint8_t(mask);
-    }
-    for (size_t k = 0; k < star.size(); ++k) {
-      int last = -1;  // the tetrahedron's side is joined by a chain
-      for (unsigned mask = sides_[k]; mask != 0; mask &= mask - 1) {
-        const int i = index_.IndexOf(tuples_[k][std::countr_zero(mask)]);
-        if (size_t(i) == components_.size()) components_.Add();
-        if (last >= 0) components_.Union(last, i);
-        last = i;
-      }
-    }
-    below_.assign(index_.vertices().size(), lower ? 1 : 0);
-  }
-
   // Both sides at once from v's neighbours (VV, ascending) and star: the link vertices are
   // numbered by their place in VV, so a star tetrahedron's are looked up in a table, without the
   // first-sight branch of a numbering made as the star is met, and each link vertex keeps the
@@ -125,18 +94,8 @@ class LinkComponents {
     const uint64_t above = ((uint64_t(1) << n) - 1) & ~below;
     for (SimplexId t : reader.vertex_star(v)) {
       const auto tuple = reader.tetrahedron_vertices(t);
-      const uint64_t b0 = uint64_t(1) << local_[tuple[0]];
-      const uint64_t b1 = uint64_t(1) << local_[tuple[1]];
-      const uint64_t b2 = uint64_t(1) << local_[tuple[2]];
-      const uint64_t b3 = uint64_t(1) << local_[tuple[3]];
-      const uint64_t in = b0 | b1 | b2 | b3;
-      const uint64_t lower = in & below, upper = in & above;
-      // Each vertex of the tetrahedron meets the others on its side (the centre's entry is a
-      // spare slot nobody reads).
-      same_side_[local_[tuple[0]]] |= (b0 & below) ? lower : upper;
-      same_side_[local_[tuple[1]]] |= (b1 & below) ? lower : upper;
-      same_side_[local_[tuple[2]]] |= (b2 & below) ? lower : upper;
-      same_side_[local_[tuple[3]]] |= (b3 & below) ? lower : upper;
+      JoinSides({local_[tuple[0]], local_[tuple[1]], local_[tuple[2]], local_[tuple[3]]}, below,
+                above);
     }
     numbered_below_ = below;
     numbered_above_ = above;
@@ -144,9 +103,40 @@ class LinkComponents {
     return true;
   }
 
-  // After ScanNumbered, before the reader is asked for VV again: one vertex of each component of
-  // the lower (`lower`) or upper link, the lowest in VV of each, into `reps` (cleared first).
-  void NumberedRepresentatives(bool lower, std::vector<SimplexId>& reps) const {
+  // The same masks without VV: the link vertices are numbered as the star meets them (the
+  // centre first, as number 0), each one's side is read once, then the star's tetrahedra, kept
+  // as numbers, are joined as in ScanNumbered. Returns false when the link has more than
+  // kMaxNumbered vertices: Scan then.
+  template <class Reader>
+  bool ScanMasked(Reader& reader, SimplexId v, std::span<const SimplexId> order) {
+    const auto star = reader.vertex_star(v);
+    index_.Reset(star.size(), v);
+    index_.IndexOf(v);
+    local_tetrahedra_.resize(star.size());
+    for (size_t k = 0; k < star.size(); ++k) {
+      const auto tuple = reader.tetrahedron_vertices(star[k]);
+      for (int j = 0; j < 4; ++j) local_tetrahedra_[k][j] = uint8_t(index_.IndexOf(tuple[j]));
+    }
+    const std::span<const SimplexId> link = index_.vertices();  // link[0] is v
+    if (link.size() > kMaxNumbered + 1) return false;
+    const SimplexId ov = order[v];
+    uint64_t below = 0;
+    for (size_t i = 1; i < link.size(); ++i) {
+      below |= uint64_t(order[link[i]] < ov) << i;
+      same_side_[i] = 0;
+    }
+    const uint64_t above = (((uint64_t(2) << (link.size() - 1)) - 1) & ~uint64_t(1)) & ~below;
+    for (const std::array<uint8_t, 4>& local : local_tetrahedra_) JoinSides(local, below, above);
+    numbered_below_ = below;
+    numbered_above_ = above;
+    numbered_neighbors_ = link;
+    return true;
+  }
+
+  // After ScanNumbered (before the reader is asked for VV again) or ScanMasked: one vertex of
+  // each component of the lower (`lower`) or upper link, the first numbered of each, into `reps`
+  // (cleared first).
+  void MaskedRepresentatives(bool lower, std::vector<SimplexId>& reps) const {
     reps.clear();
     for (uint64_t left = lower ? numbered_below_ : numbered_above_; left != 0;) {
       const uint64_t seed = left & -left;
@@ -174,9 +164,24 @@ class LinkComponents {
   std::span<const std::array<int, 3>> triangles() const { return triangles_; }
 
  private:
+  // One star tetrahedron, its vertices as numbers: each meets the others on its side (the
+  // centre's entry is a spare nobody reads).
+  [[gnu::always_inline]] void JoinSides(std::array<uint8_t, 4> local, uint64_t below,
+                                        uint64_t above) {
+    const uint64_t b0 = uint64_t(1) << local[0], b1 = uint64_t(1) << local[1],
+                   b2 = uint64_t(1) << local[2], b3 = uint64_t(1) << local[3];
+    const uint64_t in = b0 | b1 | b2 | b3;
+    const uint64_t lower = in & below, upper = in & above;
+    same_side_[local[0]] |= (b0 & below) ? lower : upper;
+    same_side_[local[1]] |= (b1 & below) ? lower : upper;
+    same_side_[local[2]] |= (b2 & below) ? lower : upper;
+    same_side_[local[3]] |= (b3 & below) ? lower : upper;
+  }
+
   static constexpr size_t kMaxNumbered = 63;  // bit 63 is the centre's
   static constexpr uint8_t kCenter = 63;
   std::vector<uint8_t> local_;  // ScanNumbered: by vertex id, its place in the last VV read
+  std::vector<std::array<uint8_t, 4>> local_tetrahedra_;  // ScanMasked: the star as numbers
   // ScanNumbered: per link vertex (and the centre's spare), the link vertices on its side that
   // share a star tetrahedron with it; and each side's link vertices.
   std::array<uint64_t, kMaxNumbered + 1> same_side_{};
@@ -186,8 +191,6 @@ class LinkComponents {
   LinkVertexIndex index_;
   std::vector<std::array<int, 3>> triangles_;
   std::vector<uint8_t> below_;
-  std::vector<std::array<SimplexId, 4>> tuples_;  // ScanSide: the star's tetrahedra
-  std::vector<uint8_t> sides_;                    // ScanSide: which of their vertices count
 };
 
 }  // namespace actopo

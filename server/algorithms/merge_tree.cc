@@ -107,22 +107,19 @@ absl::Status ScanLinks(Structure& structure, std::span<const SimplexId> order,
         std::vector<SimplexId> reps;
         for (int32_t b = range.begin; b < range.end; ++b) {
           for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
-            bool numbered = false;
+            // Bit masks (numbered by VV where it is stored, else as the star meets the link),
+            // or for a link of more than 63 vertices the general scan.
+            bool masked = false;
             if constexpr (Structure::kRelationsInPlace) {
-              numbered = with_neighbors && link.ScanNumbered(reader, v, order);
+              masked = with_neighbors && link.ScanNumbered(reader, v, order);
             }
-            if (!numbered) {
-              if (join != nullptr && split != nullptr) {
-                link.Scan(reader, v, order);
-              } else {
-                link.ScanSide(reader, v, order, join != nullptr);
-              }
-            }
+            if (!masked) masked = link.ScanMasked(reader, v, order);
+            if (!masked) link.Scan(reader, v, order);
             for (int s = 0; s < 2; ++s) {
               if (sides[s] == nullptr) continue;
               const bool want_below = s == 0;
-              if (numbered) {
-                link.NumberedRepresentatives(want_below, reps);
+              if (masked) {
+                link.MaskedRepresentatives(want_below, reps);
               } else {
                 reps.clear();
                 for (size_t i = 0; i < link.size(); ++i) {

@@ -133,11 +133,11 @@ void OnEveryStructure(const std::shared_ptr<const Topology>& topo, Check&& check
   }
 }
 
-// The numbered scan (VV) finds as many components on each side as the scan that numbers the
-// link as the star meets it, and names a vertex of the right side for each: on a lattice whose
-// neighbours lie in other blocks (far apart in id), and around a vertex of 72 neighbours, more
-// than it takes (it declines the centre and the two apexes, Scan's business).
-TEST(LinkComponents, NumberedScanFindsTheStarScansComponents) {
+// The mask scans, numbered by VV (ScanNumbered) and as the star meets the link (ScanMasked),
+// find as many components on each side as Scan and name a vertex of the right side for each:
+// on a lattice whose neighbours lie in other blocks (far apart in id), and around a vertex of 72
+// neighbours, more than they take (they decline the centre and the two apexes, Scan's business).
+TEST(LinkComponents, MaskScansFindScansComponents) {
   Mesh lattice = testing::Lattice(9, 8, 7, 12);
   const auto far =
       OkValue(Topology::Build(lattice, *LabelBlocks(testing::SliceLabels(lattice, 3))));
@@ -148,27 +148,31 @@ TEST(LinkComponents, NumberedScanFindsTheStarScansComponents) {
     const std::vector<SimplexId> order = VertexOrder(*topo, scalars);
     auto structure = OkValue(ExplicitStructure::Build(topo, {.relations = TreeDeclared()}));
     auto reader = structure->NewReader();
-    LinkComponents star_scan, numbered_scan;
-    int declined = 0;
-    std::vector<SimplexId> reps;
-    for (SimplexId v = 0; v < topo->num_vertices(); ++v) {
-      if (!numbered_scan.ScanNumbered(reader, v, order)) {
-        EXPECT_GT(reader.vertex_neighbors(v).size(), 63u) << name << " vertex " << v;
-        ++declined;
-        continue;
-      }
-      star_scan.Scan(reader, v, order);
-      for (bool lower : {true, false}) {
-        int expected = 0;
-        for (size_t i = 0; i < star_scan.size(); ++i) {
-          expected += star_scan.below(i) == lower && star_scan.IsRepresentative(i);
+    for (bool by_neighbors : {true, false}) {
+      const std::string scan = std::string(name) + (by_neighbors ? " ScanNumbered" : " ScanMasked");
+      LinkComponents star_scan, mask_scan;
+      int declined = 0;
+      std::vector<SimplexId> reps;
+      for (SimplexId v = 0; v < topo->num_vertices(); ++v) {
+        if (!(by_neighbors ? mask_scan.ScanNumbered(reader, v, order)
+                           : mask_scan.ScanMasked(reader, v, order))) {
+          EXPECT_GT(reader.vertex_neighbors(v).size(), 63u) << scan << " vertex " << v;
+          ++declined;
+          continue;
         }
-        numbered_scan.NumberedRepresentatives(lower, reps);
-        EXPECT_EQ(int(reps.size()), expected) << name << " vertex " << v << " lower " << lower;
-        for (SimplexId w : reps) EXPECT_EQ(order[w] < order[v], lower) << name << " vertex " << v;
+        star_scan.Scan(reader, v, order);
+        for (bool lower : {true, false}) {
+          int expected = 0;
+          for (size_t i = 0; i < star_scan.size(); ++i) {
+            expected += star_scan.below(i) == lower && star_scan.IsRepresentative(i);
+          }
+          mask_scan.MaskedRepresentatives(lower, reps);
+          EXPECT_EQ(int(reps.size()), expected) << scan << " vertex " << v << " lower " << lower;
+          for (SimplexId w : reps) EXPECT_EQ(order[w] < order[v], lower) << scan << " vertex " << v;
+        }
       }
+      EXPECT_EQ(declined, declines) << scan;
     }
-    EXPECT_EQ(declined, declines) << name;
   }
 }
 
