@@ -286,7 +286,7 @@ class RunCombiner {
 
 absl::StatusOr<TreeResult> BuildContourTree(const Topology& topology,
                                             std::span<const SimplexId> order, SweptTree join,
-                                            SweptTree split) {
+                                            SweptTree split, int threads) {
   Candidates candidates;
   candidates.of_join.reserve(join.node_vertex.size());
   for (SimplexId v : join.node_vertex) candidates.of_join.push_back(candidates.Add(v));
@@ -385,7 +385,7 @@ absl::StatusOr<TreeResult> BuildContourTree(const Topology& topology,
                                             " vertices were left on no arc by the combination"));
   }
   std::vector<int32_t>().swap(split.vertex_node);
-  FinishTree(topology, std::move(vertex_arc), is_node, result);
+  FinishTree(topology, std::move(vertex_arc), is_node, threads, result);
   return result;
 }
 

@@ -306,7 +306,7 @@ int8_t RegionType(CriticalType a, CriticalType b) {
 }
 
 void FinishTree(const Topology& topology, std::vector<int32_t> vertex_arc,
-                std::span<const uint8_t> internal_is_node, TreeResult& result) {
+                std::span<const uint8_t> internal_is_node, int threads, TreeResult& result) {
   result.counts = {};
   for (const TreeNode& node : result.nodes) ++result.counts[int(node.type)];
   // Per node: its down and up arc counts and the first of each (arcs in cell order).
@@ -335,22 +335,17 @@ void FinishTree(const Topology& topology, std::vector<int32_t> vertex_arc,
   for (size_t v = 0; v < vertex_arc.size(); ++v) {
     if (!internal_is_node[v]) ++result.arcs[vertex_arc[v]].region_size;
   }
-  // From internal to input ids in place, cycle by cycle: a second array would be the run's
-  // peak on a mesh of millions of vertices.
-  std::vector<uint64_t> placed((vertex_arc.size() + 63) / 64, 0);
-  const auto mark = [&placed](SimplexId v) { placed[size_t(v) >> 6] |= uint64_t(1) << (v & 63); };
-  for (SimplexId start = 0; start < SimplexId(vertex_arc.size()); ++start) {
-    if (placed[size_t(start) >> 6] >> (start & 63) & 1) continue;
-    mark(start);
-    int32_t carried = vertex_arc[start];
-    for (SimplexId at = topology.vertex_input_id(start); at != start;
-         at = topology.vertex_input_id(at)) {
-      std::swap(carried, vertex_arc[at]);
-      mark(at);
-    }
-    vertex_arc[start] = carried;
-  }
-  result.vertex_arc = std::move(vertex_arc);
+  // From internal to input ids: a gather, in parallel. (Walked in place, cycle by cycle, the
+  // permutation was a chain of cache misses: 0.05 s on an irregular mesh of 1.7M vertices.)
+  std::vector<int32_t> by_input(vertex_arc.size());
+  ParallelForRanges(SimplexId(vertex_arc.size()), 1 << 16, threads,
+                    [&](int64_t begin, int64_t end) {
+                      for (SimplexId v = SimplexId(begin); v < end; ++v) {
+                        by_input[size_t(topology.vertex_input_id(v))] = vertex_arc[size_t(v)];
+                      }
+                    });
+  std::vector<int32_t>().swap(vertex_arc);
+  result.vertex_arc = std::move(by_input);
 }
 
 MergeTreeNumbering::MergeTreeNumbering(const SweptTree& tree)
@@ -415,7 +410,7 @@ namespace {
 // TTK's numbering of a join or split tree (FTMTree_MT::normalizeIds with sortNodes and
 // sortArcs), run by run of the forest.
 TreeResult NumberMergeTree(const Topology& topology, std::span<const SimplexId> order,
-                           TreeType type, SweptTree tree) {
+                           TreeType type, SweptTree tree, int threads) {
   TreeResult result;
   result.type = type;
   MergeTreeNumbering numbering(tree);
@@ -427,7 +422,7 @@ TreeResult NumberMergeTree(const Topology& topology, std::span<const SimplexId> 
   for (SimplexId v : tree.node_vertex) is_node[v] = 1;
   std::vector<int32_t> vertex_arc = std::move(tree.vertex_node);  // node index -> its arc
   for (int32_t& x : vertex_arc) x = numbering.node_arc()[x];
-  FinishTree(topology, std::move(vertex_arc), is_node, result);
+  FinishTree(topology, std::move(vertex_arc), is_node, threads, result);
   return result;
 }
 
@@ -467,9 +462,11 @@ absl::StatusOr<TreeResult> RunTree(Structure& structure, std::span<const Simplex
   }
   Trace::Scope span(trace, type == TreeType::kContour ? "combine" : "numbering", "phase");
   if (type == TreeType::kContour) {
-    return BuildContourTree(topology, order, *std::move(join_tree), *std::move(split_tree));
+    return BuildContourTree(topology, order, *std::move(join_tree), *std::move(split_tree),
+                            context.consumers);
   }
-  return NumberMergeTree(topology, order, type, *std::move(join ? join_tree : split_tree));
+  return NumberMergeTree(topology, order, type, *std::move(join ? join_tree : split_tree),
+                         context.consumers);
 }
 
 #define ACTOPO_INSTANTIATE(S)                                                                   \

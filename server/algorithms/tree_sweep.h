@@ -88,16 +88,17 @@ class MergeTreeNumbering {
 // The contour tree of a join tree and a split tree of the same order (contour_tree.cc).
 absl::StatusOr<TreeResult> BuildContourTree(const Topology& topology,
                                             std::span<const SimplexId> order, SweptTree join,
-                                            SweptTree split);
+                                            SweptTree split, int threads);
 
 // TTK's node type from the node's arc counts in the tree's sense (a self-loop counts on both).
 CriticalType NodeType(int up_arcs, int down_arcs);
 // TTK's RegionType of an arc between nodes of these types.
 int8_t RegionType(CriticalType a, CriticalType b);
 // Counts, region sizes and types and each node's region arc, once nodes and arcs are numbered;
-// `vertex_arc` (each internal vertex's arc) becomes result.vertex_arc, by input id.
+// `vertex_arc` (each internal vertex's arc) becomes result.vertex_arc, by input id, gathered
+// on `threads`.
 void FinishTree(const Topology& topology, std::vector<int32_t> vertex_arc,
-                std::span<const uint8_t> internal_is_node, TreeResult& result);
+                std::span<const uint8_t> internal_is_node, int threads, TreeResult& result);
 
 }  // namespace actopo::tree_internal
 
