@@ -736,9 +736,15 @@ class Session:
         >>> result.critical_points["CriticalType"], result.critical_points["ttkVertexScalarField"]
         (array([0, 3], dtype=int8), array([0, 4], dtype=int32))
         """
-        return self.submit(algorithm, parameters=parameters, include_arrays=include_arrays,
-                           trace=trace, digests=digests, timeout=timeout,
-                           fields=fields).result(progress=progress)
+        job = self.submit(algorithm, parameters=parameters, include_arrays=include_arrays,
+                          trace=trace, digests=digests, timeout=timeout, fields=fields)
+        try:
+            return job.result(progress=progress)
+        except KeyboardInterrupt:
+            # Ctrl-C before result() got to its own handler (Python raises it at the first
+            # function call after the signal): the job is cancelled all the same.
+            job._cancel_after_interrupt()
+            raise
 
     def run_fields(self, algorithm: Algorithm, fields: FieldsArg, *,
                    parameters: Mapping[str, Any] | None = None, progress: ProgressArg = False,
@@ -865,16 +871,19 @@ class Job:
         self._lock = threading.Lock()
         self._assembler = Assembler(algorithm, keep_fields)
         self.algorithm = algorithm
+        self._interrupted = False
+        self.job_id = ""
         try:
             with translated():
                 for response in call:
                     self._assembler.feed(response)
                     if self._assembler.job_id:
                         break
+            self.job_id = self._assembler.job_id
         except KeyboardInterrupt:
-            call.cancel()
+            self.job_id = self._assembler.job_id
+            self._cancel_after_interrupt()
             raise
-        self.job_id = self._assembler.job_id
 
     def __repr__(self) -> str:
         return f"actopo.Job({self.job_id!r}, {self.algorithm!r})"
@@ -889,11 +898,16 @@ class Job:
         KeyboardInterrupt reaches the caller (the stream's own cancellation reaches the server
         when its transport gets to it, which a busy server may take longer to notice than a
         short job takes to end), then the stream. A job that has ended, or a server that does
-        not answer within CANCEL_TIMEOUT_S, leaves only the stream's cancellation."""
+        not answer within CANCEL_TIMEOUT_S, leaves only the stream's cancellation. Once per
+        job; before the server named the job, only the stream is cancelled."""
+        if self._interrupted:
+            return
+        self._interrupted = True
         try:
-            self._client._stub.CancelJob(_messages.build_cancel_job(self.job_id),
-                                         timeout=CANCEL_TIMEOUT_S,
-                                         metadata=self._client._metadata)
+            if self.job_id:
+                self._client._stub.CancelJob(_messages.build_cancel_job(self.job_id),
+                                             timeout=CANCEL_TIMEOUT_S,
+                                             metadata=self._client._metadata)
         except grpc.RpcError:
             pass  # ended already, or unreachable: the stream's cancellation still goes
         finally:
