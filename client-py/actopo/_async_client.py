@@ -286,7 +286,7 @@ class AsyncClient:
         with contextlib.suppress(grpc.RpcError):
             await self._stub.DeleteUpload(pb.DeleteUploadRequest(upload_id=upload_id),
                                           timeout=_file_upload.DELETE_SECONDS,
-                                          metadata=self._metadata)
+                                          metadata=self._metadata, wait_for_ready=True)
 
     async def download_mesh(self, mesh: MeshRef, fields: FieldsArg = None, *,
                             progress: ProgressArg = None) -> MeshArrays:

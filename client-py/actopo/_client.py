@@ -375,8 +375,11 @@ class Client:
     def _delete_upload(self, upload_id: str) -> None:
         """Drops an upload on the server, if it can be reached and still has it."""
         with contextlib.suppress(grpc.RpcError):
+            # wait_for_ready: after a cut connection the channel reconnects within the timeout
+            # instead of failing at once.
             self._stub.DeleteUpload(pb.DeleteUploadRequest(upload_id=upload_id),
-                                    timeout=_file_upload.DELETE_SECONDS, metadata=self._metadata)
+                                    timeout=_file_upload.DELETE_SECONDS, metadata=self._metadata,
+                                    wait_for_ready=True)
 
     def download_mesh(self, mesh: MeshRef, fields: FieldsArg = None, *,
                       progress: ProgressArg = None) -> MeshArrays:
@@ -694,7 +697,25 @@ class Session:
                                                 include_arrays, trace, digests, fields)
         call = self._client._stub.RunJob(request, timeout=timeout,
                                          metadata=self._client._metadata)
-        return Job(self._client, call, name, keep_fields)
+        try:
+            return Job(self._client, call, name, keep_fields)
+        except KeyboardInterrupt:
+            self._cancel_unnamed_job()
+            raise
+
+    def _cancel_unnamed_job(self) -> None:
+        """Ctrl-C before RunJob's first answer (the job's id) reached us: the server may have
+        started the job all the same, and its stream's cancellation alone can reach a busy
+        server after a short job has ended. The session runs one job at a time, so the one it
+        runs now is the one just asked for: CancelJob it (best effort, CANCEL_TIMEOUT_S each)."""
+        stub, metadata = self._client._stub, self._client._metadata
+        with contextlib.suppress(grpc.RpcError):
+            info = stub.GetSession(_messages.build_get_session(self._id()),
+                                   timeout=CANCEL_TIMEOUT_S, metadata=metadata)
+            running = _messages.decode_get_session(info).running_job_id
+            if running:
+                stub.CancelJob(_messages.build_cancel_job(running), timeout=CANCEL_TIMEOUT_S,
+                               metadata=metadata)
 
     def run(self, algorithm: Algorithm, *, parameters: Mapping[str, Any] | None = None,
             progress: ProgressArg = False, include_arrays: bool = True, trace: bool = False,
