@@ -11,8 +11,9 @@
 //
 // The trees want one vertex per component, and links of at most 63 vertices (all but a few)
 // fit a bit mask per link vertex: ScanMasked, or ScanNumbered where VV is stored (the explicit
-// structure), find the components in about half Scan's time (bench/HISTORY.md, twenty-first
-// session) and hand out one vertex per component:
+// structure), find the components without a union-find and read each link vertex's order once
+// instead of once per star tetrahedron around it (figures: bench/HISTORY.md), and hand out one
+// vertex per component:
 //
 //   if (link.ScanMasked(reader, v, order)) link.MaskedRepresentatives(/*lower=*/true, reps);
 #ifndef ACTOPO_SERVER_ALGORITHMS_LINK_COMPONENTS_H_
