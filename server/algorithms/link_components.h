@@ -10,12 +10,15 @@
 //     if (link.IsRepresentative(i) && link.below(i)) ... link.neighbors()[i] ...
 //
 // The trees want one vertex per component, and links of at most 63 vertices (all but a few)
-// fit a bit mask per link vertex: ScanMasked, or ScanNumbered where VV is stored (the explicit
-// structure), find the components without a union-find and read each link vertex's order once
-// instead of once per star tetrahedron around it (figures: bench/HISTORY.md), and hand out one
-// vertex per component:
+// fit a bit mask: ScanMasked, or ScanNumbered where VV is stored (the explicit structure), find
+// the components without a union-find, read each link vertex's order once instead of once per
+// star tetrahedron around it, and stop joining (ScanNumbered: reading the star) once the sides
+// asked for are connected. A merge tree, one side, needs less than the link: ScanByEdges groups
+// the side's neighbours by the mesh edges between them, from VV alone (figures:
+// bench/HISTORY.md). Then one vertex per component or group:
 //
-//   if (link.ScanMasked(reader, v, order)) link.MaskedRepresentatives(/*lower=*/true, reps);
+//   if (link.ScanMasked(reader, v, order, LinkComponents::kLower))
+//     link.MaskedRepresentatives(/*lower=*/true, reps);
 #ifndef ACTOPO_SERVER_ALGORITHMS_LINK_COMPONENTS_H_
 #define ACTOPO_SERVER_ALGORITHMS_LINK_COMPONENTS_H_
 
@@ -24,11 +27,13 @@
 #include <bit>
 #include <cstdint>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include "server/algorithms/union_find.h"
 #include "server/core/link_edges.h"
 #include "server/core/relation.h"
+#include "server/core/topology.h"
 
 namespace actopo {
 
@@ -71,45 +76,70 @@ class LinkComponents {
     }
   }
 
-  // Both sides at once from v's neighbours (VV, ascending) and star: the link vertices are
-  // numbered by their place in VV, so a star tetrahedron's are looked up in a table, without the
-  // first-sight branch of a numbering made as the star is met, and each link vertex keeps the
-  // ones it meets on its side as a bit mask. Returns false, having done nothing, when the link
-  // has more than kMaxNumbered vertices: Scan then. Computing both sides costs no more than one,
-  // so the join, split and contour trees share it. The table has a byte per mesh vertex (a
-  // window of ids around the vertex declined too many links, whose vertices lie in other blocks).
+  // Which sides of the link the mask scans find the components of.
+  enum Sides : uint8_t { kLower = 1, kUpper = 2, kBothSides = 3 };
+
+  // From v's neighbours (VV, ascending) and star: the link vertices are numbered by their place
+  // in VV, so a star tetrahedron's are looked up in a table, without the first-sight branch of a
+  // numbering made as the star is met. The star is read only until each wanted side is known to
+  // be connected (not at all for a side of at most one vertex). Returns false, having done
+  // nothing, when the link has more than kMaxNumbered vertices: Scan then. Both sides cost
+  // little more than one, so the contour tree asks for both. The table has a byte per mesh
+  // vertex (a window of ids around the vertex declined too many links, whose vertices lie in
+  // other blocks).
   template <class Reader>
-  bool ScanNumbered(Reader& reader, SimplexId v, std::span<const SimplexId> order) {
+  bool ScanNumbered(Reader& reader, SimplexId v, std::span<const SimplexId> order,
+                    Sides sides = kBothSides) {
     const auto vv = reader.vertex_neighbors(v);
     const size_t n = vv.size();
     if (n == 0 || n > kMaxNumbered) return false;
-    if (local_.empty()) local_.resize(size_t(reader.topology().num_vertices()));
-    const SimplexId ov = order[v];
-    uint64_t below = 0;
-    for (size_t i = 0; i < n; ++i) {
-      local_[vv[i]] = uint8_t(i);
-      below |= uint64_t(order[vv[i]] < ov) << i;
-      same_side_[i] = 0;
+    const auto [below, above] = NumberNeighbors(reader.topology(), vv, order[v], order);
+    if (!StartSides(sides, below, above)) {
+      const auto star = reader.vertex_star(v);
+      lower_.Reserve(star.size());
+      upper_.Reserve(star.size());
+      for (SimplexId t : star) {
+        const auto tuple = reader.tetrahedron_vertices(t);
+        if (AddTetrahedron(
+                {local_[tuple[0]], local_[tuple[1]], local_[tuple[2]], local_[tuple[3]]})) {
+          break;
+        }
+      }
     }
-    local_[v] = kCenter;  // bit kCenter is on neither side
-    const uint64_t above = ((uint64_t(1) << n) - 1) & ~below;
-    for (SimplexId t : reader.vertex_star(v)) {
-      const auto tuple = reader.tetrahedron_vertices(t);
-      JoinSides({local_[tuple[0]], local_[tuple[1]], local_[tuple[2]], local_[tuple[3]]}, below,
-                above);
+    for (SimplexId w : vv) local_[w] = kCenter;
+    return true;
+  }
+
+  // Coarser than the link and cheaper for one side: the side's neighbours (VV) in groups joined
+  // by the mesh edges between them, read from the neighbours' own VV, without the star. A group
+  // is connected on its side of v, which is all a merge tree asks, but may hold several link
+  // components (two lower neighbours joined by an edge outside v's star): not for critical
+  // points. Reads the VV of up to every neighbour on the wanted sides, so ScanNumbered is
+  // cheaper for both. The reader's VV rows must stay where they are while others are read (a
+  // structure with its relations in place). Returns false when v has more than kMaxNumbered
+  // neighbours. MaskedRepresentatives then names a vertex per group.
+  template <class Reader>
+  bool ScanByEdges(Reader& reader, SimplexId v, std::span<const SimplexId> order, Sides sides) {
+    const auto vv = reader.vertex_neighbors(v);
+    const size_t n = vv.size();
+    if (n == 0 || n > kMaxNumbered) return false;
+    const auto [below, above] = NumberNeighbors(reader.topology(), vv, order[v], order);
+    if (!StartSides(sides, below, above)) {
+      for (SideMasks* side : {&lower_, &upper_}) {
+        if (side->grown != side->vertices) GroupByEdges(reader, vv, *side);
+      }
     }
-    numbered_below_ = below;
-    numbered_above_ = above;
-    numbered_neighbors_ = vv;
+    for (SimplexId w : vv) local_[w] = kCenter;
     return true;
   }
 
   // The same masks without VV: the link vertices are numbered as the star meets them (the
   // centre first, as number 0), each one's side is read once, then the star's tetrahedra, kept
-  // as numbers, are joined as in ScanNumbered. Returns false when the link has more than
+  // as numbers, are met as in ScanNumbered. Returns false when the link has more than
   // kMaxNumbered vertices: Scan then.
   template <class Reader>
-  bool ScanMasked(Reader& reader, SimplexId v, std::span<const SimplexId> order) {
+  bool ScanMasked(Reader& reader, SimplexId v, std::span<const SimplexId> order,
+                  Sides sides = kBothSides) {
     const auto star = reader.vertex_star(v);
     index_.Reset(star.size(), v);
     index_.IndexOf(v);
@@ -122,35 +152,38 @@ class LinkComponents {
     if (link.size() > kMaxNumbered + 1) return false;
     const SimplexId ov = order[v];
     uint64_t below = 0;
-    for (size_t i = 1; i < link.size(); ++i) {
-      below |= uint64_t(order[link[i]] < ov) << i;
-      same_side_[i] = 0;
-    }
+    for (size_t i = 1; i < link.size(); ++i) below |= uint64_t(order[link[i]] < ov) << i;
     const uint64_t above = (((uint64_t(2) << (link.size() - 1)) - 1) & ~uint64_t(1)) & ~below;
-    for (const std::array<uint8_t, 4>& local : local_tetrahedra_) JoinSides(local, below, above);
-    numbered_below_ = below;
-    numbered_above_ = above;
     numbered_neighbors_ = link;
+    if (StartSides(sides, below, above)) return true;
+    lower_.Reserve(star.size());
+    upper_.Reserve(star.size());
+    for (const std::array<uint8_t, 4>& local : local_tetrahedra_) {
+      if (AddTetrahedron(local)) break;
+    }
     return true;
   }
 
-  // After ScanNumbered (before the reader is asked for VV again) or ScanMasked: one vertex of
-  // each component of the lower (`lower`) or upper link, the first numbered of each, into `reps`
-  // (cleared first).
+  // After ScanNumbered, ScanByEdges (before the reader is asked for v's VV again) or ScanMasked,
+  // for a side they were asked for: one vertex of each component (group) of the lower (`lower`)
+  // or upper link into `reps` (cleared first).
   void MaskedRepresentatives(bool lower, std::vector<SimplexId>& reps) const {
     reps.clear();
-    for (uint64_t left = lower ? numbered_below_ : numbered_above_; left != 0;) {
-      const uint64_t seed = left & -left;
-      uint64_t component = seed, frontier = seed;
-      while (frontier != 0) {
-        const int i = std::countr_zero(frontier);
-        frontier &= frontier - 1;
-        const uint64_t reached = same_side_[size_t(i)] & ~component;
-        component |= reached;
-        frontier |= reached;
+    const SideMasks& side = lower ? lower_ : upper_;
+    uint64_t left = side.vertices;
+    uint64_t component = side.grown != 0 ? side.grown : left & -left;
+    while (left != 0) {
+      // Grown through every kept tetrahedron's side that meets it, until a pass adds nothing.
+      for (uint64_t before = 0; component != before && component != left;) {
+        before = component;
+        for (size_t k = 0; k < side.num_pending; ++k) {
+          const uint64_t m = side.pending[k];
+          component |= (m & component) ? m : 0;
+        }
       }
+      reps.push_back(numbered_neighbors_[size_t(std::countr_zero(component))]);
       left &= ~component;
-      reps.push_back(numbered_neighbors_[size_t(std::countr_zero(seed))]);
+      component = left & -left;
     }
   }
 
@@ -165,28 +198,101 @@ class LinkComponents {
   std::span<const std::array<int, 3>> triangles() const { return triangles_; }
 
  private:
-  // One star tetrahedron, its vertices as numbers: each meets the others on its side (the
-  // centre's entry is a spare nobody reads).
-  [[gnu::always_inline]] void JoinSides(std::array<uint8_t, 4> local, uint64_t below,
-                                        uint64_t above) {
-    const uint64_t b0 = uint64_t(1) << local[0], b1 = uint64_t(1) << local[1],
-                   b2 = uint64_t(1) << local[2], b3 = uint64_t(1) << local[3];
-    const uint64_t in = b0 | b1 | b2 | b3;
-    const uint64_t lower = in & below, upper = in & above;
-    same_side_[local[0]] |= (b0 & below) ? lower : upper;
-    same_side_[local[1]] |= (b1 & below) ? lower : upper;
-    same_side_[local[2]] |= (b2 & below) ? lower : upper;
-    same_side_[local[3]] |= (b3 & below) ? lower : upper;
+  // One side of the link as the star is read: `grown` is a connected part of its vertices,
+  // grown by each tetrahedron whose vertices on the side meet it; a tetrahedron's that do not
+  // (two or more of them: a lone one joins nothing) waits in `pending` for
+  // MaskedRepresentatives. Once `grown` holds every vertex of the side, it is one component and
+  // the rest of the star cannot change that.
+  struct SideMasks {
+    uint64_t vertices = 0, grown = 0;
+    std::vector<uint64_t> pending;
+    size_t num_pending = 0;
+
+    // Whether the side is known already: at most one vertex, or none wanted.
+    bool Start(uint64_t side) {
+      vertices = side;
+      num_pending = 0;
+      grown = (side & (side - 1)) == 0 ? side : 0;
+      return grown == side;
+    }
+    void Reserve(size_t star_size) {
+      if (pending.size() < star_size + 1) pending.resize(star_size + 1);
+    }
+    // Without a branch on the data: the pending count moves on only when the mask is kept.
+    [[gnu::always_inline]] bool Add(uint64_t in) {
+      const uint64_t m = in & vertices;
+      const bool several = (m & (m - 1)) != 0;
+      const bool meets = (m & grown) != 0 || grown == 0;
+      grown |= several && meets ? m : 0;
+      pending[num_pending] = m;
+      num_pending += several && !meets;
+      return grown == vertices;
+    }
+  };
+
+  // Numbers v's neighbours by their place in VV in the table (v itself is kCenter there, as is
+  // every vertex between scans); returns the masks of those below and above v.
+  std::pair<uint64_t, uint64_t> NumberNeighbors(const Topology& topology,
+                                                std::span<const SimplexId> vv, SimplexId ov,
+                                                std::span<const SimplexId> order) {
+    if (local_.empty()) local_.assign(size_t(topology.num_vertices()), kCenter);
+    numbered_neighbors_ = vv;
+    uint64_t below = 0;
+    for (size_t i = 0; i < vv.size(); ++i) {
+      local_[vv[i]] = uint8_t(i);
+      below |= uint64_t(order[vv[i]] < ov) << i;
+    }
+    return {below, ((uint64_t(1) << vv.size()) - 1) & ~below};
+  }
+  // The side's groups, breadth-first over the edges between its vertices: the first becomes
+  // `grown`, the others wait in `pending` whole (MaskedRepresentatives finds them as they are).
+  // A walk stops once its group holds all the side's vertices not yet grouped.
+  template <class Reader>
+  void GroupByEdges(Reader& reader, std::span<const SimplexId> vv, SideMasks& side) {
+    side.Reserve(vv.size());
+    for (uint64_t left = side.vertices; left != 0;) {
+      uint64_t group = left & -left, frontier = group;
+      while (frontier != 0 && group != left) {
+        const int i = std::countr_zero(frontier);
+        frontier &= frontier - 1;
+        uint64_t adjacent = 0;
+        for (SimplexId w : reader.vertex_neighbors(vv[size_t(i)])) {
+          adjacent |= uint64_t(1) << local_[w];
+        }
+        adjacent &= left & ~group;
+        group |= adjacent;
+        frontier |= adjacent;
+      }
+      if (left == side.vertices) {
+        side.grown = group;
+      } else {
+        side.pending[side.num_pending++] = group;
+      }
+      left &= ~group;
+    }
+  }
+
+  // Both sides' masks for a new vertex; true when no tetrahedron needs reading.
+  bool StartSides(Sides sides, uint64_t below, uint64_t above) {
+    const bool lower_known = lower_.Start(sides & kLower ? below : 0);
+    return upper_.Start(sides & kUpper ? above : 0) && lower_known;
+  }
+  // One star tetrahedron, its vertices as numbers (the centre's bit is on neither side); true
+  // once both sides are known.
+  [[gnu::always_inline]] bool AddTetrahedron(std::array<uint8_t, 4> local) {
+    const uint64_t in = uint64_t(1) << local[0] | uint64_t(1) << local[1] |
+                        uint64_t(1) << local[2] | uint64_t(1) << local[3];
+    const bool lower_known = lower_.Add(in);
+    return upper_.Add(in) && lower_known;
   }
 
   static constexpr size_t kMaxNumbered = 63;  // bit 63 is the centre's
   static constexpr uint8_t kCenter = 63;
-  std::vector<uint8_t> local_;  // ScanNumbered: by vertex id, its place in the last VV read
+  // ScanNumbered, ScanByEdges: by vertex id, its place in v's VV during v's scan; kCenter
+  // (on neither side) for v and for every vertex between scans.
+  std::vector<uint8_t> local_;
   std::vector<std::array<uint8_t, 4>> local_tetrahedra_;  // ScanMasked: the star as numbers
-  // ScanNumbered: per link vertex (and the centre's spare), the link vertices on its side that
-  // share a star tetrahedron with it; and each side's link vertices.
-  std::array<uint64_t, kMaxNumbered + 1> same_side_{};
-  uint64_t numbered_below_ = 0, numbered_above_ = 0;
+  SideMasks lower_, upper_;
   std::span<const SimplexId> numbered_neighbors_;  // VV of the vertex
   UnionFind components_;                           // over the link vertices (a few tens)
   LinkVertexIndex index_;

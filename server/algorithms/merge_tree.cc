@@ -92,6 +92,8 @@ absl::Status ScanLinks(Structure& structure, std::span<const SimplexId> order,
   for (LowerLinks* side : sides) {
     if (side != nullptr) side->first.assign(size_t(n), LowerLinks::kLeaf);
   }
+  const auto wanted = LinkComponents::Sides((join != nullptr ? LinkComponents::kLower : 0) |
+                                            (split != nullptr ? LinkComponents::kUpper : 0));
   bool with_neighbors = false;
   if constexpr (Structure::kRelationsInPlace) {
     with_neighbors = structure.relations().Contains(Relation::kVV);
@@ -107,13 +109,16 @@ absl::Status ScanLinks(Structure& structure, std::span<const SimplexId> order,
         std::vector<SimplexId> reps;
         for (int32_t b = range.begin; b < range.end; ++b) {
           for (SimplexId v = topo.block_vertex_begin(b); v < topo.block_vertex_begin(b + 1); ++v) {
-            // Bit masks (numbered by VV where it is stored, else as the star meets the link),
-            // or for a link of more than 63 vertices the general scan.
+            // Where VV is stored: for one tree the groups of neighbours joined by edges, for
+            // both the link's masks numbered by VV. Else the masks numbered as the star meets
+            // the link, or for a link of more than 63 vertices the general scan.
             bool masked = false;
             if constexpr (Structure::kRelationsInPlace) {
-              masked = with_neighbors && link.ScanNumbered(reader, v, order);
+              masked = with_neighbors && (wanted == LinkComponents::kBothSides
+                                              ? link.ScanNumbered(reader, v, order, wanted)
+                                              : link.ScanByEdges(reader, v, order, wanted));
             }
-            if (!masked) masked = link.ScanMasked(reader, v, order);
+            if (!masked) masked = link.ScanMasked(reader, v, order, wanted);
             if (!masked) link.Scan(reader, v, order);
             for (int s = 0; s < 2; ++s) {
               if (sides[s] == nullptr) continue;
@@ -161,11 +166,19 @@ absl::Status ScanLinks(Structure& structure, std::span<const SimplexId> order,
   return absl::OkStatus();
 }
 
-SweptTree Sweep(const Topology& topology, std::span<const SimplexId> order, bool reversed,
-                LowerLinks links) {
+std::vector<SimplexId> VerticesInOrder(std::span<const SimplexId> order, int threads) {
+  std::vector<SimplexId> sorted(order.size());
+  ParallelForRanges(SimplexId(order.size()), 1 << 16, threads, [&](int64_t begin, int64_t end) {
+    for (int64_t v = begin; v < end; ++v) sorted[size_t(order[size_t(v)])] = SimplexId(v);
+  });
+  return sorted;
+}
+
+SweptTree Sweep(const Topology& topology, std::span<const SimplexId> order,
+                std::span<const SimplexId> in_order, bool reversed, LowerLinks links) {
   const SimplexId n = topology.num_vertices();
-  std::vector<SimplexId> by_key(static_cast<size_t>(n));
-  for (SimplexId v = 0; v < n; ++v) by_key[reversed ? n - 1 - order[v] : order[v]] = v;
+  // The k-th vertex of the sweep.
+  const auto by_key = [&](SimplexId k) { return in_order[size_t(reversed ? n - 1 - k : k)]; };
 
   SweptTree tree;
   tree.reversed = reversed;
@@ -187,15 +200,15 @@ SweptTree Sweep(const Topology& topology, std::span<const SimplexId> order, bool
   constexpr SimplexId kAhead = 16;
   for (SimplexId k = 0; k < n; ++k) {
     if (k + kAhead < n) {
-      const SimplexId ahead = by_key[k + kAhead];
+      const SimplexId ahead = by_key(k + kAhead);
       __builtin_prefetch(&arc_node[ahead]);
       components.Prefetch(ahead);
     }
     if (k + kAhead / 2 < n) {
-      const SimplexId lower = arc_node[by_key[k + kAhead / 2]];
+      const SimplexId lower = arc_node[by_key(k + kAhead / 2)];
       if (lower >= 0) components.Prefetch(lower);
     }
-    const SimplexId v = by_key[k];
+    const SimplexId v = by_key(k);
     const SimplexId first = arc_node[v];
     if (first == LowerLinks::kLeaf) {
       arc_node[v] = new_node(v, true);
@@ -232,7 +245,7 @@ SweptTree Sweep(const Topology& topology, std::span<const SimplexId> order, bool
   tree.num_components = components_left;
   std::vector<int32_t> root_node;  // per component, its last node before the top
   for (SimplexId k = n - 1; k >= 0 && components_left > 0; --k) {
-    const SimplexId v = by_key[k];
+    const SimplexId v = by_key(k);
     const SimplexId root = components.Find(v);
     const int32_t last = arc_node[root];
     if (component_of_root[last] >= 0) continue;
@@ -446,11 +459,12 @@ absl::StatusOr<TreeResult> RunTree(Structure& structure, std::span<const Simplex
   std::optional<SweptTree> join_tree, split_tree;
   {
     Trace::Scope span(trace, "sweep", "phase");
+    const std::vector<SimplexId> in_order = VerticesInOrder(order, context.consumers);
     // The contour tree's two sweeps are independent: side by side when there are two consumers.
     std::thread split_thread;
     if (split) {
       const auto sweep_split = [&] {
-        split_tree = Sweep(topology, order, true, std::move(split_links));
+        split_tree = Sweep(topology, order, in_order, true, std::move(split_links));
       };
       if (join && context.consumers > 1) {
         split_thread = std::thread(sweep_split);
@@ -458,7 +472,7 @@ absl::StatusOr<TreeResult> RunTree(Structure& structure, std::span<const Simplex
         sweep_split();
       }
     }
-    if (join) join_tree = Sweep(topology, order, false, std::move(join_links));
+    if (join) join_tree = Sweep(topology, order, in_order, false, std::move(join_links));
     if (split_thread.joinable()) split_thread.join();
   }
   Trace::Scope span(trace, type == TreeType::kContour ? "combine" : "numbering", "phase");

@@ -12,9 +12,10 @@
 // link; a sequential sweep in the vertex order then joins vertices with union-find, whose root
 // per component is its latest node. Only vertices whose lower link has two or more components
 // are checked for a merge. The scan keeps each link as bit masks (LinkComponents::ScanMasked);
-// where VV is stored (explicit) it numbers the link by it (ScanNumbered), faster still, while
-// compact and actopo would compute VV only to save less than it costs. The contour tree's two
-// sweeps run side by side.
+// where VV is stored (explicit) it numbers the link by it (ScanNumbered) for the contour tree's
+// two sides, and for one tree groups the lower neighbours by the edges between them
+// (ScanByEdges), all a merge needs; compact and actopo would compute VV only to save less than
+// it costs. The contour tree's two sweeps run side by side.
 //
 //   ASSIGN_OR_RETURN(TreeResult join, RunTree(*structure, order, TreeType::kJoin, context));
 //   for (const TreeArc& a : join.arcs) ... join.nodes[a.down_node].vertex ...

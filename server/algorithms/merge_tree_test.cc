@@ -10,6 +10,7 @@
 #include "server/algorithms/link_components.h"
 #include "server/algorithms/persistence_diagram.h"
 #include "server/algorithms/testing/tree_oracle.h"
+#include "server/algorithms/union_find.h"
 #include "server/algorithms/vertex_order.h"
 #include "server/core/actopo_structure.h"
 #include "server/core/compact_structure.h"
@@ -54,6 +55,18 @@ Mesh WideSaddle() {
   return m;
 }
 
+// Two tetrahedra meeting at vertex 0 alone, and a third joining their vertices 1 and 4 by an
+// edge outside 0's star: 0's lower link has two components, its lower neighbours one group
+// joined by edges (so 0 is no join saddle: 1 and 4 meet below it).
+Mesh BridgedLink() {
+  Mesh m;
+  m.points = {0, 0,  0, 1, 0, 0,  0, 1,  0,   0, 0,  1,   -1, 0, 0,  // 0-4
+              0, -1, 0, 0, 0, -1, 1, -1, 0.5, 1, -1, -0.5};          // 5-8
+  m.tetrahedra = {0, 1, 2, 3, 0, 4, 5, 6, 1, 4, 7, 8};
+  m.point_fields.push_back({"height", {10, 1, 2, 3, 1.5, 2.5, 3.5, 0.5, 0.7}});
+  return m;
+}
+
 std::vector<Case> Cases() {
   std::vector<Case> out;
   const auto add = [&out](std::string name, Mesh m) {
@@ -67,6 +80,7 @@ std::vector<Case> Cases() {
   add("bipyramid", testing::Bipyramid(12, true));
   add("pinched", PinchedWithIsolatedPoint());
   add("wide_saddle", WideSaddle());
+  add("bridged_link", BridgedLink());
   Mesh ties = testing::Lattice(7, 6, 5, 3);
   for (double& x : ties.point_fields[0].values) x = std::round(x * 2) / 2;
   add("lattice_ties", std::move(ties));
@@ -149,29 +163,112 @@ TEST(LinkComponents, MaskScansFindScansComponents) {
     auto structure = OkValue(ExplicitStructure::Build(topo, {.relations = TreeDeclared()}));
     auto reader = structure->NewReader();
     for (bool by_neighbors : {true, false}) {
-      const std::string scan = std::string(name) + (by_neighbors ? " ScanNumbered" : " ScanMasked");
-      LinkComponents star_scan, mask_scan;
+      for (LinkComponents::Sides sides :
+           {LinkComponents::kLower, LinkComponents::kUpper, LinkComponents::kBothSides}) {
+        const std::string scan = std::string(name) +
+                                 (by_neighbors ? " ScanNumbered" : " ScanMasked") + " sides " +
+                                 std::to_string(int(sides));
+        LinkComponents star_scan, mask_scan;
+        int declined = 0;
+        std::vector<SimplexId> reps;
+        for (SimplexId v = 0; v < topo->num_vertices(); ++v) {
+          if (!(by_neighbors ? mask_scan.ScanNumbered(reader, v, order, sides)
+                             : mask_scan.ScanMasked(reader, v, order, sides))) {
+            EXPECT_GT(reader.vertex_neighbors(v).size(), 63u) << scan << " vertex " << v;
+            ++declined;
+            continue;
+          }
+          star_scan.Scan(reader, v, order);
+          for (bool lower : {true, false}) {
+            if (!(sides & (lower ? LinkComponents::kLower : LinkComponents::kUpper))) continue;
+            int expected = 0;
+            for (size_t i = 0; i < star_scan.size(); ++i) {
+              expected += star_scan.below(i) == lower && star_scan.IsRepresentative(i);
+            }
+            mask_scan.MaskedRepresentatives(lower, reps);
+            EXPECT_EQ(int(reps.size()), expected) << scan << " vertex " << v << " lower " << lower;
+            for (SimplexId w : reps) {
+              EXPECT_EQ(order[w] < order[v], lower) << scan << " vertex " << v;
+            }
+          }
+        }
+        EXPECT_EQ(declined, declines) << scan;
+      }
+    }
+  }
+}
+
+// ScanByEdges groups each side's neighbours by the mesh edges between them: as many groups as a
+// union-find over the tetrahedra's edges makes, a vertex of the right side from each. Around
+// BridgedLink's vertex 0 that is one group where the lower link has two components.
+TEST(LinkComponents, ScanByEdgesGroupsNeighboursByMeshEdges) {
+  Mesh lattice = testing::Lattice(9, 8, 7, 12);
+  const auto far =
+      OkValue(Topology::Build(lattice, *LabelBlocks(testing::SliceLabels(lattice, 3))));
+  const Mesh wide = WideSaddle(), bridged = BridgedLink();
+  for (const auto& [name, topo, scalars, declines] :
+       {std::tuple{"far lattice", far, lattice.point_fields[0].values, 0},
+        std::tuple{"wide saddle", Build(wide, 8), wide.point_fields[0].values, 3},
+        std::tuple{"bridged link", Build(bridged, 3), bridged.point_fields[0].values, 0}}) {
+    const std::vector<SimplexId> order = VertexOrder(*topo, scalars);
+    std::set<std::pair<SimplexId, SimplexId>> edges;
+    for (SimplexId t = 0; t < topo->num_tetrahedra(); ++t) {
+      const auto tuple = topo->tetrahedron(t);
+      for (int i = 0; i < 4; ++i) {
+        for (int j = 0; j < 4; ++j) {
+          if (i != j) edges.insert({tuple[i], tuple[j]});
+        }
+      }
+    }
+    auto structure = OkValue(ExplicitStructure::Build(topo, {.relations = TreeDeclared()}));
+    auto reader = structure->NewReader();
+    LinkComponents scan;
+    std::vector<SimplexId> reps;
+    for (bool lower : {true, false}) {
       int declined = 0;
-      std::vector<SimplexId> reps;
       for (SimplexId v = 0; v < topo->num_vertices(); ++v) {
-        if (!(by_neighbors ? mask_scan.ScanNumbered(reader, v, order)
-                           : mask_scan.ScanMasked(reader, v, order))) {
-          EXPECT_GT(reader.vertex_neighbors(v).size(), 63u) << scan << " vertex " << v;
+        const std::string where =
+            std::string(name) + " vertex " + std::to_string(v) + (lower ? " lower" : " upper");
+        if (!scan.ScanByEdges(reader, v, order,
+                              lower ? LinkComponents::kLower : LinkComponents::kUpper)) {
           ++declined;
           continue;
         }
-        star_scan.Scan(reader, v, order);
-        for (bool lower : {true, false}) {
-          int expected = 0;
-          for (size_t i = 0; i < star_scan.size(); ++i) {
-            expected += star_scan.below(i) == lower && star_scan.IsRepresentative(i);
-          }
-          mask_scan.MaskedRepresentatives(lower, reps);
-          EXPECT_EQ(int(reps.size()), expected) << scan << " vertex " << v << " lower " << lower;
-          for (SimplexId w : reps) EXPECT_EQ(order[w] < order[v], lower) << scan << " vertex " << v;
+        std::vector<SimplexId> side;
+        for (auto it = edges.lower_bound({v, 0}); it != edges.end() && it->first == v; ++it) {
+          if ((order[it->second] < order[v]) == lower) side.push_back(it->second);
         }
+        UnionFind groups(side.size());
+        for (size_t i = 0; i < side.size(); ++i) {
+          for (size_t j = 0; j < i; ++j) {
+            if (edges.count({side[i], side[j]})) groups.Union(int32_t(i), int32_t(j));
+          }
+        }
+        std::set<int32_t> expected, named;
+        for (size_t i = 0; i < side.size(); ++i) expected.insert(groups.Find(int32_t(i)));
+        scan.MaskedRepresentatives(lower, reps);
+        for (SimplexId w : reps) {
+          const auto at = std::find(side.begin(), side.end(), w);
+          ASSERT_NE(at, side.end()) << where << ": " << w << " is not on the side";
+          named.insert(groups.Find(int32_t(at - side.begin())));
+        }
+        EXPECT_EQ(reps.size(), expected.size()) << where;
+        EXPECT_EQ(named.size(), reps.size()) << where << ": two vertices of one group";
       }
-      EXPECT_EQ(declined, declines) << scan;
+      EXPECT_EQ(declined, declines) << name;
+    }
+    if (std::string(name) == "bridged link") {
+      const SimplexId centre = topo->vertex_internal_id(0);
+      LinkComponents star_scan;
+      star_scan.Scan(reader, centre, order);
+      int lower_components = 0;
+      for (size_t i = 0; i < star_scan.size(); ++i) {
+        lower_components += star_scan.below(i) && star_scan.IsRepresentative(i);
+      }
+      EXPECT_EQ(lower_components, 2);
+      ASSERT_TRUE(scan.ScanByEdges(reader, centre, order, LinkComponents::kLower));
+      scan.MaskedRepresentatives(true, reps);
+      EXPECT_EQ(reps.size(), 1u);
     }
   }
 }
