@@ -37,6 +37,9 @@ struct AugmentedTree {
   // Per swept node: the candidates inserted on its arc, ascending along the sweep
   // (inserted[inserted_begin[i] .. inserted_begin[i + 1])).
   std::vector<int32_t> inserted_begin, inserted;
+  // Per inserted candidate, its rank along the sweep: PieceOf searches these, side by side,
+  // rather than a vertex and its order per step.
+  std::vector<SimplexId> inserted_key;
 
   // FTMTree_MT::delNode: a root loses its only arc down; a node with at most one arc down loses
   // its arc up, and its arc down (if any) takes over the upper node and the region.
@@ -112,7 +115,11 @@ AugmentedTree Augment(const SweptTree& tree, std::span<const int32_t> of_tree,
   for (const auto& [node, k] : on_arc) ++a.inserted_begin[node + 1];
   for (size_t i = 0; i < swept_nodes; ++i) a.inserted_begin[i + 1] += a.inserted_begin[i];
   a.inserted.reserve(on_arc.size());
-  for (const auto& [node, k] : on_arc) a.inserted.push_back(k);
+  a.inserted_key.reserve(on_arc.size());
+  for (const auto& [node, k] : on_arc) {
+    a.inserted.push_back(k);
+    a.inserted_key.push_back(key(k));
+  }
 
   a.arc_up.assign(n, -1);
   for (size_t i = 0; i < swept_nodes; ++i) {
@@ -142,16 +149,13 @@ AugmentedTree Augment(const SweptTree& tree, std::span<const int32_t> of_tree,
 // The piece of augmented tree `a` holding regular vertex v: the arc of the highest candidate
 // below v on v's arc of the merge tree.
 int32_t PieceOf(const AugmentedTree& a, std::span<const int32_t> of_tree,
-                const Candidates& candidates, std::span<const SimplexId> order, SimplexId v) {
+                std::span<const SimplexId> order, SimplexId v) {
   const int32_t node = a.swept->vertex_node[v];
-  const auto begin = a.inserted.begin() + a.inserted_begin[node];
-  const auto end = a.inserted.begin() + a.inserted_begin[node + 1];
-  const bool reversed = a.swept->reversed;
-  const auto above = std::partition_point(begin, end, [&](int32_t k) {
-    const SimplexId o = order[candidates.vertex[k]];
-    return reversed ? o > order[v] : o < order[v];
-  });
-  return above == begin ? of_tree[node] : *(above - 1);
+  const auto begin = a.inserted_key.begin() + a.inserted_begin[node];
+  const auto end = a.inserted_key.begin() + a.inserted_begin[node + 1];
+  const SimplexId key = a.swept->reversed ? -order[v] : order[v];
+  const auto above = std::lower_bound(begin, end, key);
+  return above == begin ? of_tree[node] : a.inserted[size_t(above - a.inserted_key.begin()) - 1];
 }
 
 // The contour tree of one run of the forest, appended to `result` (FTMTree_CT::combine, then
@@ -361,7 +365,7 @@ absl::StatusOr<TreeResult> BuildContourTree(const Topology& topology,
   // Each vertex's arc, written over its join tree node once read (each vertex reads only its own).
   std::vector<int32_t>& vertex_arc = join.vertex_node;
   std::atomic<int64_t> lost{0};
-  ParallelForRanges(num_vertices, 1 << 14, DefaultThreads(), [&](int64_t begin, int64_t end) {
+  ParallelForRanges(num_vertices, 1 << 14, threads, [&](int64_t begin, int64_t end) {
     for (SimplexId v = SimplexId(begin); v < SimplexId(end); ++v) {
       const int32_t join_node = join.vertex_node[v];
       int32_t arc = -1;
@@ -371,9 +375,9 @@ absl::StatusOr<TreeResult> BuildContourTree(const Topology& topology,
         arc = last_arc[ct_of[candidates.of_vertex.at(v)]];
       } else {
         const int32_t j =
-            join_tree.claimed[PieceOf(join_tree, candidates.of_join, candidates, order, v)];
+            join_tree.claimed[PieceOf(join_tree, candidates.of_join, order, v)];
         const int32_t s =
-            split_tree.claimed[PieceOf(split_tree, candidates.of_split, candidates, order, v)];
+            split_tree.claimed[PieceOf(split_tree, candidates.of_split, order, v)];
         arc = j < 0 ? s : (s < 0 ? j : std::min(j, s));
       }
       vertex_arc[v] = arc;
