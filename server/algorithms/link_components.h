@@ -12,9 +12,8 @@
 // The trees want one vertex per component, and links of at most 63 vertices (all but a few)
 // fit a bit mask: ScanMasked, or ScanNumbered where VV is stored (the explicit structure), find
 // the components without a union-find, read each link vertex's order once instead of once per
-// star tetrahedron around it, and stop joining (ScanNumbered: reading the star) once the sides
-// asked for are connected. A merge tree, one side, needs less than the link: ScanByEdges groups
-// the side's neighbours by the mesh edges between them, from VV alone (figures:
+// star tetrahedron around it. A merge tree, one side, needs less than the link: ScanByEdges
+// groups the side's neighbours by the mesh edges between them, from VV alone (figures:
 // bench/HISTORY.md). Then one vertex per component or group:
 //
 //   if (link.ScanMasked(reader, v, order, LinkComponents::kLower))
@@ -81,12 +80,12 @@ class LinkComponents {
 
   // From v's neighbours (VV, ascending) and star: the link vertices are numbered by their place
   // in VV, so a star tetrahedron's are looked up in a table, without the first-sight branch of a
-  // numbering made as the star is met. The star is read only until each wanted side is known to
-  // be connected (not at all for a side of at most one vertex). Returns false, having done
-  // nothing, when the link has more than kMaxNumbered vertices: Scan then. Both sides cost
-  // little more than one, so the contour tree asks for both. The table has a byte per mesh
-  // vertex (a window of ids around the vertex declined too many links, whose vertices lie in
-  // other blocks).
+  // numbering made as the star is met; each star tetrahedron's vertices on a side become a mask
+  // (the star is not read when each side asked for has at most one vertex). Returns false,
+  // having done nothing, when the link has more than kMaxNumbered vertices: Scan then. Both
+  // sides cost little more than one, so the contour tree asks for both. The table has a byte per
+  // mesh vertex (a window of ids around the vertex declined too many links, whose vertices lie
+  // in other blocks).
   template <class Reader>
   bool ScanNumbered(Reader& reader, SimplexId v, std::span<const SimplexId> order,
                     Sides sides = kBothSides) {
@@ -100,10 +99,7 @@ class LinkComponents {
       upper_.Reserve(star.size());
       for (SimplexId t : star) {
         const auto tuple = reader.tetrahedron_vertices(t);
-        if (AddTetrahedron(
-                {local_[tuple[0]], local_[tuple[1]], local_[tuple[2]], local_[tuple[3]]})) {
-          break;
-        }
+        AddTetrahedron({local_[tuple[0]], local_[tuple[1]], local_[tuple[2]], local_[tuple[3]]});
       }
     }
     for (SimplexId w : vv) local_[w] = kCenter;
@@ -126,7 +122,7 @@ class LinkComponents {
     const auto [below, above] = NumberNeighbors(reader.topology(), vv, order[v], order);
     if (!StartSides(sides, below, above)) {
       for (SideMasks* side : {&lower_, &upper_}) {
-        if (side->grown != side->vertices) GroupByEdges(reader, vv, *side);
+        if ((side->vertices & (side->vertices - 1)) != 0) GroupByEdges(reader, vv, *side);
       }
     }
     for (SimplexId w : vv) local_[w] = kCenter;
@@ -158,9 +154,7 @@ class LinkComponents {
     if (StartSides(sides, below, above)) return true;
     lower_.Reserve(star.size());
     upper_.Reserve(star.size());
-    for (const std::array<uint8_t, 4>& local : local_tetrahedra_) {
-      if (AddTetrahedron(local)) break;
-    }
+    for (const std::array<uint8_t, 4>& local : local_tetrahedra_) AddTetrahedron(local);
     return true;
   }
 
@@ -170,20 +164,19 @@ class LinkComponents {
   void MaskedRepresentatives(bool lower, std::vector<SimplexId>& reps) const {
     reps.clear();
     const SideMasks& side = lower ? lower_ : upper_;
-    uint64_t left = side.vertices;
-    uint64_t component = side.grown != 0 ? side.grown : left & -left;
-    while (left != 0) {
-      // Grown through every kept tetrahedron's side that meets it, until a pass adds nothing.
+    for (uint64_t left = side.vertices; left != 0;) {
+      // From its first vertex, grown through every kept mask that meets it until a pass adds
+      // nothing (a connected side, most of them: two or three passes).
+      uint64_t component = left & -left;
       for (uint64_t before = 0; component != before && component != left;) {
         before = component;
-        for (size_t k = 0; k < side.num_pending; ++k) {
-          const uint64_t m = side.pending[k];
+        for (size_t k = 0; k < side.num_masks; ++k) {
+          const uint64_t m = side.masks[k];
           component |= (m & component) ? m : 0;
         }
       }
       reps.push_back(numbered_neighbors_[size_t(std::countr_zero(component))]);
       left &= ~component;
-      component = left & -left;
     }
   }
 
@@ -198,35 +191,28 @@ class LinkComponents {
   std::span<const std::array<int, 3>> triangles() const { return triangles_; }
 
  private:
-  // One side of the link as the star is read: `grown` is a connected part of its vertices,
-  // grown by each tetrahedron whose vertices on the side meet it; a tetrahedron's that do not
-  // (two or more of them: a lone one joins nothing) waits in `pending` for
-  // MaskedRepresentatives. Once `grown` holds every vertex of the side, it is one component and
-  // the rest of the star cannot change that.
+  // One side of the link: its vertices, and each star tetrahedron's vertices on it when they are
+  // two or more (a lone one joins nothing), for MaskedRepresentatives' closure. ScanByEdges keeps
+  // its groups there instead, each whole.
   struct SideMasks {
-    uint64_t vertices = 0, grown = 0;
-    std::vector<uint64_t> pending;
-    size_t num_pending = 0;
+    uint64_t vertices = 0;
+    std::vector<uint64_t> masks;
+    size_t num_masks = 0;
 
-    // Whether the side is known already: at most one vertex, or none wanted.
+    // Whether the side needs no masks: at most one vertex (or none: not wanted).
     bool Start(uint64_t side) {
       vertices = side;
-      num_pending = 0;
-      grown = (side & (side - 1)) == 0 ? side : 0;
-      return grown == side;
+      num_masks = 0;
+      return (side & (side - 1)) == 0;
     }
-    void Reserve(size_t star_size) {
-      if (pending.size() < star_size + 1) pending.resize(star_size + 1);
+    void Reserve(size_t count) {
+      if (masks.size() < count + 1) masks.resize(count + 1);
     }
-    // Without a branch on the data: the pending count moves on only when the mask is kept.
-    [[gnu::always_inline]] bool Add(uint64_t in) {
+    // Without a branch on the data: the count moves on only when the mask is kept.
+    [[gnu::always_inline]] void Add(uint64_t in) {
       const uint64_t m = in & vertices;
-      const bool several = (m & (m - 1)) != 0;
-      const bool meets = (m & grown) != 0 || grown == 0;
-      grown |= several && meets ? m : 0;
-      pending[num_pending] = m;
-      num_pending += several && !meets;
-      return grown == vertices;
+      masks[num_masks] = m;
+      num_masks += (m & (m - 1)) != 0;
     }
   };
 
@@ -244,8 +230,7 @@ class LinkComponents {
     }
     return {below, ((uint64_t(1) << vv.size()) - 1) & ~below};
   }
-  // The side's groups, breadth-first over the edges between its vertices: the first becomes
-  // `grown`, the others wait in `pending` whole (MaskedRepresentatives finds them as they are).
+  // The side's groups, breadth-first over the edges between its vertices, each kept as one mask.
   // A walk stops once its group holds all the side's vertices not yet grouped.
   template <class Reader>
   void GroupByEdges(Reader& reader, std::span<const SimplexId> vv, SideMasks& side) {
@@ -263,11 +248,7 @@ class LinkComponents {
         group |= adjacent;
         frontier |= adjacent;
       }
-      if (left == side.vertices) {
-        side.grown = group;
-      } else {
-        side.pending[side.num_pending++] = group;
-      }
+      side.masks[side.num_masks++] = group;
       left &= ~group;
     }
   }
@@ -277,13 +258,12 @@ class LinkComponents {
     const bool lower_known = lower_.Start(sides & kLower ? below : 0);
     return upper_.Start(sides & kUpper ? above : 0) && lower_known;
   }
-  // One star tetrahedron, its vertices as numbers (the centre's bit is on neither side); true
-  // once both sides are known.
-  [[gnu::always_inline]] bool AddTetrahedron(std::array<uint8_t, 4> local) {
+  // One star tetrahedron, its vertices as numbers (the centre's bit is on neither side).
+  [[gnu::always_inline]] void AddTetrahedron(std::array<uint8_t, 4> local) {
     const uint64_t in = uint64_t(1) << local[0] | uint64_t(1) << local[1] |
                         uint64_t(1) << local[2] | uint64_t(1) << local[3];
-    const bool lower_known = lower_.Add(in);
-    return upper_.Add(in) && lower_known;
+    lower_.Add(in);
+    upper_.Add(in);
   }
 
   static constexpr size_t kMaxNumbered = 63;  // bit 63 is the centre's
