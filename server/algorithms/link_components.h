@@ -92,17 +92,21 @@ class LinkComponents {
     const auto vv = reader.vertex_neighbors(v);
     const size_t n = vv.size();
     if (n == 0 || n > kMaxNumbered) return false;
-    const auto [below, above] = NumberNeighbors(reader.topology(), vv, order[v], order);
+    const auto [below, above] = NumberNeighbors(numbered_, reader.topology(), vv, order[v], order);
+    // v's own entry may still hold its place in an earlier vertex's VV. The others are left as
+    // they are after the scan: a star holds v's neighbours only, all numbered afresh (clearing
+    // them after each vertex cost the contour tree's scan a sixth of its time).
+    numbered_[v] = kCenter;
     if (!StartSides(sides, below, above)) {
       const auto star = reader.vertex_star(v);
       lower_.Reserve(star.size());
       upper_.Reserve(star.size());
       for (SimplexId t : star) {
         const auto tuple = reader.tetrahedron_vertices(t);
-        AddTetrahedron({local_[tuple[0]], local_[tuple[1]], local_[tuple[2]], local_[tuple[3]]});
+        AddTetrahedron(
+            {numbered_[tuple[0]], numbered_[tuple[1]], numbered_[tuple[2]], numbered_[tuple[3]]});
       }
     }
-    for (SimplexId w : vv) local_[w] = kCenter;
     return true;
   }
 
@@ -119,13 +123,13 @@ class LinkComponents {
     const auto vv = reader.vertex_neighbors(v);
     const size_t n = vv.size();
     if (n == 0 || n > kMaxNumbered) return false;
-    const auto [below, above] = NumberNeighbors(reader.topology(), vv, order[v], order);
+    const auto [below, above] = NumberNeighbors(grouped_, reader.topology(), vv, order[v], order);
     if (!StartSides(sides, below, above)) {
       for (SideMasks* side : {&lower_, &upper_}) {
         if ((side->vertices & (side->vertices - 1)) != 0) GroupByEdges(reader, vv, *side);
       }
     }
-    for (SimplexId w : vv) local_[w] = kCenter;
+    for (SimplexId w : vv) grouped_[w] = kCenter;  // the neighbours' VV hold other vertices
     return true;
   }
 
@@ -216,16 +220,17 @@ class LinkComponents {
     }
   };
 
-  // Numbers v's neighbours by their place in VV in the table (v itself is kCenter there, as is
-  // every vertex between scans); returns the masks of those below and above v.
-  std::pair<uint64_t, uint64_t> NumberNeighbors(const Topology& topology,
+  // Numbers v's neighbours by their place in VV in `table` (a byte per mesh vertex, kCenter
+  // until written); returns the masks of those below and above v.
+  std::pair<uint64_t, uint64_t> NumberNeighbors(std::vector<uint8_t>& table,
+                                                const Topology& topology,
                                                 std::span<const SimplexId> vv, SimplexId ov,
                                                 std::span<const SimplexId> order) {
-    if (local_.empty()) local_.assign(size_t(topology.num_vertices()), kCenter);
+    if (table.empty()) table.assign(size_t(topology.num_vertices()), kCenter);
     numbered_neighbors_ = vv;
     uint64_t below = 0;
     for (size_t i = 0; i < vv.size(); ++i) {
-      local_[vv[i]] = uint8_t(i);
+      table[vv[i]] = uint8_t(i);
       below |= uint64_t(order[vv[i]] < ov) << i;
     }
     return {below, ((uint64_t(1) << vv.size()) - 1) & ~below};
@@ -242,7 +247,7 @@ class LinkComponents {
         frontier &= frontier - 1;
         uint64_t adjacent = 0;
         for (SimplexId w : reader.vertex_neighbors(vv[size_t(i)])) {
-          adjacent |= uint64_t(1) << local_[w];
+          adjacent |= uint64_t(1) << grouped_[w];
         }
         adjacent &= left & ~group;
         group |= adjacent;
@@ -268,9 +273,10 @@ class LinkComponents {
 
   static constexpr size_t kMaxNumbered = 63;  // bit 63 is the centre's
   static constexpr uint8_t kCenter = 63;
-  // ScanNumbered, ScanByEdges: by vertex id, its place in v's VV during v's scan; kCenter
-  // (on neither side) for v and for every vertex between scans.
-  std::vector<uint8_t> local_;
+  // By vertex id, its place in the VV of the vertex scanned: ScanNumbered's holds stale places
+  // of other vertices; ScanByEdges' holds kCenter (on neither side) for every vertex between
+  // scans, as it reads the neighbours' VV, which hold vertices that are not v's neighbours.
+  std::vector<uint8_t> numbered_, grouped_;
   std::vector<std::array<uint8_t, 4>> local_tetrahedra_;  // ScanMasked: the star as numbers
   SideMasks lower_, upper_;
   std::span<const SimplexId> numbered_neighbors_;  // VV of the vertex
