@@ -374,10 +374,8 @@ absl::StatusOr<TreeResult> BuildContourTree(const Topology& topology,
       } else if (is_node[v]) {
         arc = last_arc[ct_of[candidates.of_vertex.at(v)]];
       } else {
-        const int32_t j =
-            join_tree.claimed[PieceOf(join_tree, candidates.of_join, order, v)];
-        const int32_t s =
-            split_tree.claimed[PieceOf(split_tree, candidates.of_split, order, v)];
+        const int32_t j = join_tree.claimed[PieceOf(join_tree, candidates.of_join, order, v)];
+        const int32_t s = split_tree.claimed[PieceOf(split_tree, candidates.of_split, order, v)];
         arc = j < 0 ? s : (s < 0 ? j : std::min(j, s));
       }
       vertex_arc[v] = arc;
