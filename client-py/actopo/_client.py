@@ -757,14 +757,19 @@ class Session:
         >>> result.critical_points["CriticalType"], result.critical_points["ttkVertexScalarField"]
         (array([0, 3], dtype=int8), array([0, 4], dtype=int32))
         """
-        job = self.submit(algorithm, parameters=parameters, include_arrays=include_arrays,
-                          trace=trace, digests=digests, timeout=timeout, fields=fields)
+        job: Job | None = None
         try:
+            job = self.submit(algorithm, parameters=parameters, include_arrays=include_arrays,
+                              trace=trace, digests=digests, timeout=timeout, fields=fields)
             return job.result(progress=progress)
         except KeyboardInterrupt:
-            # Ctrl-C before result() got to its own handler (Python raises it at the first
-            # function call after the signal): the job is cancelled all the same.
-            job._cancel_after_interrupt()
+            # Python raises Ctrl-C between any two steps: after submit() returned but before
+            # `job` was set (the session's running job is then the one just started), or
+            # before result() got to its own handler. The job is cancelled all the same.
+            if job is None:
+                self._cancel_unnamed_job()
+            else:
+                job._cancel_after_interrupt()
             raise
 
     def run_fields(self, algorithm: Algorithm, fields: FieldsArg, *,

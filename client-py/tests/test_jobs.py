@@ -269,6 +269,32 @@ def test_ctrl_c_cancels_the_job(shared_server, client, big):
         assert session.run("critical-points", include_arrays=False).summary["counts"]
 
 
+def test_ctrl_c_right_after_submit_cancels_the_job(shared_server, client, big, monkeypatch):
+    """Python raises Ctrl-C between any two steps of run(): here right after submit() returned,
+    before run() holds the job, where only the session knows which job is running. The job's
+    stream is kept open, as a loaded machine may deliver its cancellation after the job ended:
+    the job must be cancelled by CancelJob."""
+    submit = actopo.Session.submit
+    kept: list[actopo.Job] = []
+
+    def submit_then_interrupt(self, *args, **kwargs):
+        kept.append(submit(self, *args, **kwargs))
+        raise KeyboardInterrupt
+
+    with client.open_session(big, structure="compact") as session:
+        with shared_server.hold("RunJob") as hold:
+            monkeypatch.setattr(actopo.Session, "submit", submit_then_interrupt)
+            with pytest.raises(KeyboardInterrupt):
+                session.run("morse-smale")
+            monkeypatch.undo()
+            assert hold.is_held and len(kept) == 1
+        try:
+            assert _stopped(session, 0), "the job ran on on the server after Ctrl-C"
+        finally:
+            kept[0]._call.cancel()
+        assert session.run("critical-points", include_arrays=False).summary["counts"]
+
+
 def test_deadline_and_busy_session(shared_server, client, big):
     with client.open_session(big, structure="compact") as session:
         with shared_server.hold("RunJob") as hold:
