@@ -174,8 +174,8 @@ std::vector<SimplexId> VerticesInOrder(std::span<const SimplexId> order, int thr
   return sorted;
 }
 
-SweptTree Sweep(const Topology& topology, std::span<const SimplexId> order,
-                std::span<const SimplexId> in_order, bool reversed, LowerLinks links) {
+SweptTree Sweep(const Topology& topology, std::span<const SimplexId> in_order, bool reversed,
+                LowerLinks links) {
   const SimplexId n = topology.num_vertices();
   // The k-th vertex of the sweep.
   const auto by_key = [&](SimplexId k) { return in_order[size_t(reversed ? n - 1 - k : k)]; };
@@ -464,7 +464,7 @@ absl::StatusOr<TreeResult> RunTree(Structure& structure, std::span<const Simplex
     std::thread split_thread;
     if (split) {
       const auto sweep_split = [&] {
-        split_tree = Sweep(topology, order, in_order, true, std::move(split_links));
+        split_tree = Sweep(topology, in_order, true, std::move(split_links));
       };
       if (join && context.consumers > 1) {
         split_thread = std::thread(sweep_split);
@@ -472,7 +472,7 @@ absl::StatusOr<TreeResult> RunTree(Structure& structure, std::span<const Simplex
         sweep_split();
       }
     }
-    if (join) join_tree = Sweep(topology, order, in_order, false, std::move(join_links));
+    if (join) join_tree = Sweep(topology, in_order, false, std::move(join_links));
     if (split_thread.joinable()) split_thread.join();
   }
   Trace::Scope span(trace, type == TreeType::kContour ? "combine" : "numbering", "phase");

@@ -60,9 +60,10 @@ struct SweptTree {
 // The vertices by rank in `order` (its inverse), on `threads`.
 std::vector<SimplexId> VerticesInOrder(std::span<const SimplexId> order, int threads);
 
-// The sweep in the order (reversed for a split tree), `in_order` its inverse; consumes `links`.
-SweptTree Sweep(const Topology& topology, std::span<const SimplexId> order,
-                std::span<const SimplexId> in_order, bool reversed, LowerLinks links);
+// The sweep in the order (reversed for a split tree), `in_order` the vertices by rank in it
+// (VerticesInOrder); consumes `links`.
+SweptTree Sweep(const Topology& topology, std::span<const SimplexId> in_order, bool reversed,
+                LowerLinks links);
 
 // TTK's forest (docs/trees-plan.md "Components"): the components, each run on its own, in the
 // order of their lowest input tetrahedron, then the vertices in no tetrahedron; or everything as
