@@ -29,6 +29,7 @@ from actopo._batches import Piece
 from actopo._channel import (
     DEFAULT_TIMEOUT,
     MESH_TIMEOUT,
+    OWN_CONNECTION,
     TlsArg,
     async_channel,
     client_metadata,
@@ -113,6 +114,7 @@ class AsyncClient:
         self._mesh_timeout = MESH_TIMEOUT if timeout is not None else None
         self._max_batch: int | None = None
         self._retries = retries
+        self._channel_args = (tls, tuple(options))
 
     async def __aenter__(self) -> Self:
         return self
@@ -226,7 +228,7 @@ class AsyncClient:
         try:
             await self._send(Sender(files, self._retries), created.upload, bar)
         except BaseException:
-            await self._delete_upload(created.upload.upload_id)
+            await self._delete_upload(created.upload.upload_id, own_connection=True)
             raise
         return created.upload.upload_id
 
@@ -281,12 +283,18 @@ class AsyncClient:
             except grpc.RpcError as e:
                 error = e
 
-    async def _delete_upload(self, upload_id: str) -> None:
+    async def _delete_upload(self, upload_id: str, *, own_connection: bool = False) -> None:
         """See Client._delete_upload()."""
-        with contextlib.suppress(grpc.RpcError):
-            await self._stub.DeleteUpload(pb.DeleteUploadRequest(upload_id=upload_id),
-                                          timeout=_file_upload.DELETE_SECONDS,
-                                          metadata=self._metadata, wait_for_ready=True)
+        request = pb.DeleteUploadRequest(upload_id=upload_id)
+        async with contextlib.AsyncExitStack() as stack:
+            stub = self._stub
+            if own_connection:
+                tls, options = self._channel_args
+                stub = async_stub(await stack.enter_async_context(async_channel(
+                    self.target, tls, [*options, OWN_CONNECTION], self._retries)))
+            with contextlib.suppress(grpc.RpcError):
+                await stub.DeleteUpload(request, timeout=_file_upload.DELETE_SECONDS,
+                                        metadata=self._metadata, wait_for_ready=True)
 
     async def download_mesh(self, mesh: MeshRef, fields: FieldsArg = None, *,
                             progress: ProgressArg = None) -> MeshArrays:

@@ -81,6 +81,9 @@ RECONNECT_OPTIONS: list[tuple[str, Any]] = [
     ("grpc.initial_reconnect_backoff_ms", 100),
     ("grpc.max_reconnect_backoff_ms", 1_000),
 ]
+OWN_CONNECTION: tuple[str, Any] = ("grpc.use_local_subchannel_pool", 1)
+"""The option that gives a channel a connection of its own (gRPC otherwise shares one among a
+process's channels to the same target with the same options)."""
 RETRY_BUFFER_BYTES = 4 << 20
 """Largest request kept for retrying (gRPC's default, 256 KiB, is less than a batch)."""
 

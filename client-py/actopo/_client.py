@@ -19,6 +19,7 @@ from actopo._batches import Piece
 from actopo._channel import (
     DEFAULT_TIMEOUT,
     MESH_TIMEOUT,
+    OWN_CONNECTION,
     TlsArg,
     client_metadata,
     resolve_target,
@@ -117,6 +118,7 @@ class Client:
         self._mesh_timeout = MESH_TIMEOUT if timeout is not None else None
         self._max_batch: int | None = None
         self._retries = retries
+        self._channel_args = (tls, tuple(options))
 
     def __enter__(self) -> Self:
         return self
@@ -316,7 +318,7 @@ class Client:
         try:
             self._send(Sender(files, self._retries), created.upload, bar)
         except BaseException:
-            self._delete_upload(created.upload.upload_id)
+            self._delete_upload(created.upload.upload_id, own_connection=True)
             raise
         return created.upload.upload_id
 
@@ -372,14 +374,23 @@ class Client:
             except grpc.RpcError as e:
                 error = e
 
-    def _delete_upload(self, upload_id: str) -> None:
-        """Drops an upload on the server, if it can be reached and still has it."""
-        with contextlib.suppress(grpc.RpcError):
+    def _delete_upload(self, upload_id: str, *, own_connection: bool = False) -> None:
+        """Drops an upload on the server, if it can be reached and still has it.
+
+        `own_connection`: sent on a connection of its own, for a stopped WriteUpload: what that
+        call had handed to the client's connection (up to the server's flow-control window, a
+        few MiB) goes out before anything sent after it, seconds on a slow link."""
+        request = pb.DeleteUploadRequest(upload_id=upload_id)
+        with contextlib.ExitStack() as stack, contextlib.suppress(grpc.RpcError):
+            stub = self._stub
+            if own_connection:
+                tls, options = self._channel_args
+                stub = sync_stub(stack.enter_context(sync_channel(
+                    self.target, tls, [*options, OWN_CONNECTION], self._retries)))
             # wait_for_ready: after a cut connection the channel reconnects within the timeout
             # instead of failing at once.
-            self._stub.DeleteUpload(pb.DeleteUploadRequest(upload_id=upload_id),
-                                    timeout=_file_upload.DELETE_SECONDS, metadata=self._metadata,
-                                    wait_for_ready=True)
+            stub.DeleteUpload(request, timeout=_file_upload.DELETE_SECONDS,
+                              metadata=self._metadata, wait_for_ready=True)
 
     def download_mesh(self, mesh: MeshRef, fields: FieldsArg = None, *,
                       progress: ProgressArg = None) -> MeshArrays:
