@@ -230,11 +230,16 @@ absl::StatusOr<UploadStatus> Get(const internal::Core& core, std::string_view up
   return internal::FromProto(response.upload());
 }
 
-absl::Status Delete(const internal::Core& core, std::string_view upload_id) {
+// DeleteUpload through `stub`: the client's, or after a stopped WriteUpload one on a connection
+// of its own (Core::StubOnOwnConnection), since what that stream had handed to the shared
+// connection (up to the server's flow-control window, a few MiB) goes out before anything sent
+// after it: seconds on a slow link, never on a stalled one.
+absl::Status Delete(const internal::Core& core, v1::TopologyService::Stub& stub,
+                    std::string_view upload_id) {
   v1::DeleteUploadRequest request;
   request.set_upload_id(std::string(upload_id));
-  return core.Unary(&v1::TopologyService::Stub::DeleteUpload, request, core.QuickContext())
-      .status();
+  v1::DeleteUploadResponse response;
+  return internal::FromGrpc(stub.DeleteUpload(core.QuickContext().get(), request, &response));
 }
 
 // Puts the `n` bytes of a file from `at` into `chunk` (resized to n).
@@ -388,15 +393,18 @@ class Reporter {
   Clock::time_point start_;
 };
 
-// Deletes the upload when it goes, unless kept: every way out of UploadFile but a success (the
-// load dropped it) or giving up on the connection (the server keeps it for a later call).
+// Deletes the upload when it goes, on a connection of its own (see Delete), unless kept: every
+// way out of UploadFile but a success (the load dropped it) or giving up on the connection (the
+// server keeps it for a later call).
 class DeleteUnlessKept {
  public:
   DeleteUnlessKept(const internal::Core& core, std::string id) : core_(core), id_(std::move(id)) {}
   DeleteUnlessKept(const DeleteUnlessKept&) = delete;
   DeleteUnlessKept& operator=(const DeleteUnlessKept&) = delete;
   ~DeleteUnlessKept() {
-    if (!id_.empty()) Delete(core_, id_).IgnoreError();  // it may be gone already
+    if (!id_.empty()) {
+      Delete(core_, *core_.StubOnOwnConnection(), id_).IgnoreError();  // may be gone already
+    }
   }
   void Keep() { id_.clear(); }
 
@@ -621,7 +629,9 @@ absl::StatusOr<UploadStatus> Client::GetUpload(std::string_view upload_id) {
   return Get(*core_, upload_id);
 }
 
-absl::Status Client::DeleteUpload(std::string_view upload_id) { return Delete(*core_, upload_id); }
+absl::Status Client::DeleteUpload(std::string_view upload_id) {
+  return Delete(*core_, *core_->stub, upload_id);
+}
 
 absl::StatusOr<MeshInfo> Client::LoadUpload(std::string_view upload_id,
                                             const LoadOptions& options) {

@@ -108,6 +108,8 @@ class CuttingProxy {
     cut_ = true;
   }
   bool cut() const { return cut_; }
+  // Whether the first connection has stopped reading from the client.
+  bool stalled() const { return stalled_; }
   int connections() const { return connections_; }
 
  private:
@@ -163,7 +165,10 @@ class CuttingProxy {
           done += w;
         }
         if (side == 0) up += n;
-        if (first && up >= stall_after_) fds[0].fd = -1;  // poll() leaves it alone
+        if (first && up >= stall_after_) {
+          fds[0].fd = -1;  // poll() leaves it alone
+          stalled_ = true;
+        }
       }
     }
   }
@@ -174,6 +179,7 @@ class CuttingProxy {
   int listen_ = -1;
   int port_ = 0;
   std::atomic<bool> cut_{false};
+  std::atomic<bool> stalled_{false};
   std::atomic<int> connections_{0};
   std::mutex mu_;
   std::vector<int> sockets_;  // client, server, client, server, ...: guarded by mu_
@@ -595,6 +601,37 @@ TEST_F(UploadFileTest, CancelledUploadIsDropped) {
   EXPECT_TRUE(HasError(mesh, StatusCode::kCancelled));
   ASSERT_FALSE(id.empty());
   EXPECT_TRUE(HasError(client().GetUpload(id), StatusCode::kNotFound));
+}
+
+// Cancelled once the link carries nothing more (the proxy stalls the connection): the upload is
+// still deleted, as its DeleteUpload goes on a connection of its own. On the client's connection
+// it would wait behind the cancelled stream's bytes until its deadline.
+TEST_F(UploadFileTest, CancelledUploadIsDroppedPastAStalledConnection) {
+  CuttingProxy proxy(Port(), /*stall_after=*/300 << 10);
+  ASSERT_TRUE(proxy.ok());
+  absl::StatusOr<std::unique_ptr<Client>> proxied =
+      Client::Connect(proxy.target(), {.default_timeout = std::chrono::seconds(5)});
+  ASSERT_OK(proxied);
+  CancelToken cancel;
+  std::string id;
+  std::thread canceller([&] {
+    WaitUntil([&] { return proxy.stalled(); });
+    cancel.Cancel();  // also when the wait failed: UploadFile must end
+  });
+  absl::StatusOr<MeshInfo> mesh =
+      (*proxied)->UploadFile(Data("fertility_tet.vtu"), {.progress =
+                                                             [&](const UploadFileProgress& p) {
+                                                               if (!p.upload_id.empty())
+                                                                 id = p.upload_id;
+                                                             },
+                                                         .chunk_bytes = 64 << 10,
+                                                         .cancel = cancel});
+  canceller.join();
+  EXPECT_TRUE(proxy.stalled());
+  EXPECT_TRUE(HasError(mesh, StatusCode::kCancelled));
+  ASSERT_FALSE(id.empty());
+  EXPECT_TRUE(HasError(client().GetUpload(id), StatusCode::kNotFound));
+  EXPECT_GE(proxy.connections(), 2);
 }
 
 TEST_F(UploadFileTest, OverTheUploadBudgetIsResourceExhausted) {

@@ -974,7 +974,9 @@ class Client {
   // RESOURCE_EXHAUSTED past the server's upload budget; DATA_LOSS when the bytes the server got
   // do not hash to the digest announced; ABORTED when a file changed while being read; the
   // load's errors (a file that is not a mesh, ...) as LoadMesh gives them. On an error other
-  // than giving up on a broken connection the upload is deleted.
+  // than giving up on a broken connection the upload is deleted, through a connection of its
+  // own (on the client's, the DeleteUpload would wait behind the bytes the stopped stream left
+  // queued there: seconds on a slow link).
   //
   //   auto mesh = client->UploadFile("/data/wavelet128.vtu", {
   //       .progress = [](const actopo::client::UploadFileProgress& p) {

@@ -63,6 +63,12 @@ std::unique_ptr<grpc::ClientContext> Core::Context(std::chrono::milliseconds tim
   return context;
 }
 
+std::unique_ptr<v1::TopologyService::Stub> Core::StubOnOwnConnection() const {
+  grpc::ChannelArguments args = channel_args;
+  args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
+  return v1::TopologyService::NewStub(grpc::CreateCustomChannel(target, credentials, args));
+}
+
 absl::StatusOr<std::shared_ptr<Core>> NewCore(std::string target, const ClientOptions& options) {
   if (target.empty()) {
     const char* env = std::getenv("ACTOPO_SERVER");
@@ -113,6 +119,8 @@ absl::StatusOr<std::shared_ptr<Core>> NewCore(std::string target, const ClientOp
   core->options = options;
   ACTOPO_ASSIGN_OR_RETURN(core->options.affinity_key, AffinityKey(options.affinity_key));
   core->channel = grpc::CreateCustomChannel(target, credentials, args);
+  core->credentials = credentials;
+  core->channel_args = args;
   core->stub = v1::TopologyService::NewStub(core->channel);
   if (options.connect_timeout.count() > 0 &&
       !core->channel->WaitForConnected(std::chrono::system_clock::now() +

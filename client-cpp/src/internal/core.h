@@ -42,6 +42,9 @@ struct Core {
   ClientOptions options;  // options.affinity_key is resolved (never empty)
   std::shared_ptr<grpc::Channel> channel;
   std::unique_ptr<v1::TopologyService::Stub> stub;
+  // What made the channel, for StubOnOwnConnection.
+  std::shared_ptr<grpc::ChannelCredentials> credentials;
+  grpc::ChannelArguments channel_args;
   std::atomic<int64_t> max_batch_size{0};  // from GetServerInfo, 0 until asked
 
   // A context carrying the token and the affinity key, with a deadline `timeout` from now (none if
@@ -52,6 +55,10 @@ struct Core {
   }
   std::unique_ptr<grpc::ClientContext> MeshContext() const { return Context(options.mesh_timeout); }
 
+  // A stub on a channel with a connection of its own (gRPC otherwise shares one connection
+  // among a process's channels to the same target with the same arguments): for a call that
+  // must not wait behind what a stopped stream left queued in the shared one.
+  std::unique_ptr<v1::TopologyService::Stub> StubOnOwnConnection() const;
   // One unary call: client->Unary(&Stub::GetMesh, request, QuickContext()).
   template <class Request, class Response>
   absl::StatusOr<Response> Unary(grpc::Status (v1::TopologyService::Stub::*method)(
