@@ -10,6 +10,7 @@
 
 #include "gtest/gtest.h"
 #include "server/algorithms/discrete_gradient.h"
+#include "server/algorithms/link_components.h"
 #include "server/algorithms/testing/gradient_checks.h"
 #include "server/algorithms/vertex_order.h"
 #include "server/core/actopo_structure.h"
@@ -205,6 +206,51 @@ TEST(CriticalPoints, OnBoundaryIsTheOraclesVertexBoundary) {
   EXPECT_EQ(r.points[0].vertex, 0);
   EXPECT_EQ(r.points[0].type, CriticalType::kMinimum);
   EXPECT_TRUE(r.points[0].on_boundary);
+}
+
+// The mask scan's boundary: for every vertex of links within 63 vertices, the ends of the link
+// edges that one star tetrahedron alone holds, counted here over the star, and none exactly when
+// the oracle's VB says the vertex is inside (a non-manifold mesh among them: a link edge three
+// tetrahedra hold is inside, as in LinkEdgeCounter).
+TEST(CriticalPoints, MaskedBoundaryEndsAreTheLinkEdgesMetOnce) {
+  std::vector<Fixture> fixtures = Fixtures();
+  const Mesh odd = testing::NonManifold();
+  auto odd_topo = Build(odd, 4);
+  fixtures.push_back({odd_topo, VertexOrder(*odd_topo, odd.point_fields[0].values)});
+  int ends_seen = 0;
+  for (const Fixture& f : fixtures) {
+    const testing::RelationOracle oracle(*f.topo);
+    const auto& vb = oracle.rows(Relation::kVB);
+    const auto& vt = oracle.rows(Relation::kVT);
+    auto structure =
+        OkValue(ExplicitStructure::Build(f.topo, {.relations = CriticalPointsDeclared()}));
+    auto reader = structure->NewReader();
+    LinkComponents scan;
+    for (SimplexId v = 0; v < f.topo->num_vertices(); ++v) {
+      ASSERT_TRUE(scan.ScanMasked(reader, v, f.order, LinkComponents::kBothSides)) << v;
+      std::map<std::pair<SimplexId, SimplexId>, int> edges;
+      for (SimplexId t : vt[v]) {
+        std::vector<SimplexId> other;
+        for (SimplexId w : f.topo->tetrahedron(t)) {
+          if (w != v) other.push_back(w);
+        }
+        std::sort(other.begin(), other.end());
+        ++edges[{other[0], other[1]}], ++edges[{other[0], other[2]}], ++edges[{other[1], other[2]}];
+      }
+      std::set<SimplexId> expected, found;
+      for (const auto& [edge, count] : edges) {
+        if (count == 1) expected.insert({edge.first, edge.second});
+      }
+      const uint64_t ends = scan.MaskedBoundaryEnds();
+      for (int i = 0; i < 64; ++i) {
+        if ((ends >> i) & 1) found.insert(scan.MaskedVertex(i));
+      }
+      EXPECT_EQ(found, expected) << "vertex " << v;
+      EXPECT_EQ(ends != 0, vb[v][0] != 0) << "vertex " << v;
+      ends_seen += !found.empty();
+    }
+  }
+  EXPECT_GT(ends_seen, 0);
 }
 
 TEST(CriticalPoints, MinimaAgreeWithTheGradient) {

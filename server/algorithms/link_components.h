@@ -12,7 +12,8 @@
 // The trees want one vertex per component, and links of at most 63 vertices (all but a few)
 // fit a bit mask: ScanMasked, or ScanNumbered where VV is stored (the explicit structure), find
 // the components without a union-find, read each link vertex's order once instead of once per
-// star tetrahedron around it. A merge tree, one side, needs less than the link: ScanByEdges
+// star tetrahedron around it. Critical points count them after ScanMasked, which also gives the
+// ends of v's boundary triangles (MaskedBoundaryEnds). A merge tree, one side, needs less than the link: ScanByEdges
 // groups the side's neighbours by the mesh edges between them, from VV alone (figures:
 // bench/HISTORY.md). Then one vertex per component or group:
 //
@@ -184,6 +185,33 @@ class LinkComponents {
     }
   }
 
+  // After ScanMasked, by its numbers (bit i: link vertex i, bit 0 the centre): the vertices of
+  // the side asked for (`lower` or upper), and the ends of the link edges that one star
+  // tetrahedron alone holds, which are the ends of the boundary triangles around v (none inside
+  // the mesh). Per link vertex, the link edges met once and those met again are two masks.
+  uint64_t MaskedSide(bool lower) const { return (lower ? lower_ : upper_).vertices; }
+  uint64_t MaskedBoundaryEnds() {
+    const size_t n = index_.vertices().size();
+    once_.assign(n, 0);
+    twice_.assign(n, 0);
+    for (const std::array<uint8_t, 4>& local : local_tetrahedra_) {
+      const uint64_t triangle = (uint64_t(1) << local[0] | uint64_t(1) << local[1] |
+                                 uint64_t(1) << local[2] | uint64_t(1) << local[3]) &
+                                ~uint64_t(1);
+      for (uint64_t left = triangle; left != 0; left &= left - 1) {
+        const int i = std::countr_zero(left);
+        const uint64_t others = triangle & ~(uint64_t(1) << i);
+        twice_[size_t(i)] |= once_[size_t(i)] & others;
+        once_[size_t(i)] |= others;
+      }
+    }
+    uint64_t ends = 0;
+    for (size_t i = 1; i < n; ++i) ends |= once_[i] & ~twice_[i];
+    return ends;
+  }
+  // Link vertex i of ScanMasked's numbering (0 is the centre).
+  SimplexId MaskedVertex(int i) const { return numbered_neighbors_[size_t(i)]; }
+
   // The link vertices (internal ids), numbered as the star met them.
   std::span<const SimplexId> neighbors() const { return index_.vertices(); }
   size_t size() const { return index_.vertices().size(); }
@@ -278,6 +306,7 @@ class LinkComponents {
   // scans, as it reads the neighbours' VV, which hold vertices that are not v's neighbours.
   std::vector<uint8_t> numbered_, grouped_;
   std::vector<std::array<uint8_t, 4>> local_tetrahedra_;  // ScanMasked: the star as numbers
+  std::vector<uint64_t> once_, twice_;  // MaskedBoundaryEnds: per link vertex, its link edges
   SideMasks lower_, upper_;
   std::span<const SimplexId> numbered_neighbors_;  // VV of the vertex
   UnionFind components_;                           // over the link vertices (a few tens)
