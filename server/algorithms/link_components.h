@@ -13,9 +13,9 @@
 // fit a bit mask: ScanMasked, or ScanNumbered where VV is stored (the explicit structure), find
 // the components without a union-find, read each link vertex's order once instead of once per
 // star tetrahedron around it. Critical points count them after ScanMasked, which also gives the
-// ends of v's boundary triangles (MaskedBoundaryEnds). A merge tree, one side, needs less than the link: ScanByEdges
-// groups the side's neighbours by the mesh edges between them, from VV alone (figures:
-// bench/HISTORY.md). Then one vertex per component or group:
+// ends of v's boundary triangles (MaskedBoundaryEnds). A merge tree, one side, needs less than
+// the link: ScanByEdges groups the side's neighbours by the mesh edges between them, from VV
+// alone (figures: bench/HISTORY.md). Then one vertex per component or group:
 //
 //   if (link.ScanMasked(reader, v, order, LinkComponents::kLower))
 //     link.MaskedRepresentatives(/*lower=*/true, reps);
